@@ -1,0 +1,104 @@
+"""Distortion measures of a disk map f: M → D (§7.1 of the paper and ``shared/docs/ALGORITHM.md``).
+
+All functions take the surface vertices ``V`` (n×3), faces ``F`` (m×3) and the map ``uv`` (n×2)
+and are pure. Areas: ``|τ|`` on the surface, ``|f(τ)|`` in the plane, ``|M| = Σ|τ|``,
+``|f(M)| = Σ|f(τ)|``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .laplacian import face_double_areas
+
+
+def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Twice the signed area of every image face; positive = counter-clockwise."""
+    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Indices of image faces with non-positive signed area (flipped or collapsed)."""
+    return np.flatnonzero(signed_double_areas(uv, F) <= 0.0)
+
+
+def stretch_energy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
+                   surface_double_area: np.ndarray | None = None) -> float:
+    """``E_S(f) = Σ_τ |f(τ)|² / |τ|`` (eq. 15, equal to ``½ fᴴ L(f) f``)."""
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
+    a = signed_double_areas(uv, F)
+    return float(0.5 * np.sum(a * a / A))
+
+
+def energy_ratio(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
+                 surface_double_area: np.ndarray | None = None) -> float:
+    """``E_S(f) / (|f(M)|² / |M|)`` ≥ 1 by Cauchy–Schwarz, with equality iff f is equiareal."""
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
+    a = np.abs(signed_double_areas(uv, F))
+    return float(np.sum(a * a / A) * np.sum(A) / np.sum(a) ** 2)
+
+
+def _vertex_area_fractions(V, F, uv):
+    A = face_double_areas(V, F)
+    a = np.abs(signed_double_areas(uv, F))
+    n = len(V)
+    fan = lambda x: np.bincount(F.ravel(), weights=np.repeat(x, 3), minlength=n)  # noqa: E731
+    return fan(A / A.sum()), fan(a / a.sum())
+
+
+def total_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
+    """Per-vertex total area distortion D(f), eq. (28):
+    ``⅓ Σ_v | Σ_{τ∋v}|τ|/|M| − Σ_{τ∋v}|f(τ)|/|f(M)| |``."""
+    surface, image = _vertex_area_fractions(V, F, uv)
+    return float(np.abs(surface - image).sum() / 3.0)
+
+
+def local_area_ratios(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Local area ratio R(v) per vertex, eq. (29); 1 everywhere for an equiareal map."""
+    surface, image = _vertex_area_fractions(V, F, uv)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return surface / image
+
+
+def face_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
+    """Face-based total area distortion ``Σ_τ | |τ|/|M| − |f(τ)|/|f(M)| |`` (0 iff equiareal)."""
+    A = face_double_areas(V, F)
+    a = np.abs(signed_double_areas(uv, F))
+    return float(np.abs(A / A.sum() - a / a.sum()).sum())
+
+
+def corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Interior angle (radians) at every corner of every face (m×3), for 2D or 3D points."""
+    out = np.empty((len(F), 3))
+    for c in range(3):
+        u = P[F[:, (c + 1) % 3]] - P[F[:, c]]
+        v = P[F[:, (c + 2) % 3]] - P[F[:, c]]
+        cos = np.einsum("ij,ij->i", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
+        out[:, c] = np.arccos(np.clip(cos, -1.0, 1.0))
+    return out
+
+
+def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``|angle on M − angle on the disk|`` per corner, in degrees (paper Fig. 5)."""
+    return np.degrees(np.abs(corner_angles(V, F) - corner_angles(uv, F)))
+
+
+def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
+    """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``."""
+    R = local_area_ratios(V, F, uv)
+    ang = angular_distortion(V, F, uv)
+    R_finite = R[np.isfinite(R)]
+    return {
+        "total_area_distortion_eq28": total_area_distortion(V, F, uv),
+        "face_area_distortion": face_area_distortion(V, F, uv),
+        "local_area_ratio_mean": float(R_finite.mean()),
+        "local_area_ratio_sd": float(R_finite.std()),
+        "angular_distortion_mean_deg": float(ang.mean()),
+        "angular_distortion_sd_deg": float(ang.std()),
+        "flipped_faces": int(len(flipped_faces(uv, F))),
+        "stretch_energy": stretch_energy(V, F, uv),
+        "energy_ratio": energy_ratio(V, F, uv),
+        "surface_area": float(face_double_areas(V, F).sum() / 2),
+        "image_area": float(np.abs(signed_double_areas(uv, F)).sum() / 2),
+    }

@@ -1,0 +1,319 @@
+"""Stretch Energy Minimization (Algorithm 1 of Yueh, Lin, Wu, Yau 2019), and its converged form.
+
+One SEM step from a map ``f`` (complex, one value per vertex), line for line:
+
+    L  ← L(f)                                  stretch Laplacian, eq. (12)–(14)
+    f_B ← solve L_BB f_B = −L_BI f_I            eq. (19)   [Remark 2: f_I → 1/conj(f_I)]
+    f_B ← f_B − mean(f_B)                       eq. (20)   centralize
+    f_B ← f_B / |f_B|                           eq. (21)   back onto the unit circle
+    f_I ← solve L_II f_I = −L_IB f_B            eq. (22)
+
+Modes:
+
+* ``paper`` — Algorithm 1: at most ``max_iter`` (10) steps from the harmonic map; stop and keep
+  the previous map as soon as ``E_S`` rises (Remark 3). A step that would flip a face is damped,
+  ``f + α (f_SEM − f)`` with the boundary kept on the circle, halving α until it does not.
+* ``converged`` — iterate until the energy stops decreasing. The plain SEM fixed-point iteration
+  is fast at first but is not a descent method: on real meshes its energy turns back up and it
+  passes through folded maps (negative stretch weights, Remark 4). So:
+
+  A. plain SEM steps, keeping the best *flip-free* iterate by the normalized energy
+     ``E_S / (|f(M)|²/|M|)``; this phase ends once ``patience`` steps bring no new best;
+  B. from that iterate, a monotone descent: each step tries the SEM step and the preconditioned
+     gradient step ``f_I ← f_I − P⁻¹ (L(f) f)_I``. ``L(f) f`` is half the gradient of ``E_S`` (an
+     identity of the paper's Appendix, checked by finite differences in the tests) and ``P`` is
+     ``L_II`` with non-positive weights clamped, so ``P`` is SPD and the step is a descent
+     direction. A step is accepted only if it lowers the energy and flips no face: damped by
+     halving, and vertices of faces that would flip keep their previous position.
+     Phase B ends when the relative decrease stays below ``tol`` for ``patience`` steps in a
+     row, or at ``max_iter`` steps in all.
+
+The returned map is the best flip-free map found, so it has no flipped face whenever the
+harmonic start has none (guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
+what remains, and callers treat a non-zero count as failure.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .harmonic import clamp_positive, harmonic_map
+from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
+                        laplacian_blocks, laplacian_pattern)
+from .metrics import face_area_distortion, signed_double_areas, total_area_distortion
+from .solvers import NotPositiveDefinite, make_solver, solve_complex
+
+MODES = ("paper", "converged")
+
+
+@dataclass
+class SEMOptions:
+    mode: str = "converged"
+    max_iter: int | None = None   # default: 10 in paper mode, 2000 in converged mode
+    tol: float = 1e-7             # converged: relative decrease of the energy counted as none
+    patience: int = 20            # converged: steps without progress that end a phase
+    inversion: bool = False       # Remark 2
+    solver: str = "auto"
+    min_step: float = 1.0 / 64    # smallest damping factor tried before giving up on a step
+    max_step: float = 8.0         # converged: largest extrapolation of an accepted full step
+
+    def iterations(self) -> int:
+        if self.max_iter is not None:
+            return self.max_iter
+        return 10 if self.mode == "paper" else 2000
+
+
+@dataclass
+class SEMResult:
+    uv: np.ndarray                       # n×2
+    status: str                          # converged | max_iter | energy_rose | stalled
+    iterations: int
+    flipped_faces: int
+    harmonic: dict
+    history: list = field(default_factory=list)    # one dict per accepted map (0 = harmonic)
+    timings: dict = field(default_factory=dict)    # seconds per phase
+    solver: str = ""
+
+
+def _as_uv(f: np.ndarray) -> np.ndarray:
+    return np.column_stack([f.real, f.imag])
+
+
+class _Problem:
+    """Everything fixed during the iterations: areas, Laplacian pattern, solvers."""
+
+    def __init__(self, V, F, boundary, solver_kind):
+        self.V, self.F = V, F
+        self.A2 = face_double_areas(V, F)        # 2|τ|
+        self.area_M = self.A2.sum() / 2
+        self.pattern = laplacian_pattern(F, len(V), boundary)
+        self.I, self.B = self.pattern.interior, self.pattern.boundary
+        # Separate factors: L_II(f) and its clamped form have the same pattern but their own
+        # values; L_BB is the small boundary system.
+        self.solver_I = make_solver(solver_kind)
+        self.solver_P = make_solver(solver_kind)
+        self.solver_B = make_solver(solver_kind)
+
+    def evaluate(self, f):
+        """``(E_S, E_S/(|f(M)|²/|M|), flipped faces)`` of the map ``f`` (eq. 15)."""
+        a2 = signed_double_areas(_as_uv(f), self.F)
+        E = float(0.5 * np.sum(a2 * a2 / self.A2))
+        area_f = np.abs(a2).sum() / 2
+        return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0))
+
+    def weights(self, f):
+        """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
+        return edge_weights(self.pattern, corner_dot_over_area(_as_uv(f), self.F, self.A2))
+
+    def release(self):
+        for s in (self.solver_I, self.solver_P, self.solver_B):
+            s.release()
+
+
+def sem_step(problem: _Problem, f: np.ndarray, blocks, inversion: bool = False) -> np.ndarray:
+    """One SEM update, eq. (19)–(22), from ``f`` with the stretch Laplacian blocks of ``f``."""
+    L_II, L_IB, L_BB = blocks
+    I, B = problem.I, problem.B
+    fI = f[I]
+    if inversion:                                                     # Remark 2
+        fI = fI / np.abs(fI) ** 2
+    fB = solve_complex(problem.solver_B, L_BB, -(L_IB.T @ fI))        # eq. (19)
+    fB = fB - fB.mean()                                               # eq. (20)
+    fB = fB / np.abs(fB)                                              # eq. (21)
+    g = np.empty_like(f)
+    g[B] = fB
+    g[I] = solve_complex(problem.solver_I, L_II, -(L_IB @ fB))        # eq. (22)
+    return g
+
+
+def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks) -> np.ndarray:
+    """Preconditioned gradient step on the interior: ``f_I − P⁻¹ (L(f) f)_I``, where
+    ``(L(f) f)_I = ½ ∇_I E_S`` and ``P`` is ``L_II`` with positive (clamped) weights."""
+    L_II, L_IB, _ = blocks
+    I, B = problem.I, problem.B
+    grad = L_II @ f[I] + L_IB @ f[B]
+    P_II = laplacian_blocks(problem.pattern, clamp_positive(w))[0]
+    g = f.copy()
+    g[I] = f[I] - solve_complex(problem.solver_P, P_II, grad)
+    return g
+
+
+def damped(f: np.ndarray, g: np.ndarray, alpha: float, boundary: np.ndarray) -> np.ndarray:
+    """``f + α (g − f)`` with the boundary projected back onto the unit circle."""
+    h = f + alpha * (g - f)
+    h[boundary] /= np.abs(h[boundary])
+    return h
+
+
+def hold_flipping_vertices(f: np.ndarray, g: np.ndarray, F: np.ndarray, allowed: int,
+                           evaluate, rounds: int = 8):
+    """Keep the previous position of every vertex of a face that ``g`` flips, until ``g`` flips
+    no more faces than ``allowed`` (or ``rounds`` passes); returns ``(g, evaluation)``."""
+    value = evaluate(g)
+    for _ in range(rounds):
+        if value[2] <= allowed:
+            break
+        held = F[signed_double_areas(_as_uv(g), F) <= 0].ravel()
+        g = g.copy()
+        g[held] = f[held]
+        value = evaluate(g)
+    return g, value
+
+
+def line_search(problem: _Problem, f, g, current, better, min_step, hold: bool,
+                max_step: float = 1.0):
+    """Largest ``α = 1, ½, ¼ … ≥ min_step`` whose damped map flips no new face and satisfies
+    ``better(evaluation)``; if α = 1 passes, ``α = 2, 4 … ≤ max_step`` while the energy keeps
+    falling. Returns ``(map, evaluation, α)`` or ``None``."""
+    alpha = 1.0
+    while alpha >= min_step:
+        cand = g if alpha == 1.0 else damped(f, g, alpha, problem.B)
+        if hold:
+            cand, value = hold_flipping_vertices(f, cand, problem.F, current[2], problem.evaluate)
+        else:
+            value = problem.evaluate(cand)
+        if value[2] <= current[2] and better(value):
+            break
+        alpha /= 2
+    else:
+        return None
+    if alpha == 1.0 and max_step > 1.0:
+        # The full step is accepted: extrapolate along it while that keeps lowering the energy
+        # (energy evaluations cost far less than the factorization that produced the step).
+        while alpha < max_step:
+            ext = damped(f, g, 2 * alpha, problem.B)
+            ext_value = problem.evaluate(ext)
+            if ext_value[2] > current[2] or not ext_value[1] < value[1]:
+                break
+            cand, value, alpha = ext, ext_value, 2 * alpha
+    return cand, value, alpha
+
+
+def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarray,
+                                options: SEMOptions | None = None, progress=None) -> SEMResult:
+    """Equiareal disk map of a disk mesh (one boundary loop, given in order) by SEM.
+
+    ``boundary`` must be ordered with the surface on its left (as
+    :func:`pipeline.geometry.topology.boundary_loops` returns it) so that the image of a
+    consistently oriented mesh is counter-clockwise. ``progress`` is called with each history
+    entry if given.
+    """
+    opt = options or SEMOptions()
+    if opt.mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}")
+    V = np.asarray(V, dtype=np.float64)
+    F = np.asarray(F, dtype=np.int64)
+    timings = {}
+    t0 = time.perf_counter()
+    problem = _Problem(V, F, boundary, opt.solver)
+    timings["setup"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    h = harmonic_map(V, F, problem.pattern, problem.solver_I)
+    timings["harmonic"] = time.perf_counter() - t0
+
+    history: list = []
+    t_start = time.perf_counter()
+
+    def record(it, f, value, alpha, phase):
+        uv = _as_uv(f)
+        entry = {"iteration": it, "phase": phase, "stretch_energy": value[0],
+                 "energy_ratio": value[1],
+                 "total_area_distortion_eq28": total_area_distortion(V, F, uv),
+                 "face_area_distortion": face_area_distortion(V, F, uv),
+                 "flipped_faces": value[2], "step": alpha,
+                 "seconds": time.perf_counter() - t_start}
+        history.append(entry)
+        if progress:
+            progress(entry)
+
+    f = h.f
+    value = problem.evaluate(f)
+    record(0, f, value, 0.0, "harmonic")
+    if opt.mode == "paper":
+        f, value, it, status = _paper_iterations(problem, f, value, opt, record)
+    else:
+        f, value, it, status = _converged_iterations(problem, f, value, opt, record)
+    timings["sem"] = time.perf_counter() - t_start
+    problem.release()
+    return SEMResult(uv=_as_uv(f), status=status, iterations=it, flipped_faces=value[2],
+                     harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
+                               "flipped_faces": h.flipped_faces},
+                     history=history, timings=timings, solver=problem.solver_I.name)
+
+
+def _paper_iterations(problem, f, value, opt, record):
+    """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3)."""
+    for it in range(1, opt.iterations() + 1):
+        w = problem.weights(f)
+        try:
+            g = sem_step(problem, f, laplacian_blocks(problem.pattern, w), opt.inversion)
+        except NotPositiveDefinite:
+            return f, value, it - 1, "stalled"
+        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=False)
+        if step is None:
+            return f, value, it - 1, "stalled"
+        g, new, alpha = step
+        if new[0] > value[0]:
+            return f, value, it - 1, "energy_rose"
+        f, value = g, new
+        record(it, f, value, alpha, "sem")
+    return f, value, opt.iterations(), "max_iter"
+
+
+def _converged_iterations(problem, f, value, opt, record):
+    """Phase A (plain SEM, best flip-free iterate) then phase B (monotone descent)."""
+    max_iter = opt.iterations()
+    best = (f, value) if value[2] == 0 else None
+    it, since_best, g = 0, 0, f
+    while it < max_iter and since_best < opt.patience:            # phase A
+        w = problem.weights(g)
+        try:
+            g = sem_step(problem, g, laplacian_blocks(problem.pattern, w), opt.inversion)
+        except NotPositiveDefinite:
+            break
+        it += 1
+        v = problem.evaluate(g)
+        if v[2] == 0 and (best is None or v[1] < best[1][1]):
+            # A new best that removes less than 1 % of the excess energy E_S/bound − 1 counts
+            # as no progress: phase B's descent with extrapolated steps is faster from there.
+            slow = best is not None and (best[1][1] - v[1]) < 0.01 * (best[1][1] - 1.0)
+            best, since_best = (g, v), (since_best + 1 if slow else 0)
+            record(it, g, v, 1.0, "sem")
+        else:
+            since_best += 1
+    if best is not None:
+        f, value = best
+    status, quiet = "max_iter", 0
+    order = ["gradient", "sem"]
+    while it < max_iter:                                            # phase B
+        w = problem.weights(f)
+        blocks = laplacian_blocks(problem.pattern, w)
+        step = None
+        for kind in order:
+            try:
+                g = (gradient_step(problem, f, w, blocks) if kind == "gradient"
+                     else sem_step(problem, f, blocks, opt.inversion))
+            except NotPositiveDefinite:
+                continue
+            step = line_search(problem, f, g, value, lambda v: v[1] < value[1], opt.min_step,
+                               hold=True, max_step=opt.max_step)
+            if step is not None:
+                break
+        if step is None:
+            status = "stalled" if quiet < opt.patience else "converged"
+            break
+        it += 1
+        if kind != order[0]:
+            order.reverse()                 # try first what worked last
+        g, new, alpha = step
+        quiet = quiet + 1 if (value[1] - new[1]) < opt.tol * value[1] else 0
+        f, value = g, new
+        record(it, f, value, alpha, kind)
+        if quiet >= opt.patience:
+            status = "converged"
+            break
+    return f, value, it, status
