@@ -52,18 +52,19 @@ MODES = ("paper", "converged")
 @dataclass
 class SEMOptions:
     mode: str = "converged"
-    max_iter: int | None = None   # default: 10 in paper mode, 2000 in converged mode
+    max_iter: int | None = None   # default: 10 in paper mode, 1000 in converged mode
     tol: float = 1e-7             # converged: relative decrease of the energy counted as none
     patience: int = 20            # converged: steps without progress that end a phase
     inversion: bool = False       # Remark 2
     solver: str = "auto"
     min_step: float = 1.0 / 64    # smallest damping factor tried before giving up on a step
     max_step: float = 8.0         # converged: largest extrapolation of an accepted full step
+    refactor_every: int = 8       # converged: reuse the preconditioner's factor this many steps
 
     def iterations(self) -> int:
         if self.max_iter is not None:
             return self.max_iter
-        return 10 if self.mode == "paper" else 2000
+        return 10 if self.mode == "paper" else 1000
 
 
 @dataclass
@@ -129,15 +130,21 @@ def sem_step(problem: _Problem, f: np.ndarray, blocks, inversion: bool = False) 
     return g
 
 
-def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks) -> np.ndarray:
+def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks,
+                  refactor: bool = True) -> np.ndarray:
     """Preconditioned gradient step on the interior: ``f_I − P⁻¹ (L(f) f)_I``, where
-    ``(L(f) f)_I = ½ ∇_I E_S`` and ``P`` is ``L_II`` with positive (clamped) weights."""
+    ``(L(f) f)_I = ½ ∇_I E_S`` and ``P`` is ``L_II`` with positive (clamped) weights.
+
+    With ``refactor=False`` the preconditioner factored at an earlier map is reused: any SPD
+    ``P`` gives a descent direction, and one solve costs far less than a refactorization."""
     L_II, L_IB, _ = blocks
     I, B = problem.I, problem.B
     grad = L_II @ f[I] + L_IB @ f[B]
-    P_II = laplacian_blocks(problem.pattern, clamp_positive(w))[0]
+    if refactor:
+        problem.solver_P.factorize(laplacian_blocks(problem.pattern, clamp_positive(w))[0])
+    X = problem.solver_P.solve(np.column_stack([grad.real, grad.imag]))
     g = f.copy()
-    g[I] = f[I] - solve_complex(problem.solver_P, P_II, grad)
+    g[I] = f[I] - (X[:, 0] + 1j * X[:, 1])
     return g
 
 
@@ -289,20 +296,28 @@ def _converged_iterations(problem, f, value, opt, record):
         f, value = best
     status, quiet = "max_iter", 0
     order = ["gradient", "sem"]
+    age = None                      # iterations since the preconditioner was factored
     while it < max_iter:                                            # phase B
         w = problem.weights(f)
         blocks = laplacian_blocks(problem.pattern, w)
         step = None
-        for kind in order:
+        tries = [(k, False) for k in order]
+        if age is not None and age < opt.refactor_every:
+            tries.insert(0, ("gradient", True))      # first: the stale preconditioner
+        for kind, stale in tries:
             try:
-                g = (gradient_step(problem, f, w, blocks) if kind == "gradient"
-                     else sem_step(problem, f, blocks, opt.inversion))
+                if kind == "gradient":
+                    g = gradient_step(problem, f, w, blocks, refactor=not stale)
+                    age = age + 1 if stale else 0
+                else:
+                    g = sem_step(problem, f, blocks, opt.inversion)
             except NotPositiveDefinite:
                 continue
             step = line_search(problem, f, g, value, lambda v: v[1] < value[1], opt.min_step,
                                hold=True, max_step=opt.max_step)
-            if step is not None:
+            if step is not None and not (stale and step[2] < 1.0):
                 break
+            step = None                     # a damped stale step: refactor and try again
         if step is None:
             status = "stalled" if quiet < opt.patience else "converged"
             break

@@ -1,0 +1,144 @@
+"""YAML run configuration: schema, safe loading, and one-line errors.
+
+A config names an input (a mesh file or the embedded synthetic sample) and configures each
+stage. It is read with ``yaml.safe_load`` and validated by the pydantic models below
+(``extra="forbid"``), so an unknown key, a wrong type or a missing file is one line naming the
+key, e.g. ``config.yaml: parameterize.max_iters: unknown key; did you mean 'max_iter'?``.
+Input paths are relative to the config file's folder; ``run.out_dir`` to the working directory. The documented example of every key is
+``configs/parameterize.yaml``.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Literal, Optional
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from .errors import UserError
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class RunConfig(_Strict):
+    name: str = Field("run", description="outputs go to <out_dir>/<name>/")
+    out_dir: str = "outputs"          # relative to the working directory
+
+
+class SampleInput(_Strict):
+    vertices: int = Field(6000, ge=300, le=1_000_000)
+    expression: Literal["neutral", "smile", "jawopen"] = "neutral"
+    identity: int = 0
+
+
+class InputConfig(_Strict):
+    mesh: Optional[str] = None
+    sample: Optional[SampleInput] = None
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.mesh is None) == (self.sample is None):
+            raise ValueError("give exactly one of 'mesh' (a file) or 'sample' (the embedded face)")
+        return self
+
+
+class RepairConfig(_Strict):
+    weld: bool = True
+    weld_tolerance: float = Field(1e-9, ge=0.0)
+    keep_largest_component: bool = False
+    close_holes: bool = False
+    split_leaf_faces: bool = True
+    decimate_to_faces: Optional[int] = Field(None, ge=4)
+
+
+class ParameterizeConfig(_Strict):
+    mode: Literal["paper", "converged"] = "converged"
+    max_iter: Optional[int] = Field(None, ge=0)
+    tol: float = Field(1e-7, gt=0.0)
+    patience: int = Field(20, ge=1)
+    inversion: bool = False
+    solver: Literal["auto", "cholmod", "scipy"] = "auto"
+
+
+class ReportConfig(_Strict):
+    figures: bool = True
+
+
+class Config(_Strict):
+    run: RunConfig = RunConfig()
+    input: InputConfig
+    repair: RepairConfig = RepairConfig()
+    parameterize: ParameterizeConfig = ParameterizeConfig()
+    report: ReportConfig = ReportConfig()
+
+
+def _model_fields(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Valid key names at the location of an error (for 'did you mean')."""
+    for part in loc[:-1]:
+        field = model.model_fields.get(part) if isinstance(part, str) else None
+        if field is None:
+            return []
+        ann = field.annotation
+        ann = next((a for a in getattr(ann, "__args__", ()) if isinstance(a, type)
+                    and issubclass(a, BaseModel)), ann)
+        if not (isinstance(ann, type) and issubclass(ann, BaseModel)):
+            return []
+        model = ann
+    return list(model.model_fields)
+
+
+def format_validation_error(exc: ValidationError, source: str) -> str:
+    """The first error of a pydantic validation as one line naming the key and the fix."""
+    err = exc.errors()[0]
+    loc = tuple(err["loc"])
+    where = ".".join(str(p) for p in loc) or "(top level)"
+    if err["type"] == "extra_forbidden":
+        valid = _model_fields(Config, loc)
+        close = difflib.get_close_matches(str(loc[-1]), valid, n=1)
+        hint = f"did you mean '{close[0]}'?" if close else f"valid keys: {', '.join(valid)}"
+        return f"{source}: {where}: unknown key; {hint}"
+    if err["type"] == "missing":
+        return f"{source}: {where}: required key is missing"
+    given = err.get("input")
+    given = "" if isinstance(given, dict) else f" (got {given!r})"
+    return f"{source}: {where}: {err['msg']}{given}"
+
+
+def load_config(path: str | Path) -> tuple[Config, Path]:
+    """Read and validate a YAML config; returns it with the folder that relative paths use."""
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"config file '{path}' not found; pass the path to a YAML file "
+                        f"(examples in configs/)")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or "not valid YAML"
+        raise UserError(f"{path}: malformed YAML{at}: {problem}; fix the syntax") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{path}: not a UTF-8 text file; pass a YAML config") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: expected a mapping of stage names to settings at the top level, "
+                        f"got {type(data).__name__}; see configs/parameterize.yaml")
+    try:
+        config = Config.model_validate(data)
+    except ValidationError as exc:
+        raise UserError(format_validation_error(exc, str(path))) from None
+    base = path.resolve().parent
+    if config.input.mesh is not None:
+        mesh = resolve_path(config.input.mesh, base)
+        if not mesh.is_file():
+            raise UserError(f"{path}: input.mesh: file '{mesh}' not found; "
+                            f"paths are relative to the config's folder")
+    return config, base
+
+
+def resolve_path(value: str, base: Path) -> Path:
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else (base / p)

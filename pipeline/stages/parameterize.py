@@ -1,0 +1,116 @@
+"""Stage 2 — SEM disk parameterization of a repaired disk mesh, and its files.
+
+Files (contract in ``shared/docs/DESIGN.md``):
+
+* ``parameterization.npz`` — ``vertices`` n×3, ``faces`` m×3, ``uv`` n×2, ``boundary`` k,
+  ``source_index`` n (input vertex of each vertex, −1 for vertices the repair added);
+* ``parameterized.obj`` — the mesh with one ``vt`` per vertex (= uv);
+* ``metrics.json`` — mesh and repair report, SEM status, §7.1 distortion measures, the energy
+  and distortion of every iteration, time per phase;
+* figures (paper Figs. 3, 4, 5, 7): ``disk_area_ratio.png``, ``area_ratio_histogram.png``,
+  ``angle_histogram.png``, ``convergence.png``, ``surface_and_disk.png``.
+
+A map with flipped faces is a failure: its ``metrics.json`` (status ``failed``) and figures are
+written for diagnosis, the map files are not, and :class:`ParameterizationFailed` is raised.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.metrics import angular_distortion, distortion_summary, local_area_ratios
+from ..geometry.repair import RepairedMesh
+from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
+from ..io.artifacts import staged_output, write_json
+from ..io.meshio import write_obj
+
+
+class ParameterizationFailed(RuntimeError):
+    """SEM ended with flipped faces (exit code 1: the input is valid, the method failed)."""
+
+
+@dataclass
+class Parameterization:
+    mesh: RepairedMesh
+    uv: np.ndarray
+    sem: SEMResult
+    options: SEMOptions
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.sem.flipped_faces == 0
+
+
+def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
+                       progress=None) -> Parameterization:
+    """Run SEM on the repaired mesh and measure the result (§7.1)."""
+    options = options or SEMOptions()
+    result = stretch_energy_minimization(mesh.V, mesh.F, mesh.boundary, options, progress)
+    t0 = time.perf_counter()
+    distortion = distortion_summary(mesh.V, mesh.F, result.uv)
+    timings = dict(result.timings, metrics=time.perf_counter() - t0)
+    metrics = {
+        "status": "ok" if result.flipped_faces == 0 else "failed",
+        "mesh": {"vertices": int(len(mesh.V)), "faces": int(len(mesh.F)),
+                 "boundary_vertices": int(len(mesh.boundary)),
+                 "added_vertices": int(len(mesh.added_vertices))},
+        "parameterization": {"method": "SEM (Yueh et al. 2019, Algorithm 1)",
+                             "mode": options.mode, "status": result.status,
+                             "iterations": result.iterations, "solver": result.solver,
+                             "options": vars(options).copy(), "harmonic": result.harmonic},
+        "distortion": distortion,
+        "history": result.history,
+        "seconds": timings,
+    }
+    return Parameterization(mesh, result.uv, result, options, metrics)
+
+
+def write_figures(p: Parameterization, folder: Path) -> list[Path]:
+    """The paper's figures for this map (Figs. 3, 4, 5, 7) into ``folder``."""
+    from . import figures
+
+    V, F, uv = p.mesh.V, p.mesh.F, p.uv
+    R = local_area_ratios(V, F, uv)
+    return [
+        figures.plot_disk_area_ratio(uv, F, R, folder / "disk_area_ratio.png"),
+        figures.plot_area_ratio_histogram(R, folder / "area_ratio_histogram.png"),
+        figures.plot_angle_histogram(angular_distortion(V, F, uv).ravel(),
+                                     folder / "angle_histogram.png"),
+        figures.plot_convergence(p.sem.history, folder / "convergence.png"),
+        figures.plot_surface_and_disk(V, F, uv, np.log2(np.clip(R, 1e-6, None)),
+                                      folder / "surface_and_disk.png"),
+    ]
+
+
+def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metrics: dict | None
+                           = None, figures: bool = True) -> dict[str, Path]:
+    """Write the stage's files into ``out_dir`` all-or-nothing; raise if the map failed."""
+    out_dir = Path(out_dir)
+    metrics = dict(extra_metrics or {}, **p.metrics)
+    written = {}
+    t0 = time.perf_counter()
+    with staged_output(out_dir) as tmp:
+        if p.ok:
+            m = p.mesh
+            np.savez_compressed(tmp / "parameterization.npz", vertices=m.V, faces=m.F, uv=p.uv,
+                                boundary=m.boundary, source_index=m.source_index)
+            write_obj(tmp / "parameterized.obj", m.V, m.F, uv=p.uv, colors=m.colors,
+                      header="SEM equiareal disk parameterization (sem-pipeline); vt = uv")
+            written["npz"] = out_dir / "parameterization.npz"
+            written["obj"] = out_dir / "parameterized.obj"
+        if figures:
+            for path in write_figures(p, tmp):
+                written[path.stem] = out_dir / path.name
+        metrics["seconds"] = dict(metrics["seconds"], write=time.perf_counter() - t0)
+        write_json(tmp / "metrics.json", metrics)
+        written["metrics"] = out_dir / "metrics.json"
+    if not p.ok:
+        raise ParameterizationFailed(
+            f"parameterization failed: {p.sem.flipped_faces} flipped faces remain after "
+            f"{p.sem.iterations} iterations (status {p.sem.status}); see {out_dir / 'metrics.json'}")
+    return written
