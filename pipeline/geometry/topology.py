@@ -1,0 +1,429 @@
+"""Pure combinatorics on triangle lists.
+
+Every function takes ``F`` (m×3 int array of vertex indices, one row per triangle) and, where the
+number of vertices matters, ``n``. Nothing here looks at coordinates except the optional length
+ordering of :func:`boundary_loops`. All work is vectorised with numpy/scipy; python loops only run
+over boundary vertices while tracing loops.
+
+Conventions
+-----------
+* Half-edge ``h`` of face ``t`` is ``h = 3 t + c`` and goes from ``F[t, c]`` to ``F[t, (c+1) % 3]``.
+* An undirected edge is *boundary* when exactly one face contains it, *interior* when two do and
+  *non-manifold* when more than two do.
+* Faces are *consistently oriented* when every interior edge is traversed in opposite directions by
+  its two faces. Then the boundary half-edges, followed head to tail, run with the surface on
+  their left (for counterclockwise faces seen from the front).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components as _cc
+
+from pipeline.errors import UserError
+
+__all__ = [
+    "half_edges",
+    "edges_with_faces",
+    "boundary_edges",
+    "boundary_vertices_mask",
+    "boundary_loops",
+    "interior_edge_twins",
+    "connected_components",
+    "nonmanifold_edges",
+    "nonmanifold_vertices",
+    "leaf_faces",
+    "euler_characteristic",
+    "vertex_faces",
+    "vertex_neighbours",
+    "orient_faces_consistently",
+]
+
+
+def _as_faces(F) -> np.ndarray:
+    F = np.asarray(F, dtype=np.int64)
+    if F.size == 0:
+        return F.reshape(0, 3)
+    if F.ndim != 2 or F.shape[1] != 3:
+        raise ValueError(f"F must be m×3, got shape {F.shape}")
+    return F
+
+
+def _n_of(F: np.ndarray, n: int | None) -> int:
+    if n is not None:
+        return int(n)
+    return int(F.max()) + 1 if F.size else 0
+
+
+def half_edges(F) -> tuple[np.ndarray, np.ndarray]:
+    """Directed half-edges ``(a, b)`` (3m each); half-edge ``3 t + c`` is ``F[t,c] → F[t,c+1]``."""
+    F = _as_faces(F)
+    return F.ravel(), F[:, [1, 2, 0]].ravel()
+
+
+def _edge_keys(F: np.ndarray, n: int) -> np.ndarray:
+    """Undirected key ``min·n + max`` for every half-edge (3m)."""
+    a, b = half_edges(F)
+    return np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+
+
+def _distinct_sorted(x: np.ndarray) -> np.ndarray:
+    """Sorted distinct values of a 1-D array (``np.sort`` + diff; ``np.unique`` is much slower on
+    large integer arrays in recent numpy)."""
+    s = np.sort(np.asarray(x).ravel())
+    if len(s) == 0:
+        return s
+    return s[np.r_[True, s[1:] != s[:-1]]]
+
+
+def _sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(sorted_keys, order)`` for non-negative int64 keys.
+
+    Packs ``key << bits | index`` into one int64 and uses ``np.sort`` (much faster than
+    ``argsort``) when that fits in 63 bits; equal keys come out in index order (stable).
+    """
+    k = len(keys)
+    if k == 0:
+        return keys.copy(), np.zeros(0, np.int64)
+    bits = max(int(k - 1).bit_length(), 1)
+    if int(keys.max()).bit_length() + bits <= 62:
+        packed = np.sort((keys << bits) | np.arange(k, dtype=np.int64))
+        return packed >> bits, packed & ((1 << bits) - 1)
+    order = np.argsort(keys, kind="stable")
+    return keys[order], order
+
+
+def _halfedge_groups(F: np.ndarray, n: int | None = None):
+    """Half-edges grouped by undirected edge.
+
+    Returns ``(order, start, size, edge_of)``: ``order`` lists the half-edges sorted by edge (ties
+    by half-edge index), the edge ``e`` owns ``order[start[e] : start[e] + size[e]]``, and
+    ``edge_of[h]`` is the edge of half-edge ``h``. Edges are numbered in ``(min, max)`` order.
+    """
+    n = _n_of(F, n)
+    keys = _edge_keys(F, n)
+    sk, order = _sort_with_index(keys)
+    m3 = len(sk)
+    new = np.empty(m3, dtype=bool)
+    if m3:
+        new[0] = True
+        np.not_equal(sk[1:], sk[:-1], out=new[1:])
+    start = np.flatnonzero(new)
+    size = np.diff(np.r_[start, m3])
+    edge_of = np.empty(m3, dtype=np.int64)
+    edge_of[order] = np.cumsum(new) - 1
+    return order, start, size, edge_of
+
+
+def _halfedge_edge_counts(F: np.ndarray) -> np.ndarray:
+    """For every half-edge, how many faces contain its undirected edge."""
+    _, _, size, edge_of = _halfedge_groups(F)
+    return size[edge_of]
+
+
+def edges_with_faces(F) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges ``E`` (k×2, ``E[:,0] < E[:,1]``, sorted) and the number of faces
+    containing each edge (k)."""
+    F = _as_faces(F)
+    if F.size == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
+    order, start, size, _ = _halfedge_groups(F)
+    a, b = half_edges(F)
+    h = order[start]
+    E = np.stack([np.minimum(a[h], b[h]), np.maximum(a[h], b[h])], axis=1)
+    return E, size
+
+
+def boundary_edges(F) -> np.ndarray:
+    """Directed boundary half-edges (k×2), oriented as they appear in their face, in face order."""
+    F = _as_faces(F)
+    if F.size == 0:
+        return np.zeros((0, 2), np.int64)
+    a, b = half_edges(F)
+    on_boundary = _halfedge_edge_counts(F) == 1
+    return np.stack([a[on_boundary], b[on_boundary]], axis=1)
+
+
+def boundary_vertices_mask(F, n: int | None = None) -> np.ndarray:
+    """Boolean mask (n) of vertices on at least one boundary edge."""
+    F = _as_faces(F)
+    mask = np.zeros(_n_of(F, n), dtype=bool)
+    mask[boundary_edges(F).ravel()] = True
+    return mask
+
+
+def boundary_loops(F, V=None) -> list[np.ndarray]:
+    """Boundary loops as ordered vertex index arrays, longest first.
+
+    Each loop follows the directed boundary half-edges of the faces, so with consistently oriented
+    faces the surface lies on the left of the loop: mapping the loop in this order
+    counterclockwise onto the unit circle gives positively oriented image triangles. A loop does
+    not repeat its first vertex. Loops are sorted by 3D length when ``V`` is given, otherwise by
+    vertex count (ties: smallest first vertex first); each loop starts at its smallest vertex index.
+
+    Raises :class:`UserError` when a vertex has more than one outgoing or incoming boundary
+    half-edge (the boundary touches itself at a non-manifold vertex) or when the boundary
+    half-edges do not close up into loops (inconsistent face orientation).
+    """
+    F = _as_faces(F)
+    be = boundary_edges(F)
+    if len(be) == 0:
+        return []
+    n = _n_of(F, None)
+    out_deg = np.bincount(be[:, 0], minlength=n)
+    in_deg = np.bincount(be[:, 1], minlength=n)
+    pinched = np.flatnonzero((out_deg > 1) | (in_deg > 1))
+    if len(pinched):
+        raise UserError(
+            f"the boundary passes {len(pinched)} vertex/vertices more than once (non-manifold "
+            f"vertex, e.g. vertex {int(pinched[0])}); split the mesh there or remove the "
+            f"touching faces so the boundary is a simple curve"
+        )
+    if np.any(out_deg != in_deg):
+        raise UserError(
+            "boundary edges do not form closed loops because the faces are not consistently "
+            "oriented; run the mesh repair (orientation fix) first"
+        )
+    nxt = np.full(n, -1, dtype=np.int64)
+    nxt[be[:, 0]] = be[:, 1]
+    nxt_list = nxt.tolist()
+    visited = np.zeros(n, dtype=bool)
+    loops = []
+    for start in np.sort(be[:, 0]).tolist():
+        if visited[start]:
+            continue
+        loop = [start]
+        v = nxt_list[start]
+        while v != start:
+            loop.append(v)
+            v = nxt_list[v]
+        arr = np.asarray(loop, dtype=np.int64)
+        visited[arr] = True
+        loops.append(arr)
+    if V is not None:
+        V = np.asarray(V, dtype=np.float64)
+        size = [float(np.linalg.norm(V[np.roll(lp, -1)] - V[lp], axis=1).sum()) for lp in loops]
+    else:
+        size = [float(len(lp)) for lp in loops]
+    order = sorted(range(len(loops)), key=lambda i: (-size[i], int(loops[i][0])))
+    return [loops[i] for i in order]
+
+
+def interior_edge_twins(F) -> np.ndarray:
+    """For every half-edge (3m), the other half-edge of its edge when the edge has exactly two
+    faces, else −1 (boundary or non-manifold edge)."""
+    F = _as_faces(F)
+    twin = np.full(3 * len(F), -1, dtype=np.int64)
+    if len(F) == 0:
+        return twin
+    order, start, size, _ = _halfedge_groups(F)
+    pair_start = start[size == 2]
+    h1, h2 = order[pair_start], order[pair_start + 1]
+    twin[h1] = h2
+    twin[h2] = h1
+    return twin
+
+
+def connected_components(F, n: int | None = None) -> tuple[int, np.ndarray]:
+    """Connected components of the faces (faces sharing a vertex are connected).
+
+    Returns ``(count, labels)`` with ``labels`` (m) in ``0..count-1``, numbered by first face.
+    """
+    F = _as_faces(F)
+    if F.size == 0:
+        return 0, np.zeros(0, np.int64)
+    n = _n_of(F, n)
+    rows = F[:, [0, 1]].ravel()
+    cols = F[:, [1, 2]].ravel()
+    G = sp.coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(n, n)).tocsr()
+    _, vlab = _cc(G, directed=False)
+    flab = vlab[F[:, 0]]
+    m = len(F)
+    first = np.full(int(vlab.max()) + 1, m, dtype=np.int64)
+    np.minimum.at(first, flab, np.arange(m))
+    present = np.flatnonzero(first < m)
+    # renumber so that component 0 contains face 0, component 1 the next new face, ...
+    rank = np.full(len(first), -1, dtype=np.int64)
+    rank[present[np.argsort(first[present], kind="stable")]] = np.arange(len(present))
+    return len(present), rank[flab]
+
+
+def nonmanifold_edges(F) -> np.ndarray:
+    """Undirected edges (k×2, i < j) contained in more than two faces."""
+    E, counts = edges_with_faces(F)
+    return E[counts > 2]
+
+
+def nonmanifold_vertices(F, n: int | None = None) -> np.ndarray:
+    """Vertices whose incident faces form more than one fan (bowtie / pinch vertices).
+
+    The corners at a vertex are linked when their faces share an edge through that vertex; a
+    manifold vertex has exactly one connected group of corners (a closed fan inside, an open fan
+    on the boundary). Works for any face orientation and with non-manifold edges; the common
+    case (consistently oriented, no edge in more than two faces) takes a faster path.
+    """
+    F = _as_faces(F)
+    if F.size == 0:
+        return np.zeros(0, np.int64)
+    n = _n_of(F, n)
+    a, b = half_edges(F)
+    order, start, size, _ = _halfedge_groups(F, n)
+    if np.all(size <= 2):
+        pair_start = start[size == 2]
+        h1, h2 = order[pair_start], order[pair_start + 1]
+        if np.array_equal(a[h1], b[h2]):
+            twin = np.full(len(a), -1, dtype=np.int64)
+            twin[h1] = h2
+            twin[h2] = h1
+            fans = _fans_per_vertex_oriented(a, twin, n)
+            return np.flatnonzero(fans > 1)
+    return _nonmanifold_vertices_general(F, n, a, order, start, size)
+
+
+def _fans_per_vertex_oriented(a: np.ndarray, twin: np.ndarray, n: int) -> np.ndarray:
+    """Number of fans at every vertex of a consistently oriented mesh with manifold edges.
+
+    Rotating around the tail ``v`` of half-edge ``h`` (= the corner of ``v`` in ``h``'s face)
+    leads to the corner of ``v`` in the face across ``h``: ``succ[h] = next(twin[h])``. Open fans
+    are chains of ``succ`` (one head without predecessor each), closed fans are cycles (one
+    minimum each); both are found by pointer doubling, ⌈log2(max valence)⌉ vectorised rounds.
+    """
+    m3 = len(a)
+    S = m3                                             # sentinel: past the end of a chain
+    succ = np.full(m3 + 1, S, dtype=np.int64)
+    inner = np.flatnonzero(twin >= 0)
+    tw = twin[inner]
+    succ[inner] = 3 * (tw // 3) + (tw % 3 + 1) % 3
+    has_pred = np.zeros(m3 + 1, dtype=bool)
+    has_pred[succ[:m3]] = True
+    heads = np.flatnonzero(~has_pred[:m3])
+    maxval = int(np.bincount(a, minlength=n).max())
+    q = succ
+    lab = np.arange(m3 + 1, dtype=np.int64)
+    window = 1
+    while window < maxval:
+        lab = np.minimum(lab, lab[q])
+        q = q[q]
+        window *= 2
+    idx = np.arange(m3)
+    cycle_rep = (q[:m3] != S) & (lab[:m3] == idx)
+    return (np.bincount(a[heads], minlength=n)
+            + np.bincount(a[np.flatnonzero(cycle_rep)], minlength=n))
+
+
+def _nonmanifold_vertices_general(F, n, a, order, start, size) -> np.ndarray:
+    """Connected components of the corner graph (any orientation, any edge multiplicity)."""
+    m3 = 3 * len(F)
+    # link every half-edge with the next one of the same edge (chains edges in > 2 faces)
+    grp_next = np.ones(m3, dtype=bool)
+    grp_next[start + size - 1] = False
+    pos = np.flatnonzero(grp_next[:-1] if m3 > 1 else np.zeros(0, bool))
+    h1, h2 = order[pos], order[pos + 1]
+    nx1 = 3 * (h1 // 3) + (h1 % 3 + 1) % 3        # corner at the head of h1
+    nx2 = 3 * (h2 // 3) + (h2 % 3 + 1) % 3
+    opposite = a[h1] != a[h2]                     # h2 runs the other way (consistent pair)
+    # corners at the same vertex: tail-tail/head-head (same direction) or tail-head (opposite)
+    r = np.r_[h1, nx1]
+    c = np.r_[np.where(opposite, nx2, h2), np.where(opposite, h2, nx2)]
+    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(m3, m3)).tocsr()
+    _, lab = _cc(G, directed=False)
+    pairs = _distinct_sorted(lab.astype(np.int64) * n + a)   # distinct (fan, vertex) pairs
+    fans = np.bincount(pairs % n, minlength=n)
+    return np.flatnonzero(fans > 1)
+
+
+def leaf_faces(F, is_boundary_vertex) -> np.ndarray:
+    """Indices of leaf-like faces (paper Def. 4): all three vertices are boundary vertices."""
+    F = _as_faces(F)
+    mask = np.asarray(is_boundary_vertex, dtype=bool)
+    if F.size == 0:
+        return np.zeros(0, np.int64)
+    return np.flatnonzero(mask[F].all(axis=1))
+
+
+def euler_characteristic(F, n: int | None = None) -> int:
+    """``V − E + F``; ``n`` defaults to the number of vertices referenced by ``F``."""
+    F = _as_faces(F)
+    nv = len(_distinct_sorted(F)) if n is None else int(n)
+    if F.size == 0:
+        return nv
+    _, start, _, _ = _halfedge_groups(F)
+    return int(nv - len(start) + len(F))
+
+
+def vertex_faces(F, n: int | None = None) -> sp.csr_matrix:
+    """Vertex–face incidence as a sparse n×m boolean CSR matrix (row ``v`` lists ``v``'s faces)."""
+    F = _as_faces(F)
+    n = _n_of(F, n)
+    m = len(F)
+    rows = F.ravel()
+    cols = np.repeat(np.arange(m), 3)
+    return sp.csr_matrix((np.ones(3 * m, bool), (rows, cols)), shape=(n, m))
+
+
+def vertex_neighbours(F, n: int | None = None) -> sp.csr_matrix:
+    """Symmetric vertex adjacency (n×n boolean CSR): ``A[i, j]`` iff ``ij`` is an edge."""
+    F = _as_faces(F)
+    n = _n_of(F, n)
+    a, b = half_edges(F)
+    A = sp.csr_matrix((np.ones(2 * len(a), bool), (np.r_[a, b], np.r_[b, a])), shape=(n, n))
+    A.sum_duplicates()
+    return A
+
+
+def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
+    """Flip faces so that every interior edge is traversed in opposite directions.
+
+    Works per connected component (via interior edges) and keeps the orientation of the majority
+    of the faces of each component (ties: the orientation of its lowest-index face), so a mesh
+    with a few flipped faces gets exactly those faces flipped back. Returns ``(F_oriented,
+    number_of_flipped_faces)``; ``F`` is returned unchanged (same object) when nothing flips.
+    Only edges with exactly two faces are used. Raises :class:`UserError` for a non-orientable
+    surface (Möbius strip and the like).
+
+    Implementation: on the orientation double cover (nodes ``(t, s)``, ``s`` = flipped or not) an
+    interior edge links ``(t1, s)`` with ``(t2, s)`` when the pair is consistent and with
+    ``(t2, 1−s)`` when it is not; the surface is orientable iff ``(t, 0)`` and ``(t, 1)`` always
+    land in different components, and the component of ``(t, 0)`` tells the class of ``t``.
+    """
+    F = _as_faces(F)
+    m = len(F)
+    if m == 0:
+        return F, 0
+    a, _ = half_edges(F)
+    twin = interior_edge_twins(F)
+    h1 = np.flatnonzero(twin > np.arange(3 * m))
+    h2 = twin[h1]
+    t1, t2 = h1 // 3, h2 // 3
+    inconsistent = a[h1] == a[h2]
+    r = np.r_[t1, t1 + m]
+    c = np.r_[np.where(inconsistent, t2 + m, t2), np.where(inconsistent, t2, t2 + m)]
+    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(2 * m, 2 * m)).tocsr()
+    _, lab = _cc(G, directed=False)
+    l0, l1 = lab[:m], lab[m:]
+    if np.any(l0 == l1):
+        bad = int(np.flatnonzero(l0 == l1)[0])
+        raise UserError(
+            f"mesh is not orientable (Möbius-like; e.g. face {bad}); cut it along a seam so "
+            f"that it becomes an orientable disk"
+        )
+    comp = np.minimum(l0, l1)
+    in_b = l0 > l1                                 # class "B" of its component
+    ncomp = int(comp.max()) + 1
+    total = np.bincount(comp, minlength=ncomp)
+    nb = np.bincount(comp, weights=in_b, minlength=ncomp).astype(np.int64)
+    first = np.full(ncomp, m, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(m))
+    exists = first < m
+    first_in_b = np.zeros(ncomp, bool)
+    first_in_b[exists] = in_b[first[exists]]
+    # flip class B when it is the minority, or on a tie when the first face is not in B
+    flip_b = (2 * nb < total) | ((2 * nb == total) & ~first_in_b)
+    flip = in_b == flip_b[comp]
+    count = int(flip.sum())
+    if count == 0:
+        return F, 0
+    out = F.copy()
+    out[flip] = out[flip][:, [0, 2, 1]]
+    return out, count

@@ -1,0 +1,205 @@
+"""The command line's contracts (shared/docs/DESIGN.md): files written, exit codes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from pipeline.io.meshio import write_obj
+from pipeline.sample import make_face
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def run_cli(*args, cwd=None):
+    """Run ``python -m pipeline`` in a subprocess (what a user sees: stdout, stderr, code)."""
+    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=cwd or REPO,
+                          capture_output=True, text=True, timeout=600,
+                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def assert_one_line_error(code, err, *words):
+    assert code == 2, err
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in err
+    for w in words:
+        assert w.lower() in lines[0].lower(), lines[0]
+
+
+@pytest.fixture(scope="module")
+def small_face(tmp_path_factory):
+    d = tmp_path_factory.mktemp("face")
+    s = make_face(800)
+    path = write_obj(d / "face.obj", s.V, s.F)
+    return path, s
+
+
+def read_obj_vt(path):
+    v, vt, f = [], [], []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("v "):
+            v.append(line)
+        elif line.startswith("vt "):
+            vt.append([float(x) for x in line.split()[1:3]])
+        elif line.startswith("f "):
+            f.append([tuple(int(i) for i in tok.split("/")) for tok in line.split()[1:]])
+    return v, np.array(vt), f
+
+
+def test_parameterize_writes_the_contract_files(small_face, tmp_path):
+    path, s = small_face
+    code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out", "--no-figures")
+    assert code == 0, err
+    out_dir = tmp_path / "out"
+    npz = np.load(out_dir / "parameterization.npz")
+    assert set(npz.files) == {"vertices", "faces", "uv", "boundary", "source_index"}
+    np.testing.assert_array_equal(npz["vertices"], s.V)   # nothing to repair: same vertices
+    np.testing.assert_array_equal(npz["faces"], s.F)
+    np.testing.assert_array_equal(npz["source_index"], np.arange(len(s.V)))
+    uv = npz["uv"]
+    assert uv.shape == (len(s.V), 2)
+    np.testing.assert_allclose(np.abs(uv[npz["boundary"]] @ [1, 1j]), 1.0, atol=1e-12)
+    v, vt, f = read_obj_vt(out_dir / "parameterized.obj")
+    assert len(v) == len(vt) == len(s.V)                   # one vt per vertex
+    np.testing.assert_allclose(vt, uv, atol=1e-8)
+    assert all(a == b for face in f for a, b in face)      # f i/i: vt index = vertex index
+    m = json.loads((out_dir / "metrics.json").read_text())
+    assert m["status"] == "ok" and m["distortion"]["flipped_faces"] == 0
+    assert m["history"][0]["phase"] == "harmonic"
+    assert not [p for p in out_dir.iterdir() if p.name.startswith(".partial")]
+
+
+def test_run_sample_config_writes_manifest_and_figures(tmp_path):
+    cfg = tmp_path / "sample.yaml"
+    cfg.write_text("run: {name: s}\ninput: {sample: {vertices: 800}}\n"
+                   "parameterize: {mode: paper}\n")
+    code, out, err = run_cli("run", cfg, "--out", tmp_path / "o")
+    assert code == 0, err
+    run = tmp_path / "o" / "s"
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["config"]["parameterize"]["mode"] == "paper"
+    for name in ("parameterization.npz", "parameterized.obj", "metrics.json",
+                 "disk_area_ratio.png", "area_ratio_histogram.png", "convergence.png",
+                 "angle_histogram.png", "surface_and_disk.png"):
+        assert (run / "parameterize" / name).stat().st_size > 0, name
+    landmarks = json.loads((run / "input" / "sample_face_landmarks.json").read_text())
+    assert len(landmarks["landmarks"]) == 16
+
+
+def test_repo_configs_are_valid():
+    from pipeline.config import Config
+    import yaml
+    for path in sorted((REPO / "configs").glob("*.yaml")):
+        Config.model_validate(yaml.safe_load(path.read_text()))
+
+
+# ---- bad input: exit code 2 and one line -------------------------------------------------
+
+def _closed_tetrahedron(path):
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    F = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    return write_obj(path, V, F)
+
+
+def _grid(k=4):
+    x, y = np.meshgrid(np.arange(k + 1.0), np.arange(k + 1.0))
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    idx = np.arange((k + 1) ** 2).reshape(k + 1, k + 1)
+    F = []
+    for i in range(k):
+        for j in range(k):
+            a, b, c, d = idx[i, j], idx[i, j + 1], idx[i + 1, j + 1], idx[i + 1, j]
+            F += [[a, b, c], [a, c, d]]
+    return V, np.array(F)
+
+
+def _holed_grid(path):
+    V, F = _grid(6)
+    centre = {(3, 3)}
+    keep = [t for t in F if not any((int(v) // 7, int(v) % 7) in centre for v in t)]
+    return write_obj(path, V, np.array(keep))
+
+
+def _nonmanifold(path):
+    V, F = _grid(2)
+    V = np.vstack([V, [[1.0, 0.5, 1.0]]])
+    F = np.vstack([F, [[0, 4, 9]]])            # a third face on the interior edge 0–4
+    return write_obj(path, V, F)
+
+
+def _nan(path):
+    V, F = _grid(2)
+    V[3, 1] = np.nan
+    return write_obj(path, V, F)
+
+
+@pytest.mark.parametrize("make, words", [
+    (_closed_tetrahedron, ["closed"]),
+    (_holed_grid, ["boundary loops", "close"]),
+    (_nonmanifold, ["non-manifold"]),
+    (_nan, ["nan"]),
+])
+def test_bad_meshes_exit_2_with_one_line(tmp_path, make, words):
+    path = make(tmp_path / "bad.obj")
+    code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out")
+    assert_one_line_error(code, err, *words)
+    assert not (tmp_path / "out" / "parameterization.npz").exists()
+
+
+def test_empty_file_and_unknown_format(tmp_path):
+    empty = tmp_path / "empty.obj"
+    empty.write_text("")
+    code, _, err = run_cli("parameterize", empty, "-o", tmp_path / "o")
+    assert_one_line_error(code, err, "empty")
+    odd = tmp_path / "mesh.xyz"
+    odd.write_text("1 2 3\n")
+    code, _, err = run_cli("parameterize", odd, "-o", tmp_path / "o")
+    assert_one_line_error(code, err, ".xyz")
+
+
+def test_close_holes_option_parameterizes_the_holed_grid(tmp_path):
+    path = _holed_grid(tmp_path / "holed.obj")
+    code, _, err = run_cli("parameterize", path, "-o", tmp_path / "o", "--close-holes",
+                           "--no-figures")
+    assert code == 0, err
+    npz = np.load(tmp_path / "o" / "parameterization.npz")
+    assert (npz["source_index"] == -1).sum() >= 1
+    assert "closed" in err.lower() or "hole" in err.lower()   # the repair is reported
+
+
+@pytest.mark.parametrize("text, words", [
+    ("input: {mesh: a.obj\n  bad: [", ["malformed yaml", "line"]),
+    ("input: {sample: {vertices: 800}}\nparameterize: {max_iters: 3}\n",
+     ["parameterize.max_iters", "unknown key", "max_iter"]),
+    ("input: {sample: {vertices: 800}}\nparameterize: {max_iter: many}\n",
+     ["parameterize.max_iter", "integer"]),
+    ("input: {mesh: does_not_exist.obj}\n", ["input.mesh", "not found"]),
+    ("input: {}\n", ["input", "exactly one"]),
+    ("- just\n- a list\n", ["mapping"]),
+    ("input: {sample: {vertices: 800}}\nparameterize: {mode: fast}\n", ["parameterize.mode"]),
+    ("input: !!python/object/apply:os.system ['echo hi']\n", ["malformed yaml"]),
+])
+def test_bad_configs_exit_2_with_one_line(tmp_path, text, words):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(text)
+    code, out, err = run_cli("run", cfg, "--out", tmp_path / "o")
+    assert_one_line_error(code, err, *words)
+
+
+def test_missing_config_and_bad_arguments(tmp_path, capsys):
+    assert main(["run", str(tmp_path / "nope.yaml")]) == 2
+    assert "not found" in capsys.readouterr().err
+    assert main(["parameterize"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert main(["parameterize", "x.obj", "-o", str(tmp_path), "--solver", "magic"]) == 2

@@ -1,0 +1,241 @@
+"""Mesh reading/writing: every supported format, round trips, and one-line user errors."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import scipy.io
+from conftest import require_data
+
+from pipeline.errors import UserError
+from pipeline.geometry.repair import repair_mesh
+from pipeline.io.meshio import RawMesh, read_mesh, write_obj
+
+
+def small_mesh():
+    """2×2 squares grid (9 vertices, 8 counterclockwise faces) with non-trivial floats."""
+    i, j = np.meshgrid(np.arange(3), np.arange(3), indexing="xy")
+    V = np.stack([i.ravel() * 0.1, j.ravel() / 3.0, np.sqrt(i.ravel() + 2 * j.ravel())], axis=1)
+    F = np.array([[0, 1, 4], [0, 4, 3], [1, 2, 4], [2, 5, 4],
+                  [3, 4, 6], [4, 7, 6], [4, 5, 8], [4, 8, 7]], dtype=np.int64)
+    return V, F
+
+
+def write_text(path, text):
+    path.write_text(text)
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# OBJ
+
+
+def test_obj_round_trip_exact(tmp_path):
+    V, F = small_mesh()
+    p = write_obj(tmp_path / "m.obj", V, F, header=["made by a test", "second line"])
+    m = read_mesh(p)
+    assert isinstance(m, RawMesh) and m.all_triangles
+    assert m.V.dtype == np.float64 and m.faces.dtype == np.int64
+    assert np.array_equal(m.V, V) and np.array_equal(m.faces, F)
+    assert m.colors is None
+    text = p.read_text()
+    assert text.startswith("# made by a test\n# second line\nv ")
+    assert [q.name for q in tmp_path.iterdir()] == ["m.obj"]          # no temp file left
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert p.stat().st_mode & 0o777 == 0o666 & ~umask          # not mkstemp's 0600
+
+
+def test_obj_round_trip_with_uv_and_colors(tmp_path):
+    V, F = small_mesh()
+    uv = V[:, :2] * 2 - 0.25
+    C = np.linspace(0, 1, 27).reshape(9, 3)
+    p = write_obj(tmp_path / "m.obj", V, F, uv=uv, colors=C)
+    lines = p.read_text().splitlines()
+    assert sum(s.startswith("vt ") for s in lines) == 9
+    assert "f 1/1 2/2 5/5" in lines
+    m = read_mesh(p)
+    assert np.array_equal(m.V, V) and np.array_equal(m.faces, F)
+    assert np.array_equal(m.colors, C)
+
+
+def test_obj_tokens_polygons_negative_indices_and_noise(tmp_path):
+    text = "\n".join([
+        "# comment", "mtllib x.mtl", "o thing",
+        "v 0 0 0", "v 1 0 0", "v 1 1 0", "v 0 1 0",
+        "vt 0 0", "vt 1 0", "vt 1 1", "vn 0 0 1",
+        "g group", "usemtl m",
+        "f 1/1/1 2/2/1 3/3/1 4/1/1",          # a quad with v/vt/vn tokens
+        "v 2 0 0  # trailing comment",
+        "f -4//1 -1//1 -3//1",                 # relative: vertices 2, 5, 3
+        "  f 2/1 5/2 3/3\r",                    # v/vt, leading blanks, CR
+        "s off", "",
+    ])
+    m = read_mesh(write_text(tmp_path / "t.obj", text))
+    assert len(m.V) == 5 and not m.all_triangles
+    assert [f.tolist() for f in m.faces] == [[0, 1, 2, 3], [1, 4, 2], [1, 4, 2]]
+    r = repair_mesh(m.V, m.faces)
+    assert r.report["non_triangle_faces_triangulated"] == 1
+    assert r.report["duplicate_faces_removed"] == 1
+
+
+def test_obj_vertex_colors_0_255_are_normalised(tmp_path):
+    text = "v 0 0 0 255 0 0\nv 1 0 0 0 255 0\nv 0 1 0 0 0 255\nf 1 2 3\n"
+    m = read_mesh(write_text(tmp_path / "c.obj", text))
+    assert np.array_equal(m.colors, np.eye(3))
+
+
+def test_obj_large_file_is_fast(tmp_path):
+    import time
+
+    k = 200
+    i, j = np.meshgrid(np.arange(k), np.arange(k), indexing="xy")
+    V = np.stack([i.ravel(), j.ravel(), np.zeros(k * k)], axis=1) * 0.37
+    a = (j[:-1, :-1] * k + i[:-1, :-1]).ravel()
+    F = np.r_[np.stack([a, a + 1, a + k + 1], 1), np.stack([a, a + k + 1, a + k], 1)]
+    t = time.perf_counter()
+    p = write_obj(tmp_path / "big.obj", V, F)
+    m = read_mesh(p)
+    assert time.perf_counter() - t < 5.0          # ~0.2 s normally; generous for busy CI
+    assert np.array_equal(m.V, V) and np.array_equal(m.faces, F)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("", "empty"),
+    ("# nothing\n", "no vertices"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "1-based"),
+    ("v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n", "unparsable vertex line 2"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "unparsable face line 1"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", "need ≥ 3"),
+    ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "fewer than 3 coordinates"),
+    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN"),
+])
+def test_obj_errors_are_one_line_user_errors(tmp_path, text, match):
+    p = write_text(tmp_path / "bad.obj", text)
+    with pytest.raises(UserError, match=match) as exc:
+        read_mesh(p)
+    assert "\n" not in str(exc.value)
+
+
+def test_missing_file_and_unknown_extension(tmp_path):
+    with pytest.raises(UserError, match="does not exist"):
+        read_mesh(tmp_path / "nope.obj")
+    with pytest.raises(UserError, match=r"unsupported mesh format '\.xyz'.*\.obj, \.off"):
+        read_mesh(write_text(tmp_path / "m.xyz", "1 2 3\n"))
+    (tmp_path / "dir.obj").mkdir()
+    with pytest.raises(UserError, match="not a file"):
+        read_mesh(tmp_path / "dir.obj")
+
+
+# --------------------------------------------------------------------------------------------
+# OFF
+
+
+def test_off_plain_and_polygons(tmp_path):
+    text = ("OFF\n# a comment\n5 3 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n"
+            "4 0 1 2 3\n3 1 4 2\n3 0 1 3 255 0 0\n")
+    m = read_mesh(write_text(tmp_path / "m.off", text))
+    assert np.array_equal(m.V[4], [2, 0, 0]) and m.colors is None
+    assert [f.tolist() for f in m.faces] == [[0, 1, 2, 3], [1, 4, 2], [0, 1, 3]]
+
+
+def test_coff_colors_and_header_counts_on_one_line(tmp_path):
+    text = "COFF 3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2\n"
+    m = read_mesh(write_text(tmp_path / "m.off", text))
+    assert m.all_triangles and m.faces.tolist() == [[0, 1, 2]]
+    assert np.array_equal(m.colors, np.c_[np.eye(3), np.ones(3)])
+
+
+@pytest.mark.parametrize("text, match", [
+    ("OFF\n3 1 0\n0 0 0\n1 0 0\n", "ends early"),
+    ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", "out of range"),
+    ("PLY\n3 1 0\n", "unsupported OFF header"),
+    ("OFF\n3 0 0\n0 0 0\n1 0 0\n0 1 0\n", "no faces"),
+])
+def test_off_errors(tmp_path, text, match):
+    with pytest.raises(UserError, match=match):
+        read_mesh(write_text(tmp_path / "bad.off", text))
+
+
+# --------------------------------------------------------------------------------------------
+# MATLAB
+
+
+def test_mat_one_based_faces_and_colors(tmp_path):
+    V, F = small_mesh()
+    C = np.linspace(0, 1, 27).reshape(9, 3)
+    scipy.io.savemat(tmp_path / "m.mat", {"V": V, "F": (F + 1).astype(float), "C": C})
+    m = read_mesh(tmp_path / "m.mat")
+    assert np.array_equal(m.V, V) and np.array_equal(m.faces, F)
+    assert np.allclose(m.colors, C)
+    # lower-case names and transposed (3×n) arrays
+    scipy.io.savemat(tmp_path / "t.mat", {"v": V.T, "f": (F + 1).T.astype(np.int32)})
+    m = read_mesh(tmp_path / "t.mat")
+    assert np.array_equal(m.V, V) and np.array_equal(m.faces, F)
+
+
+def test_mat_errors(tmp_path):
+    V, F = small_mesh()
+    scipy.io.savemat(tmp_path / "a.mat", {"verts": V, "tris": F + 1})
+    with pytest.raises(UserError, match="'V'.*'F'.*found variables: verts, tris"):
+        read_mesh(tmp_path / "a.mat")
+    scipy.io.savemat(tmp_path / "b.mat", {"V": V, "F": F})        # 0-based by mistake
+    with pytest.raises(UserError, match="1-based"):
+        read_mesh(tmp_path / "b.mat")
+    write_text(tmp_path / "c.mat", "not a mat file at all")
+    with pytest.raises(UserError, match="cannot read .mat"):
+        read_mesh(tmp_path / "c.mat")
+
+
+# --------------------------------------------------------------------------------------------
+# PLY / STL via trimesh
+
+
+def test_ply_keeps_vertex_order_and_colors(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    V, F = small_mesh()
+    rgba = np.c_[np.arange(9) * 20, np.arange(9) * 10, 255 - np.arange(9) * 5, np.full(9, 255)]
+    mesh = trimesh.Trimesh(V, F, vertex_colors=rgba.astype(np.uint8), process=False)
+    (tmp_path / "m.ply").write_bytes(mesh.export(file_type="ply"))
+    m = read_mesh(tmp_path / "m.ply")
+    assert np.allclose(m.V, V) and np.array_equal(m.faces, F)
+    assert m.colors.shape == (9, 3) and np.allclose(m.colors * 255, rgba[:, :3])
+
+
+def test_stl_soup_is_welded_by_the_repair(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    V, F = small_mesh()
+    mesh = trimesh.Trimesh(V, F, process=False)
+    (tmp_path / "m.stl").write_bytes(mesh.export(file_type="stl"))
+    m = read_mesh(tmp_path / "m.stl")
+    assert len(m.V) == 3 * len(F) and len(m.faces) == len(F)
+    r = repair_mesh(m.V, m.faces)
+    assert r.report["vertices_welded"] == 3 * len(F) - len(V)
+    assert len(r.V) == len(V) and len(r.F) == len(F)
+    assert np.allclose(np.sort(r.V, axis=0), np.sort(V.astype(np.float32), axis=0))
+
+
+def test_empty_and_corrupt_binary_formats(tmp_path):
+    for ext in (".ply", ".stl", ".mat", ".off", ".obj"):
+        with pytest.raises(UserError, match="empty"):
+            read_mesh(write_text(tmp_path / f"e{ext}", ""))
+    with pytest.raises(UserError):
+        read_mesh(write_text(tmp_path / "bad.ply", "ply\nformat nonsense\n"))
+
+
+# --------------------------------------------------------------------------------------------
+# real data
+
+
+def test_real_obj_reads_and_round_trips(tmp_path):
+    path = require_data("meshes", "gpp_face.obj")
+    m = read_mesh(path)
+    assert m.V.shape == (1180, 3) and m.faces.shape == (2000, 3)
+    out = write_obj(tmp_path / "copy.obj", m.V, m.faces)
+    m2 = read_mesh(out)
+    assert np.array_equal(m2.V, m.V) and np.array_equal(m2.faces, m.faces)
+    assert os.path.getsize(out) > 0

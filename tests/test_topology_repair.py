@@ -1,0 +1,539 @@
+"""Topology helpers and mesh intake repair: exact facts on small constructed meshes, plus the
+shared real meshes (skipped when the data folder is missing)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import require_data
+
+from pipeline.errors import UserError
+from pipeline.geometry import topology as topo
+from pipeline.geometry.repair import RepairOptions, repair_mesh, zero_area_mask
+from pipeline.io.meshio import read_mesh
+
+# --------------------------------------------------------------------------------------------
+# constructed meshes
+
+
+def grid(k: int = 4, alternate: bool = True):
+    """Planar (k+1)×(k+1) grid in z = 0 with counterclockwise faces.
+
+    ``alternate`` alternates the square diagonals so that no corner triangle has all three
+    vertices on the boundary (k even); otherwise every square is cut the same way, which leaves
+    exactly two leaf faces (at corners (k, 0) and (0, k)).
+    """
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="xy")
+    V = np.stack([i.ravel(), j.ravel(), np.zeros(i.size)], axis=1).astype(float)
+    F = []
+    for jj in range(k):
+        for ii in range(k):
+            a, b = jj * (k + 1) + ii, jj * (k + 1) + ii + 1
+            c, d = b + k + 1, a + k + 1
+            if alternate and (ii + jj) % 2:
+                F += [[a, b, d], [b, c, d]]
+            else:
+                F += [[a, b, c], [a, c, d]]
+    return V, np.array(F, dtype=np.int64)
+
+
+def fan_disk(k: int = 8):
+    """Centre vertex 0 and a ring of k vertices, counterclockwise faces."""
+    t = 2 * np.pi * np.arange(k) / k
+    V = np.vstack([[0, 0, 0], np.stack([np.cos(t), np.sin(t), np.zeros(k)], axis=1)])
+    F = np.array([[0, 1 + i, 1 + (i + 1) % k] for i in range(k)], dtype=np.int64)
+    return V, F
+
+
+def signed_area_xy(P: np.ndarray) -> float:
+    x, y = P[:, 0], P[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def face_areas(V, F):
+    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+
+
+def tetrahedron():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    return V, F
+
+
+def octahedron():
+    V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    px, nx, py, ny, pz, nz = range(6)
+    F = np.array([[px, py, pz], [py, nx, pz], [nx, ny, pz], [ny, px, pz],
+                  [py, px, nz], [nx, py, nz], [ny, nx, nz], [px, ny, nz]])
+    return V, F
+
+
+def torus(k: int = 6):
+    """Periodic k×k grid on a torus (closed, genus 1)."""
+    u, v = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    a, b = 2 * np.pi * u.ravel() / k, 2 * np.pi * v.ravel() / k
+    V = np.stack([(3 + np.cos(b)) * np.cos(a), (3 + np.cos(b)) * np.sin(a), np.sin(b)], axis=1)
+    idx = lambda i, j: (i % k) * k + (j % k)  # noqa: E731
+    F = []
+    for i in range(k):
+        for j in range(k):
+            F += [[idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)],
+                  [idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]]
+    return V, np.array(F)
+
+
+def mobius(k: int = 8):
+    """Triangulated Möbius strip (non-orientable)."""
+    V, F = [], []
+    for i in range(k):
+        t = 2 * np.pi * i / k
+        for s in (-1, 1):
+            w = 0.3 * s
+            V.append([(1 + w * np.cos(t / 2)) * np.cos(t), (1 + w * np.cos(t / 2)) * np.sin(t),
+                      w * np.sin(t / 2)])
+    for i in range(k):
+        a0, a1 = 2 * i, 2 * i + 1
+        if i < k - 1:
+            b0, b1 = 2 * i + 2, 2 * i + 3
+        else:                                    # the half twist swaps the two sides
+            b0, b1 = 1, 0
+        F += [[a0, b0, b1], [a0, b1, a1]]
+    return np.array(V), np.array(F)
+
+
+def is_disk(r) -> bool:
+    loops = topo.boundary_loops(r.F, r.V)
+    is_b = topo.boundary_vertices_mask(r.F, len(r.V))
+    return (
+        len(loops) == 1
+        and topo.euler_characteristic(r.F, len(r.V)) == 1
+        and topo.connected_components(r.F, len(r.V))[0] == 1
+        and len(topo.leaf_faces(r.F, is_b)) == 0
+        and np.array_equal(loops[0], r.boundary)
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# topology
+
+
+def test_edges_with_faces_two_triangles():
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    E, counts = topo.edges_with_faces(F)
+    assert E.tolist() == [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
+    assert counts.tolist() == [1, 2, 1, 1, 1]
+    assert sorted(map(tuple, topo.boundary_edges(F).tolist())) == [(0, 1), (1, 2), (2, 3), (3, 0)]
+    assert topo.nonmanifold_edges(F).shape == (0, 2)
+
+
+def test_boundary_loop_of_grid_has_interior_on_left():
+    V, F = grid(4)
+    loops = topo.boundary_loops(F, V)
+    assert len(loops) == 1 and len(loops[0]) == 16
+    assert signed_area_xy(V[loops[0]]) == pytest.approx(16.0)   # counterclockwise = positive
+    assert loops[0][0] == 0                                     # starts at its smallest vertex
+    assert topo.euler_characteristic(F) == 1
+
+
+def test_boundary_loop_of_fan_is_the_ring_in_order():
+    V, F = fan_disk(8)
+    (loop,) = topo.boundary_loops(F)
+    assert loop.tolist() == list(range(1, 9))
+    # reversed faces reverse the loop
+    (rloop,) = topo.boundary_loops(F[:, ::-1])
+    assert signed_area_xy(V[rloop]) < 0
+
+
+def test_boundary_loops_sorted_by_length_and_holes_run_clockwise():
+    V, F = grid(6)
+    centre = [f for f in range(len(F)) if np.all(np.isin(F[f], [17, 18, 24, 25]))]
+    Fh = np.delete(F, centre, axis=0)                          # one square hole
+    loops = topo.boundary_loops(Fh, V)
+    assert [len(lp) for lp in loops] == [24, 4]
+    assert signed_area_xy(V[loops[0]]) > 0 and signed_area_xy(V[loops[1]]) < 0
+
+
+def test_boundary_loops_rejects_pinched_boundary():
+    F = np.array([[0, 1, 2], [0, 3, 4]])                       # two triangles sharing vertex 0
+    with pytest.raises(UserError, match="non-manifold vertex"):
+        topo.boundary_loops(F)
+    assert topo.nonmanifold_vertices(F).tolist() == [0]
+
+
+def test_nonmanifold_vertices_closed_fans_and_any_orientation():
+    ring = lambda c, r: [[c, r[i], r[(i + 1) % len(r)]] for i in range(len(r))]  # noqa: E731
+    two_closed = np.array(ring(0, [1, 2, 3, 4]) + ring(0, [5, 6, 7]))
+    assert topo.nonmanifold_vertices(two_closed).tolist() == [0]
+    one_closed = np.array(ring(0, [1, 2, 3, 4]))
+    assert topo.nonmanifold_vertices(one_closed).size == 0
+    mixed = one_closed.copy()
+    mixed[1] = mixed[1, ::-1]                                  # inconsistent orientation
+    assert topo.nonmanifold_vertices(mixed).size == 0
+    bow = np.r_[mixed, [[0, 5, 6]]]
+    assert topo.nonmanifold_vertices(bow).tolist() == [0]
+
+
+def test_three_faces_on_one_edge_is_nonmanifold_edge():
+    F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    assert topo.nonmanifold_edges(F).tolist() == [[0, 1]]
+
+
+def test_connected_components_and_euler():
+    V, F = grid(2)
+    F2 = np.r_[F, F + len(V)]
+    count, labels = topo.connected_components(F2)
+    assert count == 2 and labels.tolist() == [0] * len(F) + [1] * len(F)
+    assert topo.euler_characteristic(tetrahedron()[1]) == 2
+    assert topo.euler_characteristic(torus()[1]) == 0
+
+
+def test_leaf_faces_of_plain_grid():
+    V, F = grid(4, alternate=False)
+    is_b = topo.boundary_vertices_mask(F, len(V))
+    leaves = topo.leaf_faces(F, is_b)
+    assert len(leaves) == 2
+    assert np.all(is_b[F[leaves]])
+    _, Fa = grid(4)
+    assert topo.leaf_faces(Fa, topo.boundary_vertices_mask(Fa)).size == 0
+
+
+def test_orient_flips_exactly_the_flipped_face():
+    V, F = grid(4)
+    Fb = F.copy()
+    Fb[5] = F[5, [0, 2, 1]]
+    Fo, k = topo.orient_faces_consistently(Fb)
+    assert k == 1 and np.array_equal(Fo, F)
+    Fo, k0 = topo.orient_faces_consistently(F)
+    assert k0 == 0 and Fo is F
+
+
+def test_orient_keeps_majority_per_component():
+    V, F = grid(2)
+    Fb = F[:, ::-1].copy()          # all faces reversed: consistent, so nothing to flip
+    Fo, k = topo.orient_faces_consistently(Fb)
+    assert k == 0 and Fo is Fb
+
+
+def test_mobius_is_not_orientable():
+    V, F = mobius()
+    with pytest.raises(UserError, match="not orientable"):
+        topo.orient_faces_consistently(F)
+
+
+# --------------------------------------------------------------------------------------------
+# repair on constructed meshes
+
+
+def test_clean_disk_is_returned_unchanged():
+    V, F = grid(4)
+    r = repair_mesh(V, F)
+    assert np.array_equal(r.V, V) and np.array_equal(r.F, F)
+    assert r.V is not V and r.F is not F
+    assert np.array_equal(r.source_index, np.arange(len(V)))
+    assert r.messages == [] and r.added_vertices.size == 0 and r.closed_holes == []
+    changes = {k: v for k, v in r.report.items()
+               if v and k not in ("input_vertices", "input_faces", "output_vertices",
+                                  "output_faces", "boundary_vertices", "boundary_loops_found",
+                                  "components_found")}
+    assert changes == {}
+    assert r.boundary.tolist() == topo.boundary_loops(F, V)[0].tolist()
+    assert signed_area_xy(V[r.boundary]) > 0
+
+
+def test_flipped_face_is_reoriented():
+    V, F = grid(4)
+    Fb = F.copy()
+    Fb[3] = Fb[3, [0, 2, 1]]
+    r = repair_mesh(V, Fb)
+    assert r.report["faces_reoriented"] == 1
+    assert np.array_equal(r.F, F)
+    assert len(r.messages) == 1
+
+
+def test_two_components_need_keep_largest():
+    V1, F1 = grid(4)
+    V2, F2 = grid(2)
+    V = np.r_[V2 + [10, 0, 0], V1]
+    F = np.r_[F2, F1 + len(V2)]
+    with pytest.raises(UserError, match="2 connected components.*keep_largest_component"):
+        repair_mesh(V, F)
+    r = repair_mesh(V, F, options=RepairOptions(keep_largest_component=True))
+    assert r.report["components_dropped"] == 1
+    assert r.report["component_faces_dropped"] == len(F2)
+    assert np.array_equal(r.V, V1) and np.array_equal(r.F, F1)
+    assert np.array_equal(r.source_index, np.arange(len(V1)) + len(V2))
+
+
+def test_closed_mesh_is_rejected():
+    with pytest.raises(UserError, match="closed"):
+        repair_mesh(*tetrahedron())
+
+
+def test_genus_one_with_boundary_is_rejected():
+    V, F = torus()
+    with pytest.raises(UserError, match="genus 1"):
+        repair_mesh(V, F[1:])
+
+
+def test_hole_needs_close_holes_and_gets_one_centre_vertex():
+    V, F = grid(6)
+    hole = [17, 18, 25, 24]                      # square with corners (3,2) and (4,3)
+    centre_faces = [f for f in range(len(F)) if np.all(np.isin(F[f], hole))]
+    Fh = np.delete(F, centre_faces, axis=0)
+    C = np.tile([0.2, 0.4, 0.6], (len(V), 1))
+    C[hole] = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 1]]
+    with pytest.raises(UserError, match="2 boundary loops; set repair.close_holes: true"):
+        repair_mesh(V, Fh)
+    r = repair_mesh(V, Fh, colors=C, options=RepairOptions(close_holes=True))
+    n = len(V)
+    assert r.report["holes_closed"] == 1 and r.report["boundary_loops_found"] == 2
+    assert r.added_vertices.tolist() == [n]
+    assert r.source_index[n] == -1 and np.array_equal(r.source_index[:n], np.arange(n))
+    assert np.allclose(r.V[n], V[hole].mean(axis=0))
+    assert np.allclose(r.colors[n], C[hole].mean(axis=0))
+    (h,) = r.closed_holes
+    assert h["centre_vertex"] == n and sorted(h["loop"]) == sorted(hole)
+    assert len(r.F) == len(Fh) + 4
+    assert is_disk(r)
+    assert face_areas(r.V, r.F).sum() == pytest.approx(36.0)
+
+
+def test_bowtie_is_rejected():
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [-1, 0, 0], [-1, -1, 0]], float)
+    F = np.array([[0, 1, 2], [0, 3, 4]])
+    with pytest.raises(UserError, match="non-manifold vertex"):
+        repair_mesh(V, F)
+
+
+def test_three_faces_sharing_an_edge_are_rejected():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
+    F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    with pytest.raises(UserError, match="non-manifold edge"):
+        repair_mesh(V, F)
+
+
+def test_leaf_faces_are_split_at_edge_midpoints():
+    V, F = grid(4, alternate=False)
+    C = np.c_[V[:, :2] / 4, np.zeros(len(V))]
+    r = repair_mesh(V, F, colors=C)
+    assert r.report["leaf_faces_split"] == 2
+    assert r.report["leaf_split_vertices_added"] == 2
+    n = len(V)
+    assert r.added_vertices.tolist() == [n, n + 1]
+    assert np.all(r.source_index[n:] == -1)
+    assert np.array_equal(r.V[:n], V)
+    # the split points are exact midpoints of the corner squares' diagonals
+    assert sorted(map(tuple, r.V[n:].tolist())) == [(0.5, 3.5, 0.0), (3.5, 0.5, 0.0)]
+    assert np.allclose(r.colors[n:], np.c_[r.V[n:, :2] / 4, np.zeros(2)])
+    assert len(r.F) == len(F) + 4
+    assert face_areas(r.V, r.F).sum() == pytest.approx(16.0)
+    assert is_disk(r)
+    # boundary unchanged and still counterclockwise
+    assert r.boundary.tolist() == topo.boundary_loops(F, V)[0].tolist()
+
+
+def test_leaf_faces_rejected_when_splitting_is_off():
+    V, F = grid(4, alternate=False)
+    with pytest.raises(UserError, match="2 leaf faces.*split_leaf_faces"):
+        repair_mesh(V, F, options=RepairOptions(split_leaf_faces=False))
+
+
+def test_single_triangle_is_rejected():
+    V = np.eye(3)
+    with pytest.raises(UserError, match="single isolated triangle"):
+        repair_mesh(V, np.array([[0, 1, 2]]))
+
+
+def test_duplicated_vertex_is_welded():
+    V, F = grid(4)
+    v = 12                                        # interior vertex
+    Vd = np.r_[V, V[v:v + 1]]
+    Fd = F.copy()
+    uses = np.flatnonzero((F == v).any(axis=1))[:3]
+    Fd[uses] = np.where(Fd[uses] == v, len(V), Fd[uses])
+    r = repair_mesh(Vd, Fd)
+    assert r.report["vertices_welded"] == 1
+    assert np.array_equal(r.V, V) and np.array_equal(r.F, F)
+    assert np.array_equal(r.source_index, np.arange(len(V)))
+
+
+def test_near_duplicate_within_tolerance_is_welded_and_outside_is_not():
+    V, F = grid(4)
+    v = 12
+    uses = np.flatnonzero((F == v).any(axis=1))[:3]
+    Fd = F.copy()
+    Fd[uses] = np.where(Fd[uses] == v, len(V), Fd[uses])
+    near = np.r_[V, V[v:v + 1] + [1e-12, 0, 0]]
+    assert repair_mesh(near, Fd).report["vertices_welded"] == 1
+    far = np.r_[V, V[v:v + 1] + [1e-3, 0, 0]]
+    with pytest.raises(UserError):                # a slit: two boundary loops
+        repair_mesh(far, Fd)
+
+
+def test_cut_seam_is_not_welded():
+    V, F = octahedron()
+    # cut along +x → +z → -x: faces on the -y side get a copy of +z
+    Vc = np.r_[V, V[4:5]]
+    Fc = F.copy()
+    for f in range(len(F)):
+        if 3 in F[f] and 4 in F[f]:
+            Fc[f] = np.where(F[f] == 4, 6, F[f])
+    r = repair_mesh(Vc, Fc)
+    assert r.report["weld_skipped_vertices"] == 1 and r.report["vertices_welded"] == 0
+    assert "cut seam" in r.messages[0]
+    assert len(r.V) == 7 and is_disk(r)
+    assert np.array_equal(r.F, Fc)
+    with pytest.raises(UserError, match="closed"):        # the uncut octahedron
+        repair_mesh(V, F)
+
+
+def test_nan_and_empty_are_rejected():
+    V, F = grid(2)
+    Vn = V.copy()
+    Vn[3, 1] = np.nan
+    with pytest.raises(UserError, match="NaN"):
+        repair_mesh(Vn, F)
+    with pytest.raises(UserError, match="no faces"):
+        repair_mesh(V, np.zeros((0, 3), int))
+    with pytest.raises(UserError, match="no vertices"):
+        repair_mesh(np.zeros((0, 3)), F)
+    with pytest.raises(UserError, match="out of range"):
+        repair_mesh(V, F + 100)
+
+
+def test_polygons_degenerate_duplicate_and_unreferenced_faces():
+    V, F = grid(2)                 # 3×3 vertices; quads below are the grid squares
+    quads = [[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]]
+    faces = quads + [[0, 1, 4, 3][:3]] + [[2, 2, 5]] + [[6, 7]]
+    V2 = np.r_[V, [[9, 9, 9]]]     # unreferenced vertex
+    r = repair_mesh(V2, faces)
+    rep = r.report
+    assert rep["non_triangle_faces_triangulated"] == 4
+    assert rep["invalid_faces_removed"] == 1
+    assert rep["degenerate_faces_removed"] == 1
+    assert rep["duplicate_faces_removed"] == 1
+    assert rep["unreferenced_vertices_removed"] == 1
+    assert is_disk(r)
+    assert r.report["leaf_faces_split"] == 2        # the quad fans leave two corner leaves
+    assert len(r.messages) == 6
+    assert np.all(r.source_index[:9] == np.arange(9))
+
+
+def test_zero_area_cap_is_flipped_away():
+    V, F = grid(4)
+    # square 0: faces (0,1,6),(0,6,5); replace (0,1,6) by a fan around the diagonal's midpoint
+    x = len(V)
+    Vc = np.r_[V, [[0.5, 0.5, 0.0]]]
+    Fc = np.r_[[[0, 1, x], [x, 1, 6], [0, x, 6]], F[1:]]
+    assert zero_area_mask(Vc, Fc).sum() == 1
+    r = repair_mesh(Vc, Fc)
+    assert r.report["zero_area_faces_flipped"] == 1
+    assert not zero_area_mask(r.V, r.F).any()
+    assert face_areas(r.V, r.F).sum() == pytest.approx(16.0)
+    assert is_disk(r) and len(r.F) == len(F) + 2
+
+
+def test_zero_area_boundary_cap_is_removed():
+    V, F = grid(4)
+    # replace the face on boundary edge 1 -> 2 by three faces around a point x on that edge:
+    # (1,x,p), (x,2,p) and the cap (1,2,x) whose long edge is the boundary edge
+    f12 = [f for f in range(len(F)) if {1, 2} <= set(F[f].tolist())][0]
+    rot = np.roll(F[f12], -list(F[f12]).index(1))        # (1, 2, p)
+    assert rot[1] == 2
+    p, x = rot[2], len(V)
+    Vc = np.r_[V, [[1.5, 0.0, 0.0]]]
+    Fc = np.r_[np.delete(F, f12, axis=0), [[1, x, p], [x, 2, p], [1, 2, x]]]
+    r = repair_mesh(Vc, Fc)
+    assert r.report["zero_area_faces_removed"] == 1
+    assert not zero_area_mask(r.V, r.F).any()
+    assert x in r.boundary.tolist() and len(r.F) == len(F) + 1
+    assert face_areas(r.V, r.F).sum() == pytest.approx(16.0)
+    assert is_disk(r)
+
+
+def test_decimation_keeps_a_disk_and_maps_vertices_to_the_input():
+    V, F = grid(30)
+    V = V.copy()
+    V[:, 2] = np.sin(V[:, 0] / 5) * np.cos(V[:, 1] / 7)
+    r = repair_mesh(V, F, options=RepairOptions(decimate_to_faces=400))
+    assert r.report["decimated_from_faces"] == len(F)
+    assert 300 <= r.report["decimated_to_faces"] <= 800
+    assert is_disk(r)
+    src = r.source_index
+    assert np.all(src[src >= 0] < len(V)) and len(np.unique(src[src >= 0])) == np.sum(src >= 0)
+    # boundary preserved exactly by the first (border-preserving) attempt
+    assert np.array_equal(r.V[r.boundary], V[src[r.boundary]])
+
+
+def test_decimation_target_too_small_is_rejected():
+    V, F = grid(4)
+    with pytest.raises(UserError, match="decimate_to_faces"):
+        repair_mesh(V, F, options=RepairOptions(decimate_to_faces=2))
+
+
+# --------------------------------------------------------------------------------------------
+# real meshes
+
+MESHES = {
+    # name: expected non-default report entries
+    "c3d_alligator": {"leaf_faces_split": 2, "leaf_split_vertices_added": 2},
+    "choi_chinese_lion": {},
+    "choi_hand": {},
+    "choi_human_brain": {},
+    "choi_human_face": {},
+    "gpp_bunny": {},
+    "gpp_face": {"leaf_faces_split": 123, "leaf_split_vertices_added": 103},
+    "igl_camel_b": {"weld_skipped_vertices": 243, "leaf_faces_split": 26,
+                    "leaf_split_vertices_added": 19},
+    "igl_camelhead": {},
+    "igl_lion": {},
+}
+_COUNTERS = ("non_triangle_faces_triangulated", "invalid_faces_removed",
+             "degenerate_faces_removed", "vertices_welded", "duplicate_faces_removed",
+             "unreferenced_vertices_removed", "components_dropped", "faces_reoriented",
+             "zero_area_faces_flipped", "zero_area_faces_removed", "holes_closed",
+             "leaf_faces_split", "leaf_split_vertices_added", "weld_skipped_vertices")
+
+
+@pytest.mark.parametrize("name", sorted(MESHES))
+def test_real_meshes_repair_into_disks(name):
+    path = require_data("meshes", f"{name}.obj")
+    m = read_mesh(path)
+    r = repair_mesh(m.V, m.faces, m.colors, name=name)
+    assert is_disk(r)
+    got = {k: r.report.get(k) for k in _COUNTERS if r.report.get(k)}
+    assert got == MESHES[name]
+    n_in = len(m.V)
+    assert np.array_equal(r.V[:n_in], m.V)
+    assert np.array_equal(r.source_index[:n_in], np.arange(n_in))
+    assert len(r.V) == n_in + MESHES[name].get("leaf_split_vertices_added", 0)
+    if not MESHES[name]:
+        assert np.array_equal(r.F, m.faces)
+
+
+ICT = ["A_neutral", "A_smile", "B_neutral", "B_smile_jawopen"]
+
+
+@pytest.mark.parametrize("face", ICT)
+def test_ict_holes_close_into_the_disk_files(face):
+    holes = read_mesh(require_data("faces", "ict", f"ict_{face}_holes.obj"))
+    disk = read_mesh(require_data("faces", "ict", f"ict_{face}_disk.obj"))
+    with pytest.raises(UserError, match="4 boundary loops"):
+        repair_mesh(holes.V, holes.faces)
+    r = repair_mesh(holes.V, holes.faces, options=RepairOptions(close_holes=True))
+    assert r.report["holes_closed"] == 3
+    assert r.added_vertices.tolist() == [len(holes.V), len(holes.V) + 1, len(holes.V) + 2]
+    assert len(r.V) == len(disk.V)
+    assert np.array_equal(r.F, disk.faces)               # same fans, same order
+    assert np.abs(r.V - disk.V).max() < 1e-6             # the files have 6 decimals
+    assert is_disk(r)
+    rd = repair_mesh(disk.V, disk.faces)
+    assert rd.messages == [] and np.array_equal(rd.boundary, r.boundary)
+
+
+def test_real_mesh_decimation():
+    m = read_mesh(require_data("meshes", "choi_human_face.obj"))
+    r = repair_mesh(m.V, m.faces, options=RepairOptions(decimate_to_faces=2000))
+    assert is_disk(r)
+    assert 1500 <= len(r.F) <= 2500
+    assert np.all(r.source_index >= 0)
