@@ -1,0 +1,559 @@
+"""Figures of a disk parameterization (the paper's Fig. 3, 4, 5 and 7, plus a surface/disk view).
+
+Every function is pure: arrays in, one PNG file out, the :class:`~pathlib.Path` returned. Parent
+folders are created, and the file is written atomically (saved under a temporary name in the same
+folder, then ``os.replace``-d), so a reader never sees a half-written PNG. Figures are built on
+:class:`matplotlib.figure.Figure` with the Agg canvas and never registered with pyplot, so nothing
+is left open (``plt.get_fignums()`` stays empty) and the functions are safe to call from threads.
+
+Every figure has a fixed pixel size, ``FIGURE_SIZES[name]`` inches × :data:`DPI` (no tight
+bounding box; text is kept inside by the constrained layout engine).
+
+Colour conventions
+------------------
+The local area ratio ``R(v)`` of eq. (29) is shown as ``log2 R(v)`` with a diverging colormap
+centred at 0 (``R = 1``, equiareal): red where the surface area around ``v`` is *compressed* on
+the disk (``R > 1``), blue where it is *stretched* (``R < 1``). ``log2`` makes a factor of 2 too
+large and 2 too small equally strong; near 1 it is ``(R − 1)/ln 2``, so small deviations read
+linearly. The colour limits are symmetric and robust (99th percentile of ``|log2 R|``), so the
+few outliers (usually near the boundary or at creases) saturate instead of washing out the
+structure; the colorbar ticks are labelled with ``R`` itself and its arrows say that values go
+beyond the limits, and the figure states how many vertices do.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.artist import Artist, allow_rasterization  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import FixedLocator, MaxNLocator  # noqa: E402
+from matplotlib.tri import Triangulation  # noqa: E402
+
+__all__ = [
+    "DPI",
+    "FIGURE_SIZES",
+    "plot_disk_area_ratio",
+    "plot_area_ratio_histogram",
+    "plot_convergence",
+    "plot_surface_and_disk",
+    "plot_angle_histogram",
+    "log2_ratio_limit",
+]
+
+DPI = 150
+FIGURE_SIZES = {                       # inches; pixels = inches × DPI
+    "disk_area_ratio": (6.4, 5.6),
+    "area_ratio_histogram": (6.4, 4.4),
+    "convergence": (7.2, 6.0),
+    "surface_and_disk": (11.0, 5.4),
+    "angle_histogram": (6.4, 4.4),
+}
+
+EDGE_FACE_LIMIT = 5000                 # draw mesh edges only up to this many faces
+ROBUST_PERCENTILE = 99.0               # colour limit: this percentile of |log2 R|
+MIN_LOG2_LIMIT = 1e-4                  # colour limit floor (|log2 R| of an exact map is ~0)
+RATIO_CMAP = "RdBu_r"
+PHASE_STYLE = {                        # history 'phase' -> (colour, marker, legend text)
+    "harmonic": ("black", "s", "harmonic start"),
+    "sem": ("tab:blue", "o", "SEM step (eq. 19–22)"),
+    "gradient": ("tab:orange", "^", "preconditioned gradient step"),
+}
+
+
+# ------------------------------------------------------------------------------------ helpers
+
+
+def _new_figure(name: str, **kwargs) -> Figure:
+    fig = Figure(figsize=FIGURE_SIZES[name], dpi=DPI, layout="constrained", **kwargs)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path) -> Path:
+    """Write ``fig`` to ``path`` atomically (temp file in the same folder + ``os.replace``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.png", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=DPI)
+        os.chmod(tmp, 0o644)              # mkstemp creates 0600; a figure is for everyone to read
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    finally:
+        fig.clear()
+    return path
+
+
+def _as_arrays(uv, F):
+    uv = np.asarray(uv, dtype=np.float64)[:, :2]
+    F = np.asarray(F, dtype=np.int64)
+    return uv, F
+
+
+def _finite_log2(ratio: np.ndarray, limit: float) -> np.ndarray:
+    """``log2 R`` with non-finite values replaced so that drawing never fails: ``R = ∞`` (image
+    area 0) and ``R = 0`` saturate at ``±limit``, NaN is drawn as 0 (it is counted separately)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.log2(np.asarray(ratio, dtype=np.float64))
+    x = np.where(np.isnan(x), 0.0, x)
+    return np.clip(x, -limit * 4, limit * 4)
+
+
+def log2_ratio_limit(ratio: np.ndarray, percentile: float = ROBUST_PERCENTILE) -> float:
+    """Symmetric robust colour limit for ``log2 R``: the ``percentile`` of ``|log2 R|`` over the
+    finite positive ratios (at least :data:`MIN_LOG2_LIMIT`)."""
+    r = np.asarray(ratio, dtype=np.float64)
+    r = r[np.isfinite(r) & (r > 0)]
+    if len(r) == 0:
+        return 1.0
+    return float(max(np.percentile(np.abs(np.log2(r)), percentile), MIN_LOG2_LIMIT))
+
+
+def _tick_labels(ticks) -> list[str]:
+    """Shortest fixed-point labels (1–6 decimals) that show every tick value exactly."""
+    ticks = np.asarray(ticks, dtype=np.float64)
+    scale = max(float(np.max(np.abs(ticks))), 1e-300) if len(ticks) else 1.0
+    for d in range(1, 7):
+        if np.all(np.abs(np.round(ticks, d) - ticks) <= 1e-9 * scale):
+            break
+    return [f"{t:.{d}f}" for t in ticks]
+
+
+def _ratio_colorbar(fig, mappable, ax, limit: float, label: str, **kwargs):
+    """Colorbar of ``log2 R`` on ``[−limit, limit]`` whose ticks are labelled with ``R``."""
+    cb = fig.colorbar(mappable, ax=ax, extend="both", **kwargs)
+    lo, hi = 2.0 ** -limit, 2.0 ** limit
+    ticks = MaxNLocator(nbins=7, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+    ticks = ticks[(ticks >= lo) & (ticks <= hi) & (ticks > 0)]
+    if len(ticks) < 3:
+        ticks = np.array([lo, 1.0, hi])
+    cb.set_ticks(FixedLocator(np.log2(ticks)))
+    cb.set_ticklabels(_tick_labels(ticks))
+    cb.set_label(label)
+    return cb
+
+
+def _outside_note(ratio: np.ndarray, limit: float) -> str:
+    r = np.asarray(ratio, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.log2(r)
+    above = int(np.count_nonzero(x > limit))
+    below = int(np.count_nonzero(x < -limit))
+    nan = int(np.count_nonzero(np.isnan(x)))
+    n = max(len(r), 1)
+    note = (f"colour range R ∈ [{2.0 ** -limit:.4g}, {2.0 ** limit:.4g}] (|log₂R| {ROBUST_PERCENTILE:g}th "
+            f"pct.); saturated: {below} below, {above} above ({100.0 * (below + above) / n:.2g} %)")
+    finite = r[np.isfinite(r)]
+    if len(finite):
+        note += f"; R from {finite.min():.4g} to {finite.max():.4g}"
+    if nan:
+        note += f"; {nan} undefined (drawn as 1)"
+    return note
+
+
+def _draw_disk(ax, uv, F, values, norm, cmap, *, edges: bool):
+    """Gouraud-shaded disk image of per-vertex ``values``, unit circle, equal aspect, no ticks."""
+    tri = Triangulation(uv[:, 0], uv[:, 1], F)
+    mappable = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap, norm=norm, rasterized=True)
+    if edges:
+        ax.triplot(tri, color="k", lw=0.15, alpha=0.35, rasterized=True)
+    t = np.linspace(0.0, 2.0 * np.pi, 721)
+    ax.plot(np.cos(t), np.sin(t), color="k", lw=0.8)
+    ax.set_aspect("equal")
+    pad = 1.04 * max(1.0, float(np.max(np.abs(uv))) if len(uv) else 1.0)
+    ax.set_xlim(-pad, pad)
+    ax.set_ylim(-pad, pad)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for s in ax.spines.values():
+        s.set_visible(False)
+    return mappable
+
+
+def _mesh_label(n_vertices: int, n_faces: int) -> str:
+    return f"{n_vertices:,} vertices, {n_faces:,} faces"
+
+
+# ----------------------------------------------------------------------- 1. disk, Fig. 3 style
+
+
+def plot_disk_area_ratio(uv, F, ratio_per_vertex, path, title=None) -> Path:
+    """The disk image of the mesh coloured by the local area ratio ``R(v)`` of eq. (29).
+
+    Gouraud-shaded ``log2 R(v)`` on a diverging colormap centred at ``R = 1`` with robust
+    symmetric limits (see the module docstring), the unit circle, equal aspect, no ticks; mesh
+    edges are drawn thinly up to :data:`EDGE_FACE_LIMIT` faces. Rasterized, so 10⁶ faces are fine.
+    """
+    uv, F = _as_arrays(uv, F)
+    R = np.asarray(ratio_per_vertex, dtype=np.float64)
+    limit = log2_ratio_limit(R)
+    fig = _new_figure("disk_area_ratio")
+    ax = fig.add_subplot()
+    m = _draw_disk(ax, uv, F, _finite_log2(R, limit), Normalize(-limit, limit), RATIO_CMAP,
+                   edges=len(F) <= EDGE_FACE_LIMIT)
+    _ratio_colorbar(fig, m, ax, limit,
+                    "local area ratio R(v), eq. (29) — log₂ colour scale\n"
+                    "red: compressed on the disk (R > 1), blue: stretched (R < 1)",
+                    shrink=0.9)
+    finite = R[np.isfinite(R)]
+    stats = (f"mean {finite.mean():.5f}, SD {finite.std():.2e}" if len(finite) else "no finite R")
+    ax.set_title(f"{title or 'Disk image: local area ratio'}\n"
+                 f"{_mesh_label(len(uv), len(F))}; R: {stats}", fontsize=10)
+    fig.text(0.01, 0.005, _outside_note(R, limit), fontsize=6.5, color="0.3", ha="left",
+             va="bottom")
+    fig.get_layout_engine().set(rect=(0, 0.03, 1, 0.97))
+    return _save(fig, path)
+
+
+# -------------------------------------------------------------------- 2. histogram, Fig. 4
+
+
+def _histogram(ax, x, lo, hi, color):
+    n = len(x)
+    bins = int(np.clip(np.sqrt(max(n, 1)) * 1.5, 20, 120))
+    inside = x[(x >= lo) & (x <= hi)]
+    ax.hist(inside, bins=bins, range=(lo, hi), color=color, edgecolor="white", linewidth=0.3)
+    ax.set_xlim(lo, hi)
+    ax.set_ylabel("count")
+    ax.grid(axis="y", alpha=0.3)
+
+
+def plot_area_ratio_histogram(ratio_per_vertex, path, title=None) -> Path:
+    """Histogram of the local area ratios ``R(v)`` (eq. 29) on their 0.5–99.5 percentile range
+    (widened to contain 1), with mean and SD over all finite values in the legend, a line at the
+    ideal ``R = 1`` and the number of values outside the shown range."""
+    R = np.asarray(ratio_per_vertex, dtype=np.float64).ravel()
+    finite = R[np.isfinite(R)]
+    fig = _new_figure("area_ratio_histogram")
+    ax = fig.add_subplot()
+    if len(finite):
+        lo, hi = np.percentile(finite, [0.5, 99.5])
+        lo, hi = min(lo, 1.0), max(hi, 1.0)
+        if hi - lo < 1e-9:
+            lo, hi = lo - 1e-3, hi + 1e-3
+        pad = 0.02 * (hi - lo)
+        lo, hi = lo - pad, hi + pad
+        _histogram(ax, finite, lo, hi, "tab:blue")
+        mean, sd = finite.mean(), finite.std()
+        d = int(np.clip(np.ceil(-np.log10(sd)) + 1, 3, 8)) if sd > 0 else 3
+        below, above = int(np.sum(finite < lo)), int(np.sum(finite > hi))
+        handles = [
+            Patch(color="tab:blue", label=f"R(v), {len(finite):,} vertices"),
+            Line2D([], [], color="k", ls="--", label="R = 1 (equiareal)"),
+            Line2D([], [], color="tab:red", label=f"mean = {mean:.{d}f}"),
+            Patch(color="tab:red", alpha=0.12, label=f"mean ± SD, SD = {sd:.2e}"),
+        ]
+        ax.axvspan(max(mean - sd, lo), min(mean + sd, hi), color="tab:red", alpha=0.12, lw=0,
+                   zorder=0)
+        ax.axvline(1.0, color="k", ls="--", lw=1)
+        if lo <= mean <= hi:
+            ax.axvline(mean, color="tab:red", lw=1)
+        ax.legend(handles=handles, fontsize=8, loc="upper right")
+        note = (f"shown: 0.5–99.5 percentile range; outside it: {below:,} below, {above:,} above\n"
+                f"all R from {finite.min():.4g} to {finite.max():.4g}")
+        if len(finite) < len(R):
+            note += f"; {len(R) - len(finite):,} non-finite R left out"
+        ax.set_xlabel("local area ratio R(v), eq. (29)\n" + note, fontsize=9)
+        ax.xaxis.label.set_linespacing(1.6)
+        ax.ticklabel_format(axis="x", useOffset=False)
+    else:
+        ax.text(0.5, 0.5, "no finite area ratio", ha="center", va="center",
+                transform=ax.transAxes)
+    ax.set_title(title or "Local area ratios", fontsize=11)
+    return _save(fig, path)
+
+
+# --------------------------------------------------------------------- 5. angles, Fig. 5
+
+
+def plot_angle_histogram(angular_distortion_deg, path, title=None) -> Path:
+    """Histogram of the angular distortion ``|angle on M − angle on the disk|`` (degrees, one value
+    per corner) up to its 99.5th percentile, with mean, SD and median in the legend."""
+    a = np.asarray(angular_distortion_deg, dtype=np.float64).ravel()
+    a = a[np.isfinite(a)]
+    fig = _new_figure("angle_histogram")
+    ax = fig.add_subplot()
+    if len(a):
+        hi = float(np.percentile(a, 99.5))
+        hi = hi if hi > 0 else max(float(a.max()), 1.0)
+        hi *= 1.02
+        _histogram(ax, a, 0.0, hi, "tab:green")
+        mean, sd, med = a.mean(), a.std(), np.median(a)
+        handles = [
+            Patch(color="tab:green", label=f"{len(a):,} corners"),
+            Line2D([], [], color="tab:red", label=f"mean = {mean:.2f}°, SD = {sd:.2f}°"),
+            Line2D([], [], color="k", ls=":", label=f"median = {med:.2f}°"),
+        ]
+        if mean <= hi:
+            ax.axvline(mean, color="tab:red", lw=1)
+        ax.axvline(med, color="k", ls=":", lw=1)
+        ax.legend(handles=handles, fontsize=8, loc="upper right")
+        above = int(np.sum(a > hi))
+        ax.set_xlabel("angular distortion |angle on M − angle on the disk| (degrees)\n"
+                      f"shown up to the 99.5th percentile; {above:,} corners above it\n"
+                      f"(max {a.max():.1f}°)", fontsize=9)
+        ax.xaxis.label.set_linespacing(1.6)
+    else:
+        ax.text(0.5, 0.5, "no angles", ha="center", va="center", transform=ax.transAxes)
+    ax.set_title(title or "Angular distortion", fontsize=11)
+    return _save(fig, path)
+
+
+# ----------------------------------------------------------------- 3. convergence, Fig. 7
+
+
+def _phase_a_end(history) -> int | None:
+    """Index of the last entry of the plain-SEM phase A: the last 'sem' entry before the first
+    'gradient' one (None if no gradient step was taken, i.e. no phase B is visible)."""
+    phases = [h.get("phase") for h in history]
+    if "gradient" not in phases:
+        return None
+    first = phases.index("gradient")
+    return first - 1
+
+
+def _positive(x, floor=1e-16):
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(np.isfinite(x), np.maximum(x, floor), np.nan)
+
+
+def plot_convergence(history, path, title=None) -> Path:
+    """Convergence of SEM (Fig. 7): per accepted iterate, the excess energy ratio
+    ``E_S/(|f(M)|²/|M|) − 1`` (top, log scale) and the total area distortion of eq. (28) with the
+    face-based area distortion (bottom, log scale). Markers are coloured by step kind (harmonic
+    start, SEM step, gradient step); the plain SEM phase and the monotone descent phase are
+    shaded; flipped faces, if any, get a third panel."""
+    hist = list(history)
+    it = np.array([h.get("iteration", i) for i, h in enumerate(hist)], dtype=np.float64)
+    phase = np.array([str(h.get("phase", "sem")) for h in hist], dtype=object)
+    ratio = np.array([h.get("energy_ratio", np.nan) for h in hist], dtype=np.float64)
+    d28 = np.array([h.get("total_area_distortion_eq28", np.nan) for h in hist], dtype=np.float64)
+    dface = np.array([h.get("face_area_distortion", np.nan) for h in hist], dtype=np.float64)
+    flips = np.array([h.get("flipped_faces", 0) or 0 for h in hist], dtype=np.float64)
+    seconds = [h.get("seconds") for h in hist]
+    any_flips = bool(np.any(flips > 0))
+
+    fig = _new_figure("convergence")
+    heights = [3, 3, 1.4] if any_flips else [3, 3]
+    axes = fig.subplots(len(heights), 1, sharex=True, gridspec_kw={"height_ratios": heights})
+    ax_e, ax_d = axes[0], axes[1]
+
+    if len(hist) == 0:
+        ax_e.text(0.5, 0.5, "empty history", ha="center", va="center", transform=ax_e.transAxes)
+    else:
+        end_a = _phase_a_end(hist)
+        x_lo, x_hi = it.min() - 0.5, it.max() + 0.5
+        for ax in axes:
+            if end_a is not None:
+                split = 0.5 * (it[end_a] + it[end_a + 1])
+                ax.axvspan(x_lo, split, color="tab:blue", alpha=0.06, lw=0)
+                ax.axvspan(split, x_hi, color="tab:orange", alpha=0.07, lw=0)
+                ax.axvline(split, color="0.4", lw=0.8, ls="--")
+            ax.grid(alpha=0.3, which="major")
+            ax.set_xlim(x_lo, x_hi)
+        ms = 3.0 if len(hist) <= 400 else 1.5
+
+        excess = _positive(ratio - 1.0)
+        ax_e.plot(it, excess, color="0.5", lw=0.8, zorder=1)
+        for name in dict.fromkeys(phase):
+            sel = phase == name
+            colour, marker, label = PHASE_STYLE.get(name, ("tab:gray", "o", name))
+            ax_e.plot(it[sel], excess[sel], ls="none", marker=marker, ms=ms, color=colour,
+                      label=label, zorder=2)
+        ax_e.set_yscale("log")
+        ax_e.set_ylabel("E_S / (|f(M)|²/|M|) − 1")
+        ax_e.set_title("energy ratio − 1 (0 iff equiareal)", fontsize=9, loc="left")
+        if end_a is not None:
+            ax_e.text(0.5 * (x_lo + split), 1.0, "phase A: plain SEM", transform=ax_e.get_xaxis_transform(),
+                      ha="center", va="bottom", fontsize=7, color="tab:blue", clip_on=False)
+            ax_e.text(0.5 * (split + x_hi), 1.0, "phase B: monotone descent",
+                      transform=ax_e.get_xaxis_transform(), ha="center", va="bottom",
+                      fontsize=7, color="tab:orange", clip_on=False)
+            ax_e.set_title("")
+            ax_e.set_title("energy ratio − 1 (0 iff equiareal)", fontsize=9, loc="left", pad=12)
+        ax_e.legend(fontsize=7, loc="upper right", markerscale=1.5)
+
+        ax_d.plot(it, _positive(d28), color="tab:purple", lw=1.0, marker=".", ms=ms,
+                  label="total area distortion D(f), eq. (28)")
+        ax_d.plot(it, _positive(dface), color="tab:green", lw=1.0, marker=".", ms=ms,
+                  label="face-based: Σ_τ | |τ|/|M| − |f(τ)|/|f(M)| |")
+        ax_d.set_yscale("log")
+        ax_d.set_ylabel("area distortion")
+        ax_d.legend(fontsize=7, loc="upper right")
+        summary = (f"final: ratio − 1 = {excess[-1]:.2e}, D = {d28[-1]:.2e}, "
+                   f"face-based = {dface[-1]:.2e}")
+        ax_d.set_title(summary, fontsize=8, loc="left")
+
+        if any_flips:
+            ax_f = axes[2]
+            ax_f.bar(it, flips, width=0.8, color="tab:red")
+            ax_f.set_ylabel("flipped\nfaces", fontsize=8)
+            ax_f.set_ylim(0, max(1.0, flips.max()) * 1.15)
+        axes[-1].set_xlabel("iteration")
+
+    total = seconds[-1] if seconds and seconds[-1] is not None else None
+    sub = f"{len(hist)} recorded iterates"
+    if len(hist):
+        sub += f", last iteration {int(it.max())}"
+    if total is not None:
+        sub += f", {float(total):.2f} s"
+    if any_flips:
+        sub += f", flipped faces: {int(flips[-1])} at the end (max {int(flips.max())})"
+    elif len(hist):
+        sub += ", no flipped faces"
+    fig.suptitle(f"{title or 'SEM convergence'}\n{sub}", fontsize=10)
+    return _save(fig, path)
+
+
+# ------------------------------------------------------------- 4. surface next to its disk
+
+
+def _plane_frame(V, F):
+    """Orthonormal frame (e1, e2, e3) of the best-fit plane of ``V`` (PCA), right-handed, with
+    ``e3`` on the side the area-weighted face normals point to (the viewer)."""
+    c = V.mean(axis=0)
+    _, _, Vt = np.linalg.svd(V - c, full_matrices=False)
+    e1, e2, e3 = Vt[0], Vt[1], np.cross(Vt[0], Vt[1])
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]).sum(axis=0)
+    if n @ e3 < 0:              # look at the front: flip e3, and e2 to stay right-handed
+        e2, e3 = -e2, -e3
+    return c, e1, e2, e3
+
+
+def _align_rotation(P, uv):
+    """Rotation (2×2, det +1) that best maps the centred points ``P`` onto ``uv`` (Procrustes)."""
+    A = (P - P.mean(axis=0)).T @ (uv - uv.mean(axis=0))
+    U, _, Wt = np.linalg.svd(A)
+    R = U @ Wt
+    if np.linalg.det(R) < 0:
+        U[:, -1] *= -1
+        R = U @ Wt
+    return R
+
+
+class _GouraudRGB(Artist):
+    """Triangles with one RGBA colour per corner, interpolated (Agg ``draw_gouraud_triangles``),
+    drawn in the given order. ``tris`` is (m, 3, 2) in data coordinates, ``colors`` (m, 3, 4)."""
+
+    def __init__(self, tris, colors, **kwargs):
+        super().__init__()
+        self.set(**kwargs)
+        self._tris = np.ascontiguousarray(tris, dtype=np.float64)
+        self._colors = np.ascontiguousarray(colors, dtype=np.float64)
+
+    @allow_rasterization
+    def draw(self, renderer):
+        if not self.get_visible() or len(self._tris) == 0:
+            return
+        renderer.open_group("gouraud_rgb", gid=self.get_gid())
+        gc = renderer.new_gc()
+        self._set_gc_clip(gc)
+        renderer.draw_gouraud_triangles(gc, self._tris, self._colors, self.get_transform())
+        gc.restore()
+        renderer.close_group("gouraud_rgb")
+        self.stale = False
+
+
+def _surface_view(V, F):
+    """Orthographic projection on the best-fit plane: 2D points, depth per vertex and a Lambert
+    shade in [0, 1] per vertex (area-weighted vertex normals, a head light slightly above left)."""
+    c, e1, e2, e3 = _plane_frame(V, F)
+    X = V - c
+    P = np.column_stack([X @ e1, X @ e2])
+    depth = X @ e3
+    Nf = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])     # area weighted
+    N = np.column_stack([np.bincount(F.ravel(), weights=np.repeat(Nf[:, j], 3),
+                                     minlength=len(V)) for j in range(3)])
+    N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+    light = e3 + 0.35 * e2 - 0.25 * e1
+    light /= np.linalg.norm(light)
+    lam = N @ light
+    shade = np.where(N @ e3 >= 0, 0.3 + 0.7 * np.clip(lam, 0, 1), 0.2 + 0.2 * np.abs(lam))
+    return P, depth, shade
+
+
+def plot_surface_and_disk(V, F, uv, values, path, title=None, *, value_label=None) -> Path:
+    """The surface (left) and its disk image (right) coloured by the same per-vertex ``values``.
+
+    The surface is drawn as an orthographic view onto its best-fit (PCA) plane, seen from the side
+    its normals point to, rotated in the plane to best match the disk (so corresponding regions
+    sit in the same place), with flat Lambert shading times the colour, faces drawn back to front.
+    ``values`` is per vertex. Without ``value_label``, positive values with a median in
+    (0.5, 2) are taken to be the local area ratio ``R(v)`` and drawn as ``log2 R`` exactly like
+    :func:`plot_disk_area_ratio`; any other values, or any values given with a ``value_label``
+    (the colorbar label), are drawn on viridis with robust 1–99 percentile limits.
+    """
+    V = np.asarray(V, dtype=np.float64)
+    uv, F = _as_arrays(uv, F)
+    vals = np.asarray(values, dtype=np.float64).ravel()
+    finite = vals[np.isfinite(vals)]
+    is_ratio = (len(finite) > 0 and np.all(finite > 0)
+                and 0.5 < float(np.median(finite)) < 2.0 and value_label is None)
+    if is_ratio:
+        limit = log2_ratio_limit(vals)
+        draw = _finite_log2(vals, limit)
+        norm, cmap = Normalize(-limit, limit), RATIO_CMAP
+    else:
+        if len(finite):
+            lo, hi = np.percentile(finite, [1.0, 99.0])
+        else:
+            lo, hi = 0.0, 1.0
+        if hi <= lo:
+            lo, hi = lo - 0.5, hi + 0.5
+        fill = 0.5 * (lo + hi)
+        draw = np.where(np.isfinite(vals), vals, fill)
+        norm, cmap = Normalize(lo, hi), "viridis"
+
+    P, depth, shade = _surface_view(V, F)
+    P = P @ _align_rotation(P, uv)
+    order = np.argsort(depth[F].mean(axis=1), kind="stable")      # back to front
+    Fo = F[order]
+    rgba = matplotlib.colormaps[cmap](norm(draw))                  # per vertex
+    rgba[:, :3] *= shade[:, None]
+
+    fig = _new_figure("surface_and_disk")
+    ax_s, ax_d = fig.subplots(1, 2)
+    ax_s.add_artist(_GouraudRGB(P[Fo], rgba[Fo], transform=ax_s.transData, rasterized=True))
+    lo_xy, hi_xy = P.min(axis=0), P.max(axis=0)
+    pad = 0.03 * float(np.max(hi_xy - lo_xy))
+    ax_s.set_xlim(lo_xy[0] - pad, hi_xy[0] + pad)
+    ax_s.set_ylim(lo_xy[1] - pad, hi_xy[1] + pad)
+    ax_s.set_aspect("equal")
+    ax_s.set_xticks([])
+    ax_s.set_yticks([])
+    for s in ax_s.spines.values():
+        s.set_visible(False)
+    ax_s.set_title("surface M (orthographic view on its best-fit plane,\n"
+                   "rotated to match the disk; shaded)", fontsize=9)
+
+    m = _draw_disk(ax_d, uv, F, draw, norm, cmap, edges=len(F) <= EDGE_FACE_LIMIT)
+    ax_d.set_title("disk image f(M)", fontsize=9)
+    if is_ratio:
+        _ratio_colorbar(fig, m, [ax_s, ax_d], limit,
+                        "local area ratio R(v), eq. (29), log₂ colour scale\n"
+                        "red: compressed on the disk, blue: stretched",
+                        shrink=0.85, pad=0.02)
+    else:
+        cb = fig.colorbar(m, ax=[ax_s, ax_d], extend="both", shrink=0.85, pad=0.02)
+        cb.set_label(value_label or "value per vertex (1–99 percentile colour range)")
+    fig.suptitle(f"{title or 'Surface and its disk parameterization'}\n"
+                 f"{_mesh_label(len(V), len(F))}", fontsize=10)
+    return _save(fig, path)
