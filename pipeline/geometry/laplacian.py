@@ -63,16 +63,15 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _block(rows_of: np.ndarray, cols_of: np.ndarray, n_rows: int, n_cols: int,
            r: np.ndarray, c: np.ndarray, src: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
     """CSR structure of the entries (r, c) (global vertex ids) of one block, and for each stored
-    entry the index of its value in the source vector."""
+    entry the index of its value in the source vector. Built once per mesh: the source ids ride
+    through SciPy's COO→CSR conversion as data (exact in float64, entries are distinct)."""
     rr, cc = rows_of[r], cols_of[c]
     keep = (rr >= 0) & (cc >= 0)
-    rr, cc, src = rr[keep], cc[keep], src[keep]
-    order = np.lexsort((cc, rr))
-    rr, cc, src = rr[order], cc[order], src[order]
-    indptr = np.zeros(n_rows + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rr, minlength=n_rows), out=indptr[1:])
-    M = sp.csr_matrix((np.zeros(len(cc)), cc.astype(np.int64), indptr), shape=(n_rows, n_cols))
-    return M, src
+    M = sp.coo_matrix((src[keep] + 1.0, (rr[keep], cc[keep])), shape=(n_rows, n_cols)).tocsr()
+    M.sort_indices()
+    ids = M.data.astype(np.int64) - 1
+    M.data = np.zeros(len(ids))
+    return M, ids
 
 
 def laplacian_pattern(F: np.ndarray, n: int, boundary: np.ndarray) -> LaplacianPattern:
@@ -119,15 +118,14 @@ def corner_dot_over_area(P: np.ndarray, F: np.ndarray, double_area: np.ndarray) 
 
     With ``P = V`` and ``2|τ|`` the face's own doubled area this is ``cot`` of the corner angle
     (eq. 5); with ``P = f`` (the disk map) and the *surface* area it is the stretch weight term of
-    eq. (12), ``cot α(f) / σ(τ)``. Component-wise arithmetic (no cross/einsum) for speed.
+    eq. (12), ``cot α(f) / σ(τ)``. With the edge vectors ``d_c = p_{c+1} − p_c`` of each face, the
+    dot product at corner c is ``−d_c · d_{c−1}``: one gather per coordinate, no cross products.
     """
-    out = np.empty((len(F), 3))
-    for c in range(3):
-        pi, pj, pk = P[F[:, c]], P[F[:, (c + 1) % 3]], P[F[:, (c + 2) % 3]]
-        dot = np.zeros(len(F))
-        for d in range(P.shape[1]):
-            dot += (pj[:, d] - pi[:, d]) * (pk[:, d] - pi[:, d])
-        out[:, c] = dot
+    out = np.zeros((len(F), 3))
+    for d in range(P.shape[1]):
+        x = P[:, d][F]                       # m×3
+        dx = np.roll(x, -1, axis=1) - x      # d_c = p_{c+1} − p_c
+        out -= dx * np.roll(dx, 1, axis=1)   # −d_c · d_{c−1}
     out /= double_area[:, None]
     return out
 

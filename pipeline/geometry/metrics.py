@@ -14,8 +14,8 @@ from .laplacian import face_double_areas
 
 def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the signed area of every image face; positive = counter-clockwise."""
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    x, y = uv[:, 0][F], uv[:, 1][F]
+    return (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
 
 
 def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -39,19 +39,32 @@ def energy_ratio(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
     return float(np.sum(a * a / A) * np.sum(A) / np.sum(a) ** 2)
 
 
+def vertex_area_fractions(F: np.ndarray, n: int, areas: np.ndarray) -> np.ndarray:
+    """``Σ_{τ∋v} |τ| / Σ_τ |τ|`` per vertex for any per-face areas (the sums of eq. 28–29)."""
+    return np.bincount(F.ravel(), weights=np.repeat(areas / areas.sum(), 3), minlength=n)
+
+
+def area_distortions(F: np.ndarray, n: int, surface_areas: np.ndarray, image_areas: np.ndarray,
+                     surface_fractions: np.ndarray | None = None) -> tuple[float, float]:
+    """``(D(f) eq. 28, face-based total area distortion)`` from per-face areas (any common
+    scale; image areas unsigned). ``surface_fractions`` may be passed when computed once."""
+    A, a = surface_areas, np.abs(image_areas)
+    if surface_fractions is None:
+        surface_fractions = vertex_area_fractions(F, n, A)
+    D = np.abs(surface_fractions - vertex_area_fractions(F, n, a)).sum() / 3.0
+    return float(D), float(np.abs(A / A.sum() - a / a.sum()).sum())
+
+
 def _vertex_area_fractions(V, F, uv):
-    A = face_double_areas(V, F)
-    a = np.abs(signed_double_areas(uv, F))
     n = len(V)
-    fan = lambda x: np.bincount(F.ravel(), weights=np.repeat(x, 3), minlength=n)  # noqa: E731
-    return fan(A / A.sum()), fan(a / a.sum())
+    return (vertex_area_fractions(F, n, face_double_areas(V, F)),
+            vertex_area_fractions(F, n, np.abs(signed_double_areas(uv, F))))
 
 
 def total_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
     """Per-vertex total area distortion D(f), eq. (28):
     ``⅓ Σ_v | Σ_{τ∋v}|τ|/|M| − Σ_{τ∋v}|f(τ)|/|f(M)| |``."""
-    surface, image = _vertex_area_fractions(V, F, uv)
-    return float(np.abs(surface - image).sum() / 3.0)
+    return area_distortions(F, len(V), face_double_areas(V, F), signed_double_areas(uv, F))[0]
 
 
 def local_area_ratios(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -63,9 +76,7 @@ def local_area_ratios(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarra
 
 def face_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
     """Face-based total area distortion ``Σ_τ | |τ|/|M| − |f(τ)|/|f(M)| |`` (0 iff equiareal)."""
-    A = face_double_areas(V, F)
-    a = np.abs(signed_double_areas(uv, F))
-    return float(np.abs(A / A.sum() - a / a.sum()).sum())
+    return area_distortions(F, len(V), face_double_areas(V, F), signed_double_areas(uv, F))[1]
 
 
 def corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:

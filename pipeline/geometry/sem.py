@@ -43,7 +43,7 @@ import numpy as np
 from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
-from .metrics import face_area_distortion, signed_double_areas, total_area_distortion
+from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -56,6 +56,7 @@ class SEMOptions:
     tol: float = 1e-7             # converged: relative decrease of the energy counted as none
     patience: int = 20            # converged: steps without progress that end a phase
     inversion: bool = False       # Remark 2
+    stop_when_energy_rises: bool = True   # paper: Remark 3; False runs exactly max_iter steps
     solver: str = "auto"
     min_step: float = 1.0 / 64    # smallest damping factor tried before giving up on a step
     max_step: float = 8.0         # converged: largest extrapolation of an accepted full step
@@ -80,7 +81,8 @@ class SEMResult:
 
 
 def _as_uv(f: np.ndarray) -> np.ndarray:
-    return np.column_stack([f.real, f.imag])
+    """The complex map as an n×2 real array (a view, no copy)."""
+    return np.ascontiguousarray(f, dtype=np.complex128).view(np.float64).reshape(-1, 2)
 
 
 class _Problem:
@@ -90,6 +92,7 @@ class _Problem:
         self.V, self.F = V, F
         self.A2 = face_double_areas(V, F)        # 2|τ|
         self.area_M = self.A2.sum() / 2
+        self.surface_fractions = vertex_area_fractions(F, len(V), self.A2)
         self.pattern = laplacian_pattern(F, len(V), boundary)
         self.I, self.B = self.pattern.interior, self.pattern.boundary
         # Separate factors: L_II(f) and its clamped form have the same pattern but their own
@@ -99,11 +102,15 @@ class _Problem:
         self.solver_B = make_solver(solver_kind)
 
     def evaluate(self, f):
-        """``(E_S, E_S/(|f(M)|²/|M|), flipped faces)`` of the map ``f`` (eq. 15)."""
+        """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15)."""
         a2 = signed_double_areas(_as_uv(f), self.F)
         E = float(0.5 * np.sum(a2 * a2 / self.A2))
         area_f = np.abs(a2).sum() / 2
-        return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0))
+        return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0)), a2
+
+    def distortions(self, a2):
+        """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map."""
+        return area_distortions(self.F, len(self.V), self.A2, a2, self.surface_fractions)
 
     def weights(self, f):
         """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
@@ -163,7 +170,7 @@ def hold_flipping_vertices(f: np.ndarray, g: np.ndarray, F: np.ndarray, allowed:
     for _ in range(rounds):
         if value[2] <= allowed:
             break
-        held = F[signed_double_areas(_as_uv(g), F) <= 0].ravel()
+        held = F[value[3] <= 0].ravel()
         g = g.copy()
         g[held] = f[held]
         value = evaluate(g)
@@ -226,11 +233,11 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     t_start = time.perf_counter()
 
     def record(it, f, value, alpha, phase):
-        uv = _as_uv(f)
+        D, face_D = problem.distortions(value[3])
         entry = {"iteration": it, "phase": phase, "stretch_energy": value[0],
                  "energy_ratio": value[1],
-                 "total_area_distortion_eq28": total_area_distortion(V, F, uv),
-                 "face_area_distortion": face_area_distortion(V, F, uv),
+                 "total_area_distortion_eq28": D,
+                 "face_area_distortion": face_D,
                  "flipped_faces": value[2], "step": alpha,
                  "seconds": time.perf_counter() - t_start}
         history.append(entry)
@@ -246,7 +253,7 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
         f, value, it, status = _converged_iterations(problem, f, value, opt, record)
     timings["sem"] = time.perf_counter() - t_start
     problem.release()
-    return SEMResult(uv=_as_uv(f), status=status, iterations=it, flipped_faces=value[2],
+    return SEMResult(uv=_as_uv(f).copy(), status=status, iterations=it, flipped_faces=value[2],
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
                                "flipped_faces": h.flipped_faces},
                      history=history, timings=timings, solver=problem.solver_I.name)
@@ -264,7 +271,7 @@ def _paper_iterations(problem, f, value, opt, record):
         if step is None:
             return f, value, it - 1, "stalled"
         g, new, alpha = step
-        if new[0] > value[0]:
+        if new[0] > value[0] and opt.stop_when_energy_rises:
             return f, value, it - 1, "energy_rose"
         f, value = g, new
         record(it, f, value, alpha, "sem")
