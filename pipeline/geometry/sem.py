@@ -121,8 +121,22 @@ class _Problem:
             s.release()
 
 
-def sem_step(problem: _Problem, f: np.ndarray, blocks, inversion: bool = False) -> np.ndarray:
-    """One SEM update, eq. (19)–(22), from ``f`` with the stretch Laplacian blocks of ``f``."""
+def sem_step(problem: _Problem, f: np.ndarray, w: np.ndarray, inversion: bool = False
+             ) -> np.ndarray:
+    """One SEM update, eq. (19)–(22), from ``f`` with its stretch weights ``w``.
+
+    Remark 1 needs ``L_BB`` and ``L_II`` positive definite; negative weights (obtuse image
+    triangles) can break that. Then the step is taken with those weights clamped positive, a
+    Tutte-type system that is always SPD — in place of Remark 4's edge flips, which would change
+    the mesh's connectivity."""
+    try:
+        return _sem_update(problem, f, laplacian_blocks(problem.pattern, w), inversion)
+    except NotPositiveDefinite:
+        return _sem_update(problem, f, laplacian_blocks(problem.pattern, clamp_positive(w)),
+                           inversion)
+
+
+def _sem_update(problem: _Problem, f: np.ndarray, blocks, inversion: bool) -> np.ndarray:
     L_II, L_IB, L_BB = blocks
     I, B = problem.I, problem.B
     fI = f[I]
@@ -133,7 +147,7 @@ def sem_step(problem: _Problem, f: np.ndarray, blocks, inversion: bool = False) 
     fB = fB / np.abs(fB)                                              # eq. (21)
     g = np.empty_like(f)
     g[B] = fB
-    g[I] = solve_complex(problem.solver_I, L_II, -(L_IB @ fB))        # eq. (22)
+    g[I] = solve_complex(problem.solver_I, L_II, -(L_IB @ fB), x0=f[I])  # eq. (22)
     return g
 
 
@@ -262,12 +276,8 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
 def _paper_iterations(problem, f, value, opt, record):
     """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3)."""
     for it in range(1, opt.iterations() + 1):
-        w = problem.weights(f)
-        try:
-            g = sem_step(problem, f, laplacian_blocks(problem.pattern, w), opt.inversion)
-        except NotPositiveDefinite:
-            return f, value, it - 1, "stalled"
-        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=False)
+        g = sem_step(problem, f, problem.weights(f), opt.inversion)
+        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=True)
         if step is None:
             return f, value, it - 1, "stalled"
         g, new, alpha = step
@@ -282,23 +292,20 @@ def _converged_iterations(problem, f, value, opt, record):
     """Phase A (plain SEM, best flip-free iterate) then phase B (monotone descent)."""
     max_iter = opt.iterations()
     best = (f, value) if value[2] == 0 else None
-    it, since_best, g = 0, 0, f
+    it, since_best, g, prev = 0, 0, f, value
     while it < max_iter and since_best < opt.patience:            # phase A
-        w = problem.weights(g)
-        try:
-            g = sem_step(problem, g, laplacian_blocks(problem.pattern, w), opt.inversion)
-        except NotPositiveDefinite:
-            break
+        g = sem_step(problem, g, problem.weights(g), opt.inversion)
         it += 1
         v = problem.evaluate(g)
+        # A gain of less than 1 % of the excess energy E_S/bound − 1 counts as no progress:
+        # phase B's descent with extrapolated steps is faster from there.
+        fast = lambda old: (old[1] - v[1]) >= 0.01 * (old[1] - 1.0)  # noqa: E731
         if v[2] == 0 and (best is None or v[1] < best[1][1]):
-            # A new best that removes less than 1 % of the excess energy E_S/bound − 1 counts
-            # as no progress: phase B's descent with extrapolated steps is faster from there.
-            slow = best is not None and (best[1][1] - v[1]) < 0.01 * (best[1][1] - 1.0)
-            best, since_best = (g, v), (since_best + 1 if slow else 0)
+            best, since_best = (g, v), (0 if best is None or fast(best[1]) else since_best + 1)
             record(it, g, v, 1.0, "sem")
-        else:
-            since_best += 1
+        elif not (v[2] > 0 and fast(prev)):
+            since_best += 1             # (a folded iterate that still improves fast is waited
+        prev = v                        #  for: plain SEM often unfolds within a few steps)
     if best is not None:
         f, value = best
     status, quiet = "max_iter", 0
@@ -317,7 +324,7 @@ def _converged_iterations(problem, f, value, opt, record):
                     g = gradient_step(problem, f, w, blocks, refactor=not stale)
                     age = age + 1 if stale else 0
                 else:
-                    g = sem_step(problem, f, blocks, opt.inversion)
+                    g = sem_step(problem, f, w, opt.inversion)
             except NotPositiveDefinite:
                 continue
             step = line_search(problem, f, g, value, lambda v: v[1] < value[1], opt.min_step,
