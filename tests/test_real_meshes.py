@@ -1,0 +1,122 @@
+"""Acceptance on the shared real meshes: bijective maps everywhere, the issue's distortion bounds,
+and the CHOLMOD fast path equal to the SciPy path.
+
+Converged mode runs with an iteration cap here to keep the suite to a few minutes; the default
+(tol-based) run goes further — its figures are in the README and benchmarks.
+"""
+
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from conftest import DATA_DIR, require_data
+
+from pipeline.geometry.metrics import distortion_summary
+from pipeline.geometry.repair import RepairOptions
+from pipeline.geometry.sem import SEMOptions, stretch_energy_minimization
+from pipeline.geometry.solvers import cholmod_available
+from pipeline.stages.load import load_stage
+
+MESHES = ["c3d_alligator", "choi_chinese_lion", "choi_hand", "choi_human_brain",
+          "choi_human_face", "gpp_bunny", "gpp_face", "igl_camel_b", "igl_camelhead", "igl_lion"]
+ICT = ["A_neutral", "A_smile", "B_neutral", "B_smile_jawopen"]
+
+# Face-based total area distortion reached by a patched public MATLAB SEM after 200 iterations
+# (the issue's bounds), and the cap that reaches them here with margin.
+BOUNDS = {"choi_human_face": (0.0091, 300), "igl_camelhead": (0.021, 300),
+          "choi_hand": (0.028, 250), "igl_lion": (0.034, 300)}
+
+
+@lru_cache(maxsize=None)
+def _mesh(relpath: str, close_holes: bool = False):
+    return load_stage(DATA_DIR / relpath, RepairOptions(close_holes=close_holes)).mesh
+
+
+@lru_cache(maxsize=None)
+def _converged(relpath: str, close_holes: bool, max_iter: int):
+    m = _mesh(relpath, close_holes)
+    r = stretch_energy_minimization(m.V, m.F, m.boundary, SEMOptions(max_iter=max_iter))
+    return m, r
+
+
+def _cap(name: str) -> int:
+    return BOUNDS.get(name, (None, 150))[1]
+
+
+@pytest.mark.parametrize("name", MESHES)
+def test_every_shared_mesh_gets_a_bijective_map(name):
+    require_data("meshes", f"{name}.obj")
+    m, r = _converged(f"meshes/{name}.obj", False, _cap(name))
+    summary = distortion_summary(m.V, m.F, r.uv)
+    assert r.flipped_faces == 0 and summary["flipped_faces"] == 0
+    np.testing.assert_allclose(np.hypot(*r.uv[m.boundary].T), 1.0, atol=1e-12)
+    # every accepted map along the way was fold-free too
+    assert all(h["flipped_faces"] == 0 for h in r.history)
+    # far better than the harmonic start
+    assert summary["face_area_distortion"] < 0.25 * r.history[0]["face_area_distortion"]
+
+
+@pytest.mark.parametrize("name, kind", [(n, k) for n in ICT for k in ("disk", "holes")]
+                         + [("canonical", "disk"), ("canonical", "holes")])
+def test_every_face_gets_a_bijective_map(name, kind):
+    folder = "mediapipe" if name == "canonical" else "ict"
+    prefix = "mediapipe" if name == "canonical" else "ict"
+    rel = f"faces/{folder}/{prefix}_{name}_{kind}.obj"
+    require_data(rel)
+    m, r = _converged(rel, kind == "holes", 150)
+    assert r.flipped_faces == 0
+    assert distortion_summary(m.V, m.F, r.uv)["flipped_faces"] == 0
+    if kind == "holes" and folder == "ict":
+        assert (m.source_index == -1).sum() == 3       # eye, eye, mouth centres
+
+
+@pytest.mark.parametrize("name", list(BOUNDS))
+def test_converged_mode_beats_the_public_matlab_sem(name):
+    require_data("meshes", f"{name}.obj")
+    bound, cap = BOUNDS[name]
+    m, r = _converged(f"meshes/{name}.obj", False, cap)
+    d = distortion_summary(m.V, m.F, r.uv)
+    assert d["flipped_faces"] == 0
+    assert d["face_area_distortion"] <= bound, d["face_area_distortion"]
+    assert abs(d["local_area_ratio_mean"] - 1) < 2e-3
+
+
+def test_paper_mode_on_the_human_face_reaches_the_papers_accuracy():
+    require_data("meshes", "choi_human_face.obj")
+    m = _mesh("meshes/choi_human_face.obj")
+    r = stretch_energy_minimization(m.V, m.F, m.boundary, SEMOptions(mode="paper"))
+    d = distortion_summary(m.V, m.F, r.uv)
+    assert r.iterations == 10 and d["flipped_faces"] == 0
+    assert d["total_area_distortion_eq28"] <= 0.0045
+
+
+def _need_cholmod():
+    if not cholmod_available():
+        if os.environ.get("CI") == "true":
+            pytest.fail("scikit-sparse (CHOLMOD) is not installed on CI; .ci/run installs it")
+        pytest.skip("scikit-sparse not installed: the fast path is optional")
+
+
+@pytest.mark.parametrize("name, options", [
+    ("choi_human_face", dict(mode="paper")),
+    ("choi_hand", dict(mode="paper")),
+    ("gpp_face", dict(mode="paper")),
+    ("igl_camel_b", dict(mode="paper")),
+    ("igl_lion", dict(mode="converged", max_iter=40)),
+])
+def test_fast_path_equals_scipy_path(name, options):
+    """CHOLMOD (with PCG on old factors above 50k unknowns) and SuperLU give the same maps."""
+    _need_cholmod()
+    require_data("meshes", f"{name}.obj")
+    m = _mesh(f"meshes/{name}.obj")
+    maps = {}
+    for solver in ("cholmod", "scipy"):
+        r = stretch_energy_minimization(m.V, m.F, m.boundary, SEMOptions(solver=solver, **options))
+        assert r.solver == solver
+        maps[solver] = r
+    a, b = maps["cholmod"], maps["scipy"]
+    assert a.iterations == b.iterations and a.status == b.status
+    assert np.abs(a.uv - b.uv).max() <= 1e-9 * np.abs(b.uv).max()
