@@ -78,6 +78,7 @@ class SEMResult:
     history: list = field(default_factory=list)    # one dict per accepted map (0 = harmonic)
     timings: dict = field(default_factory=dict)    # seconds per phase
     solver: str = ""
+    solver_stats: dict = field(default_factory=dict)   # factorizations / PCG solves per system
 
 
 def _as_uv(f: np.ndarray) -> np.ndarray:
@@ -266,11 +267,15 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     else:
         f, value, it, status = _converged_iterations(problem, f, value, opt, record)
     timings["sem"] = time.perf_counter() - t_start
+    solver_stats = {name: getattr(sv, "stats", {}) for name, sv in
+                    (("interior", problem.solver_I), ("preconditioner", problem.solver_P),
+                     ("boundary", problem.solver_B))}
     problem.release()
     return SEMResult(uv=_as_uv(f).copy(), status=status, iterations=it, flipped_faces=value[2],
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
                                "flipped_faces": h.flipped_faces},
-                     history=history, timings=timings, solver=problem.solver_I.name)
+                     history=history, timings=timings, solver=problem.solver_I.name,
+                     solver_stats=solver_stats)
 
 
 def _paper_iterations(problem, f, value, opt, record):

@@ -141,7 +141,8 @@ def pcg(A: sp.spmatrix, B: np.ndarray, X0: np.ndarray, precondition, max_iter: i
         rtol: float = PCG_RTOL):
     """Conjugate gradients on the columns of ``A X = B`` from ``X0`` with the preconditioner
     ``precondition(R)`` (a solve with an earlier factor of A's pattern). Returns ``(X,
-    iterations)`` when every column's residual is below ``rtol·|b|``, else ``(None, max_iter)``."""
+    iterations)`` when every column's residual is below ``rtol·|b|``, else ``(None, iterations
+    tried)`` — early, once the convergence rate seen so far predicts failure."""
     X = X0.copy()
     R = B - A @ X
     norm_b = np.maximum(np.linalg.norm(B, axis=0), np.finfo(float).tiny)
@@ -150,13 +151,23 @@ def pcg(A: sp.spmatrix, B: np.ndarray, X0: np.ndarray, precondition, max_iter: i
     Z = precondition(R)
     P = Z.copy()
     rz = np.sum(R * Z, axis=0)
+    r0 = np.linalg.norm(R, axis=0)
     for it in range(1, max_iter + 1):
         AP = A @ P
         alpha = rz / np.sum(P * AP, axis=0)
         X += P * alpha
         R -= AP * alpha
-        if np.all(np.linalg.norm(R, axis=0) <= rtol * norm_b):
+        r = np.linalg.norm(R, axis=0)
+        if np.all(r <= rtol * norm_b):
             return X, it
+        if it >= 2:
+            # Give up early when the observed rate cannot reach rtol within max_iter:
+            # a failed attempt then costs two solves, not max_iter, before the refactorization.
+            rate = np.maximum(r / r0, 1e-300) ** (1.0 / it)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                needed = np.log(rtol * norm_b / r) / np.log(rate)
+            if np.any(rate >= 1.0) or np.nanmax(needed) > max_iter - it:
+                return None, it
         Z = precondition(R)
         rz_new = np.sum(R * Z, axis=0)
         P = Z + P * (rz_new / rz)
