@@ -18,19 +18,8 @@ from pipeline.stages import figures  # noqa: E402
 
 
 def _boundary_loop(F, V):
-    try:
-        from pipeline.geometry.topology import boundary_loops
-        return boundary_loops(F, V)[0]
-    except ImportError:                       # topology module not there: follow the half-edges
-        E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-        directed = set(map(tuple, E.tolist()))
-        nxt = {a: b for a, b in directed if (b, a) not in directed}
-        start = min(nxt)
-        loop, v = [start], nxt[start]
-        while v != start:
-            loop.append(v)
-            v = nxt[v]
-        return np.array(loop)
+    from pipeline.geometry.topology import boundary_loops
+    return boundary_loops(F, V)[0]
 
 
 @pytest.fixture(scope="module")

@@ -27,35 +27,15 @@ from pipeline.geometry.sem import SEMOptions, _Problem, sem_step, stretch_energy
 from pipeline.geometry.solvers import (NotPositiveDefinite, cholmod_available, make_solver,
                                        solve_complex)
 
-try:  # being written concurrently; fall back to the half-edge definition below
-    from pipeline.geometry.topology import boundary_loops as _topology_boundary_loops
-except ImportError:  # pragma: no cover
-    _topology_boundary_loops = None
+from pipeline.geometry.topology import boundary_loops
 
 IN_CI = os.environ.get("CI") == "true"
 
 # ------------------------------------------------------------------------------------ helpers
 
 
-def _local_boundary_loop(F: np.ndarray) -> np.ndarray:
-    """The boundary loop of a disk mesh from its directed boundary half-edges: (a, b) of a face
-    whose reverse (b, a) is in no face. Follows the faces' orientation (surface on the left)."""
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]).tolist()
-    directed = set(map(tuple, E))
-    nxt = {a: b for a, b in directed if (b, a) not in directed}
-    start = min(nxt)
-    loop, x = [start], nxt[start]
-    while x != start:
-        loop.append(x)
-        x = nxt[x]
-    assert len(loop) == len(nxt), "more than one boundary loop"
-    return np.asarray(loop, dtype=np.int64)
-
-
 def boundary_loop(F: np.ndarray, V: np.ndarray | None = None) -> np.ndarray:
-    if _topology_boundary_loops is not None:
-        return np.asarray(_topology_boundary_loops(F, V)[0], dtype=np.int64)
-    return _local_boundary_loop(F)  # pragma: no cover
+    return np.asarray(boundary_loops(F, V)[0], dtype=np.int64)
 
 
 def data_dir() -> Path:

@@ -319,18 +319,15 @@ def _bump(report: dict, key: str, k: int) -> None:
 
 
 def _remove_bad_faces(M: _Mesh, report: dict, messages: list, when: str) -> None:
-    deg = _degenerate_mask(M.F)
-    if deg.any():
-        M.F = M.F[~deg]
-        k = int(deg.sum())
-        _bump(report, "degenerate_faces_removed", k)
-        messages.append(f"removed {_plural(k, 'degenerate face')} (repeated vertex){when}")
-    dup = _duplicate_mask(M.F)
-    if dup.any():
-        M.F = M.F[~dup]
-        k = int(dup.sum())
-        _bump(report, "duplicate_faces_removed", k)
-        messages.append(f"removed {_plural(k, 'duplicate face')}{when}")
+    for mask_of, key, noun, note in (
+            (_degenerate_mask, "degenerate_faces_removed", "degenerate face", " (repeated vertex)"),
+            (_duplicate_mask, "duplicate_faces_removed", "duplicate face", "")):
+        bad = mask_of(M.F)
+        if bad.any():
+            M.F = M.F[~bad]
+            k = int(bad.sum())
+            _bump(report, key, k)
+            messages.append(f"removed {_plural(k, noun)}{note}{when}")
     if len(M.F) == 0:
         raise UserError(
             f"mesh has no valid faces left after removing degenerate/duplicate faces{when}; "

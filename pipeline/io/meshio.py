@@ -65,26 +65,25 @@ class RawMesh:
 # helpers
 
 
-def _parse_floats(text: str) -> np.ndarray:
-    """Whitespace-separated floats; raises ValueError on anything unparsable."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        try:
-            return np.fromstring(text, dtype=np.float64, sep=" ")
-        except (ValueError, DeprecationWarning) as exc:
-            raise ValueError(str(exc)) from None
-
-
-def _parse_ints(text: str) -> np.ndarray:
-    """Whitespace-separated integers; raises ValueError on anything unparsable (also on floats)."""
-    if re.search(r"[^\s0-9+\-]", text):
+def _parse_numbers(text: str, dtype) -> np.ndarray:
+    """Whitespace-separated numbers of ``dtype``; raises ValueError on anything unparsable
+    (for integers also on tokens that are not integers)."""
+    if dtype is np.int64 and re.search(r"[^\s0-9+\-]", text):
         raise ValueError("non-integer token")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
-            return np.fromstring(text, dtype=np.int64, sep=" ")
+            return np.fromstring(text, dtype=dtype, sep=" ")
         except (ValueError, DeprecationWarning) as exc:
             raise ValueError(str(exc)) from None
+
+
+def _parse_floats(text: str) -> np.ndarray:
+    return _parse_numbers(text, np.float64)
+
+
+def _parse_ints(text: str) -> np.ndarray:
+    return _parse_numbers(text, np.int64)
 
 
 def _normalise_colors(C: np.ndarray | None, n: int, where: str) -> np.ndarray | None:
