@@ -60,6 +60,60 @@ def cmd_run(args) -> int:
     return 0
 
 
+def cmd_register(args) -> int:
+    from .geometry.repair import RepairOptions
+    from .geometry.sem import SEMOptions
+    from .runner_register import log_line, register_summary, sem_progress
+    from .stages.register import RegisterOptions, load_pair, register_stage, write_registration
+
+    if args.target_landmarks is None:
+        args.target_landmarks = args.source_landmarks
+    repair = RepairOptions(close_holes=args.close_holes)
+    pair = load_pair(args.source, args.target, args.source_landmarks, args.target_landmarks,
+                     args.landmark_set, repair, args.truth)
+    for face in (pair.source, pair.target):
+        for line in face.mesh.messages:
+            log_line(f"repair ({face.label}): {line}")
+    for line in pair.messages:
+        log_line(f"landmarks: {line}")
+    options = RegisterOptions(mobius=args.mobius, energy=args.energy, baseline=args.baseline,
+                              sem=SEMOptions(mode=args.mode, max_iter=args.max_iter,
+                                             solver=args.solver))
+    reg = register_stage(pair, options, progress=sem_progress, log=log_line)
+    write_registration(reg, args.out, figures=not args.no_figures)
+    print(f"{args.out}: {register_summary(reg)}")
+    return 0
+
+
+def cmd_morph(args) -> int:
+    from .stages.morph import MorphOptions, load_morph_inputs, morph_stage, write_morph
+
+    V0, V1, F = load_morph_inputs(args.inputs)
+    m = morph_stage(V0, V1, F, MorphOptions(frames=args.frames, easing=args.easing,
+                                            frame_ms=args.frame_ms, size=args.size))
+    files = write_morph(m, args.out)
+    print(f"{args.out}: {args.frames} frames ({args.easing}) in {files['frames']}, "
+          f"animation {files['gif']}, filmstrip {files['filmstrip']}")
+    return 0
+
+
+def cmd_experiment(args) -> int:
+    from .experiments.execute import run_experiment
+    from .experiments.spec import load_experiment
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be at least 1 (got {args.workers})")
+    exp = load_experiment(args.config)
+    out = run_experiment(exp, args.out, workers=args.workers, scheduler=args.scheduler,
+                         retry_failed=args.retry_failed)
+    print(f"{out.run_dir}: {len(exp.items)} items: {len(out.ran)} ran ({out.backend}), "
+          f"{len(out.skipped)} skipped, {len(out.failed)} failed; summary "
+          f"{out.summary[1] if out.summary else '-'}")
+    for item_id in out.failed:
+        print(f"failed: {item_id}: {out.records.get(item_id, {}).get('error')}")
+    return 1 if out.failed else 0
+
+
 def cmd_sample(args) -> int:
     from .sample import write_sample
 
@@ -101,6 +155,60 @@ def build_parser() -> argparse.ArgumentParser:
     par.add_argument("--no-figures", action="store_true")
     par.set_defaults(func=cmd_parameterize)
 
+    reg = sub.add_parser("register", help="landmark registration of SOURCE onto TARGET on "
+                                          "their SEM disks")
+    reg.add_argument("source", help="source face mesh")
+    reg.add_argument("target", help="target face mesh")
+    reg.add_argument("--source-landmarks", required=True,
+                     help="JSON ({'landmarks': {name: index}} or a list), CSV or TXT "
+                          "(indices or x y z points, snapped to the nearest vertex)")
+    reg.add_argument("--target-landmarks", default=None,
+                     help="target landmark file (default: the source's, for one file of both)")
+    reg.add_argument("--landmark-set", default=None, metavar="KEY",
+                     help="JSON key of the landmark set, e.g. ibug68 (default: 'landmarks')")
+    reg.add_argument("-o", "--out", required=True, help="output folder")
+    reg.add_argument("--truth", default=None, metavar="MESH",
+                     help="ground truth with the source's connectivity: report the dense error")
+    reg.add_argument("--mobius", action="store_true",
+                     help="align the disks by a Möbius map (default: a rotation)")
+    reg.add_argument("--energy", choices=("biharmonic", "harmonic"), default="biharmonic",
+                     help="smoothness of the landmark deformation (default biharmonic)")
+    reg.add_argument("--baseline", action="store_true",
+                     help="also run trimesh's nricp_amberg and compare")
+    reg.add_argument("--close-holes", action="store_true",
+                     help="close eye/mouth openings (every boundary loop but the longest)")
+    reg.add_argument("--mode", choices=("paper", "converged"), default="converged")
+    reg.add_argument("--max-iter", type=int, default=None, help="SEM iteration cap")
+    reg.add_argument("--solver", choices=("auto", "cholmod", "scipy"), default="auto")
+    reg.add_argument("--no-figures", action="store_true")
+    reg.set_defaults(func=cmd_register)
+
+    mor = sub.add_parser("morph", help="morph a face into its registered image (frames + GIF)")
+    mor.add_argument("inputs", nargs="+", metavar="INPUT",
+                     help="a 'register' output folder (or its registration.npz), or SOURCE and "
+                          "REGISTERED meshes with the same connectivity")
+    mor.add_argument("-o", "--out", required=True, help="output folder")
+    mor.add_argument("--frames", type=int, default=24, help="number of frames K (≥ 2)")
+    mor.add_argument("--easing", choices=("linear", "ease-in-out", "cosine"),
+                     default="ease-in-out")
+    mor.add_argument("--frame-ms", type=int, default=80, help="GIF frame duration")
+    mor.add_argument("--size", type=int, default=480, help="GIF frame size in pixels")
+    mor.set_defaults(func=cmd_morph)
+
+    exp = sub.add_parser("experiment", help="run a config over a dataset and a parameter sweep "
+                                            "(cached, resumable; process pool or Dask)")
+    exp.add_argument("config", help="experiment YAML (see configs/experiment_*.yaml)")
+    exp.add_argument("--out", help="output root instead of the config's run.out_dir")
+    exp.add_argument("--workers", type=int, default=None,
+                     help="local worker processes (default: experiment.workers, else cores); "
+                          "1 runs the items in this process")
+    exp.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                     help="run on the Dask cluster at ADDRESS (tcp://host:8786), or 'local' "
+                          "for a Dask LocalCluster of --workers processes")
+    exp.add_argument("--retry-failed", action="store_true",
+                     help="also re-run items that failed on bad input with unchanged inputs")
+    exp.set_defaults(func=cmd_experiment)
+
     smp = sub.add_parser("sample", help="write the embedded synthetic face meshes")
     smp.add_argument("-o", "--out", required=True)
     smp.add_argument("--vertices", type=int, default=6000)
@@ -110,6 +218,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     from .stages.parameterize import ParameterizationFailed
+    from .stages.register import RegistrationFailed
 
     try:
         args = build_parser().parse_args(argv)
@@ -117,7 +226,7 @@ def main(argv=None) -> int:
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return UserError.exit_code
-    except ParameterizationFailed as exc:
+    except (ParameterizationFailed, RegistrationFailed) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

@@ -11,6 +11,7 @@ Input paths are relative to the config file's folder; ``run.out_dir`` to the wor
 from __future__ import annotations
 
 import difflib
+import warnings
 from pathlib import Path
 from typing import Literal, Optional
 
@@ -68,12 +69,69 @@ class ReportConfig(_Strict):
     figures: bool = True
 
 
-class Config(_Strict):
-    run: RunConfig = RunConfig()
-    input: InputConfig
-    repair: RepairConfig = RepairConfig()
-    parameterize: ParameterizeConfig = ParameterizeConfig()
-    report: ReportConfig = ReportConfig()
+class RegisterConfig(_Strict):
+    """Landmark registration of a source face onto a target face (``sem-pipeline register``).
+
+    Either ``sample: true`` (the embedded synthetic face, neutral → ``sample_expression``; the
+    target is also the ground truth) or the four files. Paths are relative to the config file.
+    The meshes go through the ``repair`` section (``close_holes`` for eye/mouth openings) and
+    the ``parameterize`` section's SEM options."""
+
+    sample: bool = False
+    sample_vertices: int = Field(3000, ge=300, le=200_000)
+    sample_expression: Literal["smile", "jawopen"] = "smile"
+    source: Optional[str] = None
+    target: Optional[str] = None
+    source_landmarks: Optional[str] = None
+    target_landmarks: Optional[str] = None   # default: source_landmarks (one file for both)
+    landmark_set: Optional[str] = None       # JSON key, e.g. ibug68
+    truth: Optional[str] = None              # ground truth with the source's connectivity
+    mobius: bool = False
+    energy: Literal["biharmonic", "harmonic"] = "biharmonic"
+    baseline: bool = False
+
+    @model_validator(mode="after")
+    def _inputs(self):
+        files = (self.source, self.target, self.source_landmarks)
+        if self.sample and any(f is not None for f in files + (self.truth,)):
+            raise ValueError("give either 'sample: true' or the files (source, target, "
+                             "source_landmarks), not both")
+        if not self.sample and any(f is None for f in files):
+            raise ValueError("give 'source', 'target' and 'source_landmarks' (and "
+                             "'target_landmarks' if they differ), or 'sample: true'")
+        return self
+
+
+class MorphConfig(_Strict):
+    """Morph from the source to its registered image (needs a ``register`` section)."""
+
+    frames: int = Field(24, ge=2, le=2000)
+    easing: Literal["linear", "ease-in-out", "cosine"] = "ease-in-out"
+    frame_ms: int = Field(80, ge=10, le=10_000)   # GIF frame duration
+    size: int = Field(480, ge=64, le=2048)        # GIF frame size, pixels
+
+
+with warnings.catch_warnings():
+    # The YAML key 'register' shadows only ABCMeta.register, which is never called on Config.
+    warnings.filterwarnings("ignore", message='Field name "register"', category=UserWarning)
+
+    class Config(_Strict):
+        run: RunConfig = RunConfig()
+        input: Optional[InputConfig] = None       # required unless 'register' is given
+        repair: RepairConfig = RepairConfig()
+        parameterize: ParameterizeConfig = ParameterizeConfig()
+        report: ReportConfig = ReportConfig()
+        register: Optional[RegisterConfig] = None
+        morph: Optional[MorphConfig] = None
+
+        @model_validator(mode="after")
+        def _stages(self):
+            if self.input is None and self.register is None:
+                raise ValueError("give an 'input' (mesh or sample) or a 'register' section")
+            if self.morph is not None and self.register is None:
+                raise ValueError("'morph' needs a 'register' section (it morphs the source into "
+                                 "its registered image)")
+            return self
 
 
 def _model_fields(model: type[BaseModel], loc: tuple) -> list[str]:
@@ -91,13 +149,15 @@ def _model_fields(model: type[BaseModel], loc: tuple) -> list[str]:
     return list(model.model_fields)
 
 
-def format_validation_error(exc: ValidationError, source: str) -> str:
-    """The first error of a pydantic validation as one line naming the key and the fix."""
+def format_validation_error(exc: ValidationError, source: str,
+                            model: type[BaseModel] | None = None) -> str:
+    """The first error of a pydantic validation as one line naming the key and the fix
+    (``model``: the validated model, for the 'did you mean' hint; default :class:`Config`)."""
     err = exc.errors()[0]
     loc = tuple(err["loc"])
     where = ".".join(str(p) for p in loc) or "(top level)"
     if err["type"] == "extra_forbidden":
-        valid = _model_fields(Config, loc)
+        valid = _model_fields(model or Config, loc)
         close = difflib.get_close_matches(str(loc[-1]), valid, n=1)
         hint = f"did you mean '{close[0]}'?" if close else f"valid keys: {', '.join(valid)}"
         return f"{source}: {where}: unknown key; {hint}"
@@ -111,6 +171,18 @@ def format_validation_error(exc: ValidationError, source: str) -> str:
 def load_config(path: str | Path) -> tuple[Config, Path]:
     """Read and validate a YAML config; returns it with the folder that relative paths use."""
     path = Path(path)
+    data = read_yaml_mapping(path)
+    try:
+        config = Config.model_validate(data)
+    except ValidationError as exc:
+        raise UserError(format_validation_error(exc, str(path))) from None
+    base = path.resolve().parent
+    check_input_files(config, base, str(path))
+    return config, base
+
+
+def read_yaml_mapping(path: Path) -> dict:
+    """The top-level mapping of a YAML file (``yaml.safe_load``); one-line errors."""
     if not path.is_file():
         raise UserError(f"config file '{path}' not found; pass the path to a YAML file "
                         f"(examples in configs/)")
@@ -126,17 +198,22 @@ def load_config(path: str | Path) -> tuple[Config, Path]:
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping of stage names to settings at the top level, "
                         f"got {type(data).__name__}; see configs/parameterize.yaml")
-    try:
-        config = Config.model_validate(data)
-    except ValidationError as exc:
-        raise UserError(format_validation_error(exc, str(path))) from None
-    base = path.resolve().parent
-    if config.input.mesh is not None:
+    return data
+
+
+def check_input_files(config: Config, base: Path, source: str) -> None:
+    """One-line error for the first input file of ``config`` that does not exist."""
+    if config.input is not None and config.input.mesh is not None:
         mesh = resolve_path(config.input.mesh, base)
         if not mesh.is_file():
-            raise UserError(f"{path}: input.mesh: file '{mesh}' not found; "
+            raise UserError(f"{source}: input.mesh: file '{mesh}' not found; "
                             f"paths are relative to the config's folder")
-    return config, base
+    if config.register is not None:
+        for key in ("source", "target", "source_landmarks", "target_landmarks", "truth"):
+            value = getattr(config.register, key)
+            if value is not None and not resolve_path(value, base).is_file():
+                raise UserError(f"{source}: register.{key}: file '{resolve_path(value, base)}' "
+                                f"not found; paths are relative to the config's folder")
 
 
 def resolve_path(value: str, base: Path) -> Path:

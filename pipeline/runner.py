@@ -41,7 +41,9 @@ def sem_options(config: Config) -> SEMOptions:
 class Progress:
     """One line on stderr at most every ``every`` seconds while SEM iterates."""
 
-    def __init__(self, label: str, every: float = 2.0, stream=sys.stderr):
+    def __init__(self, label: str, every: float = 2.0, stream=None):
+        # sys.stderr looked up now, not at import: an experiment item's log captures it.
+        stream = sys.stderr if stream is None else stream
         self.label, self.every, self.stream, self.last = label, every, stream, 0.0
 
     def __call__(self, entry: dict) -> None:
@@ -59,20 +61,26 @@ def run_config(config: Config, base: Path, out_root: str | Path | None = None) -
     run_dir = Path(out_root) if out_root else Path(config.run.out_dir)   # relative to the cwd
     run_dir = run_dir / config.run.name
     t0 = time.perf_counter()
-    if config.input.sample is not None:
-        s = config.input.sample
-        intake = sample_stage(s.vertices, s.expression, s.identity, repair_options(config))
-        with staged_output(run_dir / "input") as tmp:
-            write_sample(tmp, n_vertices=s.vertices)
-    else:
-        intake = load_stage(resolve_path(config.input.mesh, base), repair_options(config))
-    for line in intake.mesh.messages:
-        print(f"repair: {line}", file=sys.stderr)
-    p = parameterize_stage(intake.mesh, sem_options(config), Progress(config.run.name))
-    files = write_parameterization(p, run_dir / "parameterize", {"input": intake.info},
-                                   figures=config.report.figures)
+    stages = {}
+    if config.input is not None:
+        if config.input.sample is not None:
+            s = config.input.sample
+            intake = sample_stage(s.vertices, s.expression, s.identity, repair_options(config))
+            with staged_output(run_dir / "input") as tmp:
+                write_sample(tmp, n_vertices=s.vertices)
+        else:
+            intake = load_stage(resolve_path(config.input.mesh, base), repair_options(config))
+        for line in intake.mesh.messages:
+            print(f"repair: {line}", file=sys.stderr)
+        p = parameterize_stage(intake.mesh, sem_options(config), Progress(config.run.name))
+        files = write_parameterization(p, run_dir / "parameterize", {"input": intake.info},
+                                       figures=config.report.figures)
+        stages["parameterize"] = {k: str(v) for k, v in files.items()}
+    if config.register is not None:
+        from .runner_register import run_register_and_morph
+        stages.update(run_register_and_morph(config, base, run_dir))
     write_json(run_dir / "manifest.json", {
         "config": config.model_dump(), "versions": versions(),
-        "stages": {"parameterize": {k: str(v) for k, v in files.items()}},
+        "stages": stages,
         "seconds": time.perf_counter() - t0})
     return run_dir

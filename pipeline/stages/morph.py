@@ -1,0 +1,149 @@
+"""Stage — morph a face into its registered image, and the files a person can open.
+
+Input: the source vertices, the registered vertices (the source's vertices moved onto the
+target surface by the registration) and the source faces (one connectivity). Output folder:
+
+* ``frames/frame_000.obj`` … ``frame_{K−1}.obj`` —
+  ``V(t_k) = (1 − t_k) V_source + t_k V_registered`` (:mod:`pipeline.geometry.morph`),
+  ``t_0 = 0`` (the source) and ``t_{K−1} = 1`` (registered);
+* ``morph.gif`` — the animation (shaded orthographic render, one camera, light and scale for all
+  frames; loops forever);
+* ``filmstrip.png`` — up to 6 frames side by side, first and last included;
+* ``morph.json`` — frame count, easing, times, sizes.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..geometry.morph import EASINGS, morph_frames
+from ..io.artifacts import staged_output, write_json
+from ..io.meshio import write_obj
+
+
+@dataclass
+class MorphOptions:
+    frames: int = 24
+    easing: str = "ease-in-out"
+    frame_ms: int = 80            # GIF frame duration
+    size: int = 480               # GIF frame size in pixels (square)
+    filmstrip_frames: int = 6
+
+
+@dataclass
+class Morph:
+    faces: np.ndarray
+    times: np.ndarray
+    frames: list
+    options: MorphOptions
+    metrics: dict = field(default_factory=dict)
+
+
+def morph_stage(V_source, V_registered, F, options: MorphOptions | None = None) -> Morph:
+    opt = options or MorphOptions()
+    if opt.frames < 2:
+        raise UserError(f"morph needs at least 2 frames, got {opt.frames}; pass --frames 2 or more")
+    if not 64 <= opt.size <= 4096:
+        raise UserError(f"morph frame size {opt.size} px is out of range; use 64 to 4096")
+    if opt.frame_ms < 10:
+        raise UserError(f"morph frame duration {opt.frame_ms} ms is too short; use 10 or more")
+    if opt.easing not in EASINGS:
+        raise UserError(f"unknown easing '{opt.easing}'; use one of {', '.join(EASINGS)}")
+    V0, V1 = np.asarray(V_source, np.float64), np.asarray(V_registered, np.float64)
+    if V0.shape != V1.shape:
+        raise UserError(f"source has {len(V0)} vertices but the registered mesh {len(V1)}; "
+                        f"a morph needs the same connectivity (the registration's output)")
+    times, frames = morph_frames(V0, V1, opt.frames, opt.easing)
+    return Morph(np.asarray(F, np.int64), times, frames, opt,
+                 {"frames": opt.frames, "easing": opt.easing, "times": times.tolist(),
+                  "vertices": int(len(V0)), "faces": int(len(F))})
+
+
+def _filmstrip(images: list[np.ndarray], times: np.ndarray, count: int, path: Path) -> Path:
+    from .render import new_figure, save_figure
+
+    k = min(count, len(images))
+    pick = np.unique(np.round(np.linspace(0, len(images) - 1, k)).astype(int))
+    fig = new_figure(2.2 * len(pick), 2.5, dpi=110)
+    for j, i in enumerate(pick):
+        ax = fig.add_axes((j / len(pick), 0.0, 1.0 / len(pick), 0.88))
+        ax.imshow(images[i])
+        ax.set_axis_off()
+        fig.text((j + 0.5) / len(pick), 0.93, f"frame {i}, t = {times[i]:.2f}", ha="center",
+                 fontsize=8)
+    return save_figure(fig, path)
+
+
+def write_morph(m: Morph, out_dir, progress=None) -> dict[str, Path]:
+    """Write the frames, ``morph.gif``, ``filmstrip.png`` and ``morph.json`` all-or-nothing."""
+    from PIL import Image
+
+    from .render import camera_for, render_rgb
+
+    out_dir = Path(out_dir)
+    t0 = time.perf_counter()
+    written: dict[str, Path] = {}
+    width = max(3, len(str(len(m.frames) - 1)))
+    with staged_output(out_dir) as tmp:
+        (tmp / "frames").mkdir()
+        for k, (t, V) in enumerate(zip(m.times, m.frames)):
+            write_obj(tmp / "frames" / f"frame_{k:0{width}d}.obj", V, m.faces,
+                      header=f"sem-pipeline morph frame {k} of {len(m.frames)}, t = {t:.6f}")
+        t1 = time.perf_counter()
+        cam = camera_for(m.frames[0], m.faces, extra=m.frames[1:])
+        images = []
+        for k, (t, V) in enumerate(zip(m.times, m.frames)):
+            images.append(render_rgb(V, m.faces, cam, m.options.size, label=f"t = {t:.2f}"))
+            if progress is not None:
+                progress(k, len(m.frames))
+        gif = [Image.fromarray(im) for im in images]
+        gif[0].save(tmp / "morph.gif", save_all=True, append_images=gif[1:],
+                    duration=m.options.frame_ms, loop=0, optimize=False)
+        _filmstrip(images, m.times, m.options.filmstrip_frames, tmp / "filmstrip.png")
+        t2 = time.perf_counter()
+        m.metrics["seconds"] = {"frames_obj": t1 - t0, "render": t2 - t1}
+        m.metrics["files"] = {"frames": f"frames/frame_{0:0{width}d}.obj … "
+                                        f"frame_{len(m.frames) - 1:0{width}d}.obj",
+                              "animation": "morph.gif", "filmstrip": "filmstrip.png"}
+        write_json(tmp / "morph.json", m.metrics)
+    written["frames"] = out_dir / "frames"
+    written["gif"] = out_dir / "morph.gif"
+    written["filmstrip"] = out_dir / "filmstrip.png"
+    written["metrics"] = out_dir / "morph.json"
+    return written
+
+
+def load_morph_inputs(paths: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(V_source, V_registered, F)`` from a registration folder / ``registration.npz``, or from
+    two meshes with the same connectivity (source, registered)."""
+    from ..io.meshio import read_mesh
+    from ..geometry.repair import triangulate_polygons
+
+    if len(paths) == 1:
+        p = Path(paths[0])
+        npz = p / "registration.npz" if p.is_dir() else p
+        if not npz.is_file():
+            raise UserError(f"'{p}' is not a registration folder (no registration.npz); pass "
+                            f"the folder 'sem-pipeline register' wrote, or SOURCE and "
+                            f"REGISTERED meshes")
+        try:
+            with np.load(npz) as z:
+                return z["source_vertices"], z["mapped_points"], z["source_faces"]
+        except (KeyError, ValueError, OSError) as exc:
+            raise UserError(f"{npz}: not a registration written by sem-pipeline register "
+                            f"({exc}); re-run the registration") from None
+    if len(paths) == 2:
+        a, b = read_mesh(paths[0]), read_mesh(paths[1])
+        Fa = triangulate_polygons(a.faces, len(a.V))[0]
+        Fb = triangulate_polygons(b.faces, len(b.V))[0]
+        if len(a.V) != len(b.V) or not np.array_equal(Fa, Fb):
+            raise UserError(f"'{paths[0]}' and '{paths[1]}' do not share connectivity "
+                            f"({len(a.V)} vs {len(b.V)} vertices); pass a source mesh and its "
+                            f"registered.obj")
+        return a.V, b.V, Fa
+    raise UserError("morph takes a registration folder, or a source and a registered mesh")

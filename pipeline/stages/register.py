@@ -1,0 +1,507 @@
+"""Stage — landmark registration of a source face onto a target face through their SEM disks.
+
+Steps (kernels in :mod:`pipeline.geometry.register`): read and repair both meshes (holes closed
+by ``close_holes`` are tracked), read and pair the landmarks (:mod:`pipeline.io.landmarks`),
+SEM-parameterize both faces (:mod:`pipeline.stages.parameterize`), align the source disk to the
+target landmarks (rotation, or disk Möbius map), deform it so every landmark lands exactly on
+its partner without flipping a face, and lift every source vertex onto the target surface
+through the target's inverse map (eq. 1). Optionally the dense error against a ground truth with
+the source's connectivity, and trimesh's ``nricp_amberg`` on the same pair as a baseline.
+
+Files (contract in ``shared/docs/DESIGN.md``):
+
+* ``registration.npz`` — ``mapped_points`` n×3 (image of every source vertex on the target
+  surface), ``target_face`` n, ``target_barycentric`` n×3 (``mapped_points[i] = Σ_c
+  target_barycentric[i, c] · target_vertices[target_faces[target_face[i], c]]``); and for
+  re-use: ``source_vertices``, ``source_faces`` (the source connectivity as written in
+  ``registered.obj``), ``source_index``, ``source_landmarks``, ``target_landmarks``,
+  ``source_uv``, ``target_uv``, ``aligned_uv``, ``deformed_uv``, ``target_vertices``,
+  ``target_faces``. Vertex ``i`` is vertex ``i`` of the *repaired* source mesh;
+  ``source_index[i]`` is its index in the input file (−1 for a vertex the repair added).
+* ``registered.obj`` — the source connectivity on the target geometry. Faces of holes the
+  repair closed (fans to a centre vertex) are left out, so the holes stay open as in the input.
+* ``metrics.json``, ``report.html`` and figures (``disks.png``, ``surfaces.png``,
+  ``error_on_face.png`` with a ground truth).
+
+A registration that leaves flipped faces is a failure: ``metrics.json``, the report and its
+figures are written for diagnosis, the map files are not, and :class:`RegistrationFailed` is
+raised (exit code 1).
+"""
+
+from __future__ import annotations
+
+import html
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserError
+from ..geometry.register import (DeformOptions, align, as_complex, as_uv, compose_with_inverse,
+                                 deform_to_landmarks, error_summary)
+from ..geometry.repair import RepairOptions
+from ..geometry.sem import SEMOptions
+from ..io.artifacts import staged_output, write_json
+from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, read_landmarks,
+                            resolve_landmarks)
+from ..io.meshio import read_mesh, write_obj
+from .load import Intake, load_stage, sample_stage
+from .parameterize import ParameterizationFailed, parameterize_stage
+
+
+class RegistrationFailed(RuntimeError):
+    """Faces remain flipped after the deformation (exit code 1: valid input, method failed)."""
+
+
+@dataclass
+class RegisterOptions:
+    mobius: bool = False              # align by a disk Möbius map instead of a rotation
+    energy: str = "biharmonic"        # displacement smoothness: biharmonic | harmonic
+    baseline: bool = False            # also run trimesh's nricp_amberg on the same pair
+    sem: SEMOptions = field(default_factory=SEMOptions)
+    deform: DeformOptions = field(default_factory=DeformOptions)
+
+
+@dataclass
+class Face:
+    """One side of the pair: the repaired mesh, its landmark vertices (repaired indices)."""
+
+    intake: Intake
+    landmarks: np.ndarray
+    label: str
+
+    @property
+    def mesh(self):
+        return self.intake.mesh
+
+
+@dataclass
+class Pair:
+    source: Face
+    target: Face
+    names: list[str] | None              # landmark names in pairing order (None: by order)
+    truth: np.ndarray | None = None      # ground-truth positions of the source's input vertices
+    truth_label: str = ""
+    messages: list[str] = field(default_factory=list)
+
+
+# ----------------------------------------------------------------------------------- inputs
+
+
+def _side(intake: Intake, lms: LandmarkSet, label: str, messages: list) -> Face:
+    idx, msgs = resolve_landmarks(lms, intake.mesh, intake.info["input_vertices"],
+                                  f"{label} landmarks")
+    messages.extend(msgs)
+    return Face(intake, idx, label)
+
+
+def load_truth(path, source: Intake) -> np.ndarray:
+    """Ground-truth vertex positions that share the source's connectivity (vertex i ↔ i)."""
+    raw = read_mesh(path)
+    n, m = source.info["input_vertices"], source.info["input_faces"]
+    if len(raw.V) != n or raw.n_faces != m:
+        raise UserError(f"truth mesh '{path}' has {len(raw.V)} vertices and {raw.n_faces} faces "
+                        f"but the source has {n} and {m}; the truth must share the source's "
+                        f"connectivity (vertex i corresponds to source vertex i)")
+    return np.asarray(raw.V, dtype=np.float64)
+
+
+def load_pair(source, target, source_landmarks, target_landmarks=None,
+              landmark_set: str | None = None, repair: RepairOptions | None = None,
+              truth=None) -> Pair:
+    """Read, repair and pair two faces and their landmark files (``target_landmarks``
+    defaults to ``source_landmarks``: one file that holds the landmarks of both, as ICT's)."""
+    messages: list[str] = []
+    src = load_stage(source, repair)
+    tgt = load_stage(target, repair)
+    ls = read_landmarks(source_landmarks, landmark_set)
+    lt = read_landmarks(target_landmarks or source_landmarks, landmark_set)
+    ls, lt = pair_landmarks(ls, lt)
+    if len(ls) < 3:
+        raise UserError(f"only {len(ls)} landmarks; give at least 3 (the alignment and the "
+                        f"deformation need them)")
+    pair = Pair(_side(src, ls, "source", messages), _side(tgt, lt, "target", messages),
+                ls.names if ls.names and lt.names else None, messages=messages)
+    pair.messages[:0] = [f"{len(ls)} landmarks paired by "
+                         f"{'name' if pair.names else 'order'}"]
+    if truth is not None:
+        pair.truth, pair.truth_label = load_truth(truth, src), str(truth)
+    return pair
+
+
+def sample_pair(n_vertices: int = 3000, expression: str = "smile",
+                repair: RepairOptions | None = None) -> Pair:
+    """The embedded synthetic face: neutral → ``expression`` (same connectivity, same
+    landmarks), so the target is also the dense ground truth."""
+    src = sample_stage(n_vertices, "neutral", options=repair)
+    tgt = sample_stage(n_vertices, expression, options=repair)
+    lms = landmarks_from_dict({"landmarks": src.info["landmarks"]}, "sample landmarks")
+    messages: list[str] = []
+    pair = Pair(_side(src, lms, "source", messages), _side(tgt, lms, "target", messages),
+                lms.names, messages=messages)
+    pair.truth = _input_order(tgt)
+    pair.truth_label = f"synthetic {expression} face (same connectivity)"
+    pair.messages.insert(0, f"{len(lms)} landmarks paired by name")
+    return pair
+
+
+def _input_order(intake: Intake) -> np.ndarray:
+    """Positions of the input vertices (NaN where the repair removed one)."""
+    m = intake.mesh
+    out = np.full((intake.info["input_vertices"], 3), np.nan)
+    ok = m.source_index >= 0
+    out[m.source_index[ok]] = m.V[ok]
+    return out
+
+
+# ----------------------------------------------------------------------------- the method
+
+
+def display_faces(mesh) -> np.ndarray:
+    """The repaired faces minus the fans of holes the repair closed (the input's holes)."""
+    centres = [h["centre_vertex"] for h in mesh.closed_holes]
+    if not centres:
+        return mesh.F
+    return mesh.F[~np.isin(mesh.F, centres).any(axis=1)]
+
+
+@dataclass
+class Registration:
+    pair: Pair
+    options: RegisterOptions
+    uv_source: np.ndarray
+    uv_target: np.ndarray
+    alignment: object
+    deform: object
+    mapped: np.ndarray | None = None
+    face: np.ndarray | None = None
+    bary: np.ndarray | None = None
+    error: np.ndarray | None = None           # per source vertex / diagonal (NaN: no truth)
+    baseline: dict | None = None
+    metrics: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.deform.flipped_faces == 0
+
+
+def _parameterize(face: Face, opts: SEMOptions, progress):
+    p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
+    if not p.ok:
+        raise ParameterizationFailed(
+            f"{face.label} parameterization failed: {p.sem.flipped_faces} flipped faces remain "
+            f"(status {p.sem.status}); the registration needs fold-free disk maps")
+    return p
+
+
+def _dense_error(points: np.ndarray, pair: Pair, diag: float) -> np.ndarray | None:
+    """Per source vertex ``|points_i − truth_{source_index(i)}| / diag`` (NaN where no truth)."""
+    if pair.truth is None:
+        return None
+    src = pair.source.mesh.source_index
+    err = np.full(len(points), np.nan)
+    ok = (src >= 0) & (src < len(pair.truth))
+    T = pair.truth[src[ok]]
+    good = np.isfinite(T).all(axis=1)
+    idx = np.flatnonzero(ok)[good]
+    err[idx] = np.linalg.norm(points[idx] - T[good], axis=1) / diag
+    return err
+
+
+def _finite_summary(err: np.ndarray | None) -> dict | None:
+    if err is None:
+        return None
+    return error_summary(err[np.isfinite(err)], 1.0)
+
+
+def register_stage(pair: Pair, options: RegisterOptions | None = None, progress=None,
+                   log=None) -> Registration:
+    """Register ``pair.source`` onto ``pair.target`` (module docstring): SEM maps of both, then
+    :func:`register_maps`. Raises ``ParameterizationFailed`` if a SEM map folds; never raises for
+    flipped faces of the deformation — check :attr:`Registration.ok`."""
+    opt = options or RegisterOptions()
+    say = log or (lambda s: None)
+    t0 = time.perf_counter()
+    ps = _parameterize(pair.source, opt.sem, progress)
+    t1 = time.perf_counter()
+    pt = _parameterize(pair.target, opt.sem, progress)
+    t2 = time.perf_counter()
+    say(f"SEM: source {ps.sem.iterations} iterations ({ps.sem.status}), target "
+        f"{pt.sem.iterations} iterations ({pt.sem.status})")
+    return register_maps(pair, ps, pt, opt, log,
+                         {"parameterize_source": t1 - t0, "parameterize_target": t2 - t1})
+
+
+def register_maps(pair: Pair, ps, pt, options: RegisterOptions | None = None, log=None,
+                  seconds: dict | None = None) -> Registration:
+    """Register with given SEM parameterizations ``ps`` (source) and ``pt`` (target) of
+    ``pair``'s repaired meshes (:class:`~pipeline.stages.parameterize.Parameterization`)."""
+    opt = options or RegisterOptions()
+    say = log or (lambda s: None)
+    S, T = pair.source, pair.target
+    if len(ps.uv) != len(S.mesh.V) or len(pt.uv) != len(T.mesh.V):
+        raise ValueError("the parameterizations do not belong to the pair's meshes")
+    seconds = dict(seconds or {})
+    t0 = time.perf_counter()
+    zt_lm = as_complex(pt.uv)[T.landmarks]
+    al = align(ps.uv, S.landmarks, zt_lm, use_mobius=opt.mobius)
+    seconds["align"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    dopt = DeformOptions(**{**vars(opt.deform), "energy": opt.energy})
+    de = deform_to_landmarks(S.mesh.F, al.z, S.mesh.boundary, S.landmarks, zt_lm, dopt)
+    seconds["deform"] = time.perf_counter() - t0
+    say(f"deformation: {de.method}, {de.substeps} sub-steps accepted, {de.rejected_substeps} "
+        f"rejected, {de.flipped_faces} flipped faces")
+
+    reg = Registration(pair, opt, ps.uv, pt.uv, al, de)
+    VT, FT = T.mesh.V, T.mesh.F
+    diag = float(np.linalg.norm(VT.max(axis=0) - VT.min(axis=0)))
+
+    # landmark residuals: before = after the alignment only; after = after the deformation
+    t0 = time.perf_counter()
+    before, _, _ = compose_with_inverse(al.z[S.landmarks], VT, FT, pt.uv, T.mesh.boundary)
+    res_before = np.linalg.norm(before - VT[T.landmarks], axis=1) / diag
+    located, _, _ = compose_with_inverse(de.z[S.landmarks], VT, FT, pt.uv, T.mesh.boundary)
+    res_located = np.linalg.norm(located - VT[T.landmarks], axis=1) / diag
+    seconds["landmark_residuals"] = time.perf_counter() - t0
+
+    metrics = {
+        "status": "ok" if reg.ok else "failed",
+        "method": ("SEM disk maps (Yueh et al. 2019) + landmark alignment + bijective "
+                   "landmark-constrained deformation + inverse map (eq. 1)"),
+        "source": _side_metrics(S, ps), "target": _side_metrics(T, pt),
+        "landmarks": {"count": int(len(S.landmarks)),
+                      "paired_by": "name" if pair.names else "order",
+                      "names": pair.names, "messages": pair.messages},
+        "target_bbox_diagonal": diag,
+        "alignment": al.as_dict(),
+        "deformation": {"energy": opt.energy, **de.as_dict()},
+        "flipped_faces": int(de.flipped_faces),
+        "landmark_residual": {
+            "relative_to": "target bounding-box diagonal",
+            "before": {"mean": float(res_before.mean()), "max": float(res_before.max()),
+                       "per_landmark": res_before.tolist(),
+                       "disk_max": float(np.abs(al.z[S.landmarks] - zt_lm).max())},
+            "after": None,
+            "after_located_max": float(res_located.max()),
+        },
+    }
+    if reg.ok:
+        t0 = time.perf_counter()
+        mapped, face, bary = compose_with_inverse(de.z, VT, FT, pt.uv, T.mesh.boundary,
+                                                  S.landmarks, T.landmarks)
+        seconds["lift"] = time.perf_counter() - t0
+        reg.mapped, reg.face, reg.bary = mapped, face, bary
+        res_after = np.linalg.norm(mapped[S.landmarks] - VT[T.landmarks], axis=1) / diag
+        metrics["landmark_residual"]["after"] = {
+            "mean": float(res_after.mean()), "max": float(res_after.max()),
+            "disk_max": float(np.abs(de.z[S.landmarks] - zt_lm).max())}
+        centres = [h["centre_vertex"] for h in T.mesh.closed_holes]
+        in_fans = np.isin(FT[face], centres).any(axis=1) & (S.mesh.source_index >= 0)
+        metrics["source_vertices_mapped_into_filled_holes"] = int(in_fans.sum())
+        reg.error = _dense_error(mapped, pair, diag)
+        metrics["dense_error"] = None if reg.error is None else {
+            "truth": pair.truth_label, "relative_to": "target bounding-box diagonal",
+            "ours": _finite_summary(reg.error)}
+    if opt.baseline:
+        say("baseline: trimesh.registration.nricp_amberg …")
+        reg.baseline = nricp_baseline(pair, diag)
+        seconds["baseline_nricp_amberg"] = reg.baseline["seconds"]
+        metrics["baseline"] = {k: v for k, v in reg.baseline.items() if k not in ("points",
+                                                                                  "error")}
+        if reg.baseline.get("error") is not None and metrics.get("dense_error"):
+            metrics["dense_error"]["nricp_amberg"] = _finite_summary(reg.baseline["error"])
+    ours = sum(v for k, v in seconds.items() if k not in ("baseline_nricp_amberg",
+                                                            "landmark_residuals"))
+    seconds["ours_total"] = ours
+    metrics["seconds"] = seconds
+    reg.metrics = metrics
+    return reg
+
+
+def _side_metrics(face: Face, p) -> dict:
+    m = face.mesh
+    return {"file": face.intake.info.get("source"), "vertices": int(len(m.V)),
+            "faces": int(len(m.F)), "input_vertices": face.intake.info["input_vertices"],
+            "holes_closed": len(m.closed_holes), "added_vertices": int(len(m.added_vertices)),
+            "repair_messages": m.messages,
+            "sem": {"mode": p.options.mode, "iterations": p.sem.iterations,
+                    "status": p.sem.status, "flipped_faces": p.sem.flipped_faces,
+                    "energy_ratio": p.sem.history[-1]["energy_ratio"] if p.sem.history else None,
+                    "total_area_distortion_eq28":
+                        p.metrics["distortion"]["total_area_distortion_eq28"]}}
+
+
+# --------------------------------------------------------------------------------- baseline
+
+
+def nricp_baseline(pair: Pair, diag: float) -> dict:
+    """trimesh's ``registration.nricp_amberg`` (Amberg et al. 2007) on the same pair with the
+    same landmarks (source vertex indices → target landmark positions), its default steps.
+
+    Both meshes are given as in the input: the fans of holes the repair closed are left out
+    (vertices they alone used are dropped for nricp and get NaN)."""
+    import trimesh
+    from trimesh.registration import nricp_amberg
+
+    S, T = pair.source.mesh, pair.target.mesh
+
+    def compact(mesh):
+        F = display_faces(mesh)
+        used = np.unique(F)
+        new = np.full(len(mesh.V), -1, dtype=np.int64)
+        new[used] = np.arange(len(used))
+        return trimesh.Trimesh(mesh.V[used], new[F], process=False), used, new
+
+    src, used_s, new_s = compact(S)
+    tgt, _, new_t = compact(T)
+    ls, lt = new_s[pair.source.landmarks], new_t[pair.target.landmarks]
+    t0 = time.perf_counter()
+    X = nricp_amberg(src, tgt, source_landmarks=ls, target_positions=tgt.vertices[lt])
+    seconds = time.perf_counter() - t0
+    points = np.full((len(S.V), 3), np.nan)
+    points[used_s] = X
+    res = np.linalg.norm(points[pair.source.landmarks] - T.V[pair.target.landmarks],
+                         axis=1) / diag
+    flipped = _normal_flips(S.V, points, display_faces(S))
+    return {"method": "trimesh.registration.nricp_amberg (default steps)",
+            "trimesh": trimesh.__version__, "seconds": seconds, "points": points,
+            "landmark_residual": {"mean": float(res.mean()), "max": float(res.max())},
+            "faces_turned_over": flipped,
+            "error": _dense_error(points, pair, diag)}
+
+
+def _normal_flips(V0: np.ndarray, V1: np.ndarray, F: np.ndarray) -> int:
+    """Faces whose normal turned by more than 90° between ``V0`` and ``V1`` (a fold indicator
+    for a surface-to-surface map; nricp gives no bijectivity guarantee)."""
+    def normals(V):
+        return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n1 = normals(V1)
+    ok = np.isfinite(n1).all(axis=1)
+    return int(np.count_nonzero((np.einsum("ij,ij->i", normals(V0)[ok], n1[ok]) <= 0)))
+
+
+# ------------------------------------------------------------------------------------ files
+
+
+def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict[str, Path]:
+    """Write the stage's files all-or-nothing; raise :class:`RegistrationFailed` if faces
+    remain flipped (the metrics, report and figures are still written)."""
+    out_dir = Path(out_dir)
+    written: dict[str, Path] = {}
+    S, T = reg.pair.source.mesh, reg.pair.target.mesh
+    t0 = time.perf_counter()
+    with staged_output(out_dir) as tmp:
+        figs = []
+        if figures:
+            from . import register_figures as rf
+            figs = rf.write_all(reg, tmp)
+        if reg.ok:
+            Fd = display_faces(S)
+            np.savez_compressed(
+                tmp / "registration.npz", mapped_points=reg.mapped, target_face=reg.face,
+                target_barycentric=reg.bary, source_vertices=S.V, source_faces=Fd,
+                source_index=S.source_index, source_landmarks=reg.pair.source.landmarks,
+                target_landmarks=reg.pair.target.landmarks, source_uv=reg.uv_source,
+                target_uv=reg.uv_target, aligned_uv=as_uv(reg.alignment.z),
+                deformed_uv=as_uv(reg.deform.z), target_vertices=T.V, target_faces=T.F)
+            write_obj(tmp / "registered.obj", reg.mapped, Fd,
+                      header=["sem-pipeline register: source connectivity on the target "
+                              "surface", f"source: {reg.pair.source.intake.info.get('source')}",
+                              f"target: {reg.pair.target.intake.info.get('source')}"])
+            written["npz"] = out_dir / "registration.npz"
+            written["obj"] = out_dir / "registered.obj"
+        reg.metrics["seconds"]["write"] = time.perf_counter() - t0
+        write_json(tmp / "metrics.json", reg.metrics)
+        (tmp / "report.html").write_text(report_html(reg, [p.name for p in figs]),
+                                         encoding="utf-8")
+        written["metrics"] = out_dir / "metrics.json"
+        written["report"] = out_dir / "report.html"
+        for p in figs:
+            written[p.stem] = out_dir / p.name
+    if not reg.ok:
+        raise RegistrationFailed(
+            f"registration failed: {reg.deform.flipped_faces} flipped faces remain after the "
+            f"landmark deformation ({reg.deform.method}); see {out_dir / 'metrics.json'}")
+    return written
+
+
+def _fmt(x, spec=".3e"):
+    if x is None:
+        return "–"
+    if isinstance(x, float):
+        return format(x, spec)
+    return html.escape(str(x))
+
+
+def report_html(reg: Registration, figures: list[str]) -> str:
+    """A self-contained HTML summary (figures referenced by relative path)."""
+    m = reg.metrics
+    lr = m["landmark_residual"]
+    rows = [
+        ("status", m["status"]),
+        ("source", f"{m['source']['file']} — {m['source']['vertices']} vertices, "
+                   f"{m['source']['faces']} faces, {m['source']['holes_closed']} holes closed"),
+        ("target", f"{m['target']['file']} — {m['target']['vertices']} vertices, "
+                   f"{m['target']['faces']} faces, {m['target']['holes_closed']} holes closed"),
+        ("landmarks", f"{m['landmarks']['count']} paired by {m['landmarks']['paired_by']}"),
+        ("SEM (source / target)",
+         f"{m['source']['sem']['iterations']} / {m['target']['sem']['iterations']} iterations, "
+         f"D(f) eq. 28 = {m['source']['sem']['total_area_distortion_eq28']:.4f} / "
+         f"{m['target']['sem']['total_area_distortion_eq28']:.4f}"),
+        ("alignment", f"{m['alignment']['kind']}, θ = {m['alignment']['theta_deg']:.2f}°, "
+                      f"a = {m['alignment']['a'][0]:.4f} + {m['alignment']['a'][1]:.4f}i"),
+        ("deformation", f"{m['deformation']['energy']} energy, {m['deformation']['method']}, "
+                        f"{m['deformation']['accepted_substeps']} sub-steps accepted, "
+                        f"{m['deformation']['rejected_substeps']} rejected"),
+        ("flipped faces", m["flipped_faces"]),
+        ("landmark residual before deformation (mean / max, ÷ diagonal)",
+         f"{_fmt(lr['before']['mean'])} / {_fmt(lr['before']['max'])}"),
+        ("landmark residual after (max, ÷ diagonal)",
+         _fmt(lr["after"]["max"]) if lr["after"] else "–"),
+        ("target bounding-box diagonal", f"{m['target_bbox_diagonal']:.4g}"),
+        ("source vertices mapped into filled holes",
+         m.get("source_vertices_mapped_into_filled_holes", "–")),
+        ("time, ours (s)", f"{m['seconds']['ours_total']:.2f}"),
+    ]
+    table = "\n".join(f"<tr><th>{html.escape(str(k))}</th><td>"
+                      f"{html.escape(v) if isinstance(v, str) else _fmt(v)}</td></tr>"
+                      for k, v in rows)
+    dense = ""
+    de = m.get("dense_error")
+    if de:
+        head = "<tr><th>method</th><th>mean</th><th>95th pct</th><th>max</th>" \
+               "<th>landmark residual max</th><th>time (s)</th></tr>"
+        body = (f"<tr><td>ours (SEM + bijective deformation)</td><td>{_fmt(de['ours']['mean'])}"
+                f"</td><td>{_fmt(de['ours']['p95'])}</td><td>{_fmt(de['ours']['max'])}</td>"
+                f"<td>{_fmt(lr['after']['max'] if lr['after'] else None)}</td>"
+                f"<td>{m['seconds']['ours_total']:.2f}</td></tr>")
+        if "nricp_amberg" in de:
+            b = m["baseline"]
+            body += (f"<tr><td>trimesh nricp_amberg</td><td>{_fmt(de['nricp_amberg']['mean'])}"
+                     f"</td><td>{_fmt(de['nricp_amberg']['p95'])}</td>"
+                     f"<td>{_fmt(de['nricp_amberg']['max'])}</td>"
+                     f"<td>{_fmt(b['landmark_residual']['max'])}</td>"
+                     f"<td>{b['seconds']:.2f}</td></tr>")
+        dense = (f"<h2>Dense error against the ground truth</h2><p>Truth: "
+                 f"{html.escape(de['truth'])}. Distance between the registered position of "
+                 f"source vertex i and truth vertex i, relative to the target's bounding-box "
+                 f"diagonal, over {de['ours']['count']} vertices.</p><table>{head}{body}</table>")
+    imgs = "\n".join(f'<figure><img src="{html.escape(f)}" alt="{html.escape(f)}">'
+                     f'<figcaption>{html.escape(f)}</figcaption></figure>' for f in figures)
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>sem-pipeline registration report</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}}
+table{{border-collapse:collapse;margin:1em 0}}th,td{{border:1px solid #ccc;padding:4px 8px;
+text-align:left;font-size:14px}}th{{background:#f4f4f4}}img{{max-width:100%}}
+figure{{margin:1.5em 0}}</style></head><body>
+<h1>Landmark registration on the equiareal disk</h1>
+<table>{table}</table>
+{dense}
+<h2>Figures</h2>
+{imgs}
+<p style="color:#777;font-size:12px">Written by sem-pipeline register; numbers from
+metrics.json.</p>
+</body></html>
+"""
