@@ -89,7 +89,10 @@ class CholmodSolver:
 
 
 class ScipySolver:
-    """SuperLU with a symmetric minimum-degree ordering and no pivoting (SPD input)."""
+    """SuperLU with a COLAMD ordering applied symmetrically and no pivoting (SPD input).
+
+    Measured here on disk Laplacians (factor + solve): COLAMD 0.32 s at 45k unknowns and 17 s
+    at 534k; ``MMD_AT_PLUS_A`` took 9.5 s at 45k (its ordering step, not the factorization)."""
 
     name = "scipy"
 
@@ -98,7 +101,7 @@ class ScipySolver:
 
     def factorize(self, A: sp.spmatrix) -> None:
         try:
-            self._lu = spla.splu(_as_csc_symmetric(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+            self._lu = spla.splu(_as_csc_symmetric(A), permc_spec="COLAMD", diag_pivot_thresh=0.0,
                                  options=dict(SymmetricMode=True))
         except RuntimeError as exc:  # exactly singular
             raise NotPositiveDefinite(str(exc)) from exc
