@@ -44,6 +44,7 @@ from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
+from .topology import vertex_faces
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -94,6 +95,7 @@ class _Problem:
         self.A2 = face_double_areas(V, F)        # 2|τ|
         self.area_M = self.A2.sum() / 2
         self.surface_fractions = vertex_area_fractions(F, len(V), self.A2)
+        self._vertex_faces = None
         self.pattern = laplacian_pattern(F, len(V), boundary)
         self.I, self.B = self.pattern.interior, self.pattern.boundary
         # Separate factors: L_II(f) and its clamped form have the same pattern but their own
@@ -102,9 +104,11 @@ class _Problem:
         self.solver_P = make_solver(solver_kind)
         self.solver_B = make_solver(solver_kind)
 
-    def evaluate(self, f):
-        """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15)."""
-        a2 = signed_double_areas(_as_uv(f), self.F)
+    def evaluate(self, f, a2=None):
+        """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15);
+        ``a2`` if the image areas are already known."""
+        if a2 is None:
+            a2 = signed_double_areas(_as_uv(f), self.F)
         E = float(0.5 * np.sum(a2 * a2 / self.A2))
         area_f = np.abs(a2).sum() / 2
         return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0)), a2
@@ -112,6 +116,12 @@ class _Problem:
     def distortions(self, a2):
         """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map."""
         return area_distortions(self.F, len(self.V), self.A2, a2, self.surface_fractions)
+
+    def faces_of(self, vertices: np.ndarray) -> np.ndarray:
+        """Indices of the faces incident to ``vertices`` (incidence built on first use)."""
+        if self._vertex_faces is None:
+            self._vertex_faces = vertex_faces(self.F, len(self.V))
+        return np.unique(self._vertex_faces[vertices].indices)
 
     def weights(self, f):
         """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
@@ -177,18 +187,23 @@ def damped(f: np.ndarray, g: np.ndarray, alpha: float, boundary: np.ndarray) -> 
     return h
 
 
-def hold_flipping_vertices(f: np.ndarray, g: np.ndarray, F: np.ndarray, allowed: int,
-                           evaluate, rounds: int = 8):
+def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, allowed: int,
+                           rounds: int = 8):
     """Keep the previous position of every vertex of a face that ``g`` flips, until ``g`` flips
-    no more faces than ``allowed`` (or ``rounds`` passes); returns ``(g, evaluation)``."""
-    value = evaluate(g)
+    no more faces than ``allowed`` (or ``rounds`` passes); returns ``(g, evaluation)``.
+    Only the faces around the held vertices have their image areas recomputed."""
+    F = problem.F
+    value = problem.evaluate(g)
     for _ in range(rounds):
         if value[2] <= allowed:
             break
-        held = F[value[3] <= 0].ravel()
+        held = np.unique(F[value[3] <= 0].ravel())
         g = g.copy()
         g[held] = f[held]
-        value = evaluate(g)
+        touched = problem.faces_of(held)
+        a2 = value[3].copy()
+        a2[touched] = signed_double_areas(_as_uv(g), F[touched])
+        value = problem.evaluate(g, a2)
     return g, value
 
 
@@ -201,7 +216,7 @@ def line_search(problem: _Problem, f, g, current, better, min_step, hold: bool,
     while alpha >= min_step:
         cand = g if alpha == 1.0 else damped(f, g, alpha, problem.B)
         if hold:
-            cand, value = hold_flipping_vertices(f, cand, problem.F, current[2], problem.evaluate)
+            cand, value = hold_flipping_vertices(problem, f, cand, current[2])
         else:
             value = problem.evaluate(cand)
         if value[2] <= current[2] and better(value):
