@@ -1,0 +1,646 @@
+"""Triangle-quality improvement of a lifted remesh (beyond the paper's §8), done on the disk.
+
+An equiareal map keeps areas but distorts angles (25–50° mean angular distortion on real
+meshes; where a shape has long protrusions or deep folds — fingers, ears, brain sulci — the
+map squeezes them into thin slivers of the disk with 10–100× anisotropy). Uniform disk samples
+therefore have the right *density* on the surface but not the right *shape*: lifted triangles
+are skewed, and across a sliver they bridge over the surface. Everything here keeps every
+vertex exactly on the input surface — a vertex is a disk position, lifted by eq. (1) — and the
+disk triangulation valid (every face counter-clockwise on the disk), so the output stays a
+parameterized disk:
+
+* :func:`delaunay_flips` — flip every interior edge whose two opposite **3D** angles sum to more
+  than π (the Delaunay criterion on the lifted surface), in rounds of independent flips until
+  none is left. A flip is allowed only when the quad is convex on the disk (so the new edge
+  cannot exist yet), no new face has three boundary corners, the new faces' normals agree with
+  the old ones, and the quad is nearly planar (dihedral angle below ``max_dihedral_deg``), so
+  the surface changes by no more than a shallow fold.
+* :func:`tangential_relaxation` — move every interior vertex part of the way towards the
+  area-weighted centroid of its 1-ring, with the displacement projected onto the tangent
+  plane. The move is made **on the disk**: the 3D displacement ``d`` is pulled back through the
+  Jacobian ``J`` (3×2) of the input face under the vertex, ``Δu = J⁺ d``, and the vertex is
+  re-located and lifted, so it stays on the input surface. Moves that would flip a face on the
+  disk are halved (up to 6 times, then dropped); moves that would leave the image polygon are
+  dropped. Rim vertices and locked corners stay.
+* :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
+  sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
+  lifted edges bridge over the surface. An edge whose straight line is farther than
+  ``refine_sag × L`` from the surface (:func:`edge_sag`) is split at its *disk* midpoint,
+  lifted by eq. (1), so the new vertex lies on the surface inside the sliver.
+* :func:`split_long_edges` / :func:`collapse_short_edges` — the split and collapse steps of
+  isotropic remeshing (Botsch & Kobbelt 2004), with 3D lengths; used to give the vertex count
+  back after refinement (the shortest edges are collapsed) and to remove slivers (edges
+  shorter than 0.2 L). A split boundary edge gets its vertex on the image polygon. A collapse
+  removes one endpoint (never a rim vertex unless the edge is a boundary edge, never a locked
+  corner), keeps the other where it is, and is made only if the link condition holds, no face
+  flips on the disk or turns over in 3D, no face gets three boundary corners and no edge gets
+  longer than ``L_max``. Both run in rounds of independent operations (vectorised).
+* :func:`snap_vertices` — sharp input vertices (cone tips, spikes) get an output vertex
+  exactly on them, locked from then on.
+* :func:`improve_remesh` chains them: corner snapping, flips, ``relax_iterations`` ×
+  (relaxation, flips), refinement, count correction, relaxation, flips.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import topology as topo
+from .locate import PointLocator, _closest_on_segments, lift
+
+__all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long_edges",
+           "collapse_short_edges", "edge_sag", "refine_by_sag", "snap_vertices", "improve_remesh"]
+
+
+def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
+    return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
+            - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+def _cot(X, at, u, v) -> np.ndarray:
+    """Cotangent of the angle at ``X[at]`` between ``X[u]`` and ``X[v]``."""
+    e1, e2 = X[u] - X[at], X[v] - X[at]
+    cr = np.cross(e1, e2)
+    return np.einsum("ij,ij->i", e1, e2) / np.maximum(np.sqrt(np.einsum("ij,ij->i", cr, cr)),
+                                                       1e-300)
+
+
+def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
+                   max_rounds: int = 12, eps: float = 1e-9) -> tuple[np.ndarray, int, int]:
+    """Flip interior edges towards the Delaunay triangulation of the lifted surface.
+
+    ``X`` (n×3) are the lifted positions, ``F`` (m×3) the faces (CCW on the disk), ``uv`` (n×2)
+    the disk positions. The criterion ``α + β > π`` for the angles opposite an edge is tested as
+    ``cot α + cot β < 0``. After the first round only the edges of faces changed in the previous
+    round are tested again, and the half-edge twins are updated in place. The new edge cannot
+    exist yet: the quad is convex on the disk, where the triangulation is an embedding. Returns
+    ``(F, flips, rounds)``; see the module docstring.
+    """
+    F = np.array(F, dtype=np.int64, copy=True)
+    n, m = len(X), len(F)
+    is_b = topo.boundary_vertices_mask(F, n)
+    cos_max = np.cos(np.radians(max_dihedral_deg))
+    twin = topo.interior_edge_twins(F)
+    he = np.arange(3 * m)
+    h_all = np.flatnonzero(twin > he)                                   # each interior edge once
+    total, rounds = 0, 0
+    h = h_all
+    for rounds in range(1, max_rounds + 1):
+        if len(h) == 0:
+            break
+        f, c = h // 3, h % 3
+        t = twin[h]
+        g, d = t // 3, t % 3
+        a, b = F[f, c], F[f, (c + 1) % 3]
+        p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
+        viol = -(_cot(X, p, a, b) + _cot(X, q, a, b))                    # > 0: not Delaunay
+        cand = np.flatnonzero(viol > eps)
+        if len(cand) == 0:
+            break
+        h, t, f, g, c, d = h[cand], t[cand], f[cand], g[cand], c[cand], d[cand]
+        a, b, p, q, viol = a[cand], b[cand], p[cand], q[cand], viol[cand]
+        nf = np.cross(X[b] - X[a], X[p] - X[a])
+        ng = np.cross(X[a] - X[b], X[q] - X[b])
+        n1 = np.cross(X[a] - X[p], X[q] - X[p])                         # new face (p, a, q)
+        n2 = np.cross(X[b] - X[q], X[p] - X[q])                         # new face (q, b, p)
+        nsum = nf + ng
+        norm = np.linalg.norm
+        ok = np.einsum("ij,ij->i", nf, ng) >= cos_max * norm(nf, axis=1) * norm(ng, axis=1)
+        ok &= (np.einsum("ij,ij->i", n1, nsum) > 0) & (np.einsum("ij,ij->i", n2, nsum) > 0)
+        s1, s2 = _signed2(uv, p, a, q), _signed2(uv, q, b, p)
+        scale = _signed2(uv, a, b, p) + _signed2(uv, b, a, q)
+        ok &= (s1 > 1e-6 * scale) & (s2 > 1e-6 * scale)
+        ok &= ~(is_b[p] & is_b[a] & is_b[q]) & ~(is_b[q] & is_b[b] & is_b[p])
+        sel = np.flatnonzero(ok)
+        if len(sel) == 0:
+            break
+        win = sel[_independent_by_faces(m, f[sel], g[sel], -viol[sel])]
+        f, g, c, d = f[win], g[win], c[win], d[win]
+        a, b, p, q = a[win], b[win], p[win], q[win]
+        # half-edge bookkeeping: old slot → new slot of the four outer half-edges
+        removed = np.concatenate([3 * f + c, 3 * g + d])
+        newid = np.arange(3 * m)
+        newid[3 * f + (c + 2) % 3] = 3 * f          # p→a
+        newid[3 * g + (d + 1) % 3] = 3 * f + 1      # a→q
+        newid[3 * g + (d + 2) % 3] = 3 * g          # q→b
+        newid[3 * f + (c + 1) % 3] = 3 * g + 1      # b→p
+        valid = twin >= 0
+        valid[removed] = False
+        src = np.flatnonzero(valid)
+        new_twin = np.full(3 * m, -1, np.int64)
+        new_twin[newid[src]] = newid[twin[src]]
+        new_twin[3 * f + 2] = 3 * g + 2              # the new diagonal q→p / p→q
+        new_twin[3 * g + 2] = 3 * f + 2
+        twin = new_twin
+        F[f] = np.column_stack([p, a, q])
+        F[g] = np.column_stack([q, b, p])
+        total += len(win)
+        # next round: every interior edge of the changed faces
+        hs = np.concatenate([3 * f + k for k in range(3)] + [3 * g + k for k in range(3)])
+        ts = twin[hs]
+        hs = np.where(ts > hs, hs, ts)
+        h = np.unique(hs[ts >= 0])
+    return F, total, rounds
+
+
+def _pullback(V_in, F_in, uv_in, face, D):
+    """``Δu = J⁺ d`` per row: the disk displacement whose image under the input face's affine
+    map (uv → 3D) is the projection of ``D`` onto that face's plane."""
+    t = F_in[face]
+    E3a, E3b = V_in[t[:, 1]] - V_in[t[:, 0]], V_in[t[:, 2]] - V_in[t[:, 0]]
+    E2a, E2b = uv_in[t[:, 1]] - uv_in[t[:, 0]], uv_in[t[:, 2]] - uv_in[t[:, 0]]
+    g11 = np.einsum("ij,ij->i", E3a, E3a)
+    g12 = np.einsum("ij,ij->i", E3a, E3b)
+    g22 = np.einsum("ij,ij->i", E3b, E3b)
+    r1 = np.einsum("ij,ij->i", E3a, D)
+    r2 = np.einsum("ij,ij->i", E3b, D)
+    det = g11 * g22 - g12 * g12
+    det = np.where(det > 0, det, np.inf)
+    s1 = (g22 * r1 - g12 * r2) / det
+    s2 = (g11 * r2 - g12 * r1) / det
+    return s1[:, None] * E2a + s2[:, None] * E2b
+
+
+def snap_vertices(S: RemeshState, targets_uv: np.ndarray) -> np.ndarray:
+    """Move an interior vertex exactly onto each target (the disk image of a sharp input
+    vertex) and lock it: for each target in the given order (sharpest first), the nearest of
+    its 4 nearest free vertices on the disk whose faces stay counter-clockwise there. Returns
+    the snapped vertex indices."""
+    from scipy.spatial import cKDTree
+
+    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, 2)
+    free = np.flatnonzero(~S.is_rim & ~S.locked)
+    if len(T) == 0 or len(free) == 0:
+        return np.zeros(0, np.int64)
+    K = min(4, len(free))
+    _, J = cKDTree(S.uv[free]).query(T, k=K)
+    J = free[np.asarray(J).reshape(len(T), K)]
+    VF = _vertex_faces(S.F, S.n)
+    taken = np.zeros(S.n, bool)
+    snapped = []
+    for t, cands in zip(T, J):
+        for v in cands.tolist():
+            if taken[v]:
+                continue
+            faces = VF.indices[VF.indptr[v]:VF.indptr[v + 1]]
+            old = S.uv[v].copy()
+            S.uv[v] = t
+            Ff = S.F[faces]
+            if np.all(_signed2(S.uv, Ff[:, 0], Ff[:, 1], Ff[:, 2]) > 0):
+                taken[v] = True
+                snapped.append(v)
+                break
+            S.uv[v] = old
+    v = np.asarray(snapped, np.int64)
+    if len(v):
+        f, b, _ = S.locator.locate_with_inside(S.uv[v])
+        S.face[v], S.bary[v] = f, b
+        S.X[v] = lift(S.V_in, S.F_in, f, b)
+        S.locked[v] = True
+    S._count("corners_snapped", len(v))
+    return v
+
+
+def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
+                          locator: PointLocator, uv: np.ndarray, F: np.ndarray,
+                          face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
+                          iterations: int = 3, step: float = 0.5):
+    """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input ``(V_in, F_in,
+    uv_in)`` (see the module docstring). ``face``/``bary`` locate ``uv`` in the input map;
+    ``movable`` marks the vertices that may move (interior ones).
+
+    Returns ``(uv, face, bary, X, moved)`` with the lifted positions ``X`` and, per iteration,
+    the number of vertices that moved.
+    """
+    uv = np.array(uv, dtype=np.float64, copy=True)
+    face, bary = face.copy(), bary.copy()
+    X = lift(V_in, F_in, face, bary)
+    n = len(uv)
+    moved_counts = []
+    Fr = F.ravel()
+    mov = np.flatnonzero(movable)
+    area_floor = 1e-6 * _signed2(uv, F[:, 0], F[:, 1], F[:, 2])          # per face
+    for _ in range(iterations):
+        Nf = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])    # 2·area·normal
+        A = np.linalg.norm(Nf, axis=1)
+        C = X[F].mean(axis=1)
+        W = np.bincount(Fr, np.repeat(A, 3), n)
+        G = np.column_stack([np.bincount(Fr, np.repeat(A * C[:, j], 3), n) for j in range(3)])
+        N = np.column_stack([np.bincount(Fr, np.repeat(Nf[:, j], 3), n) for j in range(3)])
+        N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+        D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+        D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
+        du = np.zeros_like(uv)
+        du[mov] = step * _pullback(V_in, F_in, uv_in, face[mov], D)
+        # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
+        for _halving in range(7):
+            new = uv + du
+            bad = _signed2(new, F[:, 0], F[:, 1], F[:, 2]) <= area_floor
+            if not bad.any():
+                break
+            verts = np.unique(F[bad].ravel())
+            du[verts] *= 0.0 if _halving == 6 else 0.5
+        go = np.flatnonzero(np.any(du != 0, axis=1))
+        f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
+        du[go[~inside]] = 0.0                    # would leave the image polygon: stays
+        while True:                              # dropping moves can flip a face: drop more
+            bad = _signed2(uv + du, F[:, 0], F[:, 1], F[:, 2]) <= area_floor
+            bad &= np.any(du[F] != 0, axis=(1, 2))
+            if not bad.any():
+                break
+            du[F[bad].ravel()] = 0.0
+        keep = np.any(du[go] != 0, axis=1)
+        go, f2, b2 = go[keep], f2[keep], b2[keep]
+        uv[go] += du[go]
+        face[go], bary[go] = f2, b2
+        X = lift(V_in, F_in, face, bary)
+        moved_counts.append(int(len(go)))
+    return uv, face, bary, X, moved_counts
+
+
+# ----------------------------------------------------------------------------- split/collapse
+
+
+@dataclass
+class RemeshState:
+    """A remesh on the disk with its lift: per vertex the disk position ``uv``, the input face
+    and barycentrics under it, the 3D position ``X`` (eq. 1) and whether it is a rim vertex;
+    plus the input map it lives on."""
+
+    X: np.ndarray
+    F: np.ndarray
+    uv: np.ndarray
+    is_rim: np.ndarray
+    face: np.ndarray
+    bary: np.ndarray
+    V_in: np.ndarray
+    F_in: np.ndarray
+    uv_in: np.ndarray
+    locator: PointLocator
+    polygon: np.ndarray                      # the image polygon (input boundary on the disk)
+    locked: np.ndarray | None = None         # vertices never removed (snapped corners)
+    log: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.locked is None:
+            self.locked = np.zeros(len(self.uv), bool)
+
+    @property
+    def n(self) -> int:
+        return len(self.uv)
+
+    def _count(self, key: str, k: int) -> None:
+        self.log[key] = self.log.get(key, 0) + int(k)
+
+
+def _edge_table(F: np.ndarray, with_twins: bool = False):
+    """Every edge once: ``(h, a, b, twin)`` with ``h`` a half-edge ``a → b`` of the edge and
+    ``twin`` its opposite half-edge (−1 on the boundary); plus the twin of every half-edge
+    when ``with_twins``."""
+    m = len(F)
+    twin = topo.interior_edge_twins(F)
+    he = np.arange(3 * m)
+    h = np.flatnonzero((twin < 0) | (twin > he))
+    out = (h, F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], twin[h])
+    return out + (twin,) if with_twins else out
+
+
+def _independent_by_faces(m: int, f1: np.ndarray, f2: np.ndarray, priority: np.ndarray
+                          ) -> np.ndarray:
+    """Indices of candidates chosen so that no face has two: a candidate (touching faces ``f1``,
+    ``f2``) is taken when it has the best ``priority`` (smallest) of both its faces."""
+    k = len(f1)
+    rank = np.empty(k, np.int64)
+    rank[np.argsort(priority, kind="stable")] = np.arange(k)
+    best = np.full(m, k, np.int64)
+    np.minimum.at(best, f1, rank)
+    np.minimum.at(best, f2, rank)
+    return np.flatnonzero((best[f1] == rank) & (best[f2] == rank))
+
+
+def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray) -> int:
+    """Split the given (independent: no shared face) edges at their disk midpoints."""
+    k = len(h)
+    if k == 0:
+        return 0
+    F = S.F
+    f, c = h // 3, h % 3
+    a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
+    on_b = twin < 0
+    M = 0.5 * (S.uv[a] + S.uv[b])
+    if on_b.any():                               # a boundary edge's vertex goes on the polygon
+        _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
+    mf, mb, _ = S.locator.relocate(M, S.face[a])
+    w = S.n + np.arange(k)
+    S.uv = np.vstack([S.uv, M])
+    S.face = np.concatenate([S.face, mf])
+    S.bary = np.vstack([S.bary, mb])
+    S.X = np.vstack([S.X, lift(S.V_in, S.F_in, mf, mb)])
+    S.is_rim = np.concatenate([S.is_rim, on_b])
+    S.locked = np.concatenate([S.locked, np.zeros(k, bool)])
+    F = F.copy()
+    new = [np.column_stack([w, b, p])]
+    F[f] = np.column_stack([a, w, p])
+    inner = np.flatnonzero(~on_b)
+    if len(inner):
+        g, d = twin[inner] // 3, twin[inner] % 3
+        q = F[g, (d + 2) % 3]
+        F[g] = np.column_stack([b[inner], w[inner], q])
+        new.append(np.column_stack([w[inner], a[inner], q]))
+    S.F = np.vstack([F] + new)
+    return k
+
+
+def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
+                     budget: int | None = None) -> int:
+    """Split edges longer than ``L_max`` (3D), longest first, in independent rounds; at most
+    ``budget`` splits. Returns the number of splits."""
+    done = 0
+    for _ in range(max_rounds):
+        h, a, b, twin = _edge_table(S.F)
+        ln = np.linalg.norm(S.X[a] - S.X[b], axis=1)
+        cand = np.flatnonzero(ln > L_max)
+        if len(cand) == 0:
+            break
+        f1 = h[cand] // 3
+        f2 = np.where(twin[cand] >= 0, twin[cand] // 3, f1)
+        sel = cand[_independent_by_faces(len(S.F), f1, f2, -ln[cand])]
+        if budget is not None:
+            sel = sel[np.argsort(-ln[sel], kind="stable")][:budget - done]
+        if len(sel) == 0:
+            break
+        done += split_edges(S, h[sel], twin[sel])
+        if budget is not None and done >= budget:
+            break
+    S._count("splits", done)
+    return done
+
+
+def _csr_rows(indptr, indices, rows):
+    """``(row_id, value)`` pairs of the given CSR rows, concatenated (vectorised)."""
+    start, stop = indptr[rows], indptr[rows + 1]
+    cnt = stop - start
+    rid = np.repeat(np.arange(len(rows)), cnt)
+    pos = np.repeat(start - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
+    return rid, indices[pos]
+
+
+class _CSR:
+    def __init__(self, indptr, indices):
+        self.indptr, self.indices = indptr, indices
+
+
+def _group(keys: np.ndarray, values: np.ndarray, n: int) -> _CSR:
+    order = np.argsort(keys)
+    return _CSR(np.r_[0, np.cumsum(np.bincount(keys, minlength=n))], values[order])
+
+
+def _adjacency(F: np.ndarray, n: int, twin: np.ndarray | None = None) -> _CSR:
+    """Vertex neighbours (each edge in both directions; for a manifold disk every neighbour
+    appears once, boundary edges are added in their missing direction)."""
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    if twin is None:
+        twin = topo.interior_edge_twins(F)
+    lone = twin < 0                                  # boundary half-edges: add b → a too
+    return _group(np.concatenate([a, b[lone]]), np.concatenate([b, a[lone]]), n)
+
+
+def _vertex_faces(F: np.ndarray, n: int) -> _CSR:
+    return _group(F.ravel(), np.repeat(np.arange(len(F)), 3), n)
+
+
+def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
+                         budget: int | None = None) -> int:
+    """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
+    ``L_max`` appears and the result stays valid (module docstring); independent rounds; at
+    most ``budget`` collapses. Returns the number of collapses."""
+    done = 0
+    for _ in range(max_rounds):
+        F, n = S.F, S.n
+        h, a, b, twin, twin_all = _edge_table(F, with_twins=True)
+        ln = np.linalg.norm(S.X[a] - S.X[b], axis=1)
+        cand = np.flatnonzero(ln < L_min)
+        if budget is not None and len(cand) > 8 * (budget - done) + 1000:
+            # only the shortest few: validity is checked per candidate
+            k = 8 * (budget - done) + 1000
+            cand = cand[np.argpartition(ln[cand], k)[:k]]
+        if len(cand) == 0:
+            break
+        a, b, twin, h, ln = a[cand], b[cand], twin[cand], h[cand], ln[cand]
+        on_b = twin < 0
+        ra, rb = S.is_rim[a], S.is_rim[b]
+        ok = ~(ra & rb & ~on_b)                   # an interior edge between rim vertices: no
+        # remove r, keep k: never remove a rim vertex unless the edge is on the boundary, and
+        # never a locked vertex
+        keep_a = (ra & ~rb) | S.locked[a]
+        r = np.where(keep_a, b, a)
+        k = np.where(keep_a, a, b)
+        ok &= ~S.locked[r]
+        r, k, a, b, ln, on_b, h, twin = (x[ok] for x in (r, k, a, b, ln, on_b, h, twin))
+        if len(r) == 0:
+            break
+        A = _adjacency(F, n, twin_all)
+        VF = _vertex_faces(F, n)
+        # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
+        ia, na = _csr_rows(A.indptr, A.indices, r)
+        ib, nb = _csr_rows(A.indptr, A.indices, k)
+        keys = np.concatenate([ia * np.int64(n) + na, ib * np.int64(n) + nb])
+        keys.sort()
+        dup = keys[1:][keys[1:] == keys[:-1]] // n
+        common = np.bincount(dup, minlength=len(r))
+        ok = common == np.where(on_b, 1, 2)
+        # faces of r that survive (do not contain k), with r replaced by k
+        fr, fid = _csr_rows(VF.indptr, VF.indices, r)
+        T = F[fid]
+        has_k = (T == k[fr][:, None]).any(axis=1)
+        fr, fid, T = fr[~has_k], fid[~has_k], T[~has_k]
+        Tn = np.where(T == r[fr][:, None], k[fr][:, None], T)
+        old2 = _signed2(S.uv, T[:, 0], T[:, 1], T[:, 2])
+        new2 = _signed2(S.uv, Tn[:, 0], Tn[:, 1], Tn[:, 2])
+        X = S.X
+        n_old = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+        n_new = np.cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
+        kpos = X[k[fr]]
+        longest = np.maximum(np.linalg.norm(X[Tn[:, 0]] - kpos, axis=1),
+                             np.maximum(np.linalg.norm(X[Tn[:, 1]] - kpos, axis=1),
+                                        np.linalg.norm(X[Tn[:, 2]] - kpos, axis=1)))
+        bad = ((new2 <= 1e-6 * np.abs(old2)) | (np.einsum("ij,ij->i", n_old, n_new) <= 0)
+               | S.is_rim[Tn].all(axis=1) | (longest > L_max))
+        ok &= np.bincount(fr[bad], minlength=len(r)) == 0
+        # Independence: the closed 1-rings of the removed vertices are pairwise disjoint. A
+        # collapse only changes the faces around r (all their corners are in r's closed ring)
+        # and the rings of r's neighbours, so then no collapse sees another's changes.
+        sel = np.flatnonzero(ok)
+        if len(sel) == 0:
+            break
+        rank = np.empty(len(sel), np.int64)
+        rank[np.argsort(ln[sel], kind="stable")] = np.arange(len(sel))
+        pr, pv = _csr_rows(A.indptr, A.indices, r[sel])
+        pr = np.concatenate([pr, np.arange(len(sel))])
+        pv = np.concatenate([pv, r[sel]])
+        best = np.full(n, len(sel), np.int64)
+        np.minimum.at(best, pv, rank[pr])
+        lost = np.bincount(pr[best[pv] != rank[pr]], minlength=len(sel))
+        win = sel[lost == 0]
+        if budget is not None:
+            win = win[np.argsort(ln[win], kind="stable")][:budget - done]
+        if len(win) == 0:
+            break
+        remap = np.arange(n)
+        remap[r[win]] = k[win]
+        F2 = remap[F]
+        keepf = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
+        keepv = np.ones(n, bool)
+        keepv[r[win]] = False
+        newidx = np.cumsum(keepv) - 1
+        S.F = newidx[F2[keepf]]
+        S.uv, S.X, S.face, S.bary, S.is_rim, S.locked = (
+            x[keepv] for x in (S.uv, S.X, S.face, S.bary, S.is_rim, S.locked))
+        done += len(win)
+        if budget is not None and done >= budget:
+            break
+    S._count("collapses", done)
+    return done
+
+
+def _face_normals(V: np.ndarray, F: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    t = F[faces]
+    N = np.cross(V[t[:, 1]] - V[t[:, 0]], V[t[:, 2]] - V[t[:, 0]])
+    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+
+
+def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray):
+    """How far the straight 3D edge ``a–b`` is from the surface at its middle.
+
+    ``d`` = the offset between the edge's 3D midpoint and the lift (eq. 1) of its disk
+    midpoint. Its tangential part is only the map's non-linearity (on a plane ``d`` is
+    tangential however far it is), so the sag is the largest component of ``d`` along the
+    input surface's normals at the midpoint and at the two ends: bridging over a finger shows
+    along the normal at the midpoint, skipping a fold (a closed mouth) along those at the ends.
+    """
+    M = 0.5 * (S.uv[a] + S.uv[b])
+    mf, mb = S.locator.locate(M)
+    D = lift(S.V_in, S.F_in, mf, mb) - 0.5 * (S.X[a] + S.X[b])
+    sag = np.abs(np.einsum("ij,ij->i", D, _face_normals(S.V_in, S.F_in, mf)))
+    for end in (a, b):
+        sag = np.maximum(sag, np.abs(np.einsum("ij,ij->i", D, _face_normals(
+            S.V_in, S.F_in, S.face[end]))))
+    return sag
+
+
+def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int = 8) -> int:
+    """Split edges whose straight line is farther than ``threshold`` from the surface, worst
+    first, in independent rounds, at most ``budget`` splits.
+
+    Where the equiareal map squeezes a region into a thin sliver of the disk (the sides of
+    fingers, deep folds), uniform disk samples are too sparse across it and the lifted
+    triangles bridge over the surface; an edge split at its disk midpoint puts a vertex on the
+    surface inside the sliver. After the first round only the edges at new vertices (and the
+    candidates that waited for a free face) are measured again."""
+    done = 0
+    active = None
+    for _ in range(max_rounds):
+        if done >= budget:
+            break
+        h, a, b, twin = _edge_table(S.F)
+        if active is not None:
+            keep = active[a] | active[b]
+            h, a, b, twin = h[keep], a[keep], b[keep], twin[keep]
+        if len(h) == 0:
+            break
+        # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
+        # both tangent planes, is over a flat patch (sag 0) unless a feature narrower than the
+        # edge sits in between; only the others are probed at their midpoints
+        na = _face_normals(S.V_in, S.F_in, S.face[a])
+        nb = _face_normals(S.V_in, S.F_in, S.face[b])
+        e = S.X[b] - S.X[a]
+        probe = ((np.einsum("ij,ij->i", na, nb) < np.cos(np.radians(10.0)))
+                 | (np.abs(np.einsum("ij,ij->i", e, na)) > 0.5 * threshold)
+                 | (np.abs(np.einsum("ij,ij->i", e, nb)) > 0.5 * threshold))
+        h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
+        sag = edge_sag(S, a, b)
+        cand = np.flatnonzero(sag > threshold)
+        if len(cand) == 0:
+            break
+        f1 = h[cand] // 3
+        f2 = np.where(twin[cand] >= 0, twin[cand] // 3, f1)
+        win = _independent_by_faces(len(S.F), f1, f2, -sag[cand])
+        sel = cand[win]
+        sel = sel[np.argsort(-sag[sel], kind="stable")][:budget - done]
+        if len(sel) == 0:
+            break
+        waiting = np.ones(len(cand), bool)
+        waiting[win] = False
+        n0 = S.n
+        done += split_edges(S, h[sel], twin[sel])
+        active = np.zeros(S.n, bool)
+        active[n0:] = True
+        active[a[cand[waiting]]] = True
+        active[b[cand[waiting]]] = True
+    S._count("sag_splits", done)
+    return done
+
+
+def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: bool = True,
+                   max_dihedral_deg: float = 20.0, relax_step: float = 0.5,
+                   refine_sag: float = 0.2, refine_budget: float = 0.3,
+                   target_vertices: int | None = None,
+                   corners_uv: np.ndarray | None = None) -> RemeshState:
+    """Flips and ``relax_iterations`` × (relaxation, flips); then edges farther than
+    ``refine_sag × L`` from the surface are split (at most ``refine_budget`` × the vertex
+    count); then the shortest edges are collapsed (or the longest split) until the count is
+    ``target_vertices`` again; then flips, one relaxation step, flips. ``L`` is the target
+    edge length on the surface (3D). See the module docstring."""
+    def flip():
+        if flips:
+            S.F, k, _ = delaunay_flips(S.X, S.F, S.uv, max_dihedral_deg)
+            S._count("flips", k)
+
+    def relax():
+        S.uv, S.face, S.bary, S.X, moved = tangential_relaxation(
+            S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
+            ~S.is_rim & ~S.locked, 1, relax_step)
+        S._count("relaxed_vertex_moves", sum(moved))
+
+    tick = time.perf_counter()
+
+    def lap(key):
+        nonlocal tick
+        now = time.perf_counter()
+        S.log.setdefault("seconds", {})
+        S.log["seconds"][key] = S.log["seconds"].get(key, 0.0) + now - tick
+        tick = now
+
+    if corners_uv is not None and len(corners_uv):
+        snap_vertices(S, corners_uv)
+    flip()
+    lap("flips")
+    for _ in range(relax_iterations):
+        relax()
+        lap("relax")
+        flip()
+        lap("flips")
+    if refine_sag > 0:
+        refine_by_sag(S, refine_sag * L, int(refine_budget * S.n))
+        lap("refine")
+    # very short edges (slivers) are collapsed; with a target count, as many more of the
+    # shortest edges as the refinement added, then the longest edges are split to reach it
+    h, a, b, _ = _edge_table(S.F)
+    n_short = int(np.count_nonzero(np.linalg.norm(S.X[a] - S.X[b], axis=1) < 0.2 * L))
+    target = S.n if target_vertices is None else int(target_vertices)
+    excess = max(S.n - target, 0) + n_short
+    if excess > 0:
+        collapse_short_edges(S, np.inf, 2.0 * L, budget=excess)
+    if S.n < target:
+        split_long_edges(S, 0.0, budget=target - S.n)
+    lap("count")
+    if relax_iterations > 0:
+        relax()
+        lap("relax")
+        flip()
+        lap("flips")
+    return S

@@ -1,0 +1,249 @@
+"""Point location in a disk map's image and barycentric lifting (pipeline.geometry.locate):
+exact facts on constructed triangulations, then a real SEM map."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import require_data
+from pipeline.geometry.locate import (PointLocator, barycentric_coordinates, lift,
+                                      locate_points, project_to_boundary_polygon)
+
+
+def grid_mesh(n=12, jitter=0.0, seed=0):
+    """A triangulated square [0,1]² (n×n cells, each split in two), CCW, optional jitter of
+    the interior vertices; returns ``(uv, F, boundary loop CCW)``."""
+    t = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(t, t)
+    uv = np.column_stack([X.ravel(), Y.ravel()])
+    if jitter:
+        rng = np.random.default_rng(seed)
+        inner = (uv > 0).all(1) & (uv < 1).all(1)
+        uv[inner] += rng.uniform(-jitter, jitter, (inner.sum(), 2)) / n
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    F = np.vstack([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    loop = np.r_[idx[0, :], idx[1:, -1], idx[-1, -2::-1], idx[-2:0:-1, 0]]
+    return uv, F, loop
+
+
+def disk_mesh(k=64, rings=6):
+    """A polygon inscribed in the unit circle (k vertices), triangulated with rings inside
+    (Delaunay); returns ``(uv, F, boundary loop CCW)``."""
+    from scipy.spatial import Delaunay
+
+    pts = [np.zeros((1, 2))]
+    for r in range(1, rings + 1):
+        m = max(6, int(round(k * r / rings)))
+        t = 2 * np.pi * (np.arange(m) + 0.5 * (r % 2)) / m
+        pts.append(r / rings * np.column_stack([np.cos(t), np.sin(t)]))
+    uv = np.vstack(pts)
+    F = Delaunay(uv).simplices
+    x, y = uv[:, 0], uv[:, 1]
+    a2 = (x[F[:, 1]] - x[F[:, 0]]) * (y[F[:, 2]] - y[F[:, 0]]) - \
+        (y[F[:, 1]] - y[F[:, 0]]) * (x[F[:, 2]] - x[F[:, 0]])
+    F[a2 < 0] = F[a2 < 0][:, [0, 2, 1]]
+    loop = np.arange(len(uv) - k, len(uv))
+    return uv, F, loop
+
+
+def reconstruct(uv, F, face, bary):
+    return lift(uv, F, face, bary)
+
+
+def check_valid(face, bary, k):
+    assert face.dtype == np.int64 and face.shape == (k,)
+    assert bary.dtype == np.float64 and bary.shape == (k, 3)
+    assert np.all(face >= 0)
+    assert np.all(bary >= 0.0)
+    assert np.allclose(bary.sum(axis=1), 1.0, atol=1e-15, rtol=0)
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.3])
+def test_vertices_are_located_exactly(jitter):
+    uv, F, loop = grid_mesh(10, jitter)
+    face, bary = locate_points(uv, F, uv, loop)
+    check_valid(face, bary, len(uv))
+    # the located face has the vertex as a corner with weight exactly 1
+    corner = F[face]
+    hit = corner == np.arange(len(uv))[:, None]
+    assert hit.any(axis=1).all()
+    assert np.array_equal(bary[hit], np.ones(len(uv)))
+    assert np.array_equal(reconstruct(uv, F, face, bary), uv)
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.3])
+def test_points_on_edges(jitter):
+    uv, F, loop = grid_mesh(10, jitter)
+    E = np.unique(np.sort(np.vstack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1), axis=0)
+    rng = np.random.default_rng(1)
+    t = np.r_[np.full(len(E), 0.5), rng.random(len(E))]
+    E2 = np.vstack([E, E])
+    P = uv[E2[:, 0]] + t[:, None] * (uv[E2[:, 1]] - uv[E2[:, 0]])
+    face, bary = locate_points(uv, F, P, loop)
+    check_valid(face, bary, len(P))
+    assert np.abs(reconstruct(uv, F, face, bary) - P).max() <= 1e-12
+    # the face found contains the edge, and the third corner has weight 0
+    corners = F[face]
+    has_both = ((corners == E2[:, :1]).any(1)) & ((corners == E2[:, 1:]).any(1))
+    assert has_both.all()
+    third = ~((corners == E2[:, :1]) | (corners == E2[:, 1:]))
+    assert np.abs(bary[third]).max() <= 1e-12
+
+
+def test_random_points_inside_match_brute_force():
+    uv, F, loop = grid_mesh(16, 0.35)
+    rng = np.random.default_rng(2)
+    P = rng.random((20000, 2))
+    face, bary = locate_points(uv, F, P, loop)
+    check_valid(face, bary, len(P))
+    assert np.abs(reconstruct(uv, F, face, bary) - P).max() <= 1e-12
+    # brute force: the point's barycentrics in the found face are all >= 0 (to rounding)
+    T = F[face]
+    b = barycentric_coordinates(P, uv[T[:, 0]], uv[T[:, 1]], uv[T[:, 2]])
+    assert b.min() >= -1e-12
+
+
+def test_points_outside_go_to_the_closest_boundary_point():
+    uv, F, loop = grid_mesh(8)
+    rng = np.random.default_rng(3)
+    P = rng.uniform(-0.5, 1.5, (4000, 2))
+    P = P[~((P >= 0) & (P <= 1)).all(1)]
+    face, bary = locate_points(uv, F, P, loop)
+    check_valid(face, bary, len(P))
+    Q = reconstruct(uv, F, face, bary)
+    expected = np.clip(P, 0.0, 1.0)                        # closest point of the square
+    assert np.abs(Q - expected).max() <= 1e-12
+    assert np.abs(project_to_boundary_polygon(uv, loop, P) - expected).max() <= 1e-12
+
+
+def test_rim_polygon_points_and_circle_points():
+    uv, F, loop = disk_mesh(48)
+    # points on the polygon's edges (the sampler's rim samples) locate exactly on them
+    rng = np.random.default_rng(4)
+    i = rng.integers(0, len(loop), 500)
+    t = rng.random(500)
+    A, B = uv[loop[i]], uv[loop[(i + 1) % len(loop)]]
+    P = A + t[:, None] * (B - A)
+    face, bary = locate_points(uv, F, P, loop)
+    check_valid(face, bary, len(P))
+    assert np.abs(reconstruct(uv, F, face, bary) - P).max() <= 1e-12
+    # points on the unit circle lie outside the inscribed polygon: they go to its closest point
+    ang = 2 * np.pi * rng.random(2000)
+    C = np.column_stack([np.cos(ang), np.sin(ang)])
+    face, bary = locate_points(uv, F, C, loop)
+    check_valid(face, bary, len(C))
+    Q = reconstruct(uv, F, face, bary)
+    proj = project_to_boundary_polygon(uv, loop, C)
+    assert np.abs(Q - proj).max() <= 1e-12
+    # brute force closest point on the polygon
+    Ak, Bk = uv[loop], uv[np.roll(loop, -1)]
+    D = Bk - Ak
+    tt = np.clip(np.einsum("ksj,sj->ks", C[:, None] - Ak[None], D) / (D * D).sum(1), 0, 1)
+    cand = Ak[None] + tt[..., None] * D[None]
+    best = cand[np.arange(len(C)), np.argmin(((cand - C[:, None]) ** 2).sum(2), axis=1)]
+    assert np.abs(proj - best).max() <= 1e-12
+    # every projected point is on a boundary edge: one barycentric is 0
+    assert (bary.min(axis=1) == 0).all()
+
+
+def test_boundary_defaults_to_all_boundary_edges_and_holes():
+    uv, F, _ = grid_mesh(9)
+    # punch a hole: drop the faces of the middle cell block
+    c = uv[F].mean(axis=1)
+    keep = ~((np.abs(c - 0.5) < 0.17).all(axis=1))
+    F = F[keep]
+    P = np.array([[0.5, 0.5], [0.52, 0.47], [1.2, 0.4], [-0.1, -0.1]])
+    face, bary = locate_points(uv, F, P)
+    check_valid(face, bary, len(P))
+    Q = reconstruct(uv, F, face, bary)
+    # the hole is the square [1/3, 2/3]²: a point in it goes to the hole's nearest edge, not
+    # to the outer square
+    assert np.isclose(np.linalg.norm(Q[0] - 0.5), 1 / 6, atol=1e-12)
+    assert np.allclose(Q[1], [0.52, 1 / 3], atol=1e-12)
+    assert np.allclose(Q[2], [1.0, 0.4], atol=1e-12) and np.allclose(Q[3], [0.0, 0.0])
+
+
+def test_empty_and_single_queries():
+    uv, F, loop = grid_mesh(4)
+    face, bary = locate_points(uv, F, np.zeros((0, 2)), loop)
+    assert face.shape == (0,) and bary.shape == (0, 3)
+    face, bary = locate_points(uv, F, np.array([0.3, 0.3]), loop)
+    check_valid(face, bary, 1)
+
+
+def test_lift_positions_and_attributes():
+    uv, F, loop = grid_mesh(6, 0.2)
+    V = np.column_stack([uv, np.sin(uv[:, 0]) * uv[:, 1]])          # a surface over the square
+    C = np.column_stack([uv, 1 - uv[:, 0]])                          # colours
+    rng = np.random.default_rng(5)
+    P = rng.random((300, 2))
+    face, bary = locate_points(uv, F, P, loop)
+    X = lift(V, F, face, bary)
+    manual = (bary[:, :, None] * V[F[face]]).sum(axis=1)
+    assert np.array_equal(X, manual)
+    assert np.allclose(X[:, :2], P, atol=1e-12)                     # linear in uv: exact
+    assert lift(C, F, face, bary).shape == (300, 3)
+    s = lift(np.arange(len(uv), dtype=float), F, face, bary)         # scalar attribute
+    assert s.shape == (300,)
+
+
+def test_matches_matplotlib_trifinder():
+    from matplotlib.tri import Triangulation, TrapezoidMapTriFinder
+
+    uv, F, loop = disk_mesh(80, 10)
+    rng = np.random.default_rng(6)
+    r = np.sqrt(rng.random(5000)) * 0.98
+    a = 2 * np.pi * rng.random(5000)
+    P = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    face, bary = locate_points(uv, F, P, loop)
+    tf = TrapezoidMapTriFinder(Triangulation(uv[:, 0], uv[:, 1], F))(P[:, 0], P[:, 1])
+    inside = tf >= 0
+    same = face[inside] == tf[inside]
+    # on a shared edge either face is right: the other must contain the point too
+    T = F[tf[inside][~same]]
+    b = barycentric_coordinates(P[inside][~same], uv[T[:, 0]], uv[T[:, 1]], uv[T[:, 2]])
+    assert same.mean() > 0.999 and (len(b) == 0 or b.min() >= -1e-12)
+
+
+def test_relocate_agrees_with_locate():
+    uv, F, loop = grid_mesh(12, 0.3)
+    L = PointLocator(uv, F, loop)
+    rng = np.random.default_rng(7)
+    P = rng.random((3000, 2))
+    f0, b0 = L.locate(P)
+    Q = np.clip(P + rng.normal(scale=0.02, size=P.shape), 0, 1)
+    f1, b1, inside = L.relocate(Q, f0)
+    assert inside.all()
+    assert np.abs(lift(uv, F, f1, b1) - Q).max() <= 1e-12
+
+
+def test_real_sem_map_reconstructs_to_1e_12():
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+
+    path = require_data("meshes", "gpp_bunny.obj")
+    intake = load_stage(path)
+    p = parameterize_stage(intake.mesh, SEMOptions(mode="paper"))
+    uv, F, loop = p.uv, intake.mesh.F, intake.mesh.boundary
+    rng = np.random.default_rng(8)
+    r = np.sqrt(rng.random(20000))
+    a = 2 * np.pi * rng.random(20000)
+    P = np.column_stack([r * np.cos(a), r * np.sin(a)])            # the whole unit disk
+    face, bary = locate_points(uv, F, P, loop)
+    check_valid(face, bary, len(P))
+    Q = lift(uv, F, face, bary)
+    from matplotlib.path import Path as MplPath
+
+    inside = MplPath(uv[loop]).contains_points(P)
+    assert np.abs(Q[inside] - P[inside]).max() <= 1e-12
+    # the others (outside the inscribed polygon) go to its closest point
+    proj = project_to_boundary_polygon(uv, loop, P[~inside])
+    assert (~inside).sum() > 0
+    assert np.abs(Q[~inside] - proj).max() <= 1e-12
+    # every vertex of the map locates onto itself
+    f, b = locate_points(uv, F, uv, loop)
+    assert np.abs(lift(uv, F, f, b) - uv).max() == 0.0

@@ -1,0 +1,470 @@
+"""Uniform remeshing through the SEM map: disk sampling, triangulation, improvement, quality
+measures, baselines, the stage's files, the CLI and the config; then every shared disk mesh
+at 20k vertices (each parameterized once per session)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import require_data
+from pipeline.geometry import topology as topo
+from pipeline.geometry.disk_sampling import (PATTERNS, _delaunay, sample_disk, snap_rim,
+                                             triangulate_samples)
+from pipeline.geometry.locate import PointLocator, lift
+from pipeline.geometry.metrics import corner_angles, signed_double_areas
+from pipeline.geometry.remesh_improve import (RemeshState, collapse_short_edges,
+                                              delaunay_flips, split_long_edges,
+                                              tangential_relaxation)
+from pipeline.geometry.remesh_quality import (bounding_box_diagonal, is_disk, mesh_facts,
+                                              point_mesh_distance, remesh_quality,
+                                              surface_distance, triangle_quality,
+                                              valence_stats, closest_points_on_triangles)
+from pipeline.geometry.repair import repair_mesh
+from pipeline.geometry.sem import SEMOptions
+from pipeline.io.meshio import read_mesh, write_obj
+from pipeline.sample import make_face
+from pipeline.stages.parameterize import parameterize_stage
+from pipeline.stages.remesh import RemeshOptions, remesh_stage
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def uneven_polygon(k=40, seed=0):
+    """A polygon inscribed in the unit circle with very uneven edges (like a SEM boundary)."""
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.random(k)) * 2 * np.pi
+    return np.column_stack([np.cos(t), np.sin(t)])
+
+
+def polygon_distance(P, poly):
+    A, B = poly, np.roll(poly, -1, axis=0)
+    D = B - A
+    t = np.clip(np.einsum("ksj,sj->ks", P[:, None] - A[None], D) / (D * D).sum(1), 0, 1)
+    Q = A[None] + t[..., None] * D[None]
+    return np.sqrt(((Q - P[:, None]) ** 2).sum(2)).min(axis=1)
+
+
+# --------------------------------------------------------------------------- disk sampling
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+@pytest.mark.parametrize("n", [100, 300, 1000, 5000, 20000])
+def test_sample_count_within_2_percent(pattern, n):
+    s = sample_disk(n, pattern=pattern, polygon=uneven_polygon())
+    assert abs(len(s.points) - n) <= 0.02 * n
+    assert s.pattern == pattern and s.n_rim >= 8
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_rim_samples_on_the_polygon_and_interior_away_from_it(pattern):
+    poly = uneven_polygon(30, 1)
+    s = sample_disk(4000, pattern=pattern, polygon=poly)
+    rim, inner = s.points[:s.n_rim], s.points[s.n_rim:]
+    assert polygon_distance(rim, poly).max() <= 1e-15
+    # CCW along the rim
+    ang = np.unwrap(np.arctan2(rim[:, 1], rim[:, 0]))
+    assert np.all(np.diff(ang) > 0)
+    # no interior sample near the rim (the band relaxation keeps them ≳ 0.5 h away)
+    assert polygon_distance(inner, poly).min() >= 0.4 * s.spacing
+
+
+@pytest.mark.parametrize("pattern", PATTERNS)
+def test_triangulation_is_a_ccw_disk_without_leaves(pattern):
+    s = sample_disk(3000, pattern=pattern, polygon=uneven_polygon(25, 2))
+    F = triangulate_samples(s)
+    n = len(s.points)
+    X = np.column_stack([s.points, np.zeros(n)])
+    facts = mesh_facts(X, F)
+    assert is_disk(facts) and facts["degenerate_faces"] == 0 and facts["leaf_faces"] == 0
+    assert np.all(signed_double_areas(s.points, F) > 0)
+    loop = topo.boundary_loops(F)[0]
+    assert sorted(loop.tolist()) == list(range(s.n_rim))          # the boundary = the rim
+    assert len(F) == 2 * n - s.n_rim - 2
+
+
+def test_hexagonal_construction_equals_delaunay():
+    s = sample_disk(30000, polygon=uneven_polygon(60, 3))
+    F = triangulate_samples(s)                                   # band Delaunay + lattice
+    G = _delaunay(s.points, s.n_rim, s.spacing)                  # Delaunay of everything
+    key = lambda T: set(map(tuple, np.sort(T, axis=1).tolist()))  # noqa: E731
+    assert key(F) == key(G)
+
+
+def test_spacing_gives_the_lattice_spacing():
+    s = sample_disk(spacing=0.05)
+    F = triangulate_samples(s)
+    E = np.vstack([F[:, [0, 1]], F[:, [1, 2]]])
+    inner = (E >= s.n_rim).all(1)
+    L = np.linalg.norm(s.points[E[inner, 0]] - s.points[E[inner, 1]], axis=1)
+    assert abs(np.median(L) - 0.05) < 1e-12
+
+
+def test_snap_rim_moves_the_nearest_rim_sample_onto_a_corner():
+    poly = uneven_polygon(20, 4)
+    s = sample_disk(2000, polygon=poly)
+    moved = snap_rim(s, poly[[3, 11]])
+    assert len(moved) == 2
+    assert np.array_equal(s.points[moved], poly[[3, 11]])
+    F = triangulate_samples(s)
+    assert np.all(signed_double_areas(s.points, F) > 0)
+
+
+# --------------------------------------------------------------------------- quality measures
+
+
+def lattice_mesh(k=20, h=1.0):
+    """An equilateral triangle lattice (a parallelogram patch) in the plane z = 0."""
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    P = np.column_stack([(i + 0.5 * j).ravel() * h, (j * np.sqrt(3) / 2).ravel() * h,
+                         np.zeros(i.size)])
+    idx = np.arange((k + 1) ** 2).reshape(k + 1, k + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[:-1, 1:].ravel(), \
+        idx[1:, 1:].ravel()
+    return P, np.vstack([np.column_stack([a, b, c]), np.column_stack([b, d, c])])
+
+
+def test_quality_of_an_equilateral_lattice():
+    V, F = lattice_mesh(12)
+    q = triangle_quality(V, F)
+    assert abs(q["min_angle_deg"] - 60) < 1e-9 and abs(q["mean_min_angle_deg"] - 60) < 1e-9
+    assert q["area_cv"] < 1e-12 and q["edge_length_cv"] < 1e-12
+    assert q["fraction_min_angle_below_30"] == 0.0
+    v = valence_stats(F, len(V))
+    assert v["interior_fraction_6"] == 1.0
+    assert is_disk(mesh_facts(V, F))
+
+
+def test_point_triangle_distance_is_exact():
+    rng = np.random.default_rng(0)
+    A, B, C = rng.normal(size=(3, 300, 3))
+    P = rng.normal(size=(300, 3)) * 2
+    Q = closest_points_on_triangles(P, A, B, C)
+    t = np.linspace(0, 1, 301)
+    u, v = np.meshgrid(t, t)
+    ok = u + v <= 1
+    u, v = u[ok], v[ok]
+    for i in range(0, 300, 30):
+        S = A[i] + u[:, None] * (B[i] - A[i]) + v[:, None] * (C[i] - A[i])
+        dense = np.linalg.norm(S - P[i], axis=1).min()
+        ours = np.linalg.norm(Q[i] - P[i])
+        assert ours <= dense + 1e-12 and ours >= dense - 2e-2
+
+
+def test_surface_distance_of_a_shifted_plane_is_the_shift():
+    V, F = lattice_mesh(10)
+    W = V + np.array([0.0, 0.0, 0.25])
+    d = surface_distance(V, F, W, F, n_random=5000)
+    assert abs(d["hausdorff"] - 0.25) < 1e-12 and abs(d["rms"] - 0.25) < 1e-12
+    assert surface_distance(V, F, V, F, n_random=2000)["hausdorff"] < 1e-14
+    dist, _ = point_mesh_distance(np.array([[3.0, 2.0, -1.5]]), V, F)
+    assert abs(dist[0] - 1.5) < 1e-12
+
+
+# ------------------------------------------------------------------------- stage (synthetic)
+
+
+@pytest.fixture(scope="module")
+def face_map():
+    face = make_face(2500)
+    mesh = repair_mesh(face.V, face.F)
+    mesh.colors = (face.V - face.V.min(0)) / np.ptp(face.V, axis=0)        # a colour per vertex
+    p = parameterize_stage(mesh, SEMOptions(mode="converged", max_iter=60))
+    return face, mesh, p
+
+
+def on_surface(X, mesh):
+    d, _ = point_mesh_distance(X, mesh.V, mesh.F)
+    return d.max() / bounding_box_diagonal(mesh.V)
+
+
+@pytest.mark.parametrize("improve", [False, True])
+def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
+    face, mesh, p = face_map
+    lms = face.landmarks
+    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000, improve=improve), lms)
+    q = remesh_quality(mesh.V, mesh.F, r.V, r.F, n_random=20000)
+    assert q["is_disk"] and q["facts"]["degenerate_faces"] == 0
+    assert abs(len(r.V) - 3000) <= 60
+    assert on_surface(r.V, mesh) <= 1e-9                          # every vertex on the surface
+    assert np.all(signed_double_areas(r.uv, r.F) > 0)              # a valid map to the disk
+    assert np.allclose(lift(mesh.V, mesh.F, r.face, r.bary), r.V, atol=0, rtol=0)
+    assert np.allclose(r.colors, lift(mesh.colors, mesh.F, r.face, r.bary))
+    assert set(r.landmarks) == set(lms)
+    spacing = r.info["spacing_mesh_units"]
+    for name, d in r.landmarks.items():
+        assert np.linalg.norm(r.V[d["vertex"]] - mesh.V[lms[name]]) <= 1.5 * spacing
+    if not improve:                                               # the paper's plain lift
+        assert np.array_equal(r.V, r.lifted[0]) and np.array_equal(r.F, r.lifted[1])
+    else:
+        t0 = triangle_quality(*r.lifted)
+        t1 = q["triangles"]
+        assert t1["mean_min_angle_deg"] > t0["mean_min_angle_deg"]
+        assert t1["min_angle_p05_deg"] > t0["min_angle_p05_deg"]
+
+
+def test_stage_with_spacing(face_map):
+    _, mesh, p = face_map
+    L = 0.6
+    r = remesh_stage(mesh, p.uv, RemeshOptions(spacing=L))
+    E, _ = topo.edges_with_faces(r.F)
+    med = np.median(np.linalg.norm(r.V[E[:, 0]] - r.V[E[:, 1]], axis=1))
+    assert 0.8 * L < med < 1.2 * L
+
+
+def test_bad_options_are_user_errors(face_map):
+    from pipeline.errors import UserError
+
+    _, mesh, p = face_map
+    for opts in (RemeshOptions(), RemeshOptions(vertices=100, spacing=1.0),
+                 RemeshOptions(vertices=10), RemeshOptions(vertices=1000, pattern="square")):
+        with pytest.raises(UserError):
+            remesh_stage(mesh, p.uv, opts)
+    bad = p.uv.copy()
+    bad[:, 0] *= -1                                               # every face flipped
+    with pytest.raises(UserError):
+        remesh_stage(mesh, bad, RemeshOptions(vertices=1000))
+
+
+def test_improvement_steps_keep_the_disk(face_map):
+    _, mesh, p = face_map
+    s = sample_disk(2000, polygon=p.uv[mesh.boundary])
+    F = triangulate_samples(s)
+    L = PointLocator(p.uv, mesh.F, mesh.boundary)
+    face, bary = L.locate(s.points)
+    X = lift(mesh.V, mesh.F, face, bary)
+    F2, flips, _ = delaunay_flips(X, F, s.points)
+    assert flips > 0 and is_disk(mesh_facts(X, F2))
+    assert np.all(signed_double_areas(s.points, F2) > 0)
+    assert (np.degrees(corner_angles(X, F2)).min(1).mean()
+            > np.degrees(corner_angles(X, F)).min(1).mean())
+    movable = np.arange(len(X)) >= s.n_rim
+    uv2, f2, b2, X2, moved = tangential_relaxation(mesh.V, mesh.F, p.uv, L, s.points, F2,
+                                                   face, bary, movable, 2)
+    assert sum(moved) > 0 and np.array_equal(uv2[:s.n_rim], s.points[:s.n_rim])
+    assert np.all(signed_double_areas(uv2, F2) > 0) and on_surface(X2, mesh) <= 1e-9
+    S = RemeshState(X2, F2, uv2, ~movable, f2, b2, mesh.V, mesh.F, p.uv, L,
+                    p.uv[mesh.boundary])
+    k = split_long_edges(S, 0.0, budget=100)
+    assert k == 100 and S.n == len(X) + 100
+    c = collapse_short_edges(S, np.inf, np.inf, budget=100)
+    assert c == 100 and S.n == len(X)
+    assert is_disk(mesh_facts(S.X, S.F)) and np.all(signed_double_areas(S.uv, S.F) > 0)
+    assert on_surface(S.X, mesh) <= 1e-9
+
+
+# --------------------------------------------------------------------------- baselines
+
+
+def test_baselines_hit_the_vertex_count(face_map):
+    from pipeline.stages import baselines
+
+    _, mesh, _ = face_map
+    d = baselines.decimate(mesh.V, mesh.F, 1000)
+    assert abs(len(d.V) - 1000) <= 0.05 * 1000
+    assert baselines.decimate(mesh.V, mesh.F, len(mesh.V)) is None
+    if not baselines.pymeshlab_available():
+        pytest.skip("pymeshlab not installed")
+    b = baselines.isotropic_remesh(mesh.V, mesh.F, 1500)
+    assert abs(len(b.V) - 1500) <= 0.05 * 1500 and len(b.runs) >= 1
+
+
+def test_hausdorff_agrees_with_meshlab():
+    pymeshlab = pytest.importorskip("pymeshlab")
+    path = require_data("faces", "ict", "ict_A_neutral_disk.obj")
+    raw = read_mesh(path)
+    mesh = repair_mesh(raw.V, raw.faces)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper"))
+    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000))
+    ours = surface_distance(mesh.V, mesh.F, r.V, r.F, n_random=100_000)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(mesh.V, mesh.F.astype(np.int32)))
+    ms.add_mesh(pymeshlab.Mesh(r.V, r.F.astype(np.int32)))
+    for (s, t), key in (((1, 0), "output_to_input"), ((0, 1), "input_to_output")):
+        ml = ms.get_hausdorff_distance(sampledmesh=s, targetmesh=t, samplevert=True,
+                                       sampleedge=True, sampleface=True, samplenum=300_000,
+                                       maxdist=pymeshlab.PercentageValue(50))["max"]
+        # both are sampled lower bounds of the same maximum
+        assert 0.85 * ml <= ours[key]["max"] <= 1.15 * ml
+
+
+# ------------------------------------------------------------------- files, CLI and config
+
+
+def run_cli(*args):
+    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=REPO,
+                          capture_output=True, text=True, timeout=600,
+                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def small_face_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("remesh_face")
+    face = make_face(1500)
+    path = write_obj(d / "face.obj", face.V, face.F)
+    (d / "landmarks.json").write_text(json.dumps({"landmarks": face.landmarks}))
+    return path, d / "landmarks.json", face
+
+
+def test_cli_remesh_writes_the_contract_files(small_face_file, tmp_path):
+    import trimesh
+
+    mesh_path, lms, face = small_face_file
+    out = tmp_path / "out"
+    code, stdout, err = run_cli("remesh", mesh_path, "-o", out, "--vertices", 1200,
+                                "--landmarks", lms, "--max-iter", 40)
+    assert code == 0, err
+    for name in ("remeshed.obj", "remesh_metrics.json", "report.html", "remesh_renders.png",
+                 "remesh_min_angle.png", "remesh_valence.png", "remesh_disk.png",
+                 "remeshed_landmarks.json"):
+        assert (out / name).is_file(), name
+    assert not list(out.glob(".partial-*"))
+    m = json.loads((out / "remesh_metrics.json").read_text())
+    sem = m["methods"]["sem"]
+    assert sem["is_disk"] and sem["facts"]["vertices"] == 1200
+    assert {"pymeshlab_isotropic", "fast_simplification", "sem_lifted", "input"} <= set(
+        m["methods"])
+    assert any(row["measure"].startswith("Hausdorff") for row in m["table"])
+    html = (out / "report.html").read_text()
+    for png in ("remesh_renders.png", "remesh_min_angle.png", "remesh_valence.png",
+                "remesh_disk.png"):
+        assert f'src="{png}"' in html
+    assert "<table>" in html and "% of bbox diagonal" in html
+    tm = trimesh.load(out / "remeshed.obj", process=False)
+    assert len(tm.vertices) == 1200 and len(tm.faces) == sem["facts"]["faces"]
+    text = (out / "remeshed.obj").read_text()
+    assert text.count("\nvt ") == 1200                              # one vt per vertex
+    V = np.array(tm.vertices)
+    F = np.array(tm.faces)
+    assert topo.euler_characteristic(F, len(V)) == 1 and len(topo.boundary_loops(F)) == 1
+    lm = json.loads((out / "remeshed_landmarks.json").read_text())["landmarks"]
+    assert set(lm) == set(face.landmarks)
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--vertices", "500", "--spacing", "0.1"], ["exactly one"]),
+    ([], ["exactly one"]),
+    (["--vertices", "5"], ["vertices"]),
+    (["--vertices", "500", "--pattern", "square"], ["pattern"]),
+])
+def test_cli_remesh_bad_arguments_are_one_line(small_face_file, tmp_path, args, words):
+    mesh_path, _, _ = small_face_file
+    code, _, err = run_cli("remesh", mesh_path, "-o", tmp_path / "o", *args)
+    lines = [x for x in err.strip().splitlines() if x.strip()]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in lines[0]
+
+
+def test_cli_remesh_missing_mesh(tmp_path):
+    code, _, err = run_cli("remesh", tmp_path / "nope.obj", "-o", tmp_path / "o",
+                           "--vertices", "500")
+    assert code == 2 and "does not exist" in err
+
+
+def test_config_runs_remesh_after_parameterize(tmp_path):
+    from pipeline.config import load_config
+    from pipeline.runner import run_config
+
+    cfg = tmp_path / "remesh.yaml"
+    cfg.write_text("run: {name: r}\ninput: {sample: {vertices: 1200}}\n"
+                   "parameterize: {max_iter: 40}\n"
+                   "remesh: {vertices: 1000, compare: false, distance_samples: 5000}\n"
+                   "report: {figures: false}\n")
+    config, base = load_config(cfg)
+    run_dir = run_config(config, base, tmp_path / "out")
+    rem = run_dir / "remesh"
+    assert (rem / "remeshed.obj").is_file() and (rem / "report.html").is_file()
+    lm = json.loads((rem / "remeshed_landmarks.json").read_text())["landmarks"]
+    assert len(lm) == 16                                          # the sample's landmarks
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert "remesh" in manifest["stages"]
+
+
+def test_config_remesh_keys_are_checked(tmp_path):
+    from pipeline.config import load_config
+    from pipeline.errors import UserError
+
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("input: {sample: {vertices: 1200}}\nremesh: {vertices: 1000, patern: x}\n")
+    with pytest.raises(UserError, match="did you mean 'pattern'"):
+        load_config(cfg)
+    cfg.write_text("input: {sample: {vertices: 1200}}\nremesh: {pattern: hexagonal}\n")
+    with pytest.raises(UserError, match="exactly one"):
+        load_config(cfg)
+    cfg.write_text("input: {sample: {vertices: 1200}}\n"
+                   "remesh: {vertices: 1000, improve: {flip: true}}\n")
+    with pytest.raises(UserError, match="did you mean 'flips'"):
+        load_config(cfg)
+
+
+# --------------------------------------------------------------------- every shared disk mesh
+
+MESHES = [
+    "meshes/c3d_alligator.obj", "meshes/choi_chinese_lion.obj", "meshes/choi_hand.obj",
+    "meshes/choi_human_brain.obj", "meshes/choi_human_face.obj", "meshes/gpp_bunny.obj",
+    "meshes/gpp_face.obj", "meshes/igl_camel_b.obj", "meshes/igl_camelhead.obj",
+    "meshes/igl_lion.obj", "faces/ict/ict_A_neutral_disk.obj", "faces/ict/ict_A_smile_disk.obj",
+    "faces/ict/ict_B_neutral_disk.obj", "faces/ict/ict_B_smile_jawopen_disk.obj",
+]
+# Measured two-sided Hausdorff at 20k vertices (% of the diagonal), above the 0.5 % goal: the
+# equiareal map squeezes the sides of the fingers (choi_hand) and the walls of the sulci
+# (choi_human_brain) into slivers with 100–300× anisotropy, and igl_camel_b has sharp spikes
+# next to its boundary that no interior vertex can be snapped to.
+ABOVE_GOAL = {"choi_hand": 0.89, "choi_human_brain": 1.08, "igl_camel_b": 0.84}
+
+
+@pytest.fixture(scope="module")
+def remeshed_20k():
+    from pipeline.stages.load import load_stage
+
+    cache = {}
+
+    def get(rel):
+        if rel not in cache:
+            intake = load_stage(require_data(*rel.split("/")))
+            p = parameterize_stage(intake.mesh, SEMOptions(mode="converged", max_iter=60))
+            assert p.ok
+            r = remesh_stage(intake.mesh, p.uv, RemeshOptions(vertices=20000))
+            q = remesh_quality(intake.mesh.V, intake.mesh.F, r.V, r.F, n_random=50_000)
+            cache[rel] = (intake.mesh, r, q)
+        return cache[rel]
+
+    return get
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_remesh_is_one_disk_at_20k(remeshed_20k, rel):
+    mesh, r, q = remeshed_20k(rel)
+    f = q["facts"]
+    assert q["is_disk"], f
+    assert f["euler_characteristic"] == 1 and f["boundary_loops"] == 1
+    assert f["degenerate_faces"] == 0
+    assert abs(len(r.V) - 20000) <= 0.02 * 20000
+    assert np.all(signed_double_areas(r.uv, r.F) > 0)          # consistently oriented, bijective
+    assert on_surface(r.V, mesh) <= 1e-9
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel, request):
+    name = Path(rel).stem
+    if name in ABOVE_GOAL:
+        request.applymarker(pytest.mark.xfail(
+            strict=True, reason=f"measured {ABOVE_GOAL[name]} % (see ABOVE_GOAL)"))
+    _, _, q = remeshed_20k(rel)
+    assert q["distance"]["hausdorff_rel"] <= 0.005
+
+
+@pytest.mark.parametrize("name", sorted(ABOVE_GOAL))
+def test_real_mesh_hausdorff_known_hard_cases_stay_bounded(remeshed_20k, name):
+    rel = next(m for m in MESHES if Path(m).stem == name)
+    _, _, q = remeshed_20k(rel)
+    assert q["distance"]["hausdorff_rel"] <= 0.015
