@@ -50,6 +50,42 @@ def cmd_parameterize(args) -> int:
     return 0
 
 
+def cmd_remesh(args) -> int:
+    from pydantic import ValidationError
+
+    from .config import ImproveConfig, RemeshConfig, format_validation_error
+    from .geometry.repair import RepairOptions
+    from .geometry.sem import SEMOptions
+    from .runner import Progress
+    from .runner_remesh import run_remesh
+    from .stages.load import load_stage
+    from .stages.parameterize import ParameterizationFailed, parameterize_stage
+
+    try:
+        rc = RemeshConfig(vertices=args.vertices, spacing=args.spacing, pattern=args.pattern,
+                          seed=args.seed, improve=None if args.no_improve else ImproveConfig(),
+                          compare=not args.no_compare, report=not args.no_report,
+                          landmarks=args.landmarks)
+    except ValidationError as exc:
+        raise UserError(format_validation_error(exc, "sem-pipeline remesh")) from None
+    repair = RepairOptions(close_holes=args.close_holes,
+                           keep_largest_component=args.keep_largest_component,
+                           decimate_to_faces=args.decimate, weld=not args.no_weld)
+    intake = load_stage(args.mesh, repair)
+    for line in intake.mesh.messages:
+        print(f"repair: {line}", file=sys.stderr)
+    p = parameterize_stage(intake.mesh, SEMOptions(mode=args.mode, max_iter=args.max_iter,
+                                                   solver=args.solver),
+                           Progress(Path(args.mesh).name))
+    if not p.ok:
+        raise ParameterizationFailed(f"parameterization failed: {p.sem.flipped_faces} flipped "
+                                     f"faces remain; remeshing needs a bijective map")
+    run_remesh(rc, intake, p, args.out, figures=not args.no_report)
+    print(f"{args.out}: remeshed.obj, remesh_metrics.json"
+          + ("" if args.no_report else ", report.html"))
+    return 0
+
+
 def cmd_run(args) -> int:
     from .config import load_config
     from .runner import run_config
@@ -208,6 +244,36 @@ def build_parser() -> argparse.ArgumentParser:
     exp.add_argument("--retry-failed", action="store_true",
                      help="also re-run items that failed on bad input with unchanged inputs")
     exp.set_defaults(func=cmd_experiment)
+
+    rem = sub.add_parser("remesh", help="uniform remesh through the SEM disk map, with a "
+                                        "quality report beside pymeshlab and decimation")
+    rem.add_argument("mesh", help="OBJ, PLY, OFF, STL or MATLAB .mat (V/F) mesh")
+    rem.add_argument("-o", "--out", required=True, help="output folder")
+    rem.add_argument("--vertices", type=int, default=None, help="vertex count of the remesh")
+    rem.add_argument("--spacing", type=float, default=None,
+                     help="or: target edge length in the mesh's units")
+    rem.add_argument("--pattern", choices=("hexagonal", "blue_noise", "concentric"),
+                     default="hexagonal", help="disk sampling pattern (default hexagonal)")
+    rem.add_argument("--seed", type=int, default=0, help="blue noise seed")
+    rem.add_argument("--no-improve", action="store_true",
+                     help="the paper's plain lift: no flips, relaxation or refinement")
+    rem.add_argument("--no-compare", action="store_true",
+                     help="skip the pymeshlab and decimation baselines")
+    rem.add_argument("--no-report", action="store_true", help="no report.html and figures")
+    rem.add_argument("--landmarks", default=None,
+                     help="JSON {\"landmarks\": {name: input vertex index}} carried to the "
+                          "remesh")
+    rem.add_argument("--mode", choices=("paper", "converged"), default="converged",
+                     help="SEM mode (default converged)")
+    rem.add_argument("--max-iter", type=int, default=None, help="SEM iteration cap")
+    rem.add_argument("--solver", choices=("auto", "cholmod", "scipy"), default="auto")
+    rem.add_argument("--close-holes", action="store_true",
+                     help="close every boundary loop but the longest (eyes, mouth)")
+    rem.add_argument("--keep-largest-component", action="store_true")
+    rem.add_argument("--decimate", type=int, default=None, metavar="FACES",
+                     help="decimate the input to about this many faces first")
+    rem.add_argument("--no-weld", action="store_true", help="do not weld duplicate vertices")
+    rem.set_defaults(func=cmd_remesh)
 
     smp = sub.add_parser("sample", help="write the embedded synthetic face meshes")
     smp.add_argument("-o", "--out", required=True)

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Literal, Optional
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, ValidationError, field_validator,
+                      model_validator)
 
 from .errors import UserError
 
@@ -67,6 +68,52 @@ class ParameterizeConfig(_Strict):
 
 class ReportConfig(_Strict):
     figures: bool = True
+
+
+class ImproveConfig(_Strict):
+    """Quality pass after lifting (``pipeline.geometry.remesh_improve``); ``improve: false``
+    turns it off (the paper's plain lift), ``improve: true`` means these defaults."""
+
+    flips: bool = True                       # Delaunay flips on the lifted surface
+    relax_iterations: int = Field(2, ge=0, le=50)     # tangential relaxation steps
+    relax_step: float = Field(0.5, gt=0.0, le=1.0)
+    max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
+    refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
+    refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
+    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
+
+
+class RemeshConfig(_Strict):
+    """Uniform remeshing through the SEM map (``sem-pipeline remesh``); see
+    ``configs/remesh.yaml``. Give ``vertices`` or ``spacing`` (target edge length in the mesh's
+    units)."""
+
+    vertices: Optional[int] = Field(None, ge=100, le=5_000_000)
+    spacing: Optional[float] = Field(None, gt=0.0)
+    pattern: Literal["hexagonal", "blue_noise", "concentric"] = "hexagonal"
+    rim_relax: int = Field(3, ge=0, le=50)   # ODT sweeps of the lattice band along the rim
+    seed: int = 0                            # blue noise
+    improve: Optional[ImproveConfig] = ImproveConfig()
+    compare: bool = True                     # pymeshlab + decimation at the same vertex count
+    report: bool = True                      # report.html + figures
+    landmarks: Optional[str] = None          # JSON {name: input vertex index}, relative path
+    distance_samples: int = Field(200_000, ge=1000)   # random samples per surface (distances)
+
+    @field_validator("improve", mode="before")
+    @classmethod
+    def _improve_flag(cls, v):
+        if v is True:
+            return {}
+        if v is False:
+            return None
+        return v
+
+    @model_validator(mode="after")
+    def _count_or_spacing(self):
+        if (self.vertices is None) == (self.spacing is None):
+            raise ValueError("give exactly one of 'vertices' (a count) or 'spacing' (a target "
+                             "edge length in the mesh's units)")
+        return self
 
 
 class RegisterConfig(_Strict):
@@ -123,11 +170,14 @@ with warnings.catch_warnings():
         report: ReportConfig = ReportConfig()
         register: Optional[RegisterConfig] = None
         morph: Optional[MorphConfig] = None
+        remesh: Optional[RemeshConfig] = None     # runs after parameterize (needs 'input')
 
         @model_validator(mode="after")
         def _stages(self):
             if self.input is None and self.register is None:
                 raise ValueError("give an 'input' (mesh or sample) or a 'register' section")
+            if self.remesh is not None and self.input is None:
+                raise ValueError("'remesh' needs an 'input' (mesh or sample) to remesh")
             if self.morph is not None and self.register is None:
                 raise ValueError("'morph' needs a 'register' section (it morphs the source into "
                                  "its registered image)")

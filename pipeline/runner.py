@@ -76,6 +76,11 @@ def run_config(config: Config, base: Path, out_root: str | Path | None = None) -
         files = write_parameterization(p, run_dir / "parameterize", {"input": intake.info},
                                        figures=config.report.figures)
         stages["parameterize"] = {k: str(v) for k, v in files.items()}
+        if config.remesh is not None:
+            from .runner_remesh import run_remesh
+            files, _ = run_remesh(config.remesh, intake, p, run_dir / "remesh", base,
+                                  figures=config.report.figures)
+            stages["remesh"] = {k: str(v) for k, v in files.items()}
     if config.register is not None:
         from .runner_register import run_register_and_morph
         stages.update(run_register_and_morph(config, base, run_dir))
