@@ -11,7 +11,10 @@ times include interpreter start, imports and spawning workers (and, for ``--sche
 starting the ``LocalCluster``):
 
 * ``serial``: ``--workers 1``, the items one after another in one process with the default BLAS
-  threads (what running ``sem-pipeline run`` once per item would do);
+  threads (the strict baseline: one interpreter start and one set of imports for all items);
+* ``N × sem-pipeline run``: each item's own ``config.yaml`` run by ``python -m pipeline run`` in
+  a fresh process, one after another (how the items run without the experiment runner; each
+  pays interpreter start and imports);
 * ``serial, 1 BLAS thread``: the same with ``OPENBLAS_NUM_THREADS=1`` (the per-item setting the
   pool uses);
 * ``process pool``: ``--workers N`` (spawned workers, 1 BLAS thread each);
@@ -25,10 +28,13 @@ the cores that other processes kept busy meanwhile (``/proc/stat`` minus this ru
 time), since work beside the benchmark slows the parallel runs most. With ``--repeat`` each
 backend runs that many times, interleaved, and the fastest run is shown.
 
-On the 2-core development VM, quiet (other work ≈ 0), two runs of ``--repeat 2``: serial
-20.6 / 20.2 s; process pool ×2 0.58 / 0.62 of it; Dask on a running cluster 0.67 / 0.63;
-``--scheduler local`` 0.65. Two items side by side each run ~10 % slower than alone (``item
-s``), and spawning + imports + unequal items cost ~1 s, so ~0.55 is the floor here.
+On the 2-core development VM, quiet (other work ≈ 0), ``--repeat 2`` (2026-11-22): serial
+37.0 s; 4 × ``sem-pipeline run`` 48.2 s (1.30: each process pays ~2.8 s of start-up, imports
+and writing); process pool ×2 0.65 of serial (0.50 of the one-by-one runs); Dask on a running
+cluster 0.67; ``--scheduler local`` 0.68. Two items side by side each run ~15 % slower than
+alone (``item s`` 40.6 vs 35.3: the two vCPUs share memory bandwidth) and spawning a worker
+and importing costs ~1.3 s, so ~0.6 is the floor of the strict ratio here. (An earlier day's
+runs gave 0.58–0.62 for the pool; a forked pool with the imports inherited was slower, 0.75.)
 """
 
 from __future__ import annotations
@@ -110,6 +116,25 @@ def run(config: Path, out: Path, args: list[str], env: dict) -> tuple[float, flo
     return wall, items, others
 
 
+def run_one_by_one(config: Path, out: Path, env: dict) -> tuple[float, float, float]:
+    """The items' single-run configs (written by a cached experiment run into ``config.yaml``
+    of each item) run by ``python -m pipeline run``, one process after another."""
+    prepared = out.parent / f"{out.name}_configs"
+    subprocess.run([sys.executable, "-m", "pipeline", "experiment", str(config), "--out",
+                    str(prepared), "--workers", "1"], capture_output=True, env=env, cwd=REPO,
+                   check=True)
+    configs = sorted(prepared.glob("*/*/config.yaml"))
+    busy0, ours0 = busy_seconds(), our_cpu()
+    t0 = time.perf_counter()
+    for c in configs:
+        subprocess.run([sys.executable, "-m", "pipeline", "run", str(c), "--out", str(out)],
+                       capture_output=True, env=env, cwd=REPO, check=True)
+    wall = time.perf_counter() - t0
+    busy1, ours1 = busy_seconds(), our_cpu()
+    ours = sum(v - ours0.get(k, 0.0) for k, v in ours1.items())
+    return wall, float("nan"), max(0.0, busy1 - busy0 - ours) / wall
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--items", type=int, default=4)
@@ -123,6 +148,7 @@ def main(argv=None) -> int:
     one = dict(env, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     w = str(args.workers)
     backends = [("serial", ["--workers", "1"], env),
+                (f"{args.items} × sem-pipeline run", None, env),
                 ("serial, 1 BLAS thread", ["--workers", "1"], one),
                 (f"process pool ×{w}", ["--workers", w], env),
                 (f"Dask, running LocalCluster ×{w}", ["--scheduler", "{address}"], env),
@@ -142,7 +168,9 @@ def main(argv=None) -> int:
         for k in range(args.repeat):
             for i, (name, extra, e) in enumerate(backends):
                 out = tmp / f"out_{k}_{i}"                 # fresh: nothing cached
-                if "{address}" in extra:
+                if extra is None:
+                    result = run_one_by_one(config, out, e)
+                elif "{address}" in extra:
                     with dask_cluster(args.workers) as address:
                         result = run(config, out, [address if a == "{address}" else a
                                                    for a in extra], e)
@@ -156,7 +184,8 @@ def main(argv=None) -> int:
           "|---|---:|---:|---:|---:|")
     for name, _, _ in backends:
         wall, items, others = results[name]
-        print(f"| {name} | {wall:.1f} | {wall / base:.2f} | {items:.1f} | {others:.2f} |")
+        items_s = "" if items != items else f"{items:.1f}"
+        print(f"| {name} | {wall:.1f} | {wall / base:.2f} | {items_s} | {others:.2f} |")
     print(f"\nload average after: {load()}")
     return 0
 
