@@ -29,21 +29,31 @@ def _summary(p) -> str:
             f"{sum(p.metrics['seconds'].values()):.2f} s")
 
 
-def cmd_parameterize(args) -> int:
+def _repair_options(args):
+    """RepairOptions from the intake flags ``_add_intake_args`` declares."""
     from .geometry.repair import RepairOptions
-    from .geometry.sem import SEMOptions
-    from .runner import Progress
-    from .stages.load import load_stage
-    from .stages.parameterize import parameterize_stage, write_parameterization
+    return RepairOptions(close_holes=args.close_holes,
+                         keep_largest_component=args.keep_largest_component,
+                         decimate_to_faces=args.decimate, weld=not args.no_weld)
 
-    repair = RepairOptions(close_holes=args.close_holes,
-                           keep_largest_component=args.keep_largest_component,
-                           decimate_to_faces=args.decimate, weld=not args.no_weld)
-    options = SEMOptions(mode=args.mode, max_iter=args.max_iter, tol=args.tol,
-                         inversion=args.inversion, solver=args.solver)
-    intake = load_stage(args.mesh, repair)
+
+def _load_reported(path, args):
+    """Load and repair ``path``; every repair goes to stderr as one 'repair:' line."""
+    from .stages.load import load_stage
+    intake = load_stage(path, _repair_options(args))
     for line in intake.mesh.messages:
         print(f"repair: {line}", file=sys.stderr)
+    return intake
+
+
+def cmd_parameterize(args) -> int:
+    from .geometry.sem import SEMOptions
+    from .runner import Progress
+    from .stages.parameterize import parameterize_stage, write_parameterization
+
+    options = SEMOptions(mode=args.mode, max_iter=args.max_iter, tol=args.tol,
+                         inversion=args.inversion, solver=args.solver)
+    intake = _load_reported(args.mesh, args)
     p = parameterize_stage(intake.mesh, options, Progress(Path(args.mesh).name))
     write_parameterization(p, args.out, {"input": intake.info}, figures=not args.no_figures)
     print(f"{args.out}: {_summary(p)}")
@@ -54,11 +64,9 @@ def cmd_remesh(args) -> int:
     from pydantic import ValidationError
 
     from .config import ImproveConfig, RemeshConfig, format_validation_error
-    from .geometry.repair import RepairOptions
     from .geometry.sem import SEMOptions
     from .runner import Progress
     from .runner_remesh import run_remesh
-    from .stages.load import load_stage
     from .stages.parameterize import ParameterizationFailed, parameterize_stage
 
     try:
@@ -68,12 +76,7 @@ def cmd_remesh(args) -> int:
                           landmarks=args.landmarks)
     except ValidationError as exc:
         raise UserError(format_validation_error(exc, "sem-pipeline remesh")) from None
-    repair = RepairOptions(close_holes=args.close_holes,
-                           keep_largest_component=args.keep_largest_component,
-                           decimate_to_faces=args.decimate, weld=not args.no_weld)
-    intake = load_stage(args.mesh, repair)
-    for line in intake.mesh.messages:
-        print(f"repair: {line}", file=sys.stderr)
+    intake = _load_reported(args.mesh, args)
     p = parameterize_stage(intake.mesh, SEMOptions(mode=args.mode, max_iter=args.max_iter,
                                                    solver=args.solver),
                            Progress(Path(args.mesh).name))
@@ -99,7 +102,8 @@ def cmd_run(args) -> int:
 def cmd_register(args) -> int:
     from .geometry.repair import RepairOptions
     from .geometry.sem import SEMOptions
-    from .runner_register import log_line, register_summary, sem_progress
+    from .runner_register import (log_line, log_pair_messages, register_summary,
+                                  sem_progress)
     from .stages.register import RegisterOptions, load_pair, register_stage, write_registration
 
     if args.target_landmarks is None:
@@ -107,11 +111,7 @@ def cmd_register(args) -> int:
     repair = RepairOptions(close_holes=args.close_holes)
     pair = load_pair(args.source, args.target, args.source_landmarks, args.target_landmarks,
                      args.landmark_set, repair, args.truth)
-    for face in (pair.source, pair.target):
-        for line in face.mesh.messages:
-            log_line(f"repair ({face.label}): {line}")
-    for line in pair.messages:
-        log_line(f"landmarks: {line}")
+    log_pair_messages(pair)
     options = RegisterOptions(mobius=args.mobius, energy=args.energy, baseline=args.baseline,
                               sem=SEMOptions(mode=args.mode, max_iter=args.max_iter,
                                              solver=args.solver))
@@ -158,6 +158,17 @@ def cmd_sample(args) -> int:
     return 0
 
 
+def _add_intake_args(parser) -> None:
+    """The load-and-repair flags shared by the commands that read one mesh."""
+    parser.add_argument("--close-holes", action="store_true",
+                        help="close every boundary loop but the longest (eyes, mouth)")
+    parser.add_argument("--keep-largest-component", action="store_true")
+    parser.add_argument("--decimate", type=int, default=None, metavar="FACES",
+                        help="decimate to about this many faces first (fast-simplification)")
+    parser.add_argument("--no-weld", action="store_true",
+                        help="do not weld duplicate vertices")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _OneLineParser(prog="sem-pipeline", description=(
         "Equiareal disk parameterizations by Stretch Energy Minimization, and the stages "
@@ -182,12 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="converged mode: relative energy decrease counted as none")
     par.add_argument("--inversion", action="store_true", help="Remark 2's inversion (off)")
     par.add_argument("--solver", choices=("auto", "cholmod", "scipy"), default="auto")
-    par.add_argument("--close-holes", action="store_true",
-                     help="close every boundary loop but the longest (eyes, mouth)")
-    par.add_argument("--keep-largest-component", action="store_true")
-    par.add_argument("--decimate", type=int, default=None, metavar="FACES",
-                     help="decimate to about this many faces first (fast-simplification)")
-    par.add_argument("--no-weld", action="store_true", help="do not weld duplicate vertices")
+    _add_intake_args(par)
     par.add_argument("--no-figures", action="store_true")
     par.set_defaults(func=cmd_parameterize)
 
@@ -267,12 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="SEM mode (default converged)")
     rem.add_argument("--max-iter", type=int, default=None, help="SEM iteration cap")
     rem.add_argument("--solver", choices=("auto", "cholmod", "scipy"), default="auto")
-    rem.add_argument("--close-holes", action="store_true",
-                     help="close every boundary loop but the longest (eyes, mouth)")
-    rem.add_argument("--keep-largest-component", action="store_true")
-    rem.add_argument("--decimate", type=int, default=None, metavar="FACES",
-                     help="decimate the input to about this many faces first")
-    rem.add_argument("--no-weld", action="store_true", help="do not weld duplicate vertices")
+    _add_intake_args(rem)
     rem.set_defaults(func=cmd_remesh)
 
     smp = sub.add_parser("sample", help="write the embedded synthetic face meshes")

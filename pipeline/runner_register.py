@@ -18,6 +18,15 @@ def log_line(line: str) -> None:
     print(line, file=sys.stderr, flush=True)
 
 
+def log_pair_messages(pair) -> None:
+    """Every repair of either face and every landmark note, one stderr line each."""
+    for face in (pair.source, pair.target):
+        for line in face.mesh.messages:
+            log_line(f"repair ({face.label}): {line}")
+    for line in pair.messages:
+        log_line(f"landmarks: {line}")
+
+
 def sem_progress(label):
     from .runner import Progress
     return Progress(label)
@@ -53,11 +62,7 @@ def register_from_config(rc: RegisterConfig, base: Path, repair: RepairOptions,
             return None if v is None else resolve_path(v, base).resolve()
         pair = load_pair(p(rc.source), p(rc.target), p(rc.source_landmarks),
                          p(rc.target_landmarks), rc.landmark_set, repair, p(rc.truth))
-    for face in (pair.source, pair.target):
-        for line in face.mesh.messages:
-            log_line(f"repair ({face.label}): {line}")
-    for line in pair.messages:
-        log_line(f"landmarks: {line}")
+    log_pair_messages(pair)
     options = RegisterOptions(mobius=rc.mobius, energy=rc.energy, baseline=rc.baseline,
                               sem=sem)
     return register_stage(pair, options, progress=sem_progress, log=log_line)

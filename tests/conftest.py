@@ -9,10 +9,13 @@ python path: ``pythonpath = [".", "tests"]`` in the pytest config).
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
+REPO = Path(__file__).resolve().parents[1]
 DATA_DIR = Path(
     os.environ.get("SEM_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data")
 )
@@ -27,3 +30,11 @@ def require_data(*parts) -> Path:
             pytest.fail(msg)
         pytest.skip(msg)
     return path
+
+
+def run_cli(*args, cwd=None):
+    """Run ``python -m pipeline`` in a subprocess (what a user sees: stdout, stderr, code)."""
+    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=cwd or REPO,
+                          capture_output=True, text=True, timeout=600,
+                          env=dict(os.environ, PYTHONPATH=str(REPO)))
+    return proc.returncode, proc.stdout, proc.stderr

@@ -3,27 +3,16 @@
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from conftest import REPO, run_cli
 from pipeline.cli import main
 from pipeline.io.meshio import write_obj
 from pipeline.sample import make_face
 
-REPO = Path(__file__).resolve().parents[1]
-
-
-def run_cli(*args, cwd=None):
-    """Run ``python -m pipeline`` in a subprocess (what a user sees: stdout, stderr, code)."""
-    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=cwd or REPO,
-                          capture_output=True, text=True, timeout=600,
-                          env=dict(os.environ, PYTHONPATH=str(REPO)))
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 def assert_one_line_error(code, err, *words):

@@ -10,16 +10,12 @@ landmarks. Each ICT mesh is parameterized once per session.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial import Delaunay
 
-from conftest import require_data
+from conftest import require_data, run_cli
 from pipeline.errors import UserError
 from pipeline.geometry.register import (DeformOptions, InjectiveRelaxation, align,
                                         compose_with_inverse, deform_to_landmarks, fit_mobius,
@@ -27,7 +23,6 @@ from pipeline.geometry.register import (DeformOptions, InjectiveRelaxation, alig
 from pipeline.geometry.repair import RepairOptions
 from pipeline.geometry.sem import SEMOptions
 
-REPO = Path(__file__).resolve().parents[1]
 ICT_SEM = SEMOptions(mode="converged", max_iter=100)
 
 
@@ -199,12 +194,6 @@ def test_registration_files(sample_registration, tmp_path):
     for name in ("disks", "surfaces", "error_on_face"):
         assert files[name].stat().st_size > 10_000
 
-
-def run_cli(*args):
-    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=REPO,
-                          capture_output=True, text=True, timeout=600,
-                          env=dict(os.environ, PYTHONPATH=str(REPO)))
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture(scope="module")

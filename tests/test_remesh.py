@@ -5,15 +5,12 @@ at 20k vertices (each parameterized once per session)."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import require_data
+from conftest import require_data, run_cli
 from pipeline.geometry import topology as topo
 from pipeline.geometry.disk_sampling import (PATTERNS, _delaunay, sample_disk, snap_rim,
                                              triangulate_samples)
@@ -32,8 +29,6 @@ from pipeline.io.meshio import read_mesh, write_obj
 from pipeline.sample import make_face
 from pipeline.stages.parameterize import parameterize_stage
 from pipeline.stages.remesh import RemeshOptions, remesh_stage
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def uneven_polygon(k=40, seed=0):
@@ -296,12 +291,6 @@ def test_hausdorff_agrees_with_meshlab():
 
 # ------------------------------------------------------------------- files, CLI and config
 
-
-def run_cli(*args):
-    proc = subprocess.run([sys.executable, "-m", "pipeline", *map(str, args)], cwd=REPO,
-                          capture_output=True, text=True, timeout=600,
-                          env=dict(os.environ, PYTHONPATH=str(REPO)))
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture(scope="module")
