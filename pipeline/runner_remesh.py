@@ -58,4 +58,6 @@ def run_remesh(rc: RemeshConfig, intake, parameterization, out_dir, base: Path |
                                     n_random=rc.distance_samples,
                                     progress=lambda msg: log(f"remesh: {msg}"))
     log(f"remesh: {remesh_summary(r, metrics)}")
+    for warning in metrics["warnings"]:
+        log(f"remesh: warning: {warning}")
     return files, metrics

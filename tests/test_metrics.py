@@ -146,6 +146,7 @@ SUMMARY_KEYS = {
     "total_area_distortion_eq28", "face_area_distortion", "local_area_ratio_mean",
     "local_area_ratio_sd", "angular_distortion_mean_deg", "angular_distortion_sd_deg",
     "flipped_faces", "stretch_energy", "energy_ratio", "surface_area", "image_area",
+    "anisotropy_median", "anisotropy_p90", "anisotropy_area_above_10",
 }  # fmt: skip
 
 
@@ -161,6 +162,10 @@ def test_distortion_summary_hand_values():
         "angular_distortion_mean_deg": 15.0, "angular_distortion_sd_deg": float(ang.std()),
         "flipped_faces": 0, "stretch_energy": 2.5, "energy_ratio": 10 / 9,
         "surface_area": 1.0, "image_area": 1.5,
+        # face 1 is mapped identically (K = 1); face 0 by A = [[2, −1], [0, 1]]:
+        # AᵀA has eigenvalues 3 ± √5, so K = (3 + √5)/2; equal areas → median 1, p90 K
+        "anisotropy_median": 1.0, "anisotropy_p90": (3 + math.sqrt(5)) / 2,
+        "anisotropy_area_above_10": 0.0,
     }  # fmt: skip
     for k, v in expected.items():
         assert s[k] == pytest.approx(v, rel=1e-14, abs=1e-14), k
@@ -222,3 +227,34 @@ def test_area_distortions_from_face_areas():
     D_sq, face_sq = metrics.area_distortions(SQUARE_F, 4, np.array([1.0, 1.0]),
                                              metrics.signed_double_areas(DOUBLED, SQUARE_F))
     assert (D_sq, face_sq) == pytest.approx((1 / 9, 1 / 3), abs=1e-15)
+
+
+def test_stretch_anisotropy_hand_values():
+    # identity, a uniform scaling and a rotation are conformal: K = 1 exactly
+    rot = np.array([[0.6, -0.8], [0.8, 0.6]])
+    for uv in (ID, 3.0 * ID, ID @ rot.T):
+        np.testing.assert_allclose(metrics.stretch_anisotropy(SQUARE_V, SQUARE_F, uv), 1.0,
+                                   rtol=0, atol=1e-12)
+    # an axis stretch (4, ¼) keeps every area and has K = 16 on both faces
+    K = metrics.stretch_anisotropy(SQUARE_V, SQUARE_F, ID * [4.0, 0.25])
+    np.testing.assert_allclose(K, 16.0, rtol=1e-13)
+    s = metrics.anisotropy_summary(SQUARE_V, SQUARE_F, ID * [4.0, 0.25])
+    assert s == {"anisotropy_median": pytest.approx(16.0), "anisotropy_p90": pytest.approx(16.0),
+                 "anisotropy_area_above_10": 1.0}
+    # the shear [[1, 1], [0, 1]]: eigenvalues of AᵀA (3 ± √5)/2, K = (3 + √5)/2
+    shear = ID @ np.array([[1.0, 1.0], [0.0, 1.0]]).T
+    np.testing.assert_allclose(metrics.stretch_anisotropy(SQUARE_V, SQUARE_F, shear),
+                               (3 + math.sqrt(5)) / 2, rtol=1e-13)
+    # a face collapsed on the disk has no finite dilatation
+    collapsed = ID.copy()
+    collapsed[1] = [0.5, 0.5]
+    assert np.isinf(metrics.stretch_anisotropy(SQUARE_V, SQUARE_F, collapsed)[0])
+
+
+def test_area_weighted_quantile():
+    v = np.array([3.0, 1.0, 2.0])
+    w = np.array([1.0, 1.0, 2.0])       # ascending: 1 (w 1), 2 (w 2), 3 (w 1); total 4
+    assert metrics.area_weighted_quantile(v, w, 0.25) == 1.0
+    assert metrics.area_weighted_quantile(v, w, 0.5) == 2.0
+    assert metrics.area_weighted_quantile(v, w, 0.75) == 2.0
+    assert metrics.area_weighted_quantile(v, w, 0.76) == 3.0

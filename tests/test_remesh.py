@@ -29,6 +29,7 @@ from pipeline.io.meshio import read_mesh, write_obj
 from pipeline.sample import make_face
 from pipeline.stages.parameterize import parameterize_stage
 from pipeline.stages.remesh import RemeshOptions, remesh_stage
+from pipeline.stages.remesh_report import remesh_warnings
 
 
 def uneven_polygon(k=40, seed=0):
@@ -254,6 +255,40 @@ def test_improvement_steps_keep_the_disk(face_map):
     assert on_surface(S.X, mesh) <= 1e-9
 
 
+def _has_edge(F, i, j) -> bool:
+    return any({i, j} <= set(f) for f in F.tolist())
+
+
+def test_folded_quad_flips_only_when_the_new_edge_is_closer_to_the_surface():
+    """A cap (angle > 150° at p opposite edge a–b) folded 60° along a–b, inside a square:
+    Delaunay wants the flip to p–q, the dihedral limit (20°) forbids it; with a sag measure it
+    is made exactly when the new edge is no farther from the surface than the old one."""
+    a, b, p, q, T1, T2, B1, B2 = range(8)
+    uv = np.array([[-1.0, 0], [1, 0], [0, 0.18], [0, -1], [-2, 2], [2, 2], [-2, -2], [2, -2]])
+    F = np.array([[a, b, p], [b, a, q], [a, p, T1], [p, T2, T1], [p, b, T2], [a, T1, B1],
+                  [a, B1, q], [q, B1, B2], [q, B2, b], [b, B2, T2]])
+    assert np.all(signed_double_areas(uv, F) > 0)
+    fold = np.radians(60)                  # the half y < 0 turned 60° about the a–b axis
+    y = uv[:, 1]
+    X = np.column_stack([uv[:, 0], np.where(y < 0, y * np.cos(fold), y),
+                         np.where(y < 0, -y * np.sin(fold), 0.0)])
+    assert np.degrees(corner_angles(X, F))[0, 2] > 150            # the cap's angle at p
+    F0, _, _ = delaunay_flips(X, F, uv)
+    assert _has_edge(F0, a, b) and not _has_edge(F0, p, q)       # held by the dihedral limit
+
+    def sag(new_closer):
+        def measure(i, j):
+            pq = np.isin(i, [p, q]) & np.isin(j, [p, q])
+            return np.where(pq, 0.01 if new_closer else 0.09, 0.05)
+        return measure
+
+    F1, _, _ = delaunay_flips(X, F, uv, sag=sag(True))
+    assert _has_edge(F1, p, q) and not _has_edge(F1, a, b)
+    assert np.all(signed_double_areas(uv, F1) > 0) and is_disk(mesh_facts(X, F1))
+    F2, _, _ = delaunay_flips(X, F, uv, sag=sag(False))
+    assert _has_edge(F2, a, b) and not _has_edge(F2, p, q)
+
+
 # --------------------------------------------------------------------------- baselines
 
 
@@ -321,7 +356,11 @@ def test_cli_remesh_writes_the_contract_files(small_face_file, tmp_path):
     assert {"pymeshlab_isotropic", "fast_simplification", "sem_lifted", "input"} <= set(
         m["methods"])
     assert any(row["measure"].startswith("Hausdorff") for row in m["table"])
+    assert m["warnings"] == remesh_warnings(m["parameterization"]["distortion"], m["methods"])
+    for warning in m["warnings"]:
+        assert f"remesh: warning: {warning}" in err
     html = (out / "report.html").read_text()
+    assert "stretch anisotropy σ₁/σ₂" in html
     for png in ("remesh_renders.png", "remesh_min_angle.png", "remesh_valence.png",
                 "remesh_disk.png"):
         assert f'src="{png}"' in html
@@ -408,7 +447,7 @@ MESHES = [
 # equiareal map squeezes the sides of the fingers (choi_hand) and the walls of the sulci
 # (choi_human_brain) into slivers with 100–300× anisotropy, and igl_camel_b has sharp spikes
 # next to its boundary that no interior vertex can be snapped to.
-ABOVE_GOAL = {"choi_hand": 0.89, "choi_human_brain": 1.08, "igl_camel_b": 0.84}
+ABOVE_GOAL = {"choi_hand": 0.82, "choi_human_brain": 0.85, "igl_camel_b": 0.84}
 
 
 @pytest.fixture(scope="module")
@@ -424,7 +463,7 @@ def remeshed_20k():
             assert p.ok
             r = remesh_stage(intake.mesh, p.uv, RemeshOptions(vertices=20000))
             q = remesh_quality(intake.mesh.V, intake.mesh.F, r.V, r.F, n_random=50_000)
-            cache[rel] = (intake.mesh, r, q)
+            cache[rel] = (intake.mesh, r, q, p.metrics["distortion"])
         return cache[rel]
 
     return get
@@ -432,7 +471,7 @@ def remeshed_20k():
 
 @pytest.mark.parametrize("rel", MESHES)
 def test_real_mesh_remesh_is_one_disk_at_20k(remeshed_20k, rel):
-    mesh, r, q = remeshed_20k(rel)
+    mesh, r, q, _ = remeshed_20k(rel)
     f = q["facts"]
     assert q["is_disk"], f
     assert f["euler_characteristic"] == 1 and f["boundary_loops"] == 1
@@ -448,12 +487,39 @@ def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel, request):
     if name in ABOVE_GOAL:
         request.applymarker(pytest.mark.xfail(
             strict=True, reason=f"measured {ABOVE_GOAL[name]} % (see ABOVE_GOAL)"))
-    _, _, q = remeshed_20k(rel)
+    _, _, q, _ = remeshed_20k(rel)
     assert q["distance"]["hausdorff_rel"] <= 0.005
 
 
 @pytest.mark.parametrize("name", sorted(ABOVE_GOAL))
 def test_real_mesh_hausdorff_known_hard_cases_stay_bounded(remeshed_20k, name):
     rel = next(m for m in MESHES if Path(m).stem == name)
-    _, _, q = remeshed_20k(rel)
+    _, _, q, _ = remeshed_20k(rel)
     assert q["distance"]["hausdorff_rel"] <= 0.015
+
+
+def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
+    calm = {"anisotropy_median": 2.0, "anisotropy_p90": 4.0, "anisotropy_area_above_10": 0.25}
+    close = {"sem": {"distance": {"hausdorff_rel": 0.005}},
+             "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.003}}}
+    assert remesh_warnings(calm, close) == []                  # both exactly at the limits
+    assert remesh_warnings({}, {}) == []                        # nothing measured: no claim
+    stretched = dict(calm, anisotropy_median=6.8, anisotropy_area_above_10=0.31)
+    far = {"sem": {"distance": {"hausdorff_rel": 0.0089}},
+           "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.0031}}}
+    w = remesh_warnings(stretched, far)
+    assert len(w) == 2
+    assert "31 % of the surface more than 10:1" in w[0] and "σ₁/σ₂ = 6.8" in w[0]
+    assert "0.89 %" in w[1] and "pymeshlab's is 0.31 %" in w[1]
+    w = remesh_warnings(calm, {"sem": far["sem"]})              # --no-compare: no reference
+    assert len(w) == 1 and "pymeshlab" not in w[0]
+
+
+def test_real_mesh_anisotropy_warning_at_20k(remeshed_20k):
+    """The hand's map stretches about a third of its surface more than 10:1 (the fingers);
+    the human face's almost none: the warning tells them apart."""
+    *_, hand = remeshed_20k("meshes/choi_hand.obj")
+    *_, face = remeshed_20k("meshes/choi_human_face.obj")
+    assert hand["anisotropy_area_above_10"] > 0.25 and hand["anisotropy_median"] > 5
+    assert face["anisotropy_area_above_10"] < 0.02 and face["anisotropy_median"] < 2.5
+    assert len(remesh_warnings(hand, {})) == 1 and remesh_warnings(face, {}) == []

@@ -95,6 +95,54 @@ def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarr
     return np.degrees(np.abs(corner_angles(V, F) - corner_angles(uv, F)))
 
 
+def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Per face the dilatation ``K = σ₁/σ₂ ≥ 1`` of the affine map ``τ → f(τ)`` (its singular
+    values; the same for the inverse map the remesh lifts through).
+
+    ``K = 1`` iff the face is mapped conformally (a similarity); an equiareal map has
+    ``σ₁σ₂ = |f(M)|/|M|`` on every face but may have any ``K``, and a circle of radius ``r`` on
+    the disk lifts to an ellipse with axes ``r/σ₂`` and ``r/σ₁``: uniform disk samples have the
+    right density on the surface but are ``K`` times farther apart along one direction than the
+    other. Computed from the metric ``G = D⁻ᵀ EᵀE D⁻¹`` (``E``: the face's 3D edge vectors,
+    ``D``: its image's), ``K = √(λmax/λmin)``. Faces with zero image area get ``inf``."""
+    E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)     # m×3×2
+    D = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)  # m×2×2
+    det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
+    ok = np.abs(det) > 1e-300
+    Dinv = np.zeros_like(D)
+    Dinv[ok] = np.linalg.inv(D[ok])
+    J = E @ Dinv                                               # uv → 3D, m×3×2
+    G = np.einsum("mki,mkj->mij", J, J)
+    # without cancellation: tr² − 4 det G = (G₀₀ − G₁₁)² + 4 G₀₁², and det G = (2|τ| / det D)²
+    root = np.hypot(G[:, 0, 0] - G[:, 1, 1], 2 * G[:, 0, 1])
+    lmax = (G[:, 0, 0] + G[:, 1, 1] + root) / 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det_G = (face_double_areas(V, F) / det) ** 2
+        K = lmax / np.sqrt(det_G)                              # = √(λmax/λmin), λmin = det/λmax
+    K[~ok | ~np.isfinite(K)] = np.inf
+    return np.maximum(K, 1.0)
+
+
+def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
+    """The smallest value whose cumulative weight (values ascending) reaches ``q`` of the total."""
+    order = np.argsort(values, kind="stable")
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, q * cum[-1], side="left")])
+
+
+ANISOTROPY_LIMIT = 10.0     # K above this: samples ≥ 10× farther apart along one direction
+
+
+def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
+    """Surface-area-weighted median and 90th percentile of :func:`stretch_anisotropy`, and the
+    share of the surface area where it exceeds ``ANISOTROPY_LIMIT``."""
+    K = stretch_anisotropy(V, F, uv)
+    A = face_double_areas(V, F)
+    return {"anisotropy_median": area_weighted_quantile(K, A, 0.5),
+            "anisotropy_p90": area_weighted_quantile(K, A, 0.9),
+            "anisotropy_area_above_10": float(A[K > ANISOTROPY_LIMIT].sum() / A.sum())}
+
+
 def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
     """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``."""
     R = local_area_ratios(V, F, uv)
@@ -112,4 +160,5 @@ def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
         "energy_ratio": energy_ratio(V, F, uv),
         "surface_area": float(face_double_areas(V, F).sum() / 2),
         "image_area": float(np.abs(signed_double_areas(uv, F)).sum() / 2),
+        **anisotropy_summary(V, F, uv),
     }

@@ -503,6 +503,13 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
         f"<h2>Ours against {e(LABELS[k])}</h2><div class='vs'><div><h3>ours better</h3>"
         f"<ul>{li(b)}</ul></div><div><h3>ours worse</h3><ul>{li(w)}</ul></div></div>"
         for k, (b, w) in verdict.items()) or "<p>No baseline was run (--no-compare).</p>"
+    dd = meta.get("distortion", {})
+    aniso = (f", stretch anisotropy σ₁/σ₂ (area-weighted) median {dd['anisotropy_median']:.1f}, "
+             f"90th percentile {dd['anisotropy_p90']:.1f}, above 10:1 on "
+             f"{100 * dd['anisotropy_area_above_10']:.0f} % of the surface"
+             if "anisotropy_median" in dd else "")
+    warn = "".join(f'<p class="warn"><b>Warning:</b> {e(w)}.</p>\n'
+                   for w in meta.get("warnings", []))
     text = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <title>Remesh report: {e(meta.get('name', ''))}</title>
@@ -517,6 +524,7 @@ td.na {{ color: #888; font-size: 0.85em; text-align: left; }}
 figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; border: 1px solid #ddd; }}
 figcaption, .caption {{ color: #555; font-size: 0.9em; }}
 code {{ background: #f4f4f4; padding: 0 0.2em; }}
+p.warn {{ background: #fcf3d9; border-left: 4px solid #e0a800; padding: 0.5em 0.8em; }}
 .vs {{ display: flex; gap: 2em; }} .vs > div {{ flex: 1; }} h3 {{ margin: 0.3em 0; }}
 </style></head><body>
 <h1>Uniform remeshing through the SEM disk map: {e(meta.get('name', ''))}</h1>
@@ -525,8 +533,8 @@ code {{ background: #f4f4f4; padding: 0 0.2em; }}
 {dist.get('scale_bbox_diagonal', float('nan')):.4g} (the input's units). Requested:
 {e(str(meta.get('target')))} vertices, pattern <code>{e(str(info.get('pattern')))}</code>.
 SEM map: {e(str(pm.get('mode')))} mode, {e(str(pm.get('iterations')))} iterations, mean angular
-distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°.</p>
-
+distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
+{warn}
 <h2>Side by side, at the same vertex count</h2>
 <table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
 <tbody>{''.join(body)}</tbody></table>
@@ -557,6 +565,32 @@ the boundary), not along creases.</p>
 """
     path.write_text(text, encoding="utf-8")
     return path
+
+
+HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
+ANISOTROPY_SHARE = 0.25       # of the surface stretched more than 10:1
+
+
+def remesh_warnings(distortion: dict, methods: dict) -> list[str]:
+    """What the user should know before trusting the remesh, one sentence per finding.
+
+    ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
+    stretch anisotropy); ``methods``: ``remesh_metrics.json``'s ``methods`` block."""
+    out = []
+    share = distortion.get("anisotropy_area_above_10", 0.0)
+    if share > ANISOTROPY_SHARE:
+        out.append(f"the SEM map stretches {100 * share:.0f} % of the surface more than 10:1 "
+                   f"(median σ₁/σ₂ = {distortion['anisotropy_median']:.1f}): uniform disk "
+                   f"samples are that much farther apart along one direction there, so the "
+                   f"lifted triangles are skewed before the improvement step")
+    ours = methods.get("sem", {}).get("distance", {}).get("hausdorff_rel")
+    theirs = methods.get("pymeshlab_isotropic", {}).get("distance", {}).get("hausdorff_rel")
+    if ours is not None and ours > HAUSDORFF_GOAL:
+        ref = f"; pymeshlab's is {100 * theirs:.2f} %" if theirs is not None else ""
+        out.append(f"the remesh leaves the input surface by up to {100 * ours:.2f} % of the "
+                   f"bounding-box diagonal (Hausdorff){ref}: edges bridge over regions the map "
+                   f"squeezes into slivers (protrusions, deep folds); more vertices reduce it")
+    return out
 
 
 def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | None = None,
@@ -590,6 +624,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
         "seconds": dict(remesh.seconds, measure=t_measure),
     }
+    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"])
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
@@ -597,6 +632,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
             "parameterization": metrics["parameterization"],
             "parameterization_seconds": metrics["parameterization"]["seconds"],
             "angular_distortion_deg": pm["distortion"]["angular_distortion_mean_deg"],
+            "distortion": pm["distortion"], "warnings": metrics["warnings"],
             "remesh": metrics["remesh"]}
     writer = (lambda tmp: write_report(tmp, methods, remesh, meta, figures)) if report else None
     files = write_remesh(remesh, out_dir, metrics, writer)
