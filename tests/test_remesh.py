@@ -447,7 +447,7 @@ MESHES = [
 # equiareal map squeezes the sides of the fingers (choi_hand) and the walls of the sulci
 # (choi_human_brain) into slivers with 100–300× anisotropy, and igl_camel_b has sharp spikes
 # next to its boundary that no interior vertex can be snapped to.
-ABOVE_GOAL = {"choi_hand": 0.82, "choi_human_brain": 0.85, "igl_camel_b": 0.84}
+ABOVE_GOAL = {"choi_hand": 0.80, "choi_human_brain": 0.75, "igl_camel_b": 0.84}
 
 
 @pytest.fixture(scope="module")
@@ -495,7 +495,8 @@ def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel, request):
 def test_real_mesh_hausdorff_known_hard_cases_stay_bounded(remeshed_20k, name):
     rel = next(m for m in MESHES if Path(m).stem == name)
     _, _, q, _ = remeshed_20k(rel)
-    assert q["distance"]["hausdorff_rel"] <= 0.015
+    # a regression guard: within 0.1 percentage point of the figure recorded in ABOVE_GOAL
+    assert 100 * q["distance"]["hausdorff_rel"] <= ABOVE_GOAL[name] + 0.1
 
 
 def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():

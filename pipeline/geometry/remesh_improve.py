@@ -44,7 +44,10 @@ parameterized disk:
 * :func:`snap_vertices` — sharp input vertices (cone tips, spikes) get an output vertex
   exactly on them, locked from then on.
 * :func:`improve_remesh` chains them: corner snapping, flips, ``relax_iterations`` ×
-  (relaxation, flips), refinement, count correction, relaxation, flips.
+  (relaxation, flips), refinement (by sag, then one split of the edges longer than 3 L along
+  the map's stretch, then flips), count correction, relaxation, flips. The long-edge split
+  measured at 20k vertices: Hausdorff brain 0.85 → 0.75 %, alligator 0.18 → 0.07 %; faces
+  with a smallest angle under 10° hand 2386 → 1341, camel 307 → 182; +0.1–1.4 s.
 """
 
 from __future__ import annotations
@@ -59,6 +62,9 @@ from .locate import PointLocator, _closest_on_segments, lift
 
 __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long_edges",
            "collapse_short_edges", "edge_sag", "refine_by_sag", "snap_vertices", "improve_remesh"]
+
+
+LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 
 
 def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
@@ -607,7 +613,8 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
                    corners_uv: np.ndarray | None = None) -> RemeshState:
     """Flips and ``relax_iterations`` × (relaxation, flips); then edges farther than
     ``refine_sag × L`` from the surface are split (at most ``refine_budget`` × the vertex
-    count); then the shortest edges are collapsed (or the longest split) until the count is
+    count), edges longer than ``LONG_EDGE × L`` too, then flips; then the shortest edges are
+    collapsed (or the longest split) until the count is
     ``target_vertices`` again; then flips, one relaxation step, flips. ``L`` is the target
     edge length on the surface (3D). See the module docstring."""
     def flip():
@@ -642,6 +649,10 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         lap("flips")
     if refine_sag > 0:
         refine_by_sag(S, refine_sag * L, int(refine_budget * S.n))
+        # what the sag test cannot see: edges still longer than LONG_EDGE × L lie along the
+        # map's stretch (on the surface, not over it); split once and re-flip
+        split_long_edges(S, LONG_EDGE * L, budget=int(refine_budget * S.n))
+        flip()
         lap("refine")
     # very short edges (slivers) are collapsed; with a target count, as many more of the
     # shortest edges as the refinement added, then the longest edges are split to reach it

@@ -26,9 +26,9 @@ Why improvement is on by default: the plain lift of equilateral disk triangles i
 the map's angle distortion (mean smallest angle 35–37° on the shared faces, 15–25° on
 hands and relief, against 49–51° for pymeshlab), and across slivers its edges leave the
 surface (Hausdorff 0.6–1.8 % of the diagonal at 20k vertices). Improvement raises the mean
-smallest angle to 38–48° (the 5th percentile of the faces' smallest angles to 19–37° on all
-but the hand, 7.7°), brings the Hausdorff distance under 0.4 % on all but three shared meshes
-(hand, brain, camel: 0.82–0.85 %), keeps the vertex count, and costs about 0.6 s at 20k and
+smallest angle to 38–48° (the 5th percentile of the faces' smallest angles to 20–37° on all
+but the hand, 16°), brings the Hausdorff distance under 0.4 % on all but three shared meshes
+(hand, brain, camel: 0.75–0.84 %), keeps the vertex count, and costs about 0.6 s at 20k and
 2 s at 100k vertices. Turn it off (``improve: false``, ``--no-improve``) for the paper's
 plain lift. Where the map stretches much of the surface more than 10:1 (σ₁/σ₂, reported in
 ``remesh_metrics.json``), or the Hausdorff distance exceeds 0.5 %, the run says so.
