@@ -255,6 +255,38 @@ def test_improvement_steps_keep_the_disk(face_map):
     assert on_surface(S.X, mesh) <= 1e-9
 
 
+def test_flips_of_a_plane_reach_its_delaunay_triangulation():
+    """On a plane the 3D and 2D criteria agree, so Lawson flips from any triangulation end at
+    the unique Delaunay one (rim on a circle, interior points in general position; no Delaunay
+    face then has three rim corners). Many rounds of many flips: the in-place half-edge
+    twins must stay right throughout."""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(7)
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    r, a = 0.9 * np.sqrt(rng.random(400)), 2 * np.pi * rng.random(400)
+    uv = np.vstack([np.column_stack([np.cos(t), np.sin(t)]),
+                    np.column_stack([r * np.cos(a), r * np.sin(a)])])
+    F0 = Delaunay(uv * [8.0, 1.0]).simplices                      # the Delaunay of a squash
+    F0 = np.where((signed_double_areas(uv, F0) > 0)[:, None], F0, F0[:, ::-1])
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    F, flips, rounds = delaunay_flips(X, F0, uv, max_rounds=500)
+    want = {tuple(sorted(f)) for f in Delaunay(uv).simplices.tolist()}
+    assert flips > 500 and rounds > 5
+    assert {tuple(sorted(f)) for f in F.tolist()} == want
+    assert np.all(signed_double_areas(uv, F) > 0)
+
+
+def test_row_helpers_match_numpy():
+    from pipeline.geometry.rows import cross, dots, norms
+
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(1000, 3)), rng.normal(size=(1000, 3))
+    assert np.array_equal(cross(a, b), np.cross(a, b))            # the same arithmetic
+    assert np.allclose(norms(a), np.linalg.norm(a, axis=1), rtol=1e-15, atol=0)
+    assert np.allclose(dots(a, b), (a * b).sum(1), rtol=1e-13, atol=1e-15)
+
+
 def _has_edge(F, i, j) -> bool:
     return any({i, j} <= set(f) for f in F.tolist())
 

@@ -59,6 +59,7 @@ import numpy as np
 
 from . import topology as topo
 from .locate import PointLocator, _closest_on_segments, lift
+from .rows import cross, dots, norms
 
 __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long_edges",
            "collapse_short_edges", "edge_sag", "refine_by_sag", "snap_vertices", "improve_remesh"]
@@ -72,58 +73,64 @@ def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 
 
-def _cot(X, at, u, v) -> np.ndarray:
-    """Cotangent of the angle at ``X[at]`` between ``X[u]`` and ``X[v]``."""
-    e1, e2 = X[u] - X[at], X[v] - X[at]
-    cr = np.cross(e1, e2)
-    return np.einsum("ij,ij->i", e1, e2) / np.maximum(np.sqrt(np.einsum("ij,ij->i", cr, cr)),
-                                                       1e-300)
+def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
+    ``F[t,c] → F[t,c+1]`` (at corner ``c+2``), from one cross product per face (its norm,
+    twice the area, is shared by the three corners)."""
+    P0, P1, P2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+    e0, e1, e2 = P1 - P0, P2 - P1, P0 - P2                 # the half-edges c = 0, 1, 2
+    inv = 1.0 / np.maximum(norms(cross(e0, e2)), 1e-300)  # |e0 × e2| = twice the area
+    out = np.empty((len(F), 3))
+    out[:, 0] = -dots(e1, e2) * inv       # at corner 2, between e1 and e2
+    out[:, 1] = -dots(e2, e0) * inv
+    out[:, 2] = -dots(e0, e1) * inv
+    return out
 
 
 def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
-                   max_rounds: int = 12, eps: float = 1e-9, sag=None
-                   ) -> tuple[np.ndarray, int, int]:
+                   max_rounds: int = 12, eps: float = 1e-9, sag=None,
+                   boundary: np.ndarray | None = None) -> tuple[np.ndarray, int, int]:
     """Flip interior edges towards the Delaunay triangulation of the lifted surface.
 
     ``X`` (n×3) are the lifted positions, ``F`` (m×3) the faces (CCW on the disk), ``uv`` (n×2)
     the disk positions. The criterion ``α + β > π`` for the angles opposite an edge is tested as
-    ``cot α + cot β < 0``. After the first round only the edges of faces changed in the previous
-    round are tested again, and the half-edge twins are updated in place. The new edge cannot
-    exist yet: the quad is convex on the disk, where the triangulation is an embedding.
-    ``sag(i, j)`` (optional) gives the distance of edges ``i–j`` from the input surface; a quad
-    folded more than ``max_dihedral_deg`` then flips when ``sag(p, q) ≤ sag(a, b)``. Returns
-    ``(F, flips, rounds)``; see the module docstring.
+    ``cot α + cot β < 0``, with the cotangents kept per half-edge and recomputed only for the
+    faces a round changed. After the first round only the edges of changed faces are tested
+    again, and the half-edge twins are updated in place. The new edge cannot exist yet: the
+    quad is convex on the disk, where the triangulation is an embedding. ``sag(i, j)``
+    (optional) gives the distance of edges ``i–j`` from the input surface; a quad folded more
+    than ``max_dihedral_deg`` then flips when ``sag(p, q) ≤ sag(a, b)``. ``boundary`` (n bool,
+    optional) saves computing the boundary vertices. Returns ``(F, flips, rounds)``; see the
+    module docstring.
     """
     F = np.array(F, dtype=np.int64, copy=True)
     n, m = len(X), len(F)
-    is_b = topo.boundary_vertices_mask(F, n)
+    is_b = topo.boundary_vertices_mask(F, n) if boundary is None else boundary
     cos_max = np.cos(np.radians(max_dihedral_deg))
     twin = topo.interior_edge_twins(F)
-    he = np.arange(3 * m)
-    h_all = np.flatnonzero(twin > he)                                   # each interior edge once
+    cot = _opposite_cots(X, F).ravel()                                  # per half-edge
+    slot = np.arange(3 * m)                                             # old slot → new slot
+    h = np.flatnonzero(twin > slot)                                     # each interior edge once
     total, rounds = 0, 0
-    h = h_all
     for rounds in range(1, max_rounds + 1):
         if len(h) == 0:
             break
-        f, c = h // 3, h % 3
-        t = twin[h]
-        g, d = t // 3, t % 3
-        a, b = F[f, c], F[f, (c + 1) % 3]
-        p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
-        viol = -(_cot(X, p, a, b) + _cot(X, q, a, b))                    # > 0: not Delaunay
+        viol = -(cot[h] + cot[twin[h]])                                 # > 0: not Delaunay
         cand = np.flatnonzero(viol > eps)
         if len(cand) == 0:
             break
-        h, t, f, g, c, d = h[cand], t[cand], f[cand], g[cand], c[cand], d[cand]
-        a, b, p, q, viol = a[cand], b[cand], p[cand], q[cand], viol[cand]
-        nf = np.cross(X[b] - X[a], X[p] - X[a])
-        ng = np.cross(X[a] - X[b], X[q] - X[b])
-        n1 = np.cross(X[a] - X[p], X[q] - X[p])                         # new face (p, a, q)
-        n2 = np.cross(X[b] - X[q], X[p] - X[q])                         # new face (q, b, p)
+        h, viol = h[cand], viol[cand]
+        t = twin[h]
+        f, c = h // 3, h % 3
+        g, d = t // 3, t % 3
+        a, b = F[f, c], F[f, (c + 1) % 3]
+        p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
+        nf = cross(X[b] - X[a], X[p] - X[a])
+        ng = cross(X[a] - X[b], X[q] - X[b])
+        n1 = cross(X[a] - X[p], X[q] - X[p])                         # new face (p, a, q)
+        n2 = cross(X[b] - X[q], X[p] - X[q])                         # new face (q, b, p)
         nsum = nf + ng
-        norm = np.linalg.norm
-        ok = np.einsum("ij,ij->i", nf, ng) >= cos_max * norm(nf, axis=1) * norm(ng, axis=1)
+        ok = dots(nf, ng) >= cos_max * norms(nf) * norms(ng)
         if sag is not None:
             # a folded quad may still flip when the new edge is no farther from the input
             # surface than the old one (caps over a crease, the skewed triangles of the map)
@@ -141,29 +148,31 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
         win = sel[_independent_by_faces(m, f[sel], g[sel], -viol[sel])]
         f, g, c, d = f[win], g[win], c[win], d[win]
         a, b, p, q = a[win], b[win], p[win], q[win]
-        # half-edge bookkeeping: old slot → new slot of the four outer half-edges
-        removed = np.concatenate([3 * f + c, 3 * g + d])
-        newid = np.arange(3 * m)
-        newid[3 * f + (c + 2) % 3] = 3 * f          # p→a
-        newid[3 * g + (d + 1) % 3] = 3 * f + 1      # a→q
-        newid[3 * g + (d + 2) % 3] = 3 * g          # q→b
-        newid[3 * f + (c + 1) % 3] = 3 * g + 1      # b→p
-        valid = twin >= 0
-        valid[removed] = False
-        src = np.flatnonzero(valid)
-        new_twin = np.full(3 * m, -1, np.int64)
-        new_twin[newid[src]] = newid[twin[src]]
-        new_twin[3 * f + 2] = 3 * g + 2              # the new diagonal q→p / p→q
-        new_twin[3 * g + 2] = 3 * f + 2
-        twin = new_twin
+        # half-edge bookkeeping, in place: the four outer half-edges of each quad move to new
+        # slots (p→a, a→q in f; q→b, b→p in g); their twins may sit in another flipped quad
+        old = np.concatenate([3 * f + (c + 2) % 3, 3 * g + (d + 1) % 3,
+                              3 * g + (d + 2) % 3, 3 * f + (c + 1) % 3])
+        new = np.concatenate([3 * f, 3 * f + 1, 3 * g, 3 * g + 1])
+        tw = twin[old]
+        slot[old] = new
+        inner = tw >= 0
+        twin[new] = np.where(inner, slot[np.maximum(tw, 0)], -1)
+        twin[slot[tw[inner]]] = new[inner]
+        twin[3 * f + 2] = 3 * g + 2                  # the new diagonal q→p / p→q
+        twin[3 * g + 2] = 3 * f + 2
+        slot[old] = old
         F[f] = np.column_stack([p, a, q])
         F[g] = np.column_stack([q, b, p])
+        changed = np.concatenate([f, g])
+        cot.reshape(m, 3)[changed] = _opposite_cots(X, F[changed])
         total += len(win)
-        # next round: every interior edge of the changed faces
-        hs = np.concatenate([3 * f + k for k in range(3)] + [3 * g + k for k in range(3)])
+        # next round: every interior edge of the changed faces, once
+        hs = (3 * changed[:, None] + np.arange(3)).ravel()
         ts = twin[hs]
-        hs = np.where(ts > hs, hs, ts)
-        h = np.unique(hs[ts >= 0])
+        hs = np.where(ts > hs, hs, ts)[ts >= 0]
+        mark = np.zeros(3 * m, bool)
+        mark[hs] = True
+        h = np.flatnonzero(mark)
     return F, total, rounds
 
 
@@ -228,30 +237,32 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray) -> np.ndarray:
 def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
                           locator: PointLocator, uv: np.ndarray, F: np.ndarray,
                           face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
-                          iterations: int = 3, step: float = 0.5):
+                          iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None):
     """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input ``(V_in, F_in,
     uv_in)`` (see the module docstring). ``face``/``bary`` locate ``uv`` in the input map;
-    ``movable`` marks the vertices that may move (interior ones).
+    ``movable`` marks the vertices that may move (interior ones); ``X``, when given, is the
+    lift of ``uv`` already computed.
 
     Returns ``(uv, face, bary, X, moved)`` with the lifted positions ``X`` and, per iteration,
     the number of vertices that moved.
     """
     uv = np.array(uv, dtype=np.float64, copy=True)
     face, bary = face.copy(), bary.copy()
-    X = lift(V_in, F_in, face, bary)
+    X = lift(V_in, F_in, face, bary) if X is None else X
     n = len(uv)
     moved_counts = []
     Fr = F.ravel()
     mov = np.flatnonzero(movable)
     area_floor = 1e-6 * _signed2(uv, F[:, 0], F[:, 1], F[:, 2])          # per face
     for _ in range(iterations):
-        Nf = np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]])    # 2·area·normal
-        A = np.linalg.norm(Nf, axis=1)
-        C = X[F].mean(axis=1)
+        P0, P1, P2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+        Nf = cross(P1 - P0, P2 - P0)                                      # 2·area·normal
+        A = norms(Nf)
+        C = (P0 + P1 + P2) / 3.0
         W = np.bincount(Fr, np.repeat(A, 3), n)
         G = np.column_stack([np.bincount(Fr, np.repeat(A * C[:, j], 3), n) for j in range(3)])
         N = np.column_stack([np.bincount(Fr, np.repeat(Nf[:, j], 3), n) for j in range(3)])
-        N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+        N /= np.maximum(norms(N)[:, None], 1e-300)
         D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
         D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
         du = np.zeros_like(uv)
@@ -382,7 +393,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
     done = 0
     for _ in range(max_rounds):
         h, a, b, twin = _edge_table(S.F)
-        ln = np.linalg.norm(S.X[a] - S.X[b], axis=1)
+        ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln > L_max)
         if len(cand) == 0:
             break
@@ -443,7 +454,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     for _ in range(max_rounds):
         F, n = S.F, S.n
         h, a, b, twin, twin_all = _edge_table(F, with_twins=True)
-        ln = np.linalg.norm(S.X[a] - S.X[b], axis=1)
+        ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln < L_min)
         if budget is not None and len(cand) > 8 * (budget - done) + 1000:
             # only the shortest few: validity is checked per candidate
@@ -483,12 +494,12 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         old2 = _signed2(S.uv, T[:, 0], T[:, 1], T[:, 2])
         new2 = _signed2(S.uv, Tn[:, 0], Tn[:, 1], Tn[:, 2])
         X = S.X
-        n_old = np.cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
-        n_new = np.cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
+        n_old = cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
+        n_new = cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
         kpos = X[k[fr]]
-        longest = np.maximum(np.linalg.norm(X[Tn[:, 0]] - kpos, axis=1),
-                             np.maximum(np.linalg.norm(X[Tn[:, 1]] - kpos, axis=1),
-                                        np.linalg.norm(X[Tn[:, 2]] - kpos, axis=1)))
+        longest = np.maximum(norms(X[Tn[:, 0]] - kpos),
+                             np.maximum(norms(X[Tn[:, 1]] - kpos),
+                                        norms(X[Tn[:, 2]] - kpos)))
         bad = ((new2 <= 1e-6 * np.abs(old2)) | (np.einsum("ij,ij->i", n_old, n_new) <= 0)
                | S.is_rim[Tn].all(axis=1) | (longest > L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
@@ -530,8 +541,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
 
 def _face_normals(V: np.ndarray, F: np.ndarray, faces: np.ndarray) -> np.ndarray:
     t = F[faces]
-    N = np.cross(V[t[:, 1]] - V[t[:, 0]], V[t[:, 2]] - V[t[:, 0]])
-    return N / np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
+    N = cross(V[t[:, 1]] - V[t[:, 0]], V[t[:, 2]] - V[t[:, 0]])
+    return N / np.maximum(norms(N)[:, None], 1e-300)
 
 
 def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray):
@@ -567,10 +578,17 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
     for _ in range(max_rounds):
         if done >= budget:
             break
-        h, a, b, twin = _edge_table(S.F)
-        if active is not None:
+        if active is None:
+            h, a, b, twin = _edge_table(S.F)
+        else:
+            # both faces of an edge with an active end contain that end: the edge table of
+            # the faces at active vertices has those edges' twins right
+            sub = np.flatnonzero(active[S.F].any(axis=1))
+            hs, a, b, ts = _edge_table(S.F[sub])
             keep = active[a] | active[b]
-            h, a, b, twin = h[keep], a[keep], b[keep], twin[keep]
+            hs, a, b, ts = hs[keep], a[keep], b[keep], ts[keep]
+            h = 3 * sub[hs // 3] + hs % 3
+            twin = np.where(ts >= 0, 3 * sub[ts // 3] + ts % 3, -1)
         if len(h) == 0:
             break
         # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
@@ -620,13 +638,13 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
     def flip():
         if flips:
             S.F, k, _ = delaunay_flips(S.X, S.F, S.uv, max_dihedral_deg,
-                                       sag=lambda a, b: edge_sag(S, a, b))
+                                       sag=lambda a, b: edge_sag(S, a, b), boundary=S.is_rim)
             S._count("flips", k)
 
     def relax():
         S.uv, S.face, S.bary, S.X, moved = tangential_relaxation(
             S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
-            ~S.is_rim & ~S.locked, 1, relax_step)
+            ~S.is_rim & ~S.locked, 1, relax_step, X=S.X)
         S._count("relaxed_vertex_moves", sum(moved))
 
     tick = time.perf_counter()
@@ -657,7 +675,7 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
     # very short edges (slivers) are collapsed; with a target count, as many more of the
     # shortest edges as the refinement added, then the longest edges are split to reach it
     h, a, b, _ = _edge_table(S.F)
-    n_short = int(np.count_nonzero(np.linalg.norm(S.X[a] - S.X[b], axis=1) < 0.2 * L))
+    n_short = int(np.count_nonzero(norms(S.X[a] - S.X[b]) < 0.2 * L))
     target = S.n if target_vertices is None else int(target_vertices)
     excess = max(S.n - target, 0) + n_short
     if excess > 0:

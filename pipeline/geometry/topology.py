@@ -217,9 +217,11 @@ def interior_edge_twins(F) -> np.ndarray:
     twin = np.full(3 * len(F), -1, dtype=np.int64)
     if len(F) == 0:
         return twin
-    order, start, size, _ = _halfedge_groups(F)
-    pair_start = start[size == 2]
-    h1, h2 = order[pair_start], order[pair_start + 1]
+    sk, order = _sort_with_index(_edge_keys(F, _n_of(F, None)))
+    eq = np.zeros(len(sk) + 1, dtype=bool)              # eq[i + 1]: sorted i and i + 1 equal
+    np.equal(sk[1:], sk[:-1], out=eq[1:-1])
+    i = np.flatnonzero(eq[1:-1] & ~eq[:-2] & ~eq[2:])   # groups of exactly two half-edges
+    h1, h2 = order[i], order[i + 1]
     twin[h1] = h2
     twin[h2] = h1
     return twin

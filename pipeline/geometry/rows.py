@@ -1,0 +1,34 @@
+"""Row-wise 3-vector arithmetic for the hot loops of remeshing.
+
+``np.cross`` and ``np.linalg.norm(axis=1)`` are general (any axis, any dtype) and pay for it
+on many short rows: at 600k rows, measured on the project machine, the written-out cross
+product takes 16 ms against 32 ms, and ``sqrt(einsum)`` 5.5 ms against 16 ms. The cross
+product is the same arithmetic as numpy's (bit-identical results).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["cross", "norms", "dots"]
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a × b`` per row (k×3, k×3 → k×3)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
+
+
+def dots(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a · b`` per row (k×d, k×d → k)."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+def norms(a: np.ndarray) -> np.ndarray:
+    """Euclidean length per row (k×d → k)."""
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
