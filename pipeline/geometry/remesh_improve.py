@@ -39,8 +39,13 @@ parameterized disk:
   shorter than 0.2 L). A split boundary edge gets its vertex on the image polygon. A collapse
   removes one endpoint (never a rim vertex unless the edge is a boundary edge, never a locked
   corner), keeps the other where it is, and is made only if the link condition holds, no face
-  flips on the disk or turns over in 3D, no face gets three boundary corners and no edge gets
-  longer than ``L_max``. Both run in rounds of independent operations (vectorised).
+  flips on the disk or turns over in 3D, no face gets three boundary corners, no edge gets
+  longer than ``L_max`` and — given ``max_gap`` — the removed vertex, a point of the surface,
+  stays within ``max_gap`` of the faces that replace its ring. Both run in rounds of
+  independent operations (vectorised). The gap guard (``refine_sag × L`` in
+  :func:`improve_remesh`) keeps count correction from collapsing the vertices that refinement
+  put into folds: at 20k vertices Hausdorff brain 0.75 → 0.67 %, igl_lion 0.30 → 0.23 %,
+  choi_chinese_lion 0.21 → 0.18 %, the rest unchanged, angles unchanged.
 * :func:`snap_vertices` — sharp input vertices (cone tips, spikes) get an output vertex
   exactly on them, locked from then on.
 * :func:`improve_remesh` chains them: corner snapping, flips, ``relax_iterations`` ×
@@ -59,6 +64,7 @@ import numpy as np
 
 from . import topology as topo
 from .locate import PointLocator, _closest_on_segments, lift
+from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
 
 __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long_edges",
@@ -446,10 +452,11 @@ def _vertex_faces(F: np.ndarray, n: int) -> _CSR:
 
 
 def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
-                         budget: int | None = None) -> int:
+                         budget: int | None = None, max_gap: float | None = None) -> int:
     """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
-    ``L_max`` appears and the result stays valid (module docstring); independent rounds; at
-    most ``budget`` collapses. Returns the number of collapses."""
+    ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
+    around it, and the result stays valid (module docstring); independent rounds; at most
+    ``budget`` collapses. Returns the number of collapses."""
     done = 0
     for _ in range(max_rounds):
         F, n = S.F, S.n
@@ -503,6 +510,15 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         bad = ((new2 <= 1e-6 * np.abs(old2)) | (np.einsum("ij,ij->i", n_old, n_new) <= 0)
                | S.is_rim[Tn].all(axis=1) | (longest > L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
+        if max_gap is not None:
+            # the removed vertex (a point of the surface) must stay within max_gap of the
+            # faces that replace its ring
+            Pr = X[r[fr]]
+            gap = norms(Pr - closest_points_on_triangles(Pr, X[Tn[:, 0]], X[Tn[:, 1]],
+                                                         X[Tn[:, 2]]))
+            near = np.full(len(r), np.inf)
+            np.minimum.at(near, fr, gap)
+            ok &= near <= max_gap
         # Independence: the closed 1-rings of the removed vertices are pairwise disjoint. A
         # collapse only changes the faces around r (all their corners are in r's closed ring)
         # and the rings of r's neighbours, so then no collapse sees another's changes.
@@ -632,7 +648,8 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
     """Flips and ``relax_iterations`` × (relaxation, flips); then edges farther than
     ``refine_sag × L`` from the surface are split (at most ``refine_budget`` × the vertex
     count), edges longer than ``LONG_EDGE × L`` too, then flips; then the shortest edges are
-    collapsed (or the longest split) until the count is
+    collapsed (never leaving a removed vertex farther than ``refine_sag × L`` from the new
+    faces) or the longest split until the count is
     ``target_vertices`` again; then flips, one relaxation step, flips. ``L`` is the target
     edge length on the surface (3D). See the module docstring."""
     def flip():
@@ -679,7 +696,8 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
     target = S.n if target_vertices is None else int(target_vertices)
     excess = max(S.n - target, 0) + n_short
     if excess > 0:
-        collapse_short_edges(S, np.inf, 2.0 * L, budget=excess)
+        collapse_short_edges(S, np.inf, 2.0 * L, budget=excess,
+                             max_gap=refine_sag * L if refine_sag > 0 else None)
     if S.n < target:
         split_long_edges(S, 0.0, budget=target - S.n)
     lap("count")
