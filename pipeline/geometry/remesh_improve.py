@@ -513,11 +513,12 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if max_gap is not None:
             # the removed vertex (a point of the surface) must stay within max_gap of the
             # faces that replace its ring
-            Pr = X[r[fr]]
-            gap = norms(Pr - closest_points_on_triangles(Pr, X[Tn[:, 0]], X[Tn[:, 1]],
-                                                         X[Tn[:, 2]]))
+            rows = np.flatnonzero(ok[fr])                   # only the still-valid candidates
+            Pr, Tr = X[r[fr[rows]]], Tn[rows]
+            gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]],
+                                                         X[Tr[:, 2]]))
             near = np.full(len(r), np.inf)
-            np.minimum.at(near, fr, gap)
+            np.minimum.at(near, fr[rows], gap)
             ok &= near <= max_gap
         # Independence: the closed 1-rings of the removed vertices are pairwise disjoint. A
         # collapse only changes the faces around r (all their corners are in r's closed ring)
