@@ -220,6 +220,30 @@ def test_relocate_agrees_with_locate():
     assert np.abs(lift(uv, F, f1, b1) - Q).max() <= 1e-12
 
 
+@pytest.mark.parametrize("walk", [0, 1, 2, 5])
+def test_relocate_walks_to_the_same_answer(walk, monkeypatch):
+    """Hints one to a few faces away: every walk length gives the grid's answer (exact
+    positions), the walk finds most of them without the grid, and points outside the
+    mesh are still reported outside."""
+    uv, F, loop = grid_mesh(20, 0.3)
+    L = PointLocator(uv, F, loop)
+    rng = np.random.default_rng(11)
+    P = 0.05 + 0.9 * rng.random((4000, 2))
+    f0, _ = L.locate(P)
+    Q = P + rng.normal(scale=0.015, size=P.shape)              # about one face
+    Q[:50] = [1.3, 0.5]                                         # outside the unit square
+    calls = []
+    grid = L.locate_with_inside
+    monkeypatch.setattr(L, "locate_with_inside", lambda pts, tol=1e-12: calls.append(len(pts))
+                        or grid(pts, tol))
+    f1, b1, inside = L.relocate(Q, f0, walk=walk)
+    want_f, want_b, want_inside = grid(Q)
+    assert np.array_equal(inside, want_inside) and not inside[:50].any()
+    assert np.abs(lift(uv, F, f1, b1) - lift(uv, F, want_f, want_b)).max() <= 1e-12
+    if walk >= 2:
+        assert sum(calls) < 0.2 * len(Q)          # most points found by walking
+
+
 def test_real_sem_map_reconstructs_to_1e_12():
     from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage

@@ -286,30 +286,46 @@ class PointLocator:
         return face, bary, inside
 
     def relocate(self, points: np.ndarray, face: np.ndarray, tol: float = TOL,
-                 face2: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 face2: np.ndarray | None = None, walk: int = 2
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Locate points near known faces: ``face`` (and then ``face2``, if given) is tested
-        first, only the points in neither go through the grid. Returns like
-        :meth:`locate_with_inside`."""
+        first; a point outside it steps up to ``walk`` times to the neighbouring face across
+        the edge of its most negative barycentric coordinate (a walk); only the points still
+        not found go through the grid. Returns like :meth:`locate_with_inside`."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
         face = np.array(face, dtype=np.int64, copy=True)
         bary = np.empty((len(P), 3))
         inside = np.ones(len(P), bool)
         todo = np.arange(len(P))
-        for hint in (face, face2):
-            if hint is None or len(todo) == 0:
-                continue
+        hints = [face] + ([] if face2 is None else [face2])
+        for hint in hints:
             f = hint[todo]
-            tri = self.F[f]
-            b = barycentric_coordinates(P[todo], self.uv[tri[:, 0]], self.uv[tri[:, 1]],
-                                        self.uv[tri[:, 2]])
-            hit = b.min(axis=1) >= -tol
-            face[todo[hit]] = f[hit]
-            bary[todo[hit]] = _clean_rows(b[hit])
-            todo = todo[~hit]
+            for step in range(walk + 1):
+                if len(todo) == 0:
+                    break
+                tri = self.F[f]
+                b = barycentric_coordinates(P[todo], self.uv[tri[:, 0]], self.uv[tri[:, 1]],
+                                            self.uv[tri[:, 2]])
+                hit = b.min(axis=1) >= -tol
+                face[todo[hit]] = f[hit]
+                bary[todo[hit]] = _clean_rows(b[hit])
+                todo, f, b = todo[~hit], f[~hit], b[~hit]
+                if step == walk or len(todo) == 0:
+                    break
+                nxt = self._neighbours()[3 * f + (np.argmin(b, axis=1) + 1) % 3]
+                go = nxt >= 0                       # beyond the rim: the grid decides
+                f = np.where(go, nxt // 3, f)
         moved = todo
         if len(moved):
             face[moved], bary[moved], inside[moved] = self.locate_with_inside(P[moved], tol)
         return face, bary, inside
+
+    def _neighbours(self) -> np.ndarray:
+        """Half-edge twins of ``F`` (computed once): the face across half-edge ``3 t + c`` is
+        ``twin // 3``."""
+        if getattr(self, "_twin", None) is None:
+            self._twin = topo.interior_edge_twins(self.F)
+        return self._twin
 
     def _on_boundary(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Faces and barycentrics of the closest points of the boundary polygon to ``P``."""
