@@ -516,10 +516,11 @@ MESHES = [
     "faces/ict/ict_B_neutral_disk.obj", "faces/ict/ict_B_smile_jawopen_disk.obj",
 ]
 # Measured two-sided Hausdorff at 20k vertices (% of the diagonal), above the 0.5 % goal: the
-# equiareal map squeezes the sides of the fingers (choi_hand) and the walls of the sulci
-# (choi_human_brain) into slivers with 100–300× anisotropy, and igl_camel_b has sharp spikes
-# next to its boundary that no interior vertex can be snapped to.
-ABOVE_GOAL = {"choi_hand": 0.80, "choi_human_brain": 0.67, "igl_camel_b": 0.84}
+# equiareal map squeezes the walls of the sulci (choi_human_brain) into slivers with 100–300×
+# anisotropy, and the sulci's floors stay farther than the goal from the output (input → output
+# side); igl_camel_b has a spike whose tip the map puts 1e-4 inside the rim, beyond the chord of
+# the output's rim polygon, where no interior vertex can be snapped to it.
+ABOVE_GOAL = {"choi_human_brain": 0.62, "igl_camel_b": 0.84}
 
 
 @pytest.fixture(scope="module")

@@ -31,8 +31,15 @@ parameterized disk:
 * :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
   sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
   lifted edges bridge over the surface. An edge whose straight line is farther than
-  ``refine_sag × L`` from the surface (:func:`edge_sag`) is split at its *disk* midpoint,
-  lifted by eq. (1), so the new vertex lies on the surface inside the sliver.
+  ``refine_sag × L`` from the surface at any of ``SAG_SAMPLES`` = 7 points ``t = 1/8 … 7/8``
+  (:func:`edge_sag_along`) is split on the disk at the worst of them, lifted by eq. (1), so
+  the new vertex lies on the surface inside the sliver. A gap squeezed into a strip much
+  thinner than the edge on the disk is seldom under the midpoint: sampling 7 points instead
+  of the midpoint measured at 20k vertices Hausdorff hand 0.80 → 0.20 %, brain 0.67 → 0.62,
+  face 0.30 → 0.25, camel head 0.34 → 0.27, bunny 0.24 → 0.21 % (igl_lion 0.23 → 0.24, the
+  rest unchanged); hand at 5k 1.07 → 0.46 %, at 50k 0.49 → 0.18 %; faces with a smallest
+  angle under 10° hand 1346 → 701. With the walking point location it costs +0.1–0.3 s at
+  100k on the face and camel head.
 * :func:`split_long_edges` / :func:`collapse_short_edges` — the split and collapse steps of
   isotropic remeshing (Botsch & Kobbelt 2004), with 3D lengths; used to give the vertex count
   back after refinement (the shortest edges are collapsed) and to remove slivers (edges
@@ -68,9 +75,11 @@ from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
 
 __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long_edges",
-           "collapse_short_edges", "edge_sag", "refine_by_sag", "snap_vertices", "improve_remesh"]
+           "collapse_short_edges", "edge_sag", "edge_sag_along", "refine_by_sag",
+           "snap_vertices", "improve_remesh"]
 
 
+SAG_SAMPLES = 7       # refinement measures an edge's sag at t = 1/8 … 7/8 and splits at the worst
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 
 
@@ -359,8 +368,10 @@ def _independent_by_faces(m: int, f1: np.ndarray, f2: np.ndarray, priority: np.n
     return np.flatnonzero((best[f1] == rank) & (best[f2] == rank))
 
 
-def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray) -> int:
-    """Split the given (independent: no shared face) edges at their disk midpoints."""
+def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
+                t: np.ndarray | None = None) -> int:
+    """Split the given (independent: no shared face) edges at their disk midpoints, or at
+    ``(1 − t)·uv[a] + t·uv[b]`` for half-edge ``a → b`` when ``t`` is given."""
     k = len(h)
     if k == 0:
         return 0
@@ -368,7 +379,8 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray) -> int:
     f, c = h // 3, h % 3
     a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
     on_b = twin < 0
-    M = 0.5 * (S.uv[a] + S.uv[b])
+    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
+         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
     mf, mb, _ = S.locator.relocate(M, S.face[a])
@@ -562,33 +574,52 @@ def _face_normals(V: np.ndarray, F: np.ndarray, faces: np.ndarray) -> np.ndarray
     return N / np.maximum(norms(N)[:, None], 1e-300)
 
 
-def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray):
-    """How far the straight 3D edge ``a–b`` is from the surface at its middle.
+def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """How far the straight 3D edge ``a–b`` is from the surface at its middle
+    (:func:`edge_sag_along` at ``t = 1/2``)."""
+    return edge_sag_along(S, a, b, (0.5,))[0]
 
-    ``d`` = the offset between the edge's 3D midpoint and the lift (eq. 1) of its disk
-    midpoint. Its tangential part is only the map's non-linearity (on a plane ``d`` is
-    tangential however far it is), so the sag is the largest component of ``d`` along the
-    input surface's normals at the midpoint and at the two ends: bridging over a finger shows
-    along the normal at the midpoint, skipping a fold (a closed mouth) along those at the ends.
+
+def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The largest distance of the straight 3D edge ``a–b`` from the surface over the points
+    ``t`` in ``ts``, and the ``t`` where it is reached.
+
+    At ``t``, ``d`` = the offset between the edge's 3D point ``(1 − t)·X[a] + t·X[b]`` and the
+    lift (eq. 1) of the disk point ``(1 − t)·uv[a] + t·uv[b]``. Its tangential part is only the
+    map's non-linearity (on a plane ``d`` is tangential however far it is), so the sag is the
+    largest component of ``d`` along the input surface's normals at that point and at the two
+    ends: bridging over a finger shows along the normal in between, skipping a fold (a closed
+    mouth) along those at the ends. Where the map squeezes a gap (between fingers, a sulcus)
+    into a strip much thinner than the edge on the disk, only a point inside the strip sees
+    it, which the midpoint seldom is; hence several ``t``.
     """
-    M = 0.5 * (S.uv[a] + S.uv[b])
-    mf, mb = S.locator.locate(M)
-    D = lift(S.V_in, S.F_in, mf, mb) - 0.5 * (S.X[a] + S.X[b])
-    sag = np.abs(np.einsum("ij,ij->i", D, _face_normals(S.V_in, S.F_in, mf)))
-    for end in (a, b):
-        sag = np.maximum(sag, np.abs(np.einsum("ij,ij->i", D, _face_normals(
-            S.V_in, S.F_in, S.face[end]))))
-    return sag
+    ends = [_face_normals(S.V_in, S.F_in, S.face[v]) for v in (a, b)]
+    best = np.full(len(a), -1.0)
+    t_best = np.full(len(a), 0.5)
+    hint = S.face[a]
+    for t in ts:
+        M = (1.0 - t) * S.uv[a] + t * S.uv[b]
+        mf, mb, _ = S.locator.relocate(M, hint)
+        hint = mf
+        D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - t) * S.X[a] + t * S.X[b])
+        sag = np.abs(dots(D, _face_normals(S.V_in, S.F_in, mf)))
+        for n_end in ends:
+            sag = np.maximum(sag, np.abs(dots(D, n_end)))
+        worse = sag > best
+        best[worse], t_best[worse] = sag[worse], t
+    return best, t_best
 
 
 def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int = 8) -> int:
-    """Split edges whose straight line is farther than ``threshold`` from the surface, worst
-    first, in independent rounds, at most ``budget`` splits.
+    """Split edges whose straight line is farther than ``threshold`` from the surface at any
+    of ``SAG_SAMPLES`` points along it, worst first, at the worst point, in independent
+    rounds, at most ``budget`` splits.
 
     Where the equiareal map squeezes a region into a thin sliver of the disk (the sides of
     fingers, deep folds), uniform disk samples are too sparse across it and the lifted
-    triangles bridge over the surface; an edge split at its disk midpoint puts a vertex on the
-    surface inside the sliver. After the first round only the edges at new vertices (and the
+    triangles bridge over the surface; an edge split at its worst disk point puts a vertex on
+    the surface inside the sliver. After the first round only the edges at new vertices (and the
     candidates that waited for a free face) are measured again."""
     done = 0
     active = None
@@ -618,7 +649,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
                  | (np.abs(np.einsum("ij,ij->i", e, na)) > 0.5 * threshold)
                  | (np.abs(np.einsum("ij,ij->i", e, nb)) > 0.5 * threshold))
         h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
-        sag = edge_sag(S, a, b)
+        sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1))
         cand = np.flatnonzero(sag > threshold)
         if len(cand) == 0:
             break
@@ -632,7 +663,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         waiting = np.ones(len(cand), bool)
         waiting[win] = False
         n0 = S.n
-        done += split_edges(S, h[sel], twin[sel])
+        done += split_edges(S, h[sel], twin[sel], t_split[sel])
         active = np.zeros(S.n, bool)
         active[n0:] = True
         active[a[cand[waiting]]] = True
