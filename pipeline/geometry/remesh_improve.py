@@ -434,15 +434,6 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
     return done
 
 
-def _csr_rows(indptr, indices, rows):
-    """``(row_id, value)`` pairs of the given CSR rows, concatenated (vectorised)."""
-    start, stop = indptr[rows], indptr[rows + 1]
-    cnt = stop - start
-    rid = np.repeat(np.arange(len(rows)), cnt)
-    pos = np.repeat(start - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
-    return rid, indices[pos]
-
-
 class _CSR:
     def __init__(self, indptr, indices):
         self.indptr, self.indices = indptr, indices
@@ -504,15 +495,15 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         A = _adjacency(F, n, twin_all)
         VF = _vertex_faces(F, n)
         # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
-        ia, na = _csr_rows(A.indptr, A.indices, r)
-        ib, nb = _csr_rows(A.indptr, A.indices, k)
+        ia, na = topo.csr_rows(A.indptr, A.indices, r)
+        ib, nb = topo.csr_rows(A.indptr, A.indices, k)
         keys = np.concatenate([ia * np.int64(n) + na, ib * np.int64(n) + nb])
         keys.sort()
         dup = keys[1:][keys[1:] == keys[:-1]] // n
         common = np.bincount(dup, minlength=len(r))
         ok = common == np.where(on_b, 1, 2)
         # faces of r that survive (do not contain k), with r replaced by k
-        fr, fid = _csr_rows(VF.indptr, VF.indices, r)
+        fr, fid = topo.csr_rows(VF.indptr, VF.indices, r)
         T = F[fid]
         has_k = (T == k[fr][:, None]).any(axis=1)
         fr, fid, T = fr[~has_k], fid[~has_k], T[~has_k]
@@ -547,7 +538,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             break
         rank = np.empty(len(sel), np.int64)
         rank[np.argsort(ln[sel], kind="stable")] = np.arange(len(sel))
-        pr, pv = _csr_rows(A.indptr, A.indices, r[sel])
+        pr, pv = topo.csr_rows(A.indptr, A.indices, r[sel])
         pr = np.concatenate([pr, np.arange(len(sel))])
         pv = np.concatenate([pv, r[sel]])
         best = np.full(n, len(sel), np.int64)
@@ -559,7 +550,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if max_sag is not None and len(win):
             # the new edges k–x (x in r's ring) must not leave the surface: checked for the
             # winners only (a refused winner collapses nothing this round)
-            wr, x = _csr_rows(A.indptr, A.indices, r[win])
+            wr, x = topo.csr_rows(A.indptr, A.indices, r[win])
             new_edge = x != k[win][wr]
             wr, x = wr[new_edge], x[new_edge]
             far = edge_sag(S, k[win][wr], x) > max_sag

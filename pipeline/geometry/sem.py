@@ -44,7 +44,7 @@ from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
-from .topology import vertex_faces
+from .topology import csr_rows, vertex_faces
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -121,7 +121,11 @@ class _Problem:
         """Indices of the faces incident to ``vertices`` (incidence built on first use)."""
         if self._vertex_faces is None:
             self._vertex_faces = vertex_faces(self.F, len(self.V))
-        return np.unique(self._vertex_faces[vertices].indices)
+        VF = self._vertex_faces
+        _, faces = csr_rows(VF.indptr, VF.indices, vertices)
+        mark = np.zeros(len(self.F), bool)
+        mark[faces] = True
+        return np.flatnonzero(mark)
 
     def weights(self, f):
         """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
@@ -197,7 +201,9 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     for _ in range(rounds):
         if value[2] <= allowed:
             break
-        held = np.unique(F[value[3] <= 0].ravel())
+        mark = np.zeros(len(f), bool)
+        mark[F[value[3] <= 0].ravel()] = True
+        held = np.flatnonzero(mark)
         g = g.copy()
         g[held] = f[held]
         touched = problem.faces_of(held)
@@ -208,11 +214,11 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
 
 
 def line_search(problem: _Problem, f, g, current, better, min_step, hold: bool,
-                max_step: float = 1.0):
-    """Largest ``α = 1, ½, ¼ … ≥ min_step`` whose damped map flips no new face and satisfies
-    ``better(evaluation)``; if α = 1 passes, ``α = 2, 4 … ≤ max_step`` while the energy keeps
-    falling. Returns ``(map, evaluation, α)`` or ``None``."""
-    alpha = 1.0
+                max_step: float = 1.0, start: float = 1.0):
+    """Largest ``α = start, start/2, … ≥ min_step`` whose damped map flips no new face and
+    satisfies ``better(evaluation)``; if α = 1 passes, ``α = 2, 4 … ≤ max_step`` while the
+    energy keeps falling. Returns ``(map, evaluation, α)`` or ``None``."""
+    alpha = start
     while alpha >= min_step:
         cand = g if alpha == 1.0 else damped(f, g, alpha, problem.B)
         if hold:
@@ -294,16 +300,26 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
 
 
 def _paper_iterations(problem, f, value, opt, record):
-    """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3)."""
+    """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3).
+
+    The damping search starts at twice the previous step (at most 1): once the map needs
+    damped steps, trying α = 1, ½, … again each iteration costs 4–6 failed flip-holding
+    passes (at 10k faces 8.7 of 20 ms an iteration, against a 7 ms refactorization). Measured
+    on face, lion, bunny, alligator and bunny ×4: the same first 10 iterates; in 100-step runs
+    the same except gpp_bunny, where the run went on longer before ``E_S`` rose (22 steps
+    instead of 14, D eq. 28 0.246 → 0.227)."""
+    start = 1.0
     for it in range(1, opt.iterations() + 1):
         g = sem_step(problem, f, problem.weights(f), opt.inversion)
-        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=True)
+        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=True,
+                           start=start)
         if step is None:
             return f, value, it - 1, "stalled"
         g, new, alpha = step
         if new[0] > value[0] and opt.stop_when_energy_rises:
             return f, value, it - 1, "energy_rose"
         f, value = g, new
+        start = min(1.0, 2.0 * alpha)
         record(it, f, value, alpha, "sem")
     return f, value, opt.iterations(), "max_iter"
 

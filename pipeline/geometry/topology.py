@@ -35,6 +35,7 @@ __all__ = [
     "nonmanifold_vertices",
     "leaf_faces",
     "euler_characteristic",
+    "csr_rows",
     "vertex_faces",
     "vertex_neighbours",
     "orient_faces_consistently",
@@ -352,6 +353,18 @@ def euler_characteristic(F, n: int | None = None) -> int:
         return nv
     _, start, _, _ = _halfedge_groups(F)
     return int(nv - len(start) + len(F))
+
+
+def csr_rows(indptr: np.ndarray, indices: np.ndarray, rows: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(row_id, value)`` pairs of the given CSR rows, concatenated (vectorised, no scipy
+    indexing: slicing a scipy matrix by rows costs ~0.3 ms a call whatever its size)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    start, stop = indptr[rows], indptr[rows + 1]
+    cnt = stop - start
+    rid = np.repeat(np.arange(len(rows)), cnt)
+    pos = np.repeat(start - np.cumsum(cnt) + cnt, cnt) + np.arange(cnt.sum())
+    return rid, indices[pos]
 
 
 def vertex_faces(F, n: int | None = None) -> sp.csr_matrix:
