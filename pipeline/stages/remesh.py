@@ -67,9 +67,11 @@ class RemeshOptions:
     flips: bool = True
     relax_iterations: int = 2            # tangential relaxation steps (each followed by flips)
     relax_step: float = 0.5
-    max_dihedral_deg: float = 20.0       # flips only in quads flatter than this
+    max_dihedral_deg: float = 20.0       # flips in quads flatter than this (more folded:
+                                         # only towards an edge closer to the surface)
     refine_sag: float = 0.2              # split edges farther than this × spacing from the
-    refine_budget: float = 0.3           # surface (at most this fraction of the vertices)
+    refine_budget: float = 0.3           # surface (at most this fraction of the vertices);
+                                         # also the tolerance of count correction's collapses
     corner_angle_deg: float = 30.0       # input corners sharper than this keep a vertex
     seed: int = 0                        # blue noise
 
