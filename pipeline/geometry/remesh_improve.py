@@ -85,7 +85,8 @@ __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long
 
 
 SAG_SAMPLES = 7       # refinement measures an edge's sag at t = 1/8 … 7/8 and splits at the worst
-COLLAPSE_POOL = 4     # with a budget, the shortest 4 × (remaining + 250) edges are checked
+COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges are checked
+COLLAPSE_POOL_MIN = 5000
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 
 
@@ -474,9 +475,9 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         h, a, b, twin, twin_all = _edge_table(F, with_twins=True)
         ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln < L_min)
-        if budget is not None and len(cand) > COLLAPSE_POOL * (budget - done) + 1000:
+        if budget is not None and len(cand) > COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN:
             # only the shortest few: validity is checked per candidate
-            k = COLLAPSE_POOL * (budget - done) + 1000
+            k = COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN
             cand = cand[np.argpartition(ln[cand], k)[:k]]
         if len(cand) == 0:
             break
