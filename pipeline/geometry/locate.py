@@ -223,6 +223,7 @@ class PointLocator:
         sa, sb, sf, sca, scb = _boundary_segments(self.F, n, boundary)
         self.seg_a, self.seg_b, self.seg_face = sa, sb, sf
         self.seg_ca, self.seg_cb = sca, scb
+        self._twin = None                    # half-edge twins, for relocate's walk
 
     def _cell_xy(self, P: np.ndarray) -> np.ndarray:
         ij = np.floor((P - self.origin) / self.cell).astype(np.int64)
@@ -323,7 +324,7 @@ class PointLocator:
     def _neighbours(self) -> np.ndarray:
         """Half-edge twins of ``F`` (computed once): the face across half-edge ``3 t + c`` is
         ``twin // 3``."""
-        if getattr(self, "_twin", None) is None:
+        if self._twin is None:
             self._twin = topo.interior_edge_twins(self.F)
         return self._twin
 

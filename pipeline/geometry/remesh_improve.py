@@ -191,10 +191,7 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
         # next round: every interior edge of the changed faces, once
         hs = (3 * changed[:, None] + np.arange(3)).ravel()
         ts = twin[hs]
-        hs = np.where(ts > hs, hs, ts)[ts >= 0]
-        mark = np.zeros(3 * m, bool)
-        mark[hs] = True
-        h = np.flatnonzero(mark)
+        h = topo.distinct_indices(np.where(ts > hs, hs, ts)[ts >= 0], 3 * m)
     return F, total, rounds
 
 
@@ -588,7 +585,8 @@ def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return edge_sag_along(S, a, b, (0.5,))[0]
 
 
-def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
+def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
+                   end_normals: tuple[np.ndarray, np.ndarray] | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
     """The largest distance of the straight 3D edge ``a–b`` from the surface over the points
     ``t`` in ``ts``, and the ``t`` where it is reached.
@@ -600,9 +598,11 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
     ends: bridging over a finger shows along the normal in between, skipping a fold (a closed
     mouth) along those at the ends. Where the map squeezes a gap (between fingers, a sulcus)
     into a strip much thinner than the edge on the disk, only a point inside the strip sees
-    it, which the midpoint seldom is; hence several ``t``.
+    it, which the midpoint seldom is; hence several ``t``. ``end_normals``: the input normals
+    under ``a`` and ``b`` when the caller has them already.
     """
-    ends = [_face_normals(S.V_in, S.F_in, S.face[v]) for v in (a, b)]
+    ends = (end_normals if end_normals is not None
+            else [_face_normals(S.V_in, S.F_in, S.face[v]) for v in (a, b)])
     best = np.full(len(a), -1.0)
     t_best = np.full(len(a), 0.5)
     hint = S.face[a]
@@ -649,7 +649,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
             break
         # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
         # both tangent planes, is over a flat patch (sag 0) unless a feature narrower than the
-        # edge sits in between; only the others are probed at their midpoints
+        # edge sits in between; only the others are probed along their length
         na = _face_normals(S.V_in, S.F_in, S.face[a])
         nb = _face_normals(S.V_in, S.F_in, S.face[b])
         e = S.X[b] - S.X[a]
@@ -657,7 +657,8 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
                  | (np.abs(np.einsum("ij,ij->i", e, na)) > 0.5 * threshold)
                  | (np.abs(np.einsum("ij,ij->i", e, nb)) > 0.5 * threshold))
         h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
-        sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1))
+        sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
+                                      end_normals=(na[probe], nb[probe]))
         cand = np.flatnonzero(sag > threshold)
         if len(cand) == 0:
             break

@@ -44,7 +44,7 @@ from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
-from .topology import csr_rows, vertex_faces
+from .topology import csr_rows, distinct_indices, vertex_faces
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -123,9 +123,7 @@ class _Problem:
             self._vertex_faces = vertex_faces(self.F, len(self.V))
         VF = self._vertex_faces
         _, faces = csr_rows(VF.indptr, VF.indices, vertices)
-        mark = np.zeros(len(self.F), bool)
-        mark[faces] = True
-        return np.flatnonzero(mark)
+        return distinct_indices(faces, len(self.F))
 
     def weights(self, f):
         """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
@@ -201,9 +199,7 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     for _ in range(rounds):
         if value[2] <= allowed:
             break
-        mark = np.zeros(len(f), bool)
-        mark[F[value[3] <= 0].ravel()] = True
-        held = np.flatnonzero(mark)
+        held = distinct_indices(F[value[3] <= 0].ravel(), len(f))
         g = g.copy()
         g[held] = f[held]
         touched = problem.faces_of(held)

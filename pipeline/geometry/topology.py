@@ -36,6 +36,7 @@ __all__ = [
     "leaf_faces",
     "euler_characteristic",
     "csr_rows",
+    "distinct_indices",
     "vertex_faces",
     "vertex_neighbours",
     "orient_faces_consistently",
@@ -76,6 +77,14 @@ def _distinct_sorted(x: np.ndarray) -> np.ndarray:
     if len(s) == 0:
         return s
     return s[np.r_[True, s[1:] != s[:-1]]]
+
+
+def distinct_indices(idx: np.ndarray, size: int) -> np.ndarray:
+    """Sorted distinct values of indices in ``[0, size)``, through a boolean mask (cheaper than
+    sorting when ``size`` is not much larger than ``len(idx)``, and than ``np.unique``)."""
+    mark = np.zeros(size, dtype=bool)
+    mark[idx] = True
+    return np.flatnonzero(mark)
 
 
 def _sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
