@@ -14,11 +14,11 @@ from conftest import require_data, run_cli
 from pipeline.geometry import topology as topo
 from pipeline.geometry.disk_sampling import (PATTERNS, _delaunay, sample_disk, snap_rim,
                                              triangulate_samples)
-from pipeline.geometry.locate import PointLocator, lift
+from pipeline.geometry.locate import PointLocator, _closest_on_segments, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh_improve import (RemeshState, collapse_short_edges, edge_sag,
-                                              delaunay_flips, split_long_edges,
-                                              tangential_relaxation)
+                                              delaunay_flips, insert_vertices,
+                                              split_long_edges, tangential_relaxation)
 from pipeline.geometry.remesh_quality import (bounding_box_diagonal, is_disk, mesh_facts,
                                               point_mesh_distance, remesh_quality,
                                               surface_distance, triangle_quality,
@@ -327,6 +327,41 @@ def test_collapse_gap_guard_keeps_removed_vertices_near_the_result(max_gap):
         assert d.max() <= max_gap
 
 
+def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyond_the_rim():
+    """A flat unit disk (the image polygon: 240 points on the circle) remeshed coarsely with
+    its rim on every 10th polygon point. Targets: inside a face, a second in the same face (it
+    waits a round), and one between a rim chord and the polygon — beyond the remesh, where
+    only a rim split (its vertex on the polygon) brings it inside. Each gets a locked vertex
+    exactly there, and the result is still a counter-clockwise disk."""
+    uv_in = _disk_points(40, 6)
+    F_in = _ccw_delaunay(uv_in)
+    V_in = np.column_stack([uv_in, np.zeros(len(uv_in))])
+    loop = topo.boundary_loops(F_in)[0]
+    locator = PointLocator(uv_in, F_in, loop)
+    ring = np.flatnonzero(np.isclose(np.linalg.norm(uv_in, axis=1), 1.0))[::10]
+    uv = np.vstack([_disk_points(3, 6), uv_in[ring]])
+    F = _ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
+                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    a = np.arctan2(*uv_in[ring[:2]][:, ::-1].T)                  # two neighbouring rim points
+    mid = 0.5 * (a[0] + a[1]) if abs(a[1] - a[0]) < np.pi else 0.5 * (a[0] + a[1]) + np.pi
+    beyond = 0.9985 * np.array([np.cos(mid), np.sin(mid)])       # chord at cos(π/24) ≈ 0.991
+    T = np.array([[0.11, 0.07], [0.115, 0.072], beyond])
+    assert not PointLocator(S.uv, S.F).locate_with_inside(beyond[None])[2][0]
+    n0 = S.n
+    v = insert_vertices(S, T)
+    assert len(v) == 3 and S.n == n0 + 4                          # + the rim split
+    assert np.array_equal(np.sort(S.uv[v], axis=0), np.sort(T, axis=0))
+    assert S.locked[v].all() and not S.is_rim[v].any()
+    assert np.allclose(S.X[v], np.column_stack([S.uv[v], np.zeros(3)]), atol=1e-15)
+    assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
+    new_rim = np.setdiff1d(np.arange(n0, S.n), v)
+    assert S.is_rim[new_rim].all()
+    _, _, q = _closest_on_segments(S.uv[new_rim], uv_in[loop], np.roll(uv_in[loop], -1, 0))
+    assert np.allclose(q, S.uv[new_rim], atol=1e-15)               # on the image polygon
+
+
 def test_collapse_sag_guard_creates_no_edge_off_the_surface():
     """The tent again: with ``max_sag`` every edge farther than it from the surface after the
     collapses was there before (a collapse never creates one); without it some are new."""
@@ -546,11 +581,6 @@ MESHES = [
     "meshes/igl_lion.obj", "faces/ict/ict_A_neutral_disk.obj", "faces/ict/ict_A_smile_disk.obj",
     "faces/ict/ict_B_neutral_disk.obj", "faces/ict/ict_B_smile_jawopen_disk.obj",
 ]
-# Measured two-sided Hausdorff at 20k vertices (% of the diagonal), above the 0.5 % goal: the
-# equiareal map squeezes the walls of the sulci (choi_human_brain) into slivers with 100–300×
-# anisotropy; a few bridges over them remain (output → input side); igl_camel_b has a spike whose tip the map puts 1e-4 inside the rim, beyond the chord of
-# the output's rim polygon, where no interior vertex can be snapped to it.
-ABOVE_GOAL = {"choi_human_brain": 0.52, "igl_camel_b": 0.84}
 
 
 @pytest.fixture(scope="module")
@@ -585,21 +615,9 @@ def test_real_mesh_remesh_is_one_disk_at_20k(remeshed_20k, rel):
 
 
 @pytest.mark.parametrize("rel", MESHES)
-def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel, request):
-    name = Path(rel).stem
-    if name in ABOVE_GOAL:
-        request.applymarker(pytest.mark.xfail(
-            strict=True, reason=f"measured {ABOVE_GOAL[name]} % (see ABOVE_GOAL)"))
+def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel):
     _, _, q, _ = remeshed_20k(rel)
     assert q["distance"]["hausdorff_rel"] <= 0.005
-
-
-@pytest.mark.parametrize("name", sorted(ABOVE_GOAL))
-def test_real_mesh_hausdorff_known_hard_cases_stay_bounded(remeshed_20k, name):
-    rel = next(m for m in MESHES if Path(m).stem == name)
-    _, _, q, _ = remeshed_20k(rel)
-    # a regression guard: within 0.1 percentage point of the figure recorded in ABOVE_GOAL
-    assert 100 * q["distance"]["hausdorff_rel"] <= ABOVE_GOAL[name] + 0.1
 
 
 def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
