@@ -76,8 +76,8 @@ parameterized disk:
   the rest unchanged). Its splits and the insertions leave needles; the last collapse (its
   rounds look only where short edges were and at the vertices kept, 0.2 s at 100k) removes
   most. Against the version without the three steps, faces under 10° at 20k: hand
-  731 → 274, brain 123 → 13, bunny 123 → 51, face 7 → 8, but camel_b 118 → 223 (under 1°:
-  15 → 80, around its squeezed spikes).
+  731 → 274, brain 123 → 13, bunny 123 → 51, face 7 → 8, but camel_b 118 → 223
+  (under 1°: 15 → 80, around its squeezed spikes).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long
 SAG_SAMPLES = 7       # refinement measures an edge's sag at t = 1/8 … 7/8 and splits at the worst
 COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges are checked
 COLLAPSE_POOL_MIN = 5000
-SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner is inserted closer
+SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 
 
@@ -441,15 +441,14 @@ def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6)
         c = np.argmin(bary, axis=1)                        # the corner opposite the nearest edge
         h = 3 * f + (c + 1) % 3                            # half-edge F[f, c+1] → F[f, c+2]
         twin = topo.interior_edge_twins(S.F)[h]
-        edge_op = ~inside | (bary.min(axis=1) < 1e-9)      # the target is on (or beyond) edge h
-        f2 = np.where(edge_op & (twin >= 0), twin // 3, f)
+        on_edge = inside & (bary.min(axis=1) < 1e-9)       # on edge h: split it exactly there
+        f2 = np.where((~inside | on_edge) & (twin >= 0), twin // 3, f)
         first = _independent_by_faces(len(S.F), f, f2, np.arange(len(T)))
         again = np.ones(len(T), bool)
         h, twin, t = h[first], twin[first], bary[first, (c[first] + 2) % 3]
         # beyond the rim (projected onto a rim edge): split that edge, the target comes next round
         out = ~inside[first] & (twin < 0)
-        # on an edge: split it exactly there
-        on_edge = inside[first] & (bary[first].min(axis=1) < 1e-9)
+        on_edge = on_edge[first]
         strict = inside[first] & ~on_edge
         n0 = S.n
         split_edges(S, h[out | on_edge], twin[out | on_edge], t[out | on_edge])
@@ -563,7 +562,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
             Fl = F if look is None else F[look[F].any(axis=1)]
-            ends = Fl.ravel()[norms(S.X[Fl.ravel()] - S.X[Fl[:, [1, 2, 0]].ravel()]) < L_min]
+            tails = Fl.ravel()
+            ends = tails[norms(S.X[tails] - S.X[Fl[:, [1, 2, 0]].ravel()]) < L_min]
             if len(ends) == 0:
                 break
             at_short = np.zeros(n, bool)
@@ -737,6 +737,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
     first round the same way. Returns the number of splits and the vertices whose edges were
     still to be measured when the rounds ran out (n bool)."""
     done = 0
+    pending = None
     for _ in range(max_rounds):
         if done >= budget:
             break
@@ -784,10 +785,9 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         active[a[cand[waiting]]] = True
         active[b[cand[waiting]]] = True
     else:
-        S._count("sag_splits", done)
-        return done, active
+        pending = active                         # the rounds ran out
     S._count("sag_splits", done)
-    return done, np.zeros(S.n, bool)
+    return done, np.zeros(S.n, bool) if pending is None else pending
 
 
 def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: bool = True,
