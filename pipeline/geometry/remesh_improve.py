@@ -102,6 +102,8 @@ COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges 
 COLLAPSE_POOL_MIN = 5000
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
+SAG_BLOCK = 262144    # sample points per point-location query in edge_sag_along
+SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
 
 
 def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
@@ -479,7 +481,8 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
          else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
-    mf, mb, _ = S.locator.relocate(M, S.face[a])
+    near_a = np.ones(k, bool) if t is None else t <= 0.5
+    mf, mb, _ = S.locator.relocate(M, np.where(near_a, S.face[a], S.face[b]), walk=SAG_WALK)
     w = _append_vertices(S, M, mf, mb, on_b)
     F = F.copy()
     new = [np.column_stack([w, b, p])]
@@ -503,6 +506,10 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
         h, a, b, twin = _edge_table(S.F)
         ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln > L_max)
+        if budget is not None and len(cand) > 4 * (budget - done) + 1000:
+            # only the longest few can be among the longest independent ones
+            k = 4 * (budget - done) + 1000
+            cand = cand[np.argpartition(-ln[cand], k)[:k]]
         if len(cand) == 0:
             break
         f1 = h[cand] // 3
@@ -707,19 +714,27 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
     """
     ends = (end_normals if end_normals is not None
             else [_face_normals(S.V_in, S.F_in, S.face[v]) for v in (a, b)])
-    best = np.full(len(a), -1.0)
-    t_best = np.full(len(a), 0.5)
-    hint = S.face[a]
-    for t in ts:
-        M = (1.0 - t) * S.uv[a] + t * S.uv[b]
-        mf, mb, _ = S.locator.relocate(M, hint)
-        hint = mf
-        D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - t) * S.X[a] + t * S.X[b])
+    ts = np.asarray(ts, dtype=np.float64)
+    k, s = len(a), len(ts)
+    best = np.empty(k)
+    t_best = np.empty(k)
+    step = max(SAG_BLOCK // max(s, 1), 1)
+    for lo in range(0, k, step):
+        # all samples of a block of edges in one query (sample-major), each located from the
+        # face under the nearer end
+        e = np.arange(lo, min(lo + step, k))
+        T = np.repeat(ts, len(e))[:, None]
+        ea, eb = np.tile(a[e], s), np.tile(b[e], s)
+        M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
+        hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
+        mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
+        D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - T) * S.X[ea] + T * S.X[eb])
         sag = np.abs(dots(D, _face_normals(S.V_in, S.F_in, mf)))
         for n_end in ends:
-            sag = np.maximum(sag, np.abs(dots(D, n_end)))
-        worse = sag > best
-        best[worse], t_best[worse] = sag[worse], t
+            sag = np.maximum(sag, np.abs(dots(D, np.tile(n_end[e], (s, 1)))))
+        sag = sag.reshape(s, len(e))
+        j = np.argmax(sag, axis=0)                       # the first t of the largest
+        best[e], t_best[e] = sag[j, np.arange(len(e))], ts[j]
     return best, t_best
 
 
