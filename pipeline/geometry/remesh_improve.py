@@ -551,38 +551,125 @@ def _vertex_faces(F: np.ndarray, n: int) -> _CSR:
     return _group(F.ravel(), np.repeat(np.arange(len(F)), 3), n)
 
 
+def _independent_collapses(S: RemeshState, r, k, ln, ok, A: _CSR, fr, Tn, max_gap, max_sag,
+                           budget: int | None) -> np.ndarray:
+    """A maximal set of collapses ``r → k`` among the ``ok`` candidates whose removed vertices
+    have pairwise disjoint closed 1-rings (``A``: adjacency), greedy from the shortest ``ln``:
+    in passes, every candidate that is the shortest at all vertices of its closed ring among
+    those not yet decided is checked against the guards (``max_gap``: the removed vertex within
+    that of its new faces ``Tn`` (rows ``fr``); ``max_sag``: no new edge ``k–x`` farther than
+    that from the surface) and taken if it passes; the candidates touching a taken ring drop
+    out. Disjoint closed rings make the collapses independent: one changes only the faces at
+    its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
+    The guards run only on the pass winners (a few per cent of the candidates where short edges
+    crowd together). At most ``budget`` (shortest first)."""
+    sel = np.flatnonzero(ok)
+    if len(sel) == 0:
+        return sel
+    n, c = S.n, len(sel)
+    rank = np.empty(c, np.int64)
+    rank[np.argsort(ln[sel], kind="stable")] = np.arange(c)
+    pr, pv = topo.csr_rows(A.indptr, A.indices, r[sel])
+    pr = np.concatenate([pr, np.arange(c)])                # candidate → its closed ring
+    pv = np.concatenate([pv, r[sel]])
+    prank = rank[pr]
+    open_ = np.ones(c, bool)                               # not yet taken, refused or blocked
+    taken = np.zeros(n, bool)                              # vertices of taken closed rings
+    won = []
+    n_won = 0
+    while open_.any() and (budget is None or n_won < budget):
+        live = open_[pr]
+        best = np.full(n, c, np.int64)
+        np.minimum.at(best, pv[live], prank[live])
+        lost = np.bincount(pr[live & (best[pv] != prank)], minlength=c)
+        w = np.flatnonzero(open_ & (lost == 0))            # shortest in its whole ring
+        open_[w] = False
+        w = w[_collapse_guards(S, r, k, sel[w], A, fr, Tn, max_gap, max_sag)]
+        if budget is not None:
+            w = w[np.argsort(rank[w], kind="stable")][:budget - n_won]
+        mark = np.zeros(c, bool)
+        mark[w] = True
+        taken[pv[mark[pr]]] = True
+        open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
+        won.append(w)
+        n_won += len(w)
+    return sel[np.concatenate(won)] if won else sel[:0]
+
+
+def _collapse_guards(S: RemeshState, r, k, cand, A: _CSR, fr, Tn, max_gap, max_sag
+                     ) -> np.ndarray:
+    """Which collapses ``r[cand] → k[cand]`` pass the guards of :func:`collapse_short_edges`
+    (a bool mask over ``cand``): the removed vertex, a point of the surface, within ``max_gap``
+    of the faces ``Tn`` (rows ``fr``) that replace its ring; no new edge ``k–x`` (``x`` in
+    ``r``'s ring) farther than ``max_sag`` from the surface (:func:`edge_sag`)."""
+    good = np.ones(len(cand), bool)
+    if len(cand) and max_gap is not None:
+        at = np.full(len(r), -1, np.int64)
+        at[cand] = np.arange(len(cand))
+        rows = np.flatnonzero(at[fr] >= 0)
+        X, Tr = S.X, Tn[rows]
+        Pr = X[r[fr[rows]]]
+        gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]], X[Tr[:, 2]]))
+        near = np.full(len(cand), np.inf)
+        np.minimum.at(near, at[fr[rows]], gap)
+        good &= near <= max_gap
+    if len(cand) and max_sag is not None:
+        idx = np.flatnonzero(good)
+        wr, x = topo.csr_rows(A.indptr, A.indices, r[cand[idx]])
+        kk = k[cand[idx]][wr]
+        new_edge = x != kk
+        far = edge_sag(S, kk[new_edge], x[new_edge]) > max_sag
+        good[idx[np.bincount(wr[new_edge][far], minlength=len(idx)) > 0]] = False
+    return good
+
+
 def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
                          budget: int | None = None, max_gap: float | None = None,
                          max_sag: float | None = None) -> int:
     """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
     ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
     around it, no new edge has a sag (:func:`edge_sag`) above ``max_sag`` (if given), and the
-    result stays valid (module docstring); independent rounds; at most ``budget`` collapses.
-    With a finite ``L_min`` a round reads only the faces at short edges' ends (after the first,
-    only where short edges were and at the vertices kept). Returns the number of collapses."""
+    result stays valid (module docstring); at most ``budget`` collapses. In rounds: each takes
+    a maximal set of independent collapses, greedy from the shortest
+    (:func:`_independent_collapses`). With a budget the candidates are a pool of the shortest
+    ``COLLAPSE_POOL × budget + COLLAPSE_POOL_MIN`` edges, chosen again when it is used up. A
+    round reads only the faces at the candidates' ends (after the first, only where
+    candidates were and at the vertices kept). Returns the number of collapses."""
     done = 0
     look = None                     # after a round: where short edges can still be (n bool)
+    thr = L_min
     for _ in range(max_rounds):
         F, n = S.F, S.n
         Fs = F
-        if np.isfinite(L_min):
+        if look is None and np.isfinite(L_min) or budget is not None:
+            tails, heads = F.ravel(), F[:, [1, 2, 0]].ravel()
+        if budget is not None and look is None:
+            # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
+            # interior edge is two half-edges); validity is checked per candidate
+            hl = norms(S.X[tails] - S.X[heads])
+            pool = 2 * (COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN)
+            thr = min(L_min, float(np.partition(hl, pool)[pool])) if pool < len(hl) else L_min
+        if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
-            Fl = F if look is None else F[look[F].any(axis=1)]
-            tails = Fl.ravel()
-            ends = tails[norms(S.X[tails] - S.X[Fl[:, [1, 2, 0]].ravel()]) < L_min]
+            if look is None:
+                ends = tails[(hl if budget is not None else
+                              norms(S.X[tails] - S.X[heads])) < thr]
+            else:
+                Fl = F[look[F].any(axis=1)]
+                tails = Fl.ravel()
+                ends = tails[norms(S.X[tails] - S.X[Fl[:, [1, 2, 0]].ravel()]) < thr]
             if len(ends) == 0:
+                if thr < L_min and look is not None:
+                    look = None                  # the pool is used up: a new one
+                    continue
                 break
             at_short = np.zeros(n, bool)
             at_short[ends] = True
             Fs = F[at_short[F].any(axis=1)]
         h, a, b, twin, twin_all = _edge_table(Fs, with_twins=True)
         ln = norms(S.X[a] - S.X[b])
-        cand = np.flatnonzero(ln < L_min)
-        if budget is not None and len(cand) > COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN:
-            # only the shortest few: validity is checked per candidate
-            k = COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN
-            cand = cand[np.argpartition(ln[cand], k)[:k]]
+        cand = np.flatnonzero(ln < thr)
         if len(cand) == 0:
             break
         a, b, twin, h, ln = a[cand], b[cand], twin[cand], h[cand], ln[cand]
@@ -626,41 +713,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         bad = ((new2 <= 1e-6 * np.abs(old2)) | (np.einsum("ij,ij->i", n_old, n_new) <= 0)
                | S.is_rim[Tn].all(axis=1) | (longest > L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
-        if max_gap is not None:
-            # the removed vertex (a point of the surface) must stay within max_gap of the
-            # faces that replace its ring
-            rows = np.flatnonzero(ok[fr])                   # only the still-valid candidates
-            Pr, Tr = X[r[fr[rows]]], Tn[rows]
-            gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]],
-                                                         X[Tr[:, 2]]))
-            near = np.full(len(r), np.inf)
-            np.minimum.at(near, fr[rows], gap)
-            ok &= near <= max_gap
-        # Independence: the closed 1-rings of the removed vertices are pairwise disjoint. A
-        # collapse only changes the faces around r (all their corners are in r's closed ring)
-        # and the rings of r's neighbours, so then no collapse sees another's changes.
-        sel = np.flatnonzero(ok)
-        if len(sel) == 0:
-            break
-        rank = np.empty(len(sel), np.int64)
-        rank[np.argsort(ln[sel], kind="stable")] = np.arange(len(sel))
-        pr, pv = topo.csr_rows(A.indptr, A.indices, r[sel])
-        pr = np.concatenate([pr, np.arange(len(sel))])
-        pv = np.concatenate([pv, r[sel]])
-        best = np.full(n, len(sel), np.int64)
-        np.minimum.at(best, pv, rank[pr])
-        lost = np.bincount(pr[best[pv] != rank[pr]], minlength=len(sel))
-        win = sel[lost == 0]
-        if budget is not None:
-            win = win[np.argsort(ln[win], kind="stable")][:budget - done]
-        if max_sag is not None and len(win):
-            # the new edges k–x (x in r's ring) must not leave the surface: checked for the
-            # winners only (a refused winner collapses nothing this round)
-            wr, x = topo.csr_rows(A.indptr, A.indices, r[win])
-            new_edge = x != k[win][wr]
-            wr, x = wr[new_edge], x[new_edge]
-            far = edge_sag(S, k[win][wr], x) > max_sag
-            win = win[np.bincount(wr[far], minlength=len(win)) == 0]
+        win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
+                                     None if budget is None else budget - done)
         if len(win) == 0:
             break
         remap = np.arange(n)
@@ -673,7 +727,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         S.F = newidx[F2[keepf]]
         S.uv, S.X, S.face, S.bary, S.is_rim, S.locked = (
             x[keepv] for x in (S.uv, S.X, S.face, S.bary, S.is_rim, S.locked))
-        if np.isfinite(L_min):
+        if np.isfinite(thr):
             # the short edges left are among those seen this round or at a kept vertex
             at_short[k[win]] = True
             look = at_short[keepv]
