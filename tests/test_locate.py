@@ -233,8 +233,8 @@ def test_relocate_walks_to_the_same_answer(walk, monkeypatch):
     Q = P + rng.normal(scale=0.015, size=P.shape)              # about one face
     Q[:50] = [1.3, 0.5]                                         # outside the unit square
     calls = []
-    grid = L.locate_with_inside
-    monkeypatch.setattr(L, "locate_with_inside", lambda pts, tol=1e-12: calls.append(len(pts))
+    grid = L._grid_locate
+    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-12: calls.append(len(pts))
                         or grid(pts, tol))
     f1, b1, inside = L.relocate(Q, f0, walk=walk)
     want_f, want_b, want_inside = grid(Q)
@@ -242,6 +242,32 @@ def test_relocate_walks_to_the_same_answer(walk, monkeypatch):
     assert np.abs(lift(uv, F, f1, b1) - lift(uv, F, want_f, want_b)).max() <= 1e-12
     if walk >= 2:
         assert sum(calls) < 0.2 * len(Q)          # most points found by walking
+
+
+def test_large_batches_walk_from_the_nearest_vertex(monkeypatch):
+    """A batch of at least half as many points as image vertices walks from the nearest
+    vertex's face: the same inside/outside answer and positions as the grid, vertices still
+    located with weight exactly 1, and only a few points left for the grid."""
+    uv, F, loop = grid_mesh(60, 0.3)
+    L = PointLocator(uv, F, loop)
+    rng = np.random.default_rng(3)
+    E = np.unique(np.sort(np.vstack([F[:, [0, 1]], F[:, [1, 2]]]), axis=1), axis=0)
+    P = np.vstack([uv, 0.5 * (uv[E[:, 0]] + uv[E[:, 1]]), rng.random((5000, 2)),
+                   rng.uniform(-0.5, 1.5, (500, 2))])
+    assert len(P) >= max(4096, len(uv) / 2)
+    calls = []
+    grid = L._grid_locate
+    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-10: calls.append(len(pts))
+                        or grid(pts, tol))
+    f, b, inside = L.locate_with_inside(P)
+    check_valid(f, b, len(P))
+    want_f, want_b, want_inside = grid(P)
+    assert np.array_equal(inside, want_inside) and not inside[-500:][
+        ((P[-500:] < 0) | (P[-500:] > 1)).any(axis=1)].any()
+    assert np.abs(lift(uv, F, f, b) - lift(uv, F, want_f, want_b)).max() <= 1e-15
+    hit = F[f[:len(uv)]] == np.arange(len(uv))[:, None]
+    assert np.array_equal(b[:len(uv)][hit], np.ones(len(uv)))
+    assert 0 < sum(calls) < 0.05 * len(P)        # the outside points (and a few) use the grid
 
 
 def test_real_sem_map_reconstructs_to_1e_12():

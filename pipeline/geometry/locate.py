@@ -29,6 +29,11 @@ How a point is located (:class:`PointLocator`):
    (:func:`project_to_boundary_polygon`) and located exactly on that boundary edge: its face is
    the one face of the edge, its barycentrics ``(1 − t, t, 0)`` on the edge's two vertices. No
    query is ever lost.
+5. **Large batches.** With at least half as many queries as image vertices (a remesh's
+   samples), each query first walks, up to 8 steps across the edge of its most negative
+   barycentric, from a face at its nearest image vertex (a KD-tree); only the queries the walk
+   does not settle (outside ones, a few more) go through steps 2–4. For 10^5 remesh samples:
+   camelhead_x4 0.27 → 0.17 s, choi_hand 0.44 → 0.25 s, the same positions.
 
 Timings on 2 shared cores (``benchmarks/bench_remesh.py --locate``; a SEM map subdivided to
 1.45·10^6 faces, 10^5 queries): build 1.5–4 s, queries 0.2 s, against 22 s to build
@@ -49,6 +54,8 @@ __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift
 
 TOL = 1e-10              # smallest barycentric still counted as inside (then clamped to 0)
 _CHUNK = 65536           # queries per vectorised block (bounds the temporaries)
+_WALK_MIN = 4096         # from this many queries, walk from the nearest vertex first
+_WALK = 8                # steps of that walk
 
 
 def barycentric_coordinates(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
@@ -224,6 +231,7 @@ class PointLocator:
         self.seg_a, self.seg_b, self.seg_face = sa, sb, sf
         self.seg_ca, self.seg_cb = sca, scb
         self._twin = None                    # half-edge twins, for relocate's walk
+        self._tree = None                    # nearest image vertex, for large batches
 
     def _cell_xy(self, P: np.ndarray) -> np.ndarray:
         ij = np.floor((P - self.origin) / self.cell).astype(np.int64)
@@ -270,8 +278,29 @@ class PointLocator:
     def locate_with_inside(self, points: np.ndarray, tol: float = TOL
                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Like :meth:`locate`, plus a mask of the points that were inside the image (the
-        others were projected onto the boundary polygon)."""
+        others were projected onto the boundary polygon). A batch of at least half as many
+        points as image vertices first walks from a face at each point's nearest image vertex
+        (:meth:`relocate`); the grid takes the rest."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        if len(P) < max(_WALK_MIN, 0.5 * len(self.uv)):        # the tree would not pay
+            return self._grid_locate(P, tol)
+        return self.relocate(P, self._near_faces(P), tol, walk=_WALK)
+
+    def _near_faces(self, P: np.ndarray) -> np.ndarray:
+        """A face at the image vertex nearest to each point (a KD-tree, built once)."""
+        if self._tree is None:
+            from scipy.spatial import cKDTree
+
+            vface = np.full(len(self.uv), -1, np.int64)
+            vface[self.F.ravel()] = np.repeat(np.arange(len(self.F)), 3)
+            used = np.flatnonzero(vface >= 0)
+            self._tree = (cKDTree(self.uv[used]), vface[used])
+        tree, vface = self._tree
+        return vface[tree.query(P)[1]]
+
+    def _grid_locate(self, P: np.ndarray, tol: float = TOL
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Steps 2–4 of the module docstring for every point (the grid)."""
         k = len(P)
         face = np.empty(k, np.int64)
         bary = np.empty((k, 3))
@@ -318,7 +347,7 @@ class PointLocator:
                 f = np.where(go, nxt // 3, f)
         moved = todo
         if len(moved):
-            face[moved], bary[moved], inside[moved] = self.locate_with_inside(P[moved], tol)
+            face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol)
         return face, bary, inside
 
     def _neighbours(self) -> np.ndarray:
