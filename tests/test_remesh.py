@@ -277,6 +277,62 @@ def test_flips_of_a_plane_reach_its_delaunay_triangulation():
     assert np.all(signed_double_areas(uv, F) > 0)
 
 
+def test_local_flips_start_from_the_active_vertices_and_keep_the_twins():
+    """``active`` all set gives the full result; none set flips nothing; one edge spoiled in
+    a plane's Delaunay triangulation is flipped back from its four corners alone. The twins
+    passed in end as those of the result."""
+    from scipy.spatial import Delaunay
+
+    from pipeline.geometry.topology import interior_edge_twins
+
+    rng = np.random.default_rng(5)
+    uv = rng.random((300, 2))
+    F_D = Delaunay(uv).simplices
+    F_D = np.where((signed_double_areas(uv, F_D) > 0)[:, None], F_D, F_D[:, ::-1])
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    F0 = Delaunay(uv * [6.0, 1.0]).simplices
+    F0 = np.where((signed_double_areas(uv, F0) > 0)[:, None], F0, F0[:, ::-1])
+    full, k_full, _ = delaunay_flips(X, F0, uv, max_rounds=500)
+    twin = interior_edge_twins(F0)
+    F1, k1, _ = delaunay_flips(X, F0, uv, max_rounds=500, active=np.ones(len(uv), bool),
+                               twin=twin)
+    assert k1 == k_full > 100 and np.array_equal(F1, full)
+    assert np.array_equal(twin, interior_edge_twins(F1))
+    F2, k2, _ = delaunay_flips(X, F0, uv, active=np.zeros(len(uv), bool))
+    assert k2 == 0 and np.array_equal(F2, F0)
+    # spoil one interior edge whose quad is convex: flip it by hand
+    tw = interior_edge_twins(F_D)
+    for h in np.flatnonzero(tw > np.arange(len(tw))):
+        f, c, g, d = h // 3, h % 3, tw[h] // 3, tw[h] % 3
+        a, b, p_, q = F_D[f, c], F_D[f, (c + 1) % 3], F_D[f, (c + 2) % 3], F_D[g, (d + 2) % 3]
+        Fs = F_D.copy()
+        Fs[f], Fs[g] = [p_, a, q], [q, b, p_]
+        if np.all(signed_double_areas(uv, Fs[[f, g]]) > 1e-3):
+            break
+    active = np.zeros(len(uv), bool)
+    active[[a, b, p_, q]] = True
+    F3, k3, _ = delaunay_flips(X, Fs, uv, active=active)
+    assert k3 == 1
+    assert {tuple(sorted(t)) for t in F3.tolist()} == {tuple(sorted(t)) for t in F_D.tolist()}
+
+
+def test_pullback_takes_a_displacement_to_the_disk_exactly():
+    """On a face whose 3D position is an affine image of its disk position, the pullback of
+    ``J e`` is ``e``, and a displacement along the normal pulls back to 0."""
+    from pipeline.geometry.remesh_improve import pullback_matrices
+
+    uv_in = np.array([[0.1, 0.2], [0.9, 0.3], [0.4, 0.8]])
+    J = np.array([[2.0, 0.5], [-0.3, 1.5], [1.0, -0.7]])              # 3×2, rank 2
+    V_in = uv_in @ J.T + [1.0, 2.0, 3.0]
+    P = pullback_matrices(V_in, np.array([[0, 1, 2]]), uv_in)
+    e = np.array([0.3, -0.2])
+    assert np.allclose(P[0] @ (J @ e), e, atol=1e-14)
+    normal = np.cross(J[:, 0], J[:, 1])
+    assert np.allclose(P[0] @ normal, 0.0, atol=1e-14)
+    degenerate = pullback_matrices(V_in, np.array([[0, 0, 1]]), uv_in)
+    assert np.array_equal(degenerate, np.zeros((1, 2, 3)))
+
+
 def test_row_helpers_match_numpy():
     from pipeline.geometry.rows import cross, dots, norms
 

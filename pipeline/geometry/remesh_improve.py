@@ -127,7 +127,8 @@ def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
                    max_rounds: int = 12, eps: float = 1e-9, sag=None,
-                   boundary: np.ndarray | None = None) -> tuple[np.ndarray, int, int]:
+                   boundary: np.ndarray | None = None, active: np.ndarray | None = None,
+                   twin: np.ndarray | None = None) -> tuple[np.ndarray, int, int]:
     """Flip interior edges towards the Delaunay triangulation of the lifted surface.
 
     ``X`` (n×3) are the lifted positions, ``F`` (m×3) the faces (CCW on the disk), ``uv`` (n×2)
@@ -138,21 +139,35 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
     quad is convex on the disk, where the triangulation is an embedding. ``sag(i, j)``
     (optional) gives the distance of edges ``i–j`` from the input surface; a quad folded more
     than ``max_dihedral_deg`` then flips when ``sag(p, q) ≤ sag(a, b)``. ``boundary`` (n bool,
-    optional) saves computing the boundary vertices. Returns ``(F, flips, rounds)``; see the
-    module docstring.
+    optional) saves computing the boundary vertices. ``active`` (n bool, optional): only the
+    edges of faces with an active corner are tested first (after a local change), and the
+    cotangents are computed only for the faces the rounds reach. ``twin`` (optional): the
+    half-edge twins of ``F``; updated in place to those of the result. Returns ``(F, flips,
+    rounds)``; see the module docstring.
     """
     F = np.array(F, dtype=np.int64, copy=True)
     n, m = len(X), len(F)
     is_b = topo.boundary_vertices_mask(F, n) if boundary is None else boundary
     cos_max = np.cos(np.radians(max_dihedral_deg))
-    twin = topo.interior_edge_twins(F)
-    cot = _opposite_cots(X, F).ravel()                                  # per half-edge
+    twin = topo.interior_edge_twins(F) if twin is None else twin
     slot = np.arange(3 * m)                                             # old slot → new slot
-    h = np.flatnonzero(twin > slot)                                     # each interior edge once
+    if active is None:
+        cot = _opposite_cots(X, F).ravel()                              # per half-edge
+        have = None
+        h = np.flatnonzero(twin > slot)                                 # each interior edge once
+    else:
+        cot = np.empty(3 * m)
+        have = np.zeros(m, bool)                                        # faces with their cots
+        h = _interior_edges_of(np.flatnonzero(active[F].any(axis=1)), twin, m)
     total, rounds = 0, 0
     for rounds in range(1, max_rounds + 1):
         if len(h) == 0:
             break
+        if have is not None:
+            need = np.concatenate([h // 3, twin[h] // 3])
+            need = topo.distinct_indices(need[~have[need]], m)
+            cot.reshape(m, 3)[need] = _opposite_cots(X, F[need])
+            have[need] = True
         viol = -(cot[h] + cot[twin[h]])                                 # > 0: not Delaunay
         cand = np.flatnonzero(viol > eps)
         if len(cand) == 0:
@@ -174,7 +189,9 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
             # surface than the old one (caps over a crease, the skewed triangles of the map)
             folded = np.flatnonzero(~ok)
             if len(folded):
-                ok[folded] = sag(p[folded], q[folded]) <= sag(a[folded], b[folded])
+                k = len(folded)
+                both = sag(np.r_[p[folded], a[folded]], np.r_[q[folded], b[folded]])
+                ok[folded] = both[:k] <= both[k:]
         ok &= (np.einsum("ij,ij->i", n1, nsum) > 0) & (np.einsum("ij,ij->i", n2, nsum) > 0)
         s1, s2 = _signed2(uv, p, a, q), _signed2(uv, q, b, p)
         scale = _signed2(uv, a, b, p) + _signed2(uv, b, a, q)
@@ -203,30 +220,35 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
         F[g] = np.column_stack([q, b, p])
         changed = np.concatenate([f, g])
         cot.reshape(m, 3)[changed] = _opposite_cots(X, F[changed])
+        if have is not None:
+            have[changed] = True
         total += len(win)
-        # next round: every interior edge of the changed faces, once
-        hs = (3 * changed[:, None] + np.arange(3)).ravel()
-        ts = twin[hs]
-        h = topo.distinct_indices(np.where(ts > hs, hs, ts)[ts >= 0], 3 * m)
+        h = _interior_edges_of(changed, twin, m)          # next round: the changed faces' edges
     return F, total, rounds
 
 
-def _pullback(V_in, F_in, uv_in, face, D):
-    """``Δu = J⁺ d`` per row: the disk displacement whose image under the input face's affine
-    map (uv → 3D) is the projection of ``D`` onto that face's plane."""
-    t = F_in[face]
-    E3a, E3b = V_in[t[:, 1]] - V_in[t[:, 0]], V_in[t[:, 2]] - V_in[t[:, 0]]
-    E2a, E2b = uv_in[t[:, 1]] - uv_in[t[:, 0]], uv_in[t[:, 2]] - uv_in[t[:, 0]]
-    g11 = np.einsum("ij,ij->i", E3a, E3a)
-    g12 = np.einsum("ij,ij->i", E3a, E3b)
-    g22 = np.einsum("ij,ij->i", E3b, E3b)
-    r1 = np.einsum("ij,ij->i", E3a, D)
-    r2 = np.einsum("ij,ij->i", E3b, D)
+def _interior_edges_of(faces: np.ndarray, twin: np.ndarray, m: int) -> np.ndarray:
+    """Every interior edge of the given faces once, as its smaller half-edge."""
+    hs = (3 * faces[:, None] + np.arange(3)).ravel()
+    ts = twin[hs]
+    return topo.distinct_indices(np.where(ts > hs, hs, ts)[ts >= 0], 3 * m)
+
+
+def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> np.ndarray:
+    """Per input face (m×2×3) the matrix ``J⁺`` that takes a 3D displacement ``d`` to the disk
+    displacement ``Δu = J⁺ d`` whose image under the face's affine map (uv → 3D, Jacobian
+    ``J`` 3×2) is the projection of ``d`` onto the face's plane: ``J⁺ = E₂ G⁻¹ E₃ᵀ`` with
+    ``E₃``/``E₂`` the face's two edge vectors in 3D/on the disk and ``G = E₃ᵀE₃``; zero for a
+    degenerate face."""
+    E3 = np.stack([V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]],
+                  axis=1)                                                    # m×2×3
+    E2 = np.stack([uv_in[F_in[:, 1]] - uv_in[F_in[:, 0]],
+                   uv_in[F_in[:, 2]] - uv_in[F_in[:, 0]]], axis=2)          # m×2×2 (columns)
+    g11, g12, g22 = dots(E3[:, 0], E3[:, 0]), dots(E3[:, 0], E3[:, 1]), dots(E3[:, 1], E3[:, 1])
     det = g11 * g22 - g12 * g12
     det = np.where(det > 0, det, np.inf)
-    s1 = (g22 * r1 - g12 * r2) / det
-    s2 = (g11 * r2 - g12 * r1) / det
-    return s1[:, None] * E2a + s2[:, None] * E2b
+    Ginv = np.stack([np.stack([g22, -g12], 1), np.stack([-g12, g11], 1)], 1) / det[:, None, None]
+    return np.einsum("kab,kbc,kcj->kaj", E2, Ginv, E3)
 
 
 def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) -> np.ndarray:
@@ -283,18 +305,21 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
 def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
                           locator: PointLocator, uv: np.ndarray, F: np.ndarray,
                           face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
-                          iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None):
+                          iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None,
+                          pullback: np.ndarray | None = None):
     """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input ``(V_in, F_in,
     uv_in)`` (see the module docstring). ``face``/``bary`` locate ``uv`` in the input map;
     ``movable`` marks the vertices that may move (interior ones); ``X``, when given, is the
-    lift of ``uv`` already computed.
+    lift of ``uv`` already computed; ``pullback``, when given, :func:`pullback_matrices` of the
+    input.
 
     Returns ``(uv, face, bary, X, moved)`` with the lifted positions ``X`` and, per iteration,
     the number of vertices that moved.
     """
     uv = np.array(uv, dtype=np.float64, copy=True)
     face, bary = face.copy(), bary.copy()
-    X = lift(V_in, F_in, face, bary) if X is None else X
+    X = lift(V_in, F_in, face, bary) if X is None else X.copy()
+    J = pullback_matrices(V_in, F_in, uv_in) if pullback is None else pullback
     n = len(uv)
     moved_counts = []
     Fr = F.ravel()
@@ -312,7 +337,7 @@ def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
         D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
         du = np.zeros_like(uv)
-        du[mov] = step * _pullback(V_in, F_in, uv_in, face[mov], D)
+        du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
         # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
         for _halving in range(7):
             new = uv + du
@@ -326,7 +351,7 @@ def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
         while True:                              # dropping moves can flip a face: drop more
             bad = _signed2(uv + du, F[:, 0], F[:, 1], F[:, 2]) <= area_floor
-            bad &= np.any(du[F] != 0, axis=(1, 2))
+            bad &= np.any(du != 0, axis=1)[F].any(axis=1)
             if not bad.any():
                 break
             du[F[bad].ravel()] = 0.0
@@ -334,7 +359,7 @@ def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         go, f2, b2 = go[keep], f2[keep], b2[keep]
         uv[go] += du[go]
         face[go], bary[go] = f2, b2
-        X = lift(V_in, F_in, face, bary)
+        X[go] = lift(V_in, F_in, f2, b2)
         moved_counts.append(int(len(go)))
     return uv, face, bary, X, moved_counts
 
@@ -361,6 +386,28 @@ class RemeshState:
     polygon: np.ndarray                      # the image polygon (input boundary on the disk)
     locked: np.ndarray | None = None         # vertices never removed (snapped corners)
     log: dict = field(default_factory=dict)
+    _twin: tuple | None = field(default=None, repr=False)   # (F it belongs to, its twins)
+    _pullback: np.ndarray | None = field(default=None, repr=False)
+    _normals_in: np.ndarray | None = field(default=None, repr=False)
+
+    def normals_in(self) -> np.ndarray:
+        """Unit normals of the input faces (computed once)."""
+        if self._normals_in is None:
+            self._normals_in = _face_normals(self.V_in, self.F_in, np.arange(len(self.F_in)))
+        return self._normals_in
+
+    def pullback(self) -> np.ndarray:
+        """:func:`pullback_matrices` of the input map (computed once)."""
+        if self._pullback is None:
+            self._pullback = pullback_matrices(self.V_in, self.F_in, self.uv_in)
+        return self._pullback
+
+    def twins(self) -> np.ndarray:
+        """The half-edge twins of ``F`` (:func:`topology.interior_edge_twins`), kept until
+        ``F`` is replaced; read-only."""
+        if self._twin is None or self._twin[0] is not self.F:
+            self._twin = (self.F, topo.interior_edge_twins(self.F))
+        return self._twin[1]
 
     def __post_init__(self):
         if self.locked is None:
@@ -374,12 +421,12 @@ class RemeshState:
         self.log[key] = self.log.get(key, 0) + int(k)
 
 
-def _edge_table(F: np.ndarray, with_twins: bool = False):
+def _edge_table(F: np.ndarray, with_twins: bool = False, twin: np.ndarray | None = None):
     """Every edge once: ``(h, a, b, twin)`` with ``h`` a half-edge ``a → b`` of the edge and
     ``twin`` its opposite half-edge (−1 on the boundary); plus the twin of every half-edge
-    when ``with_twins``."""
+    when ``with_twins``. ``twin``: those of ``F``, when known."""
     m = len(F)
-    twin = topo.interior_edge_twins(F)
+    twin = topo.interior_edge_twins(F) if twin is None else twin
     he = np.arange(3 * m)
     h = np.flatnonzero((twin < 0) | (twin > he))
     out = (h, F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], twin[h])
@@ -503,7 +550,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
     ``budget`` splits. Returns the number of splits."""
     done = 0
     for _ in range(max_rounds):
-        h, a, b, twin = _edge_table(S.F)
+        h, a, b, twin = _edge_table(S.F, twin=S.twins())
         ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln > L_max)
         if budget is not None and len(cand) > 4 * (budget - done) + 1000:
@@ -767,7 +814,7 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
     under ``a`` and ``b`` when the caller has them already.
     """
     ends = (end_normals if end_normals is not None
-            else [_face_normals(S.V_in, S.F_in, S.face[v]) for v in (a, b)])
+            else [S.normals_in()[S.face[v]] for v in (a, b)])
     ts = np.asarray(ts, dtype=np.float64)
     k, s = len(a), len(ts)
     best = np.empty(k)
@@ -783,7 +830,7 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
         hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
         mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
         D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - T) * S.X[ea] + T * S.X[eb])
-        sag = np.abs(dots(D, _face_normals(S.V_in, S.F_in, mf)))
+        sag = np.abs(dots(D, S.normals_in()[mf]))
         for n_end in ends:
             sag = np.maximum(sag, np.abs(dots(D, np.tile(n_end[e], (s, 1)))))
         sag = sag.reshape(s, len(e))
@@ -811,7 +858,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         if done >= budget:
             break
         if active is None:
-            h, a, b, twin = _edge_table(S.F)
+            h, a, b, twin = _edge_table(S.F, twin=S.twins())
         else:
             # both faces of an edge with an active end contain that end: the edge table of
             # the faces at active vertices has those edges' twins right
@@ -826,8 +873,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
         # both tangent planes, is over a flat patch (sag 0) unless a feature narrower than the
         # edge sits in between; only the others are probed along their length
-        na = _face_normals(S.V_in, S.F_in, S.face[a])
-        nb = _face_normals(S.V_in, S.F_in, S.face[b])
+        na, nb = S.normals_in()[S.face[a]], S.normals_in()[S.face[b]]
         e = S.X[b] - S.X[a]
         probe = ((dots(na, nb) < np.cos(np.radians(10.0)))
                  | (np.abs(dots(e, na)) > 0.5 * threshold)
@@ -873,16 +919,27 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
     again; then one relaxation step, flips, and a last collapse of edges shorter than
     ``SLIVER × L`` (count restored by splits). ``L`` is the target edge length on the surface
     (3D). See the module docstring."""
-    def flip():
+    def flip(since: np.ndarray | None = None):
+        """Flips everywhere, or — given the faces before a run of splits — only from the
+        faces those splits changed or added."""
         if flips:
+            active = None
+            if since is not None:
+                changed = np.r_[np.flatnonzero((S.F[:len(since)] != since).any(axis=1)),
+                                np.arange(len(since), len(S.F))]
+                active = np.zeros(S.n, bool)
+                active[S.F[changed].ravel()] = True
+            twin = S.twins().copy()
             S.F, k, _ = delaunay_flips(S.X, S.F, S.uv, max_dihedral_deg,
-                                       sag=lambda a, b: edge_sag(S, a, b), boundary=S.is_rim)
+                                       sag=lambda a, b: edge_sag(S, a, b), boundary=S.is_rim,
+                                       active=active, twin=twin)
+            S._twin = (S.F, twin)
             S._count("flips", k)
 
     def relax():
         S.uv, S.face, S.bary, S.X, moved = tangential_relaxation(
             S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
-            ~S.is_rim & ~S.locked, 1, relax_step, X=S.X)
+            ~S.is_rim & ~S.locked, 1, relax_step, X=S.X, pullback=S.pullback())
         S._count("relaxed_vertex_moves", sum(moved))
 
     tick = time.perf_counter()
@@ -905,12 +962,13 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         lap("flips")
     if refine_sag > 0:
         budget = int(refine_budget * S.n)
+        F_pre = S.F.copy()
         done, pending = refine_by_sag(S, refine_sag * L, budget)
         F0 = S.F.copy()
         # what the sag test cannot see: edges still longer than LONG_EDGE × L lie along the
         # map's stretch (on the surface, not over it); split once and re-flip
         split_long_edges(S, LONG_EDGE * L, budget=budget)
-        flip()
+        flip(since=F_pre)
         # the rounds can run out where the map is most anisotropic (a steep wall squeezed
         # against the rim: every split leaves a new spoke to the rim); after the flips, once
         # more around what is left and what the last two steps changed
@@ -919,12 +977,13 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         active = np.zeros(S.n, bool)
         active[:len(pending)] = pending
         active[S.F[changed].ravel()] = True
+        F1 = S.F.copy()
         refine_by_sag(S, refine_sag * L, budget - done, active=active)
-        flip()
+        flip(since=F1)
         lap("refine")
     # very short edges (slivers) are collapsed; with a target count, as many more of the
     # shortest edges as the refinement added, then the longest edges are split to reach it
-    h, a, b, _ = _edge_table(S.F)
+    h, a, b, _ = _edge_table(S.F, twin=S.twins())
     n_short = int(np.count_nonzero(norms(S.X[a] - S.X[b]) < SLIVER * L))
     target = S.n if target_vertices is None else int(target_vertices)
     excess = max(S.n - target, 0) + n_short
