@@ -123,9 +123,12 @@ def corner_dot_over_area(P: np.ndarray, F: np.ndarray, double_area: np.ndarray) 
     """
     out = np.zeros((len(F), 3))
     for d in range(P.shape[1]):
-        x = P[:, d][F]                       # m×3
-        dx = np.roll(x, -1, axis=1) - x      # d_c = p_{c+1} − p_c
-        out -= dx * np.roll(dx, 1, axis=1)   # −d_c · d_{c−1}
+        x = P[:, d]
+        x0, x1, x2 = x[F[:, 0]], x[F[:, 1]], x[F[:, 2]]
+        d0, d1, d2 = x1 - x0, x2 - x1, x0 - x2            # d_c = p_{c+1} − p_c
+        out[:, 0] -= d0 * d2                              # −d_c · d_{c−1}
+        out[:, 1] -= d1 * d0
+        out[:, 2] -= d2 * d1
     out /= double_area[:, None]
     return out
 

@@ -193,20 +193,27 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
                            rounds: int = 8):
     """Keep the previous position of every vertex of a face that ``g`` flips, until ``g`` flips
     no more faces than ``allowed`` (or ``rounds`` passes); returns ``(g, evaluation)``.
-    Only the faces around the held vertices have their image areas recomputed."""
+    Only the faces around the held vertices have their image areas recomputed, and the
+    flipped-face count is kept up to date from those; the energy is evaluated once, at the
+    end."""
     F = problem.F
-    value = problem.evaluate(g)
+    a2 = signed_double_areas(_as_uv(g), F)
+    flipped = a2 <= 0
+    count = int(np.count_nonzero(flipped))
+    own = False
     for _ in range(rounds):
-        if value[2] <= allowed:
+        if count <= allowed:
             break
-        held = distinct_indices(F[value[3] <= 0].ravel(), len(f))
-        g = g.copy()
+        held = distinct_indices(F[flipped].ravel(), len(f))
+        if not own:
+            g, own = g.copy(), True
         g[held] = f[held]
         touched = problem.faces_of(held)
-        a2 = value[3].copy()
-        a2[touched] = signed_double_areas(_as_uv(g), F[touched])
-        value = problem.evaluate(g, a2)
-    return g, value
+        new = signed_double_areas(_as_uv(g), F[touched])
+        count += int(np.count_nonzero(new <= 0)) - int(np.count_nonzero(flipped[touched]))
+        a2[touched] = new
+        flipped[touched] = new <= 0
+    return g, problem.evaluate(g, a2)
 
 
 def line_search(problem: _Problem, f, g, current, better, min_step, hold: bool,
