@@ -544,13 +544,42 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     return k
 
 
+def _edges_at(S: RemeshState, active: np.ndarray | None):
+    """Every edge with an ``active`` end (n bool; all edges when None) once, as
+    :func:`_edge_table` gives them, in the half-edge numbering of ``S.F``."""
+    if active is None:
+        return _edge_table(S.F, twin=S.twins())
+    # both faces of an edge with an active end contain that end: the edge table of the faces
+    # at active vertices has those edges' twins right
+    sub = np.flatnonzero(active[S.F].any(axis=1))
+    hs, a, b, ts = _edge_table(S.F[sub])
+    keep = active[a] | active[b]
+    hs, a, b, ts = hs[keep], a[keep], b[keep], ts[keep]
+    h = 3 * sub[hs // 3] + hs % 3
+    return h, a, b, np.where(ts >= 0, 3 * sub[ts // 3] + ts % 3, -1)
+
+
+def _after_splits(S: RemeshState, n0: int, a: np.ndarray, b: np.ndarray,
+                  waiting: np.ndarray) -> np.ndarray:
+    """Where a round of splits leaves edges to look at again (n bool): every new edge ends at
+    a new vertex (index ≥ ``n0``), and the candidates ``waiting`` (edges ``a–b``) that were
+    not split this round are still there."""
+    active = np.zeros(S.n, bool)
+    active[n0:] = True
+    active[a[waiting]] = True
+    active[b[waiting]] = True
+    return active
+
+
 def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
                      budget: int | None = None) -> int:
-    """Split edges longer than ``L_max`` (3D), longest first, in independent rounds; at most
-    ``budget`` splits. Returns the number of splits."""
+    """Split edges longer than ``L_max`` (3D), longest first, in independent rounds (after the
+    first, only the edges at new vertices and the candidates that waited); at most ``budget``
+    splits. Returns the number of splits."""
     done = 0
+    active = None
     for _ in range(max_rounds):
-        h, a, b, twin = _edge_table(S.F, twin=S.twins())
+        h, a, b, twin = _edges_at(S, active)
         ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln > L_max)
         if budget is not None and len(cand) > 4 * (budget - done) + 1000:
@@ -566,9 +595,11 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             sel = sel[np.argsort(-ln[sel], kind="stable")][:budget - done]
         if len(sel) == 0:
             break
+        n0 = S.n
         done += split_edges(S, h[sel], twin[sel])
         if budget is not None and done >= budget:
             break
+        active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))
     S._count("splits", done)
     return done
 
@@ -857,17 +888,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
     for _ in range(max_rounds):
         if done >= budget:
             break
-        if active is None:
-            h, a, b, twin = _edge_table(S.F, twin=S.twins())
-        else:
-            # both faces of an edge with an active end contain that end: the edge table of
-            # the faces at active vertices has those edges' twins right
-            sub = np.flatnonzero(active[S.F].any(axis=1))
-            hs, a, b, ts = _edge_table(S.F[sub])
-            keep = active[a] | active[b]
-            hs, a, b, ts = hs[keep], a[keep], b[keep], ts[keep]
-            h = 3 * sub[hs // 3] + hs % 3
-            twin = np.where(ts >= 0, 3 * sub[ts // 3] + ts % 3, -1)
+        h, a, b, twin = _edges_at(S, active)
         if len(h) == 0:
             break
         # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
@@ -891,14 +912,9 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         sel = sel[np.argsort(-sag[sel], kind="stable")][:budget - done]
         if len(sel) == 0:
             break
-        waiting = np.ones(len(cand), bool)
-        waiting[win] = False
         n0 = S.n
         done += split_edges(S, h[sel], twin[sel], t_split[sel])
-        active = np.zeros(S.n, bool)
-        active[n0:] = True
-        active[a[cand[waiting]]] = True
-        active[b[cand[waiting]]] = True
+        active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))
     else:
         pending = active                         # the rounds ran out
     S._count("sag_splits", done)
