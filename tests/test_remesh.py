@@ -16,9 +16,11 @@ from pipeline.geometry.disk_sampling import (PATTERNS, _delaunay, sample_disk, s
                                              triangulate_samples)
 from pipeline.geometry.locate import PointLocator, _closest_on_segments, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh_improve import (RemeshState, collapse_short_edges, edge_sag,
+from pipeline.geometry.remesh_improve import (RemeshState, _edge_table, _independent_by_faces,
+                                              collapse_short_edges, edge_sag,
                                               delaunay_flips, insert_vertices,
-                                              split_long_edges, tangential_relaxation)
+                                              split_edges, split_long_edges,
+                                              tangential_relaxation)
 from pipeline.geometry.remesh_quality import (bounding_box_diagonal, is_disk, mesh_facts,
                                               point_mesh_distance, remesh_quality,
                                               surface_distance, triangle_quality,
@@ -416,6 +418,33 @@ def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyo
     assert S.is_rim[new_rim].all()
     _, _, q = _closest_on_segments(S.uv[new_rim], uv_in[loop], np.roll(uv_in[loop], -1, 0))
     assert np.allclose(q, S.uv[new_rim], atol=1e-15)               # on the image polygon
+
+
+def test_split_edges_keeps_the_cached_twins_right():
+    """Rounds of independent splits — inner and rim edges, neighbouring ones whose outer
+    half-edges are each other's twins — update the kept half-edge twins in place of
+    recomputing them: after every round they equal a fresh computation."""
+    uv_in = _disk_points(40, 6)
+    F_in = _ccw_delaunay(uv_in)
+    V_in = np.column_stack([uv_in, np.zeros(len(uv_in))])
+    loop = topo.boundary_loops(F_in)[0]
+    locator = PointLocator(uv_in, F_in, loop)
+    uv = uv_in.copy()
+    face, bary = locator.locate(uv)
+    S = RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
+                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    rng = np.random.default_rng(2)
+    for _ in range(4):
+        h, a, b, twin = _edge_table(S.F, twin=S.twins())
+        pick = rng.permutation(len(h))
+        f1 = h[pick] // 3
+        f2 = np.where(twin[pick] >= 0, twin[pick] // 3, f1)
+        sel = pick[_independent_by_faces(len(S.F), f1, f2, rng.random(len(pick)))]
+        assert (twin[sel] < 0).any() and (twin[sel] >= 0).any()
+        split_edges(S, h[sel], twin[sel], rng.uniform(0.2, 0.8, len(sel)))
+        assert S._twin is not None and S._twin[0] is S.F               # kept, not dropped
+        assert np.array_equal(S.twins(), topo.interior_edge_twins(S.F))
+    assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
 
 
 def test_collapse_sag_guard_creates_no_edge_off_the_surface():

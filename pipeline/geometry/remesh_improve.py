@@ -531,17 +531,57 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     near_a = np.ones(k, bool) if t is None else t <= 0.5
     mf, mb, _ = S.locator.relocate(M, np.where(near_a, S.face[a], S.face[b]), walk=SAG_WALK)
     w = _append_vertices(S, M, mf, mb, on_b)
+    tw_old = S._twin[1] if S._twin is not None and S._twin[0] is F else None
+    m = len(F)
     F = F.copy()
     new = [np.column_stack([w, b, p])]
     F[f] = np.column_stack([a, w, p])
     inner = np.flatnonzero(~on_b)
+    g, d = twin[inner] // 3, twin[inner] % 3
     if len(inner):
-        g, d = twin[inner] // 3, twin[inner] % 3
         q = F[g, (d + 2) % 3]
         F[g] = np.column_stack([b[inner], w[inner], q])
         new.append(np.column_stack([w[inner], a[inner], q]))
     S.F = np.vstack([F] + new)
+    if tw_old is not None:
+        S._twin = (S.F, _split_twins(tw_old, m, f, c, inner, g, d))
     return k
+
+
+def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:
+    """The half-edge twins after :func:`split_edges` (from those before, ``tw_old``; ``m``
+    faces before): face ``f`` (edge ``a → b`` at corner ``c``) became ``[a, w, p]`` plus the new
+    face ``f2 = [w, b, p]``; for an inner edge, its twin's face ``g`` (corner ``d``) became
+    ``[b, w, q]`` plus ``g2 = [w, a, q]``. The four outer half-edges (``p→a``, ``b→p``,
+    ``q→b``, ``a→q``) keep their twins, which may themselves have moved."""
+    k, j = len(f), len(inner)
+    f2 = m + np.arange(k)
+    g2 = m + k + np.arange(j)
+    tw = np.full(3 * (m + k + j), -1, np.int64)
+    tw[:3 * m] = tw_old
+    # outer half-edges: old slot → new slot
+    old = np.concatenate([3 * f + (c + 2) % 3, 3 * f + (c + 1) % 3,
+                          3 * g + (d + 2) % 3, 3 * g + (d + 1) % 3])
+    new = np.concatenate([3 * f + 2, 3 * f2 + 1, 3 * g + 2, 3 * g2 + 1])
+    slot = np.arange(3 * m)
+    slot[old] = new
+    ext = tw_old[old]
+    # the inner half-edges of the new fans
+    fi, f2i = f[inner], f2[inner]
+    pairs = [(3 * f + 1, 3 * f2 + 2),                    # w→p ↔ p→w
+             (3 * fi, 3 * g2),                           # a→w ↔ w→a
+             (3 * g, 3 * f2i),                           # b→w ↔ w→b
+             (3 * g + 1, 3 * g2 + 2)]                    # w→q ↔ q→w
+    outer_f = np.ones(k, bool)
+    outer_f[inner] = False
+    tw[3 * f[outer_f]] = -1                              # a→w on the rim
+    tw[3 * f2[outer_f]] = -1                             # w→b on the rim
+    for x, y in pairs:
+        tw[x] = y
+        tw[y] = x
+    tw[new] = np.where(ext >= 0, slot[np.maximum(ext, 0)], -1)
+    tw[slot[ext[ext >= 0]]] = new[ext >= 0]
+    return tw
 
 
 def _edges_at(S: RemeshState, active: np.ndarray | None):
