@@ -240,15 +240,14 @@ def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> 
     ``J`` 3×2) is the projection of ``d`` onto the face's plane: ``J⁺ = E₂ G⁻¹ E₃ᵀ`` with
     ``E₃``/``E₂`` the face's two edge vectors in 3D/on the disk and ``G = E₃ᵀE₃``; zero for a
     degenerate face."""
-    E3 = np.stack([V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]],
-                  axis=1)                                                    # m×2×3
-    E2 = np.stack([uv_in[F_in[:, 1]] - uv_in[F_in[:, 0]],
-                   uv_in[F_in[:, 2]] - uv_in[F_in[:, 0]]], axis=2)          # m×2×2 (columns)
-    g11, g12, g22 = dots(E3[:, 0], E3[:, 0]), dots(E3[:, 0], E3[:, 1]), dots(E3[:, 1], E3[:, 1])
+    E3a, E3b = V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]
+    E2a, E2b = uv_in[F_in[:, 1]] - uv_in[F_in[:, 0]], uv_in[F_in[:, 2]] - uv_in[F_in[:, 0]]
+    g11, g12, g22 = dots(E3a, E3a), dots(E3a, E3b), dots(E3b, E3b)
     det = g11 * g22 - g12 * g12
     det = np.where(det > 0, det, np.inf)
-    Ginv = np.stack([np.stack([g22, -g12], 1), np.stack([-g12, g11], 1)], 1) / det[:, None, None]
-    return np.einsum("kab,kbc,kcj->kaj", E2, Ginv, E3)
+    R1 = (g22[:, None] * E3a - g12[:, None] * E3b) / det[:, None]        # rows of G⁻¹E₃ᵀ
+    R2 = (g11[:, None] * E3b - g12[:, None] * E3a) / det[:, None]
+    return E2a[:, :, None] * R1[:, None, :] + E2b[:, :, None] * R2[:, None, :]
 
 
 def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) -> np.ndarray:
