@@ -388,7 +388,10 @@ def lift(values: np.ndarray, F: np.ndarray, face: np.ndarray, bary: np.ndarray) 
     per-vertex attribute it interpolates that attribute linearly (normals need renormalising).
     """
     vals = np.asarray(values)
-    corner = vals[np.asarray(F)[np.asarray(face)]]                     # (k, 3, …)
+    t = np.asarray(F)[np.asarray(face)]
     b = np.asarray(bary, dtype=np.float64)
-    b = b.reshape(b.shape + (1,) * (corner.ndim - 2))
-    return (b * corner).sum(axis=1)
+    shape = (len(t),) + (1,) * (vals.ndim - 1)
+    out = b[:, 0].reshape(shape) * vals[t[:, 0]]      # one corner at a time: no (k, 3, …) copy
+    out += b[:, 1].reshape(shape) * vals[t[:, 1]]
+    out += b[:, 2].reshape(shape) * vals[t[:, 2]]
+    return out
