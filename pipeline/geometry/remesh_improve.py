@@ -100,6 +100,7 @@ __all__ = ["RemeshState", "delaunay_flips", "tangential_relaxation", "split_long
 SAG_SAMPLES = 7       # refinement measures an edge's sag at t = 1/8 … 7/8 and splits at the worst
 COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges are checked
 COLLAPSE_POOL_MIN = 5000
+MIS_TAIL = 0.02       # a round's passes stop when one takes < 2 % of the first's collapses
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 SAG_BLOCK = 262144    # sample points per point-location query in edge_sag_along
@@ -710,6 +711,8 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: _CSR, fr, Tn, max_ga
         open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
         won.append(w)
         n_won += len(w)
+        if len(w) < MIS_TAIL * len(won[0]):
+            break                    # the tail: what is left waits for the next round
     return sel[np.concatenate(won)] if won else sel[:0]
 
 
