@@ -711,6 +711,10 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: _CSR, fr, Tn, max_ga
         open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
         won.append(w)
         n_won += len(w)
+        if budget is not None and len(won) == 1:
+            # later passes only among the shortest ``budget``: they must not spend the budget
+            # on longer edges while shorter ones wait for a ring to free up (next round)
+            open_ &= rank < budget
         if len(w) < MIS_TAIL * len(won[0]):
             break                    # the tail: what is left waits for the next round
     return sel[np.concatenate(won)] if won else sel[:0]
