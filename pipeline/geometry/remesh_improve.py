@@ -680,7 +680,10 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: _CSR, fr, Tn, max_ga
     out. Disjoint closed rings make the collapses independent: one changes only the faces at
     its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
     The guards run only on the pass winners (a few per cent of the candidates where short edges
-    crowd together). At most ``budget`` (shortest first)."""
+    crowd together). Passes stop when one takes under ``MIS_TAIL`` of the first's. With a
+    ``budget`` (at most that many, shortest first) the passes after the first consider only
+    the shortest ``budget`` candidates, so that the budget goes to the shortest edges and not
+    to longer ones taken while shorter ones wait for the next round."""
     sel = np.flatnonzero(ok)
     if len(sel) == 0:
         return sel
