@@ -29,8 +29,8 @@ surface (Hausdorff 0.6–1.8 % of the diagonal at 20k vertices). Improvement rai
 smallest angle to 38–48° (the 5th percentile of the faces' smallest angles to 20–37°), brings
 the Hausdorff distance under 0.5 % on every shared mesh and ICT face at 20k vertices
 (0.07–0.40 %; the hand 0.18 %), keeps the vertex count, and costs about 0.5–1 s at 20k and
-1.5–2.5 s at 100k vertices on the face and the camel head (2–3 s at 20k and 5–6.5 s at 100k
-on the hand and brain, where refinement adds many vertices). Turn it off
+1.5–2.5 s at 100k vertices on the face and the camel head (2.5 s at 20k and 6.5 s at 100k on
+the hand and brain, where refinement adds many vertices). Turn it off
 (``improve: false``, ``--no-improve``) for the paper's plain lift.
 Where the map stretches much of the surface more than 10:1 (σ₁/σ₂, reported in
 ``remesh_metrics.json``), or the Hausdorff distance exceeds 0.5 %, the run says so.
