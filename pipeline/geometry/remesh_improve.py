@@ -489,7 +489,7 @@ def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6)
         f, bary, inside = PointLocator(S.uv, S.F).locate_with_inside(T)
         c = np.argmin(bary, axis=1)                        # the corner opposite the nearest edge
         h = 3 * f + (c + 1) % 3                            # half-edge F[f, c+1] → F[f, c+2]
-        twin = topo.interior_edge_twins(S.F)[h]
+        twin = S.twins()[h]
         on_edge = inside & (bary.min(axis=1) < 1e-9)       # on edge h: split it exactly there
         f2 = np.where((~inside | on_edge) & (twin >= 0), twin // 3, f)
         first = _independent_by_faces(len(S.F), f, f2, np.arange(len(T)))
@@ -768,20 +768,19 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     for _ in range(max_rounds):
         F, n = S.F, S.n
         Fs = F
-        if look is None and np.isfinite(L_min) or budget is not None:
-            tails, heads = F.ravel(), F[:, [1, 2, 0]].ravel()
+        if look is None and (budget is not None or np.isfinite(L_min)):
+            tails = F.ravel()
+            hl = norms(S.X[tails] - S.X[F[:, [1, 2, 0]].ravel()])     # half-edge lengths
         if budget is not None and look is None:
             # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
             # interior edge is two half-edges); validity is checked per candidate
-            hl = norms(S.X[tails] - S.X[heads])
             pool = 2 * (COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN)
             thr = min(L_min, float(np.partition(hl, pool)[pool])) if pool < len(hl) else L_min
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
             if look is None:
-                ends = tails[(hl if budget is not None else
-                              norms(S.X[tails] - S.X[heads])) < thr]
+                ends = tails[hl < thr]
             else:
                 Fl = F[look[F].any(axis=1)]
                 tails = Fl.ravel()
@@ -970,6 +969,16 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
     return done, np.zeros(S.n, bool) if pending is None else pending
 
 
+def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
+    """The corners (n bool) of the faces rewritten or added since ``F_before`` by splits and
+    flips (both rewrite faces in place and only append new ones)."""
+    changed = np.r_[np.flatnonzero((S.F[:len(F_before)] != F_before).any(axis=1)),
+                    np.arange(len(F_before), len(S.F))]
+    corners = np.zeros(S.n, bool)
+    corners[S.F[changed].ravel()] = True
+    return corners
+
+
 def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: bool = True,
                    max_dihedral_deg: float = 20.0, relax_step: float = 0.5,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
@@ -988,12 +997,7 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         """Flips everywhere, or — given the faces before a run of splits — only from the
         faces those splits changed or added."""
         if flips:
-            active = None
-            if since is not None:
-                changed = np.r_[np.flatnonzero((S.F[:len(since)] != since).any(axis=1)),
-                                np.arange(len(since), len(S.F))]
-                active = np.zeros(S.n, bool)
-                active[S.F[changed].ravel()] = True
+            active = None if since is None else _corners_changed_since(S, since)
             twin = S.twins().copy()
             S.F, k, _ = delaunay_flips(S.X, S.F, S.uv, max_dihedral_deg,
                                        sag=lambda a, b: edge_sag(S, a, b), boundary=S.is_rim,
@@ -1037,11 +1041,8 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         # the rounds can run out where the map is most anisotropic (a steep wall squeezed
         # against the rim: every split leaves a new spoke to the rim); after the flips, once
         # more around what is left and what the last two steps changed
-        changed = np.r_[np.flatnonzero((S.F[:len(F0)] != F0).any(axis=1)),
-                        np.arange(len(F0), len(S.F))]
-        active = np.zeros(S.n, bool)
-        active[:len(pending)] = pending
-        active[S.F[changed].ravel()] = True
+        active = _corners_changed_since(S, F0)
+        active[:len(pending)] |= pending
         F1 = S.F.copy()
         refine_by_sag(S, refine_sag * L, budget - done, active=active)
         flip(since=F1)
