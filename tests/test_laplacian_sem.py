@@ -654,11 +654,14 @@ def _grid_laplacian(m):
     return (sp.kron(T, sp.identity(m)) + sp.kron(sp.identity(m), T)).tocsr()
 
 
+@pytest.mark.parametrize("refactored", [False, True])
 @pytest.mark.parametrize("case", ["negative_definite", "indefinite", "negative_definite_large"])
 @pytest.mark.parametrize("kind", ["scipy", "cholmod"])
-def test_non_spd_matrix_raises_not_positive_definite(kind, case, spd_block):
+def test_non_spd_matrix_raises_not_positive_definite(kind, case, refactored, spd_block):
     """Remark 1: the blocks are SPD only for positive weights; the solvers must say when they are
-    not (sem.py catches NotPositiveDefinite). "large" = 10⁴ unknowns (CHOLMOD goes supernodal)."""
+    not (sem.py catches NotPositiveDefinite). CHOLMOD is supernodal LLᵀ by default and
+    simplicial LDLᵀ for refactored systems below SIMPLICIAL_BELOW unknowns (all three cases
+    here), where only the pivot check can tell. "large" = 10⁴ unknowns."""
     if kind == "cholmod" and not cholmod_available():
         if IN_CI:
             pytest.fail("scikit-sparse (CHOLMOD) not installed in CI")
@@ -672,7 +675,30 @@ def test_non_spd_matrix_raises_not_positive_definite(kind, case, spd_block):
         lam = np.linalg.eigvalsh(A.toarray())
         M = (A - np.median(lam) * sp.identity(A.shape[0])).tocsr()
     with pytest.raises(NotPositiveDefinite):
-        make_solver(kind).factorize(M)
+        make_solver(kind, refactored=refactored).factorize(M)
+
+
+@pytest.mark.parametrize("refactored", [False, True])
+def test_cholmod_refactor_to_indefinite_raises_and_drops_the_factor(refactored, spd_block):
+    """SEM refactors one pattern with new values: an indefinite matrix after an SPD one must
+    raise (not solve with negative LDLᵀ pivots) and leave no usable factor; the next SPD matrix
+    is factored again on the kept analysis and solved exactly."""
+    if not cholmod_available():
+        if IN_CI:
+            pytest.fail("scikit-sparse (CHOLMOD) not installed in CI")
+        pytest.skip("scikit-sparse not installed")
+    A = spd_block
+    lam = np.linalg.eigvalsh(A.toarray())
+    solver = make_solver("cholmod", refactored=refactored)
+    solver.factorize(A)
+    assert solver.has_factor()
+    with pytest.raises(NotPositiveDefinite):
+        solver.factorize((A - np.median(lam) * sp.identity(A.shape[0])).tocsr())
+    assert not solver.has_factor()
+    A2 = (A + sp.identity(A.shape[0])).tocsr()
+    solver.factorize(A2)
+    X = np.random.default_rng(1).standard_normal((A.shape[0], 2))
+    np.testing.assert_allclose(solver.solve(A2 @ X), X, rtol=1e-10, atol=1e-10)
 
 
 @pytest.mark.parametrize("kind", ["scipy", "cholmod"])

@@ -100,9 +100,9 @@ class _Problem:
         self.I, self.B = self.pattern.interior, self.pattern.boundary
         # Separate factors: L_II(f) and its clamped form have the same pattern but their own
         # values; L_BB is the small boundary system.
-        self.solver_I = make_solver(solver_kind)
-        self.solver_P = make_solver(solver_kind)
-        self.solver_B = make_solver(solver_kind)
+        self.solver_I = make_solver(solver_kind, refactored=True)
+        self.solver_P = make_solver(solver_kind, refactored=True)
+        self.solver_B = make_solver(solver_kind, refactored=True)
 
     def evaluate(self, f, a2=None):
         """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15);

@@ -47,35 +47,58 @@ def _as_csc_symmetric(A: sp.spmatrix) -> sp.csc_matrix:
 #: the many refactorizations SEM does is about 1.4× faster (measured: benchmarks/bench_sem.py).
 NESDIS_ABOVE = 150_000
 
+#: Below this many unknowns CHOLMOD's simplicial factorization of a Laplacian with a nested
+#: dissection ordering refactors faster than its supernodal one (whose dense BLAS blocks are too small to
+#: pay here). Measured on disk Laplacians, refactor + 2-column solve, interleaved medians,
+#: simplicial nesdis against supernodal default: 5.2k unknowns 6.3 against 10.5 ms, 11k 22.6
+#: against 30.3, 21k 52.6 against 69.7, 33k 55.0 against 77.1; the analysis costs 15–115 ms more,
+#: repaid within 4–7 refactorizations. From 45k on, supernodal is 10–15 % faster; on the denser
+#: biharmonic pattern (19 nonzeros a row, 17k) simplicial is slower already (112 against 87 ms).
+SIMPLICIAL_BELOW = 40_000
+
 
 class CholmodSolver:
-    """CHOLMOD LLᵀ with the analysis done once and numeric refactorizations after that."""
+    """CHOLMOD with the analysis done once and numeric refactorizations after that.
+
+    ``refactored=True`` says the matrices are Laplacians refactored many times (SEM): below
+    ``SIMPLICIAL_BELOW`` unknowns the factor is then simplicial LDLᵀ on a nested dissection
+    ordering. Otherwise (one-off solves, denser patterns such as the biharmonic, where the
+    simplicial factor is slower) it is supernodal LLᵀ. Supernodal LLᵀ stops at a non-positive
+    pivot by itself; LDLᵀ would go on through negative pivots and solve an indefinite system, so
+    its pivots ``D`` are checked after every factorization (Sylvester's law of inertia: A is SPD
+    iff all are positive)."""
 
     name = "cholmod"
 
-    def __init__(self, ordering: str | None = None):
+    def __init__(self, ordering: str | None = None, refactored: bool = False):
         self._factor = None
+        self._simplicial = False
         self._valid = False      # False after a failed refactorization (analysis kept)
         self.ordering = ordering
+        self.refactored = refactored
 
     def factorize(self, A: sp.spmatrix) -> None:
         from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
 
         A = _as_csc_symmetric(A)
+        self._valid = False
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # CHOLMOD warns (not raises) on some non-SPD input
             try:
                 if self._factor is None:
-                    ordering = self.ordering or ("nesdis" if A.shape[0] > NESDIS_ABOVE
-                                                 else "default")
-                    # supernodal = LLᵀ: a non-SPD matrix raises (simplicial LDLᵀ would accept
-                    # negative pivots and silently solve an indefinite system)
-                    self._factor = cholesky(A, mode="supernodal", ordering_method=ordering)
+                    n = A.shape[0]
+                    self._simplicial = self.refactored and n < SIMPLICIAL_BELOW
+                    ordering = self.ordering or (
+                        "nesdis" if self._simplicial or n > NESDIS_ABOVE else "default")
+                    self._factor = cholesky(
+                        A, mode="simplicial" if self._simplicial else "supernodal",
+                        ordering_method=ordering)
                 else:
                     self._factor.cholesky_inplace(A)
             except (CholmodNotPositiveDefiniteError, Warning) as exc:
-                self._valid = False
                 raise NotPositiveDefinite(str(exc)) from exc
+        if self._simplicial and not np.all(self._factor.D() > 0):
+            raise NotPositiveDefinite("matrix is not positive definite (LDLᵀ pivot ≤ 0)")
         self._valid = True
 
     def solve(self, B: np.ndarray) -> np.ndarray:
@@ -86,6 +109,7 @@ class CholmodSolver:
 
     def release(self) -> None:
         self._factor = None
+        self._valid = False
 
 
 class ScipySolver:
@@ -120,15 +144,16 @@ class ScipySolver:
         self._lu = None
 
 
-def make_solver(kind: str = "auto"):
-    """A fresh solver of the requested kind; ``auto`` prefers CHOLMOD when installed."""
+def make_solver(kind: str = "auto", refactored: bool = False):
+    """A fresh solver of the requested kind; ``auto`` prefers CHOLMOD when installed.
+    ``refactored``: Laplacians of one pattern refactored many times (see ``CholmodSolver``)."""
     if kind not in SOLVER_KINDS:
         raise UserError(f"unknown solver '{kind}'; use one of {', '.join(SOLVER_KINDS)}")
     if kind == "cholmod" and not cholmod_available():
         raise UserError("solver 'cholmod' requested but scikit-sparse is not installed; "
                         "pip install scikit-sparse (needs libsuitesparse-dev) or use solver: auto")
     if kind == "cholmod" or (kind == "auto" and cholmod_available()):
-        return CholmodSolver()
+        return CholmodSolver(refactored=refactored)
     return ScipySolver()
 
 
