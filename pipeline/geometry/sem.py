@@ -200,13 +200,18 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     a2 = signed_double_areas(_as_uv(g), F)
     flipped = a2 <= 0
     count = int(np.count_nonzero(flipped))
-    own = False
+    is_held = None
     for _ in range(rounds):
         if count <= allowed:
             break
         held = distinct_indices(F[flipped].ravel(), len(f))
-        if not own:
-            g, own = g.copy(), True
+        if is_held is None:
+            g, is_held = g.copy(), np.zeros(len(f), dtype=bool)
+        else:   # a vertex held before already sits at f: only new ones change faces
+            held = held[~is_held[held]]
+            if len(held) == 0:
+                break
+        is_held[held] = True
         g[held] = f[held]
         touched = problem.faces_of(held)
         new = signed_double_areas(_as_uv(g), F[touched])
