@@ -12,10 +12,18 @@ import numpy as np
 from .laplacian import face_double_areas
 
 
+def as_complex_points(uv: np.ndarray) -> np.ndarray:
+    """An n×2 float array as n complex numbers ``u + iv`` (a view when it is contiguous
+    float64)."""
+    return np.ascontiguousarray(uv, dtype=np.float64).view(np.complex128).reshape(-1)
+
+
 def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Twice the signed area of every image face; positive = counter-clockwise."""
-    x, y = uv[:, 0][F], uv[:, 1][F]
-    return (x[:, 1] - x[:, 0]) * (y[:, 2] - y[:, 0]) - (y[:, 1] - y[:, 0]) * (x[:, 2] - x[:, 0])
+    """Twice the signed area of every image face; positive = counter-clockwise. One gather of
+    complex corners (half the time of two strided coordinate gathers; same arithmetic)."""
+    z = as_complex_points(uv)[F]
+    e1, e2 = z[:, 1] - z[:, 0], z[:, 2] - z[:, 0]
+    return e1.real * e2.imag - e1.imag * e2.real
 
 
 def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
