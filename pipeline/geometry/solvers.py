@@ -42,27 +42,25 @@ def _as_csc_symmetric(A: sp.spmatrix) -> sp.csc_matrix:
     return A.tocsc()
 
 
-#: Above this many unknowns CHOLMOD's nested dissection ordering is used: its analysis costs
-#: more (3.3 s against 0.6 s at 534k unknowns) but its factor has a third less fill, so each of
-#: the many refactorizations SEM does is about 1.4× faster (measured: benchmarks/bench_sem.py).
-NESDIS_ABOVE = 150_000
-
-#: Below this many unknowns CHOLMOD's simplicial factorization of a Laplacian with a nested
-#: dissection ordering refactors faster than its supernodal one (whose dense BLAS blocks are too small to
-#: pay here). Measured on disk Laplacians, refactor + 2-column solve, interleaved medians,
-#: simplicial nesdis against supernodal default: 5.2k unknowns 6.3 against 10.5 ms, 11k 22.6
-#: against 30.3, 21k 52.6 against 69.7, 33k 55.0 against 77.1; the analysis costs 15–115 ms more,
-#: repaid within 4–7 refactorizations. From 45k on, supernodal is 10–15 % faster; on the denser
-#: biharmonic pattern (19 nonzeros a row, 17k) simplicial is slower already (112 against 87 ms).
-SIMPLICIAL_BELOW = 40_000
+#: Below this many unknowns a refactored Laplacian gets CHOLMOD's simplicial factor, above it
+#: the supernodal one (whose dense BLAS blocks do not pay on small systems); both on a nested
+#: dissection ordering. Measured on disk Laplacians, idle machine, interleaved medians, ms for
+#: one refactor / one 2-column solve, simplicial against supernodal: 5.2k unknowns 4.2 / 0.2
+#: against 7.4 / 0.6; 53k 108 / 5.7 against 86–97 / 11.2; 133k 363 / 16 against 243 / 31; 534k
+#: 3620 / 91 against 1360 / 145. SEM's default (converged) mode solves about 13 times per
+#: refactorization, paper mode 1–2 times (more with PCG): at 53k the converged hand runs
+#: 15–20 % faster simplicial, 10 paper steps at 45k are equal per step. On the denser
+#: biharmonic pattern (19 nonzeros a row) simplicial is slower already at 17k (112 against
+#: 87 ms), so one-off and non-Laplacian systems keep supernodal LLᵀ on the default ordering.
+SIMPLICIAL_BELOW = 60_000
 
 
 class CholmodSolver:
     """CHOLMOD with the analysis done once and numeric refactorizations after that.
 
-    ``refactored=True`` says the matrices are Laplacians refactored many times (SEM): below
-    ``SIMPLICIAL_BELOW`` unknowns the factor is then simplicial LDLᵀ on a nested dissection
-    ordering. Otherwise (one-off solves, denser patterns such as the biharmonic, where the
+    ``refactored=True`` says the matrices are Laplacians refactored and solved many times (SEM):
+    the ordering is then nested dissection, and below ``SIMPLICIAL_BELOW`` unknowns the factor is
+    simplicial LDLᵀ. Otherwise (one-off solves, denser patterns such as the biharmonic, where the
     simplicial factor is slower) it is supernodal LLᵀ. Supernodal LLᵀ stops at a non-positive
     pivot by itself; LDLᵀ would go on through negative pivots and solve an indefinite system, so
     its pivots ``D`` are checked after every factorization (Sylvester's law of inertia: A is SPD
@@ -88,8 +86,10 @@ class CholmodSolver:
                 if self._factor is None:
                     n = A.shape[0]
                     self._simplicial = self.refactored and n < SIMPLICIAL_BELOW
-                    ordering = self.ordering or (
-                        "nesdis" if self._simplicial or n > NESDIS_ABOVE else "default")
+                    # nested dissection: a third less fill than AMD here, so every refactor and
+                    # solve is 15–25 % faster; its analysis costs more (0.2 s more at 45k
+                    # unknowns, 0.5 s at 133k, 2.9 s at 534k), repaid within ~10 refactors
+                    ordering = self.ordering or ("nesdis" if self.refactored else "default")
                     self._factor = cholesky(
                         A, mode="simplicial" if self._simplicial else "supernodal",
                         ordering_method=ordering)
