@@ -102,6 +102,8 @@ COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges 
 COLLAPSE_POOL_MIN = 5000
 MIS_TAIL = 0.02       # a round's passes stop when one takes < 2 % of the first's collapses
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
+SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
+SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 SAG_BLOCK = 262144    # sample points per point-location query in edge_sag_along
 SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
@@ -1068,10 +1070,17 @@ def improve_remesh(S: RemeshState, L: float, relax_iterations: int = 2, flips: b
         flip()
         lap("flips")
     # slivers left by the last steps (a few per mesh, where folds are squeezed on the disk):
-    # collapsed under the same guards, the count given back by splitting the longest edges
-    if collapse_short_edges(S, SLIVER * L, 2.0 * L, max_gap=tol, max_sag=tol):
+    # collapsed under the same guards, the count given back by splitting the longest edges;
+    # again where there were many (the flips after a pass let the guards pass collapses next
+    # to it that they refused before)
+    for _ in range(SLIVER_PASSES):
+        collapsed = collapse_short_edges(S, SLIVER * L, 2.0 * L, max_gap=tol, max_sag=tol)
+        if not collapsed:
+            break
         if S.n < target:
             split_long_edges(S, 0.0, budget=target - S.n)
         flip()
+        if collapsed < SLIVER_AGAIN * S.n:
+            break
     lap("count")
     return S
