@@ -44,14 +44,16 @@ def _as_csc_symmetric(A: sp.spmatrix) -> sp.csc_matrix:
 
 #: Below this many unknowns a refactored Laplacian gets CHOLMOD's simplicial factor, above it
 #: the supernodal one (whose dense BLAS blocks do not pay on small systems); both on a nested
-#: dissection ordering. Measured on disk Laplacians, idle machine, interleaved medians, ms for
-#: one refactor / one 2-column solve, simplicial against supernodal: 5.2k unknowns 4.2 / 0.2
-#: against 7.4 / 0.6; 53k 108 / 5.7 against 86–97 / 11.2; 133k 363 / 16 against 243 / 31; 534k
-#: 3620 / 91 against 1360 / 145. SEM's default (converged) mode solves about 13 times per
-#: refactorization, paper mode 1–2 times (more with PCG): at 53k the converged hand runs
-#: 15–20 % faster simplicial, 10 paper steps at 45k are equal per step. On the denser
-#: biharmonic pattern (19 nonzeros a row) simplicial is slower already at 17k (112 against
-#: 87 ms), so one-off and non-Laplacian systems keep supernodal LLᵀ on the default ordering.
+#: dissection ordering. Measured on disk Laplacians, idle machine, interleaved medians of two
+#: sessions, ms for one refactor / one 2-column solve, simplicial against supernodal: 5.2k
+#: unknowns 4.2–5.7 / 0.2–0.4 against 7.4–8.5 / 0.6–1.1; 21k 47 / 2.9 against 41 / 6.7; 53k
+#: 108–184 / 5.7–10 against 86–119 / 11–19; 133k 363 / 16 against 243 / 31; 534k 3620 / 91
+#: against 1360 / 145. SEM's default (converged) mode solves about 13 times per
+#: refactorization, paper mode 1–2 times (more with PCG): 200 converged steps on the hand
+#: (53k) take 12.4–13.2 s simplicial against 14.5–15.7 s supernodal, on the brain (48k) about
+#: the same. On the denser biharmonic pattern (19 nonzeros a row) simplicial is slower
+#: already at 17k (112 against 87 ms), so one-off and non-Laplacian systems keep supernodal
+#: LLᵀ on the default ordering.
 SIMPLICIAL_BELOW = 60_000
 
 
