@@ -22,7 +22,7 @@ from pipeline.geometry import metrics
 from pipeline.geometry.harmonic import arc_length_circle, clamp_positive, harmonic_map
 from pipeline.geometry.laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                                          laplacian_blocks, laplacian_matrix, laplacian_pattern,
-                                         unique_edges)
+                                         squared_edge_lengths, stretch_weight_map, unique_edges)
 from pipeline.geometry.sem import SEMOptions, _Problem, sem_step, stretch_energy_minimization
 from pipeline.geometry.solvers import (NotPositiveDefinite, cholmod_available, make_solver,
                                        solve_complex)
@@ -259,6 +259,42 @@ def test_edge_weights_are_half_sums_of_opposite_cotangents(ddisk):
     assert np.array_equal(edges, pattern.edges)
     opp = np.sort(np.stack([F[:, [1, 2, 0]], F[:, [2, 0, 1]]], axis=2), axis=2)
     assert np.array_equal(edges[corner_edge], opp)
+
+
+def test_stretch_weight_map_gives_eq12_weights(ddisk):
+    """``W ℓ²(f)`` is eq. (12): ``w_ij = ½ Σ cot α_ij(f) / σ(τ)`` over the faces on ij, checked
+    against a face loop with arccos cotangents, for a map that folds faces (negative terms)."""
+    P, F, b = ddisk
+    pattern = laplacian_pattern(F, len(P), b)
+    rng = np.random.default_rng(11)
+    f = P[:, 0] + 1j * P[:, 1] + 0.02 * (rng.normal(size=len(P)) + 1j * rng.normal(size=len(P)))
+    uv = np.column_stack([f.real, f.imag])
+    sigma = independent_areas(P, F) / independent_areas(uv, F)
+    cot = cot_by_arccos(uv, F)
+    expected = np.zeros(len(pattern.edges))
+    index = {tuple(e): k for k, e in enumerate(pattern.edges.tolist())}
+    for t, face in enumerate(F.tolist()):
+        for c in range(3):
+            e = tuple(sorted((face[(c + 1) % 3], face[(c + 2) % 3])))
+            expected[index[e]] += 0.5 * cot[t, c] / sigma[t]
+    W = stretch_weight_map(pattern, face_double_areas(P, F))
+    w = W @ squared_edge_lengths(pattern, f)
+    np.testing.assert_allclose(w, expected, rtol=1e-8, atol=1e-10)
+    assert (w < 0).any()
+    # each weight reads the squared lengths of the (at most 5) edges of the faces on its edge
+    assert W.getnnz(axis=1).max() <= 5
+
+
+def test_stretch_weight_map_equals_corner_terms_on_a_real_mesh():
+    V, F = load_mesh("igl_camelhead")
+    pattern = laplacian_pattern(F, len(V), boundary_loop(F, V))
+    A2 = face_double_areas(V, F)
+    h = harmonic_map(V, F, pattern, make_solver("scipy")).f
+    for f in (h, h * np.exp(0.3j) + 0.1 * h * np.abs(h)):
+        by_corners = edge_weights(pattern, corner_dot_over_area(
+            np.column_stack([f.real, f.imag]), F, A2))
+        by_lengths = stretch_weight_map(pattern, A2) @ squared_edge_lengths(pattern, f)
+        assert np.abs(by_lengths - by_corners).max() <= 1e-12 * np.abs(by_corners).max()
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -44,6 +44,7 @@ class LaplacianPattern:
     II_src: np.ndarray
     IB_src: np.ndarray
     BB_src: np.ndarray
+    edge_vertex: sp.csr_matrix  # n×E, 1 where vertex v ends edge e: the diagonal is edge_vertex @ w
 
 
 def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,8 +98,12 @@ def laplacian_pattern(F: np.ndarray, n: int, boundary: np.ndarray) -> LaplacianP
     II, II_src = _block(pos_I, pos_I, len(interior), len(interior), r, c, src)
     IB, IB_src = _block(pos_I, pos_B, len(interior), len(boundary), r, c, src)
     BB, BB_src = _block(pos_B, pos_B, len(boundary), len(boundary), r, c, src)
+    # Row v lists v's edges in increasing order: the product sums in the same order as a bincount
+    # over edges.ravel() (so the same bits), at a third of its time.
+    edge_vertex = sp.csr_matrix((np.ones(2 * E), (edges.ravel(), np.repeat(np.arange(E), 2))),
+                                shape=(n, E))
     return LaplacianPattern(n, edges, corner_edge, interior, boundary,
-                            II, IB, BB, II_src, IB_src, BB_src)
+                            II, IB, BB, II_src, IB_src, BB_src, edge_vertex)
 
 
 def face_double_areas(P: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -139,10 +144,36 @@ def edge_weights(pattern: LaplacianPattern, corner_values: np.ndarray) -> np.nda
                              minlength=len(pattern.edges))
 
 
+def stretch_weight_map(pattern: LaplacianPattern, double_area: np.ndarray) -> sp.csr_matrix:
+    """The E×E matrix ``W`` with ``w(f) = W ℓ²(f)``: the stretch weights of eq. (12) are a fixed
+    linear map of the image's squared edge lengths ``ℓ²_e = |f_i − f_j|²``.
+
+    At the corner of face τ opposite edge e, with the corner's two edges a and b, the law of
+    cosines gives ``(f_j − f_i)·(f_k − f_i) = (ℓ²_a + ℓ²_b − ℓ²_e) / 2``, and the term of eq. (12)
+    is that over ``2|τ|`` (the surface area, fixed during SEM); ``w_e`` is half the sum over the
+    faces on e. So one sparse product (about 5 nonzeros a row) replaces the per-corner dot
+    products and their scatter — measured at 34k faces, 0.83 → 0.3 ms."""
+    CE = pattern.corner_edge
+    e_o, e_a, e_b = CE.ravel(), CE[:, [1, 2, 0]].ravel(), CE[:, [2, 0, 1]].ravel()
+    scale = np.repeat(0.25 / double_area, 3)           # ½ · ½ / (2|τ|)
+    E = len(pattern.edges)
+    W = sp.coo_matrix((np.concatenate([scale, scale, -scale]),
+                       (np.concatenate([e_o, e_o, e_o]), np.concatenate([e_a, e_b, e_o]))),
+                      shape=(E, E)).tocsr()
+    W.sum_duplicates()
+    return W
+
+
+def squared_edge_lengths(pattern: LaplacianPattern, f: np.ndarray) -> np.ndarray:
+    """``|f_i − f_j|²`` for every edge ij of the pattern, for a complex map f."""
+    d = f[pattern.edges[:, 0]] - f[pattern.edges[:, 1]]
+    return d.real * d.real + d.imag * d.imag
+
+
 def laplacian_blocks(pattern: LaplacianPattern, w: np.ndarray
                      ) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix]:
     """``(L_II, L_IB, L_BB)`` for edge weights ``w``: values written into the fixed pattern."""
-    d = np.bincount(pattern.edges.ravel(), weights=np.repeat(w, 2), minlength=pattern.n)
+    d = pattern.edge_vertex @ w
     values = np.concatenate([-w, d])
     blocks = []
     for M, src in ((pattern.II, pattern.II_src), (pattern.IB, pattern.IB_src),

@@ -41,8 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .harmonic import clamp_positive, harmonic_map
-from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
-                        laplacian_blocks, laplacian_pattern)
+from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
+                        squared_edge_lengths, stretch_weight_map)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
 from .topology import csr_rows, distinct_indices, vertex_faces
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
@@ -98,6 +98,7 @@ class _Problem:
         self._vertex_faces = None
         self.pattern = laplacian_pattern(F, len(V), boundary)
         self.I, self.B = self.pattern.interior, self.pattern.boundary
+        self.weight_map = stretch_weight_map(self.pattern, self.A2)
         # Separate factors: L_II(f) and its clamped form have the same pattern but their own
         # values; L_BB is the small boundary system.
         self.solver_I = make_solver(solver_kind, refactored=True)
@@ -126,8 +127,8 @@ class _Problem:
         return distinct_indices(faces, len(self.F))
 
     def weights(self, f):
-        """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12)."""
-        return edge_weights(self.pattern, corner_dot_over_area(_as_uv(f), self.F, self.A2))
+        """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12), from the squared edge lengths."""
+        return self.weight_map @ squared_edge_lengths(self.pattern, f)
 
     def release(self):
         for s in (self.solver_I, self.solver_P, self.solver_B):
