@@ -47,19 +47,27 @@ def energy_ratio(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
     return float(np.sum(a * a / A) * np.sum(A) / np.sum(a) ** 2)
 
 
-def vertex_area_fractions(F: np.ndarray, n: int, areas: np.ndarray) -> np.ndarray:
-    """``Σ_{τ∋v} |τ| / Σ_τ |τ|`` per vertex for any per-face areas (the sums of eq. 28–29)."""
+def vertex_area_fractions(F: np.ndarray, n: int, areas: np.ndarray, incidence=None
+                          ) -> np.ndarray:
+    """``Σ_{τ∋v} |τ| / Σ_τ |τ|`` per vertex for any per-face areas (the sums of eq. 28–29).
+    ``incidence``: the n×m vertex–face matrix (float CSR, faces in increasing order in each row)
+    when it is kept between calls; its product sums in the same order as the bincount, so gives
+    the same bits, in a third of the time."""
+    if incidence is not None:
+        return incidence @ (areas / areas.sum())
     return np.bincount(F.ravel(), weights=np.repeat(areas / areas.sum(), 3), minlength=n)
 
 
 def area_distortions(F: np.ndarray, n: int, surface_areas: np.ndarray, image_areas: np.ndarray,
-                     surface_fractions: np.ndarray | None = None) -> tuple[float, float]:
+                     surface_fractions: np.ndarray | None = None, incidence=None
+                     ) -> tuple[float, float]:
     """``(D(f) eq. 28, face-based total area distortion)`` from per-face areas (any common
-    scale; image areas unsigned). ``surface_fractions`` may be passed when computed once."""
+    scale; image areas unsigned). ``surface_fractions`` and ``incidence`` (see
+    :func:`vertex_area_fractions`) may be passed when computed once."""
     A, a = surface_areas, np.abs(image_areas)
     if surface_fractions is None:
-        surface_fractions = vertex_area_fractions(F, n, A)
-    D = np.abs(surface_fractions - vertex_area_fractions(F, n, a)).sum() / 3.0
+        surface_fractions = vertex_area_fractions(F, n, A, incidence)
+    D = np.abs(surface_fractions - vertex_area_fractions(F, n, a, incidence)).sum() / 3.0
     return float(D), float(np.abs(A / A.sum() - a / a.sum()).sum())
 
 

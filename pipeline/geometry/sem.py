@@ -94,8 +94,10 @@ class _Problem:
         self.V, self.F = V, F
         self.A2 = face_double_areas(V, F)        # 2|τ|
         self.area_M = self.A2.sum() / 2
-        self.surface_fractions = vertex_area_fractions(F, len(V), self.A2)
-        self._vertex_faces = None
+        # vertex–face incidence (faces in increasing order in each row), as floats for the
+        # per-vertex area sums of eq. (28) and as an index for the faces around held vertices
+        self.incidence = vertex_faces(F, len(V)).astype(np.float64)
+        self.surface_fractions = vertex_area_fractions(F, len(V), self.A2, self.incidence)
         self.pattern = laplacian_pattern(F, len(V), boundary)
         self.I, self.B = self.pattern.interior, self.pattern.boundary
         self.weight_map = stretch_weight_map(self.pattern, self.A2)
@@ -116,13 +118,12 @@ class _Problem:
 
     def distortions(self, a2):
         """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map."""
-        return area_distortions(self.F, len(self.V), self.A2, a2, self.surface_fractions)
+        return area_distortions(self.F, len(self.V), self.A2, a2, self.surface_fractions,
+                                self.incidence)
 
     def faces_of(self, vertices: np.ndarray) -> np.ndarray:
-        """Indices of the faces incident to ``vertices`` (incidence built on first use)."""
-        if self._vertex_faces is None:
-            self._vertex_faces = vertex_faces(self.F, len(self.V))
-        VF = self._vertex_faces
+        """Indices of the faces incident to ``vertices``."""
+        VF = self.incidence
         _, faces = csr_rows(VF.indptr, VF.indices, vertices)
         return distinct_indices(faces, len(self.F))
 
