@@ -206,10 +206,14 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     for _ in range(rounds):
         if count <= allowed:
             break
-        held = distinct_indices(F[flipped].ravel(), len(f))
         if is_held is None:
+            held = distinct_indices(F[flipped].ravel(), len(f))
             g, is_held = g.copy(), np.zeros(len(f), dtype=bool)
-        else:   # a vertex held before already sits at f: only new ones change faces
+        else:
+            # A vertex held before already sits at f: only new ones change faces. A face still
+            # flipped that was not re-measured last round had all its vertices held then, so new
+            # ones can only come from the faces re-measured last round.
+            held = distinct_indices(F[touched[new <= 0]].ravel(), len(f))
             held = held[~is_held[held]]
             if len(held) == 0:
                 break
