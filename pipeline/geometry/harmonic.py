@@ -39,16 +39,17 @@ def clamp_positive(w: np.ndarray) -> np.ndarray:
     return np.maximum(w, floor)
 
 
-def harmonic_map(V: np.ndarray, F: np.ndarray, pattern: LaplacianPattern, solver=None
-                 ) -> HarmonicMap:
+def harmonic_map(V: np.ndarray, F: np.ndarray, pattern: LaplacianPattern, solver=None,
+                 double_area: np.ndarray | None = None) -> HarmonicMap:
     """Discrete harmonic map with the cotangent Laplacian (eq. 5–6): ``L_II f_I = −L_IB f_B``.
 
     Cotangent weights are negative across edges with obtuse opposite angles summing past π, and
     the map can then fold. If it does, it is recomputed with those weights clamped positive, which
-    is bijective by Tutte's theorem; the result says which weights were used.
+    is bijective by Tutte's theorem; the result says which weights were used. ``double_area``:
+    ``2|τ|`` per face when the caller has it.
     """
     solver = solver or make_solver()
-    dA = face_double_areas(V, F)
+    dA = face_double_areas(V, F) if double_area is None else double_area
     w = edge_weights(pattern, corner_dot_over_area(V, F, dA))
     fB = arc_length_circle(V, pattern.boundary)
     n_negative = int(np.count_nonzero(w <= 0))

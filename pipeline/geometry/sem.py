@@ -276,7 +276,7 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    h = harmonic_map(V, F, problem.pattern, problem.solver_I)
+    h = harmonic_map(V, F, problem.pattern, problem.solver_I, problem.A2)
     timings["harmonic"] = time.perf_counter() - t0
 
     history: list = []
