@@ -157,11 +157,10 @@ def stretch_weight_map(pattern: LaplacianPattern, double_area: np.ndarray) -> sp
     e_o, e_a, e_b = CE.ravel(), CE[:, [1, 2, 0]].ravel(), CE[:, [2, 0, 1]].ravel()
     scale = np.repeat(0.25 / double_area, 3)           # ½ · ½ / (2|τ|)
     E = len(pattern.edges)
-    W = sp.coo_matrix((np.concatenate([scale, scale, -scale]),
-                       (np.concatenate([e_o, e_o, e_o]), np.concatenate([e_a, e_b, e_o]))),
-                      shape=(E, E)).tocsr()
-    W.sum_duplicates()
-    return W
+    # the COO → CSR conversion sums the two −scale entries of an inner edge's own column
+    return sp.coo_matrix((np.concatenate([scale, scale, -scale]),
+                          (np.concatenate([e_o, e_o, e_o]), np.concatenate([e_a, e_b, e_o]))),
+                         shape=(E, E)).tocsr()
 
 
 def squared_edge_lengths(pattern: LaplacianPattern, f: np.ndarray) -> np.ndarray:
