@@ -1,0 +1,12 @@
+"""Compiled inner loops, built by ``pip install`` (everything else is in pyproject.toml).
+
+Only loops whose numpy form is dominated by per-call overhead are compiled; their arithmetic is
+the numpy formulas' operation for operation, and ``-ffp-contract=off`` keeps it bit for bit (no
+fused multiply-adds)."""
+
+from setuptools import Extension, setup
+
+setup(ext_modules=[
+    Extension("pipeline.geometry._sem_kernels", ["pipeline/geometry/_sem_kernels.pyx"],
+              extra_compile_args=["-O2", "-ffp-contract=off"]),
+])
