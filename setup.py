@@ -7,6 +7,6 @@ fused multiply-adds)."""
 from setuptools import Extension, setup
 
 setup(ext_modules=[
-    Extension("pipeline.geometry._sem_kernels", ["pipeline/geometry/_sem_kernels.pyx"],
+    Extension("pipeline.geometry._kernels", ["pipeline/geometry/_kernels.pyx"],
               extra_compile_args=["-O2", "-ffp-contract=off"]),
 ])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _kernels
 from .laplacian import face_double_areas
 
 
@@ -19,11 +20,15 @@ def as_complex_points(uv: np.ndarray) -> np.ndarray:
 
 
 def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Twice the signed area of every image face; positive = counter-clockwise. One gather of
-    complex corners (half the time of two strided coordinate gathers; same arithmetic)."""
-    z = as_complex_points(uv)[F]
-    e1, e2 = z[:, 1] - z[:, 0], z[:, 2] - z[:, 0]
-    return e1.real * e2.imag - e1.imag * e2.real
+    """Twice the signed area of every image face, ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``;
+    positive = counter-clockwise. A compiled loop: the numpy form's (m, 3) gather and its
+    temporaries cost ~6× more (SEM evaluates it several times an iteration)."""
+    F = np.asarray(F)
+    if F.dtype not in (np.int32, np.int64):
+        F = F.astype(np.int64)
+    out = np.empty(len(F))
+    _kernels.signed_double_areas(np.ascontiguousarray(F), as_complex_points(uv), out)
+    return out
 
 
 def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:

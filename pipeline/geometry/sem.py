@@ -45,7 +45,7 @@ from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
                         squared_edge_lengths, stretch_weight_map)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
 from .topology import vertex_faces
-from ._sem_kernels import hold_rounds
+from ._kernels import hold_rounds
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -195,7 +195,7 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     vertices of the faces that the last round re-measured and found flipped (a face still flipped
     that was not re-measured had all its vertices held already). Only the faces around newly
     held vertices have their image areas (eq. 15's ``|f(τ)|``) recomputed. The rounds run
-    in compiled code (:mod:`._sem_kernels`): in numpy each round cost ~0.1 ms of small-array
+    in compiled code (:mod:`._kernels`): in numpy each round cost ~0.1 ms of small-array
     overhead at 10k faces, and a failed damping try runs all of them."""
     a2 = signed_double_areas(_as_uv(g), problem.F)
     count = int(np.count_nonzero(a2 <= 0))

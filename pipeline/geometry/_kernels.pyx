@@ -1,13 +1,58 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
-"""Compiled inner loop of SEM's flip holding (see ``sem.hold_flipping_vertices``).
+"""Compiled inner loops of SEM's iteration: image areas, Laplacian block values, flip holding.
 
 Built when the package is installed (``pip install -e .`` runs Cython and the C compiler). A
-loop here replaces rounds of small numpy calls whose fixed overhead (~0.1 ms each at 10k faces)
-exceeded their arithmetic; the arithmetic is the same, operation for operation, so results are
-bit for bit those of the numpy formulas (the module is compiled with ``-ffp-contract=off``).
+loop here replaces numpy calls whose fixed overhead and temporaries cost more than their
+arithmetic at 10k faces, where an SEM iteration's solver floor is ~3 ms. The arithmetic is that
+of the numpy formulas they replace, operation for operation and in the same order (the module
+is compiled with ``-ffp-contract=off``: no fused multiply-adds), so results are bit for bit the
+same.
 """
 
 import numpy as np
+
+ctypedef fused index_t:
+    int
+    long
+
+
+def signed_double_areas(const index_t[:, ::1] F, const double complex[::1] z, double[::1] out):
+    """``out[t]`` = twice the signed area of image face ``t`` (corners ``z[F[t]]``):
+    ``Im(conj(z1 − z0) (z2 − z0))``, positive for counter-clockwise faces."""
+    cdef Py_ssize_t t
+    for t in range(F.shape[0]):
+        out[t] = _double_area(z[F[t, 0]], z[F[t, 1]], z[F[t, 2]])
+
+
+cdef inline double _double_area(double complex z0, double complex z1, double complex z2
+                                ) noexcept nogil:
+    cdef double complex e1 = z1 - z0, e2 = z2 - z0
+    return e1.real * e2.imag - e1.imag * e2.real
+
+
+def laplacian_values(const double[::1] w, const long[:, ::1] edges, const long[::1] II_src,
+                     const long[::1] IB_src, const long[::1] BB_src, double[::1] diag,
+                     double[::1] II, double[::1] IB, double[::1] BB):
+    """The stored values of ``L_II``, ``L_IB``, ``L_BB`` for edge weights ``w`` (eq. 14):
+    ``L_ij = −w_ij`` and ``L_ii = Σ_j w_ij``. A block's ``*_src[k]`` indexes ``[−w, diag]``.
+    The diagonal sums every vertex's edges in increasing edge order, as the incidence product
+    it replaces does."""
+    cdef Py_ssize_t e, E = w.shape[0]
+    diag[:] = 0.0
+    for e in range(E):
+        diag[edges[e, 0]] += w[e]
+        diag[edges[e, 1]] += w[e]
+    _gather(w, diag, II_src, II)
+    _gather(w, diag, IB_src, IB)
+    _gather(w, diag, BB_src, BB)
+
+
+cdef void _gather(const double[::1] w, const double[::1] diag, const long[::1] src,
+                  double[::1] out) noexcept:
+    cdef Py_ssize_t k, s, E = w.shape[0]
+    for k in range(src.shape[0]):
+        s = src[k]
+        out[k] = -w[s] if s < E else diag[s - E]
 
 
 def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_idx,
@@ -23,7 +68,6 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
     re-measured had all its vertices held already). Returns the new flipped-face count."""
     cdef Py_ssize_t n = f.shape[0], m = F.shape[0]
     cdef Py_ssize_t r, k, c, p, t, v, n_held, n_faces, n_touched = 0
-    cdef double complex e1, e2
     cdef double area
     is_held_arr = np.zeros(n, dtype=np.uint8)
     seen_arr = np.full(m, -1, dtype=np.int64)
@@ -61,9 +105,7 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
                     n_touched += 1
         for k in range(n_touched):
             t = touched[k]
-            e1 = g[F[t, 1]] - g[F[t, 0]]
-            e2 = g[F[t, 2]] - g[F[t, 0]]
-            area = e1.real * e2.imag - e1.imag * e2.real
+            area = _double_area(g[F[t, 0]], g[F[t, 1]], g[F[t, 2]])
             count += (area <= 0) - (a2[t] <= 0)
             a2[t] = area
     return count
