@@ -262,6 +262,21 @@ def test_edge_weights_are_half_sums_of_opposite_cotangents(ddisk):
     assert np.array_equal(edges[corner_edge], opp)
 
 
+def test_unique_edges_on_any_triangle_list():
+    """Exact against ``np.unique`` of the keys ``i·n + j`` on a triangle soup: non-manifold and
+    repeated edges, unreferenced vertices, and a vertex on 500 edges (a long sort bucket)."""
+    rng = np.random.default_rng(3)
+    fan = np.column_stack([np.zeros(500, int), rng.integers(1, 60, 500), rng.integers(1, 60, 500)])
+    F = np.vstack([rng.integers(0, 60, (400, 3)), fan, [[70, 71, 72], [72, 71, 70]]])
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]
+    n = int(F.max()) + 1
+    a, b = F[:, [1, 2, 0]].ravel(), F[:, [2, 0, 1]].ravel()
+    keys, inverse = np.unique(np.minimum(a, b) * n + np.maximum(a, b), return_inverse=True)
+    edges, corner_edge = unique_edges(F)
+    assert np.array_equal(edges, np.column_stack([keys // n, keys % n]))
+    assert np.array_equal(corner_edge, inverse.reshape(-1, 3))
+
+
 def test_stretch_weight_map_gives_eq12_weights(ddisk):
     """``W ℓ²(f)`` is eq. (12): ``w_ij = ½ Σ cot α_ij(f) / σ(τ)`` over the faces on ij, checked
     against a face loop with arccos cotangents, for a map that folds faces (negative terms)."""

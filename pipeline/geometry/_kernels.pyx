@@ -109,3 +109,114 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
             count += (area <= 0) - (a2[t] <= 0)
             a2[t] = area
     return count
+
+
+def unique_edges(const long[:, ::1] F, long n):
+    """The unique undirected edges of ``F`` sorted by ``(i, j)`` with ``i < j`` (E×2), and for
+    every corner the index of its opposite edge (m×3): what ``np.unique`` of the keys
+    ``i·n + j`` gives, by a counting sort on ``i`` and a sort of each vertex's few ``j``
+    (O(m) instead of a sort of all 3m keys)."""
+    cdef Py_ssize_t m = F.shape[0], N = 3 * m
+    cdef Py_ssize_t t, c, k, p, q, lo_v, s, e, E
+    cdef long a, b, key, cid
+    start_arr = np.zeros(n + 1, dtype=np.int64)
+    hi_arr = np.empty(N, dtype=np.int64)
+    id_arr = np.empty(N, dtype=np.int64)
+    ce_arr = np.empty(N, dtype=np.int64)
+    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
+    for t in range(m):
+        for c in range(3):
+            a, b = F[t, (c + 1) % 3], F[t, (c + 2) % 3]
+            start[(a if a < b else b) + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill_arr = start_arr[:n].copy()
+    cdef long[::1] fill = fill_arr
+    for t in range(m):
+        for c in range(3):
+            a, b = F[t, (c + 1) % 3], F[t, (c + 2) % 3]
+            lo_v = a if a < b else b
+            p = fill[lo_v]
+            fill[lo_v] += 1
+            hi[p] = b if a < b else a
+            cid_of[p] = 3 * t + c
+    # sort every bucket by j (insertion sort: a bucket holds ~2 corners per edge at i)
+    for lo_v in range(n):
+        for p in range(start[lo_v] + 1, start[lo_v + 1]):
+            key, cid = hi[p], cid_of[p]
+            q = p - 1
+            while q >= start[lo_v] and hi[q] > key:
+                hi[q + 1], cid_of[q + 1] = hi[q], cid_of[q]
+                q -= 1
+            hi[q + 1], cid_of[q + 1] = key, cid
+    E = 0
+    for lo_v in range(n):
+        for p in range(start[lo_v], start[lo_v + 1]):
+            if p == start[lo_v] or hi[p] != hi[p - 1]:
+                E += 1
+            ce[cid_of[p]] = E - 1
+    edges_arr = np.empty((E, 2), dtype=np.int64)
+    cdef long[:, ::1] edges = edges_arr
+    e = 0
+    for lo_v in range(n):
+        for p in range(start[lo_v], start[lo_v + 1]):
+            if p == start[lo_v] or hi[p] != hi[p - 1]:
+                edges[e, 0], edges[e, 1] = lo_v, hi[p]
+                e += 1
+    return edges_arr, ce_arr.reshape(m, 3)
+
+
+def stretch_weight_map(const long[:, ::1] corner_edge, const double[::1] double_area, long E):
+    """CSR arrays ``(data, indices, indptr)`` of the E×E map ``W`` of
+    :func:`pipeline.geometry.laplacian.stretch_weight_map`: for the corner of face τ opposite
+    edge e, with the corner's edges a and b, ``+s`` at (e, a) and (e, b) and ``−s`` at (e, e),
+    ``s = ¼ / (2|τ|)``; columns sorted in each row, duplicates summed (what a COO → CSR
+    conversion gives). Rows are filled, sorted and compacted in place in the output arrays (no
+    temporaries: at 1M faces their first-touch page faults cost more than the arithmetic)."""
+    cdef Py_ssize_t m = corner_edge.shape[0]
+    cdef Py_ssize_t t, c, k, p, q, r, out, row_start
+    cdef long eo
+    cdef int col
+    cdef double s, val
+    fill_arr = np.zeros(E + 1, dtype=np.int64)
+    cdef long[::1] fill = fill_arr
+    for t in range(m):
+        for c in range(3):
+            fill[corner_edge[t, c] + 1] += 3
+    for k in range(E):
+        fill[k + 1] += fill[k]
+    indptr_arr = np.empty(E + 1, dtype=np.int32)
+    indices_arr = np.empty(9 * m, dtype=np.int32)
+    data_arr = np.empty(9 * m, dtype=np.float64)
+    cdef int[::1] indptr = indptr_arr, cols = indices_arr
+    cdef double[::1] vals = data_arr
+    for t in range(m):
+        s = 0.25 / double_area[t]
+        for c in range(3):
+            eo = corner_edge[t, c]
+            p = fill[eo]
+            fill[eo] += 3
+            cols[p], vals[p] = corner_edge[t, (c + 1) % 3], s
+            cols[p + 1], vals[p + 1] = corner_edge[t, (c + 2) % 3], s
+            cols[p + 2], vals[p + 2] = eo, -s
+    # fill[r] is now the end of row r, fill[r - 1] its start
+    out = 0
+    row_start = 0
+    indptr[0] = 0
+    for r in range(E):
+        for p in range(row_start + 1, fill[r]):          # insertion sort by column
+            col, val = cols[p], vals[p]
+            q = p - 1
+            while q >= row_start and cols[q] > col:
+                cols[q + 1], vals[q + 1] = cols[q], vals[q]
+                q -= 1
+            cols[q + 1], vals[q + 1] = col, val
+        for p in range(row_start, fill[r]):               # compact: out <= p always
+            if p > row_start and cols[p] == cols[p - 1]:
+                vals[out - 1] += vals[p]
+            else:
+                cols[out], vals[out] = cols[p], vals[p]
+                out += 1
+        indptr[r + 1] = out
+        row_start = fill[r]
+    return data_arr[:out], indices_arr[:out], indptr_arr

@@ -49,17 +49,12 @@ class LaplacianPattern:
 
 
 def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unique undirected edges (E×2, i < j) and, for every face corner, the opposite edge (m×3)."""
-    F = np.asarray(F, dtype=np.int64)
-    # Corner c of face t is opposite the edge (F[t, c+1], F[t, c+2]).
-    a = F[:, [1, 2, 0]].ravel()
-    b = F[:, [2, 0, 1]].ravel()
-    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    """Unique undirected edges (E×2, i < j, sorted) and, for every face corner, the opposite
+    edge (m×3). Corner c of face t is opposite the edge (F[t, c+1], F[t, c+2]). A compiled
+    counting sort: at 1M faces 0.57 s with ``np.unique`` of the 3m edge keys."""
+    F = np.ascontiguousarray(F, dtype=np.int64)
     n = int(F.max()) + 1 if F.size else 0
-    key = lo * n + hi
-    uniq, inverse = np.unique(key, return_inverse=True)
-    edges = np.stack([uniq // n, uniq % n], axis=1)
-    return edges, inverse.reshape(-1, 3)
+    return _kernels.unique_edges(F.reshape(-1, 3), n)
 
 
 def _block(rows_of: np.ndarray, cols_of: np.ndarray, n_rows: int, n_cols: int,
@@ -149,15 +144,13 @@ def stretch_weight_map(pattern: LaplacianPattern, double_area: np.ndarray) -> sp
     cosines gives ``(f_j − f_i)·(f_k − f_i) = (ℓ²_a + ℓ²_b − ℓ²_e) / 2``, and the term of eq. (12)
     is that over ``2|τ|`` (the surface area, fixed during SEM); ``w_e`` is half the sum over the
     faces on e. So one sparse product (about 5 nonzeros a row) replaces the per-corner dot
-    products and their scatter — measured at 34k faces, 0.83 → 0.3 ms."""
-    CE = pattern.corner_edge
-    e_o, e_a, e_b = CE.ravel(), CE[:, [1, 2, 0]].ravel(), CE[:, [2, 0, 1]].ravel()
-    scale = np.repeat(0.25 / double_area, 3)           # ½ · ½ / (2|τ|)
+    products and their scatter — measured at 34k faces, 0.83 → 0.3 ms. Built by a compiled pass
+(rows sorted, the two ``−s`` of an inner edge's own column summed: what a COO → CSR conversion
+gives, in 0.1 instead of 0.6 s at 1M faces)."""
     E = len(pattern.edges)
-    # the COO → CSR conversion sums the two −scale entries of an inner edge's own column
-    return sp.coo_matrix((np.concatenate([scale, scale, -scale]),
-                          (np.concatenate([e_o, e_o, e_o]), np.concatenate([e_a, e_b, e_o]))),
-                         shape=(E, E)).tocsr()
+    data, indices, indptr = _kernels.stretch_weight_map(
+        pattern.corner_edge, np.ascontiguousarray(double_area, dtype=np.float64), E)
+    return sp.csr_matrix((data, indices, indptr), shape=(E, E))
 
 
 def squared_edge_lengths(pattern: LaplacianPattern, f: np.ndarray) -> np.ndarray:
