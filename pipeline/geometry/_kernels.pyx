@@ -220,3 +220,22 @@ def stretch_weight_map(const long[:, ::1] corner_edge, const double[::1] double_
         indptr[r + 1] = out
         row_start = fill[r]
     return data_arr[:out], indices_arr[:out], indptr_arr
+
+
+def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const int[::1] W_indptr,
+                    const long[:, ::1] edges, const double complex[::1] f, double[::1] l2,
+                    double[::1] w):
+    """``w = W ℓ²(f)`` (eq. 12 by :func:`stretch_weight_map`), with ``ℓ²_e = |f_i − f_j|²``
+    written into ``l2``: the squared lengths and the CSR product in two passes, summing each
+    row in stored order as SciPy's product does."""
+    cdef Py_ssize_t e, p, E = edges.shape[0]
+    cdef double complex d
+    cdef double acc
+    for e in range(E):
+        d = f[edges[e, 0]] - f[edges[e, 1]]
+        l2[e] = d.real * d.real + d.imag * d.imag
+    for e in range(E):
+        acc = 0.0
+        for p in range(W_indptr[e], W_indptr[e + 1]):
+            acc = acc + W_data[p] * l2[W_indices[p]]
+        w[e] = acc

@@ -42,10 +42,10 @@ import numpy as np
 
 from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
-                        squared_edge_lengths, stretch_weight_map)
+                        stretch_weight_map)
 from .metrics import area_distortions, signed_double_areas, vertex_area_fractions
 from .topology import vertex_faces
-from ._kernels import hold_rounds
+from ._kernels import hold_rounds, stretch_weights
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 MODES = ("paper", "converged")
@@ -123,8 +123,13 @@ class _Problem:
                                 self.incidence)
 
     def weights(self, f):
-        """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12), from the squared edge lengths."""
-        return self.weight_map @ squared_edge_lengths(self.pattern, f)
+        """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12), from the squared edge lengths:
+        ``W ℓ²(f)`` (:func:`stretch_weight_map`) in one compiled call."""
+        W, E = self.weight_map, len(self.pattern.edges)
+        w = np.empty(E)
+        stretch_weights(W.data, W.indices, W.indptr, self.pattern.edges,
+                        np.ascontiguousarray(f, dtype=np.complex128), np.empty(E), w)
+        return w
 
     def release(self):
         for s in (self.solver_I, self.solver_P, self.solver_B):
