@@ -239,3 +239,62 @@ def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const in
         for p in range(W_indptr[e], W_indptr[e + 1]):
             acc = acc + W_data[p] * l2[W_indices[p]]
         w[e] = acc
+
+
+def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1] twin,
+                  const double[:, ::1] P, const long[::1] start, const long[::1] todo,
+                  int walk, double tol, long[::1] face, double[:, ::1] bary):
+    """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]``: test the face
+    (barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates` computes them;
+    inside when the smallest is ≥ ``−tol``), else step to the face across the edge of the most
+    negative barycentric (the first of the smallest; a NaN counts as smallest), at most
+    ``walk`` steps, stopping at the rim (``twin < 0``). A point found gets ``face[i]`` and its
+    barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
+    cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
+    cdef long f, nxt
+    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn, s
+    cdef double lam[3]
+    left_arr = np.empty(todo.shape[0], dtype=np.int64)
+    cdef long[::1] left = left_arr
+    for idx in range(todo.shape[0]):
+        i = todo[idx]
+        f = start[i]
+        px, py = P[i, 0], P[i, 1]
+        found = False
+        for step in range(walk + 1):
+            ax, ay = uv[F[f, 0], 0] - px, uv[F[f, 0], 1] - py
+            bx, by = uv[F[f, 1], 0] - px, uv[F[f, 1], 1] - py
+            cx, cy = uv[F[f, 2], 0] - px, uv[F[f, 2], 1] - py
+            d = ((uv[F[f, 1], 0] - uv[F[f, 0], 0]) * (uv[F[f, 2], 1] - uv[F[f, 0], 1])
+                 - (uv[F[f, 1], 1] - uv[F[f, 0], 1]) * (uv[F[f, 2], 0] - uv[F[f, 0], 0]))
+            lam[0] = (bx * cy - by * cx) / d
+            lam[1] = (cx * ay - cy * ax) / d
+            lam[2] = (ax * by - ay * bx) / d
+            cmin = 0                                  # argmin, NaN first (as numpy's)
+            for c in range(3):
+                if lam[c] != lam[c]:
+                    cmin = c
+                    break
+                if lam[c] < lam[cmin]:
+                    cmin = c
+            mn = lam[cmin]
+            if mn >= -tol:                            # False for NaN
+                for c in range(3):
+                    if lam[c] < 0.0:
+                        lam[c] = 0.0
+                s = lam[0] + lam[1] + lam[2]
+                face[i] = f
+                for c in range(3):
+                    bary[i, c] = lam[c] / s
+                found = True
+                break
+            if step == walk:
+                break
+            nxt = twin[3 * f + (cmin + 1) % 3]
+            if nxt < 0:                               # beyond the rim: the grid decides
+                break
+            f = nxt // 3
+        if not found:
+            left[n_left] = i
+            n_left += 1
+    return left_arr[:n_left]

@@ -48,6 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
+from ._kernels import walk_to_faces
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -193,7 +194,7 @@ class PointLocator:
 
     def __init__(self, uv: np.ndarray, F: np.ndarray, boundary: np.ndarray | None = None,
                  cell_factor: float = 0.5):
-        self.uv = np.ascontiguousarray(uv, dtype=np.float64)[:, :2]
+        self.uv = np.ascontiguousarray(np.asarray(uv, dtype=np.float64)[:, :2])
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         n, m = len(self.uv), len(self.F)
         if m == 0:
@@ -327,24 +328,12 @@ class PointLocator:
         bary = np.empty((len(P), 3))
         inside = np.ones(len(P), bool)
         todo = np.arange(len(P))
-        hints = [face] + ([] if face2 is None else [face2])
-        for hint in hints:
-            f = hint[todo]
-            for step in range(walk + 1):
-                if len(todo) == 0:
-                    break
-                tri = self.F[f]
-                b = barycentric_coordinates(P[todo], self.uv[tri[:, 0]], self.uv[tri[:, 1]],
-                                            self.uv[tri[:, 2]])
-                hit = b.min(axis=1) >= -tol
-                face[todo[hit]] = f[hit]
-                bary[todo[hit]] = _clean_rows(b[hit])
-                todo, f, b = todo[~hit], f[~hit], b[~hit]
-                if step == walk or len(todo) == 0:
-                    break
-                nxt = self._neighbours()[3 * f + (np.argmin(b, axis=1) + 1) % 3]
-                go = nxt >= 0                       # beyond the rim: the grid decides
-                f = np.where(go, nxt // 3, f)
+        for hint in [face.copy()] + ([] if face2 is None else [face2]):
+            if len(todo) == 0:
+                break
+            todo = walk_to_faces(self.uv, self.F, self._neighbours(), P,
+                                 np.ascontiguousarray(hint, dtype=np.int64), todo, walk, tol,
+                                 face, bary)
         moved = todo
         if len(moved):
             face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol)
