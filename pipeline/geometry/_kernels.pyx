@@ -298,3 +298,90 @@ def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1]
             left[n_left] = i
             n_left += 1
     return left_arr[:n_left]
+
+
+def interior_edge_twins(const long[:, ::1] F, long n):
+    """For every half-edge ``3 t + c`` (``F[t, c] → F[t, c+1]``), the other half-edge of its
+    undirected edge when exactly two half-edges share it, else −1: half-edges bucketed by their
+    smaller end (a counting sort), each bucket's few partners matched by their larger end."""
+    cdef Py_ssize_t m = F.shape[0], N = 3 * m
+    cdef Py_ssize_t t, c, h, k, p, q, lo_v, end
+    cdef long a, b, key, hid
+    twin_arr = np.full(N, -1, dtype=np.int64)
+    start_arr = np.zeros(n + 1, dtype=np.int64)
+    hi_arr = np.empty(N, dtype=np.int64)
+    id_arr = np.empty(N, dtype=np.int64)
+    cdef long[::1] twin = twin_arr, start = start_arr, hi = hi_arr, hid_of = id_arr
+    for t in range(m):
+        for c in range(3):
+            a, b = F[t, c], F[t, (c + 1) % 3]
+            start[(a if a < b else b) + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+    fill_arr = start_arr[:n].copy()
+    cdef long[::1] fill = fill_arr
+    for t in range(m):
+        for c in range(3):
+            a, b = F[t, c], F[t, (c + 1) % 3]
+            lo_v = a if a < b else b
+            p = fill[lo_v]
+            fill[lo_v] += 1
+            hi[p] = b if a < b else a
+            hid_of[p] = 3 * t + c
+    for lo_v in range(n):
+        end = start[lo_v + 1]
+        for p in range(start[lo_v] + 1, end):            # insertion sort by the larger end
+            key, hid = hi[p], hid_of[p]
+            q = p - 1
+            while q >= start[lo_v] and hi[q] > key:
+                hi[q + 1], hid_of[q + 1] = hi[q], hid_of[q]
+                q -= 1
+            hi[q + 1], hid_of[q + 1] = key, hid
+        p = start[lo_v]
+        while p < end:
+            q = p + 1
+            while q < end and hi[q] == hi[p]:
+                q += 1
+            if q - p == 2:
+                twin[hid_of[p]] = hid_of[p + 1]
+                twin[hid_of[p + 1]] = hid_of[p]
+            p = q
+    return twin_arr
+
+
+def group_by_key(const long[::1] keys, const long[::1] values, long n):
+    """CSR ``(indptr, grouped values)`` of ``values`` grouped by ``keys`` in ``[0, n)``; a
+    stable counting sort (each group keeps the input order)."""
+    cdef Py_ssize_t i, k, N = keys.shape[0]
+    indptr_arr = np.zeros(n + 1, dtype=np.int64)
+    out_arr = np.empty(N, dtype=np.int64)
+    cdef long[::1] indptr = indptr_arr, out = out_arr
+    for i in range(N):
+        indptr[keys[i] + 1] += 1
+    for k in range(n):
+        indptr[k + 1] += indptr[k]
+    fill_arr = indptr_arr[:n].copy()
+    cdef long[::1] fill = fill_arr
+    for i in range(N):
+        out[fill[keys[i]]] = values[i]
+        fill[keys[i]] += 1
+    return indptr_arr, out_arr
+
+
+def common_neighbours(const long[::1] indptr, const long[::1] indices, const long[::1] r,
+                      const long[::1] k, long n):
+    """For every pair ``(r[i], k[i])``, how many entries of row ``r[i]`` of the adjacency CSR
+    also stand in row ``k[i]`` (the link condition's common neighbours)."""
+    cdef Py_ssize_t i, p
+    cdef long stamp
+    mark_arr = np.full(n, -1, dtype=np.int64)
+    count_arr = np.zeros(r.shape[0], dtype=np.int64)
+    cdef long[::1] mark = mark_arr, count = count_arr
+    for i in range(r.shape[0]):
+        stamp = i
+        for p in range(indptr[k[i]], indptr[k[i] + 1]):
+            mark[indices[p]] = stamp
+        for p in range(indptr[r[i]], indptr[r[i] + 1]):
+            if mark[indices[p]] == stamp:
+                count[i] += 1
+    return count_arr

@@ -88,6 +88,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import topology as topo
+from ._kernels import common_neighbours, group_by_key
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -652,8 +653,9 @@ class _CSR:
 
 
 def _group(keys: np.ndarray, values: np.ndarray, n: int) -> _CSR:
-    order = np.argsort(keys)
-    return _CSR(np.r_[0, np.cumsum(np.bincount(keys, minlength=n))], values[order])
+    """``values`` grouped by ``keys`` in ``[0, n)`` (a compiled stable counting sort)."""
+    return _CSR(*group_by_key(np.ascontiguousarray(keys, dtype=np.int64),
+                              np.ascontiguousarray(values, dtype=np.int64), n))
 
 
 def _adjacency(F: np.ndarray, n: int, twin: np.ndarray | None = None) -> _CSR:
@@ -816,12 +818,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         A = _adjacency(Fs, n, twin_all)
         VF = _vertex_faces(Fs, n)
         # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
-        ia, na = topo.csr_rows(A.indptr, A.indices, r)
-        ib, nb = topo.csr_rows(A.indptr, A.indices, k)
-        keys = np.concatenate([ia * np.int64(n) + na, ib * np.int64(n) + nb])
-        keys.sort()
-        dup = keys[1:][keys[1:] == keys[:-1]] // n
-        common = np.bincount(dup, minlength=len(r))
+        common = common_neighbours(A.indptr, A.indices, r, k, n)
         ok = common == np.where(on_b, 1, 2)
         # faces of r that survive (do not contain k), with r replaced by k
         fr, fid = topo.csr_rows(VF.indptr, VF.indices, r)
