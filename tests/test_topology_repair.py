@@ -537,3 +537,22 @@ def test_real_mesh_decimation():
     assert is_disk(r)
     assert 1500 <= len(r.F) <= 2500
     assert np.all(r.source_index >= 0)
+
+
+def test_interior_edge_twins_on_any_triangle_list():
+    """Exact against a dictionary of half-edges by undirected edge, on a triangle soup with
+    boundary, interior, non-manifold (3+ faces) and repeated edges, int32 and int64 faces."""
+    rng = np.random.default_rng(8)
+    F = rng.integers(0, 25, (300, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]
+    by_edge = {}
+    for h, (a, b) in enumerate(zip(F.ravel(), F[:, [1, 2, 0]].ravel())):
+        by_edge.setdefault((min(a, b), max(a, b)), []).append(h)
+    expected = np.full(3 * len(F), -1)
+    for hs in by_edge.values():
+        if len(hs) == 2:
+            expected[hs[0]], expected[hs[1]] = hs[1], hs[0]
+    sizes = {len(hs) for hs in by_edge.values()}
+    assert {1, 2, 3} <= sizes                      # the soup has all three kinds
+    for dtype in (np.int32, np.int64):
+        assert np.array_equal(topo.interior_edge_twins(F.astype(dtype)), expected)

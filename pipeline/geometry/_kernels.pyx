@@ -111,22 +111,20 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
     return count
 
 
-def unique_edges(const long[:, ::1] F, long n):
-    """The unique undirected edges of ``F`` sorted by ``(i, j)`` with ``i < j`` (E×2), and for
-    every corner the index of its opposite edge (m×3): what ``np.unique`` of the keys
-    ``i·n + j`` gives, by a counting sort on ``i`` and a sort of each vertex's few ``j``
-    (O(m) instead of a sort of all 3m keys)."""
+cdef _buckets_by_smaller_end(const long[:, ::1] F, long n, int shift):
+    """The edges ``(F[t, c+shift], F[t, c+shift+1])`` of every corner ``3 t + c`` bucketed by
+    their smaller end (a counting sort), each bucket sorted by the larger end (insertion sort:
+    a bucket holds a vertex's few edges). Returns ``(start, larger end, corner)``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
-    cdef Py_ssize_t t, c, k, p, q, lo_v, s, e, E
+    cdef Py_ssize_t t, c, k, p, q, lo_v
     cdef long a, b, key, cid
     start_arr = np.zeros(n + 1, dtype=np.int64)
     hi_arr = np.empty(N, dtype=np.int64)
     id_arr = np.empty(N, dtype=np.int64)
-    ce_arr = np.empty(N, dtype=np.int64)
-    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
+    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
     for t in range(m):
         for c in range(3):
-            a, b = F[t, (c + 1) % 3], F[t, (c + 2) % 3]
+            a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
             start[(a if a < b else b) + 1] += 1
     for k in range(n):
         start[k + 1] += start[k]
@@ -134,13 +132,12 @@ def unique_edges(const long[:, ::1] F, long n):
     cdef long[::1] fill = fill_arr
     for t in range(m):
         for c in range(3):
-            a, b = F[t, (c + 1) % 3], F[t, (c + 2) % 3]
+            a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
             lo_v = a if a < b else b
             p = fill[lo_v]
             fill[lo_v] += 1
             hi[p] = b if a < b else a
             cid_of[p] = 3 * t + c
-    # sort every bucket by j (insertion sort: a bucket holds ~2 corners per edge at i)
     for lo_v in range(n):
         for p in range(start[lo_v] + 1, start[lo_v + 1]):
             key, cid = hi[p], cid_of[p]
@@ -149,6 +146,18 @@ def unique_edges(const long[:, ::1] F, long n):
                 hi[q + 1], cid_of[q + 1] = hi[q], cid_of[q]
                 q -= 1
             hi[q + 1], cid_of[q + 1] = key, cid
+    return start_arr, hi_arr, id_arr
+
+
+def unique_edges(const long[:, ::1] F, long n):
+    """The unique undirected edges of ``F`` sorted by ``(i, j)`` with ``i < j`` (E×2), and for
+    every corner the index of its opposite edge (m×3): what ``np.unique`` of the keys
+    ``i·n + j`` gives, by a counting sort on ``i`` and a sort of each vertex's few ``j``
+    (O(m) instead of a sort of all 3m keys)."""
+    cdef Py_ssize_t m = F.shape[0], p, lo_v, e, E
+    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 1)
+    ce_arr = np.empty(3 * m, dtype=np.int64)
+    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
     E = 0
     for lo_v in range(n):
         for p in range(start[lo_v], start[lo_v + 1]):
@@ -303,40 +312,13 @@ def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1]
 def interior_edge_twins(const long[:, ::1] F, long n):
     """For every half-edge ``3 t + c`` (``F[t, c] → F[t, c+1]``), the other half-edge of its
     undirected edge when exactly two half-edges share it, else −1: half-edges bucketed by their
-    smaller end (a counting sort), each bucket's few partners matched by their larger end."""
-    cdef Py_ssize_t m = F.shape[0], N = 3 * m
-    cdef Py_ssize_t t, c, h, k, p, q, lo_v, end
-    cdef long a, b, key, hid
-    twin_arr = np.full(N, -1, dtype=np.int64)
-    start_arr = np.zeros(n + 1, dtype=np.int64)
-    hi_arr = np.empty(N, dtype=np.int64)
-    id_arr = np.empty(N, dtype=np.int64)
+    smaller end, each bucket's runs of one larger end matched."""
+    cdef Py_ssize_t p, q, lo_v, end
+    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 0)
+    twin_arr = np.full(3 * F.shape[0], -1, dtype=np.int64)
     cdef long[::1] twin = twin_arr, start = start_arr, hi = hi_arr, hid_of = id_arr
-    for t in range(m):
-        for c in range(3):
-            a, b = F[t, c], F[t, (c + 1) % 3]
-            start[(a if a < b else b) + 1] += 1
-    for k in range(n):
-        start[k + 1] += start[k]
-    fill_arr = start_arr[:n].copy()
-    cdef long[::1] fill = fill_arr
-    for t in range(m):
-        for c in range(3):
-            a, b = F[t, c], F[t, (c + 1) % 3]
-            lo_v = a if a < b else b
-            p = fill[lo_v]
-            fill[lo_v] += 1
-            hi[p] = b if a < b else a
-            hid_of[p] = 3 * t + c
     for lo_v in range(n):
         end = start[lo_v + 1]
-        for p in range(start[lo_v] + 1, end):            # insertion sort by the larger end
-            key, hid = hi[p], hid_of[p]
-            q = p - 1
-            while q >= start[lo_v] and hi[q] > key:
-                hi[q + 1], hid_of[q + 1] = hi[q], hid_of[q]
-                q -= 1
-            hi[q + 1], hid_of[q + 1] = key, hid
         p = start[lo_v]
         while p < end:
             q = p + 1

@@ -818,7 +818,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         A = _adjacency(Fs, n, twin_all)
         VF = _vertex_faces(Fs, n)
         # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
-        common = common_neighbours(A.indptr, A.indices, r, k, n)
+        common = common_neighbours(A.indptr, A.indices, r.astype(np.int64),
+                                   k.astype(np.int64), n)
         ok = common == np.where(on_b, 1, 2)
         # faces of r that survive (do not contain k), with r replaced by k
         fr, fid = topo.csr_rows(VF.indptr, VF.indices, r)
