@@ -10,6 +10,7 @@ same.
 """
 
 import numpy as np
+from libc.math cimport fabs, sqrt
 
 ctypedef fused index_t:
     int
@@ -367,3 +368,61 @@ def common_neighbours(const long[::1] indptr, const long[::1] indices, const lon
             if mark[indices[p]] == stamp:
                 count[i] += 1
     return count_arr
+
+
+def faces_touching(const index_t[:, ::1] F, const unsigned char[::1] mark):
+    """Boolean mask of the faces with at least one corner ``v`` where ``mark[v]`` is set
+    (``mark[F].any(axis=1)`` without the (m, 3) temporary and the slow reduction over a
+    length-3 axis)."""
+    cdef Py_ssize_t t, m = F.shape[0]
+    out_arr = np.empty(m, dtype=np.bool_)
+    cdef unsigned char[::1] out = out_arr.view(np.uint8)
+    for t in range(m):
+        out[t] = mark[F[t, 0]] | mark[F[t, 1]] | mark[F[t, 2]]
+    return out_arr
+
+
+def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
+                          const unsigned char[::1] is_rim, const long[:, ::1] T,
+                          const long[:, ::1] Tn, const long[::1] kept, double L_max):
+    """For each face ``T[i]`` that a collapse rewrites as ``Tn[i]`` (the removed vertex
+    replaced by ``kept[i]``), whether the new face is invalid: its disk area (twice, signed)
+    at most 1e-6 of the old one's magnitude, its 3D normal turned over (non-positive dot with
+    the old), all three corners on the rim, or an edge from ``kept[i]`` longer than ``L_max``."""
+    cdef Py_ssize_t i, c, j
+    cdef double old2, new2, d, dx, dy, dz, longest
+    cdef double no[3]
+    cdef double nn[3]
+    bad_arr = np.empty(T.shape[0], dtype=np.bool_)
+    cdef unsigned char[::1] bad = bad_arr.view(np.uint8)
+    for i in range(T.shape[0]):
+        old2 = _signed2(uv, T[i, 0], T[i, 1], T[i, 2])
+        new2 = _signed2(uv, Tn[i, 0], Tn[i, 1], Tn[i, 2])
+        _normal(X, T[i, 0], T[i, 1], T[i, 2], no)
+        _normal(X, Tn[i, 0], Tn[i, 1], Tn[i, 2], nn)
+        longest = 0.0
+        for c in range(3):
+            j = Tn[i, c]
+            dx, dy, dz = X[j, 0] - X[kept[i], 0], X[j, 1] - X[kept[i], 1], X[j, 2] - X[kept[i], 2]
+            d = sqrt(dx * dx + dy * dy + dz * dz)
+            if d > longest:
+                longest = d
+        bad[i] = ((new2 <= 1e-6 * fabs(old2))
+                  or (no[0] * nn[0] + no[1] * nn[1] + no[2] * nn[2] <= 0)
+                  or (is_rim[Tn[i, 0]] and is_rim[Tn[i, 1]] and is_rim[Tn[i, 2]])
+                  or longest > L_max)
+    return bad_arr
+
+
+cdef inline double _signed2(const double[:, ::1] uv, long a, long b, long c) noexcept nogil:
+    return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
+            - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+cdef inline void _normal(const double[:, ::1] X, long a, long b, long c, double* out
+                         ) noexcept nogil:
+    cdef double e1x = X[b, 0] - X[a, 0], e1y = X[b, 1] - X[a, 1], e1z = X[b, 2] - X[a, 2]
+    cdef double e2x = X[c, 0] - X[a, 0], e2y = X[c, 1] - X[a, 1], e2z = X[c, 2] - X[a, 2]
+    out[0] = e1y * e2z - e1z * e2y
+    out[1] = e1z * e2x - e1x * e2z
+    out[2] = e1x * e2y - e1y * e2x

@@ -88,7 +88,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import topology as topo
-from ._kernels import common_neighbours, group_by_key
+from ._kernels import (collapse_breaks_faces, common_neighbours, faces_touching,
+                       group_by_key)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -108,6 +109,15 @@ SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × 
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 SAG_BLOCK = 262144    # sample points per point-location query in edge_sag_along
 SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
+
+
+def _touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """Faces (m bool) with a corner where ``mark`` (n bool) is set: ``mark[F].any(axis=1)``,
+    compiled (remeshing asks this of the whole mesh in every collapse round)."""
+    F = np.asarray(F)
+    return faces_touching(np.ascontiguousarray(F if F.dtype in (np.int32, np.int64)
+                                               else F.astype(np.int64)),
+                          np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
 
 
 def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
@@ -162,7 +172,7 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
     else:
         cot = np.empty(3 * m)
         have = np.zeros(m, bool)                                        # faces with their cots
-        h = _interior_edges_of(np.flatnonzero(active[F].any(axis=1)), twin, m)
+        h = _interior_edges_of(np.flatnonzero(_touching(F, active)), twin, m)
     total, rounds = 0, 0
     for rounds in range(1, max_rounds + 1):
         if len(h) == 0:
@@ -354,7 +364,7 @@ def tangential_relaxation(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
         while True:                              # dropping moves can flip a face: drop more
             bad = _signed2(uv + du, F[:, 0], F[:, 1], F[:, 2]) <= area_floor
-            bad &= np.any(du != 0, axis=1)[F].any(axis=1)
+            bad &= _touching(F, np.any(du != 0, axis=1))
             if not bad.any():
                 break
             du[F[bad].ravel()] = 0.0
@@ -594,7 +604,7 @@ def _edges_at(S: RemeshState, active: np.ndarray | None):
         return _edge_table(S.F, twin=S.twins())
     # both faces of an edge with an active end contain that end: the edge table of the faces
     # at active vertices has those edges' twins right
-    sub = np.flatnonzero(active[S.F].any(axis=1))
+    sub = np.flatnonzero(_touching(S.F, active))
     hs, a, b, ts = _edge_table(S.F[sub])
     keep = active[a] | active[b]
     hs, a, b, ts = hs[keep], a[keep], b[keep], ts[keep]
@@ -786,7 +796,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             if look is None:
                 ends = tails[hl < thr]
             else:
-                Fl = F[look[F].any(axis=1)]
+                Fl = F[_touching(F, look)]
                 tails = Fl.ravel()
                 ends = tails[norms(S.X[tails] - S.X[Fl[:, [1, 2, 0]].ravel()]) < thr]
             if len(ends) == 0:
@@ -796,7 +806,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
                 break
             at_short = np.zeros(n, bool)
             at_short[ends] = True
-            Fs = F[at_short[F].any(axis=1)]
+            Fs = F[_touching(F, at_short)]
         h, a, b, twin, twin_all = _edge_table(Fs, with_twins=True)
         ln = norms(S.X[a] - S.X[b])
         cand = np.flatnonzero(ln < thr)
@@ -827,17 +837,10 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         has_k = (T == k[fr][:, None]).any(axis=1)
         fr, fid, T = fr[~has_k], fid[~has_k], T[~has_k]
         Tn = np.where(T == r[fr][:, None], k[fr][:, None], T)
-        old2 = _signed2(S.uv, T[:, 0], T[:, 1], T[:, 2])
-        new2 = _signed2(S.uv, Tn[:, 0], Tn[:, 1], Tn[:, 2])
-        X = S.X
-        n_old = cross(X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]])
-        n_new = cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
-        kpos = X[k[fr]]
-        longest = np.maximum(norms(X[Tn[:, 0]] - kpos),
-                             np.maximum(norms(X[Tn[:, 1]] - kpos),
-                                        norms(X[Tn[:, 2]] - kpos)))
-        bad = ((new2 <= 1e-6 * np.abs(old2)) | (np.einsum("ij,ij->i", n_old, n_new) <= 0)
-               | S.is_rim[Tn].all(axis=1) | (longest > L_max))
+        bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), np.ascontiguousarray(S.X),
+                                    np.ascontiguousarray(S.is_rim).view(np.uint8),
+                                    *(np.ascontiguousarray(x, dtype=np.int64)
+                                      for x in (T, Tn, k[fr])), float(L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
         win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
                                      None if budget is None else budget - done)
