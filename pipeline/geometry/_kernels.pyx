@@ -426,3 +426,37 @@ cdef inline void _normal(const double[:, ::1] X, long a, long b, long c, double*
     out[0] = e1y * e2z - e1z * e2y
     out[1] = e1z * e2x - e1x * e2z
     out[2] = e1x * e2y - e1y * e2x
+
+
+def cells_touch_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1] face,
+                      const long[::1] cx, const long[::1] cy, double ox, double oy,
+                      double cell):
+    """Whether the closed grid cell ``(cx[i], cy[i])`` (origin ``(ox, oy)``, side ``cell``) can
+    meet the image face ``face[i]`` (either orientation): False only when the whole cell lies
+    strictly outside the line of one edge, with a margin of 1e-9 cell sizes (the arithmetic of
+    :func:`pipeline.geometry.locate._touches`, one pair at a time)."""
+    cdef Py_ssize_t i, c
+    cdef long f
+    cdef double x0, y0, A2, s, px, py, qx, qy, nx, ny, mx, my, dist
+    cdef double tx[3]
+    cdef double ty[3]
+    ok_arr = np.ones(face.shape[0], dtype=np.bool_)
+    cdef unsigned char[::1] ok = ok_arr.view(np.uint8)
+    for i in range(face.shape[0]):
+        f = face[i]
+        for c in range(3):
+            tx[c], ty[c] = uv[F[f, c], 0], uv[F[f, c], 1]
+        x0 = ox + <double>cx[i] * cell
+        y0 = oy + <double>cy[i] * cell
+        A2 = (tx[1] - tx[0]) * (ty[2] - ty[0]) - (ty[1] - ty[0]) * (tx[2] - tx[0])
+        s = -1.0 if A2 < 0 else 1.0
+        for c in range(3):
+            px, py, qx, qy = tx[c], ty[c], tx[(c + 1) % 3], ty[(c + 1) % 3]
+            nx, ny = s * (qy - py), (-s) * (qx - px)
+            mx = x0 if nx > 0 else x0 + cell
+            my = y0 if ny > 0 else y0 + cell
+            dist = nx * (mx - px) + ny * (my - py)
+            if not dist <= 1e-9 * cell * (fabs(nx) + fabs(ny)):
+                ok[i] = 0
+                break
+    return ok_arr

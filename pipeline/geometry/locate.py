@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import walk_to_faces
+from ._kernels import cells_touch_faces, walk_to_faces
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -164,27 +164,6 @@ def project_to_boundary_polygon(uv: np.ndarray, boundary: np.ndarray, points: np
     return q
 
 
-def _touches(T: np.ndarray, origin: np.ndarray, cell: float, cx: np.ndarray, cy: np.ndarray
-             ) -> np.ndarray:
-    """Whether the closed grid cell ``(cx, cy)`` can meet the triangle ``T`` (k×3×2, either
-    orientation): False only when the whole cell lies strictly outside the line of one edge
-    (with a margin of 1e-9 cell sizes, so points on cell borders are never missed)."""
-    x0 = origin[0] + cx * cell
-    y0 = origin[1] + cy * cell
-    A2 = ((T[:, 1, 0] - T[:, 0, 0]) * (T[:, 2, 1] - T[:, 0, 1])
-          - (T[:, 1, 1] - T[:, 0, 1]) * (T[:, 2, 0] - T[:, 0, 0]))
-    s = np.where(A2 < 0, -1.0, 1.0)
-    ok = np.ones(len(T), bool)
-    for c in range(3):
-        P, Q = T[:, c], T[:, (c + 1) % 3]
-        nx, ny = s * (Q[:, 1] - P[:, 1]), -s * (Q[:, 0] - P[:, 0])      # outward normal
-        mx = np.where(nx > 0, x0, x0 + cell)              # the cell corner minimising n·x
-        my = np.where(ny > 0, y0, y0 + cell)
-        dist = nx * (mx - P[:, 0]) + ny * (my - P[:, 1])
-        ok &= dist <= 1e-9 * cell * (np.abs(nx) + np.abs(ny))
-    return ok
-
-
 class PointLocator:
     """Build once for an image triangulation ``(uv, F)``, then :meth:`locate` any points.
 
@@ -221,7 +200,8 @@ class PointLocator:
         big = np.flatnonzero(count[face] > 2)
         if len(big):
             keep = np.ones(len(face), bool)
-            keep[big] = _touches(T[face[big]], self.origin, cell, cx[big], cy[big])
+            keep[big] = cells_touch_faces(self.uv, self.F, face[big], cx[big], cy[big],
+                                          float(self.origin[0]), float(self.origin[1]), cell)
             face, cx, cy = face[keep], cx[keep], cy[keep]
         cells = cy * self.shape[0] + cx
         order = np.argsort(cells, kind="stable")
