@@ -460,3 +460,30 @@ def cells_touch_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[
                 ok[i] = 0
                 break
     return ok_arr
+
+
+def faces_kept_by_collapses(const long[::1] vf_ptr, const long[::1] vf_idx,
+                            const long[:, ::1] F, const long[::1] r, const long[::1] k):
+    """For collapses ``r[i] → k[i]``, the faces of ``r[i]`` that survive (those without
+    ``k[i]``), in the incidence's row order: ``(i of each, the face, the face with r[i]
+    replaced by k[i])``."""
+    cdef Py_ssize_t i, p, c, out = 0, total = 0
+    cdef long t
+    for i in range(r.shape[0]):
+        total += vf_ptr[r[i] + 1] - vf_ptr[r[i]]
+    fr_arr = np.empty(total, dtype=np.int64)
+    T_arr = np.empty((total, 3), dtype=np.int64)
+    Tn_arr = np.empty((total, 3), dtype=np.int64)
+    cdef long[::1] fr = fr_arr
+    cdef long[:, ::1] T = T_arr, Tn = Tn_arr
+    for i in range(r.shape[0]):
+        for p in range(vf_ptr[r[i]], vf_ptr[r[i] + 1]):
+            t = vf_idx[p]
+            if F[t, 0] == k[i] or F[t, 1] == k[i] or F[t, 2] == k[i]:
+                continue
+            fr[out] = i
+            for c in range(3):
+                T[out, c] = F[t, c]
+                Tn[out, c] = k[i] if F[t, c] == r[i] else F[t, c]
+            out += 1
+    return fr_arr[:out], T_arr[:out], Tn_arr[:out]

@@ -88,8 +88,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import topology as topo
-from ._kernels import (collapse_breaks_faces, common_neighbours, faces_touching,
-                       group_by_key)
+from ._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
+                       faces_touching, group_by_key)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -779,6 +779,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     done = 0
     look = None                     # after a round: where short edges can still be (n bool)
     thr = L_min
+    alive = np.ones(S.n, bool)      # vertices not removed yet
     for _ in range(max_rounds):
         F, n = S.F, S.n
         Fs = F
@@ -828,19 +829,15 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         A = _adjacency(Fs, n, twin_all)
         VF = _vertex_faces(Fs, n)
         # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
-        common = common_neighbours(A.indptr, A.indices, r.astype(np.int64),
-                                   k.astype(np.int64), n)
+        r, k = r.astype(np.int64), k.astype(np.int64)
+        common = common_neighbours(A.indptr, A.indices, r, k, n)
         ok = common == np.where(on_b, 1, 2)
         # faces of r that survive (do not contain k), with r replaced by k
-        fr, fid = topo.csr_rows(VF.indptr, VF.indices, r)
-        T = Fs[fid]
-        has_k = (T == k[fr][:, None]).any(axis=1)
-        fr, fid, T = fr[~has_k], fid[~has_k], T[~has_k]
-        Tn = np.where(T == r[fr][:, None], k[fr][:, None], T)
+        fr, T, Tn = faces_kept_by_collapses(VF.indptr, VF.indices,
+                                            np.ascontiguousarray(Fs, dtype=np.int64), r, k)
         bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), np.ascontiguousarray(S.X),
-                                    np.ascontiguousarray(S.is_rim).view(np.uint8),
-                                    *(np.ascontiguousarray(x, dtype=np.int64)
-                                      for x in (T, Tn, k[fr])), float(L_max))
+                                    np.ascontiguousarray(S.is_rim).view(np.uint8), T, Tn,
+                                    k[fr], float(L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
         win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
                                      None if budget is None else budget - done)
@@ -850,19 +847,21 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         remap[r[win]] = k[win]
         F2 = remap[F]
         keepf = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
-        keepv = np.ones(n, bool)
-        keepv[r[win]] = False
-        newidx = np.cumsum(keepv) - 1
-        S.F = newidx[F2[keepf]]
-        S.uv, S.X, S.face, S.bary, S.is_rim, S.locked = (
-            x[keepv] for x in (S.uv, S.X, S.face, S.bary, S.is_rim, S.locked))
+        # the removed vertices stay in the arrays, unreferenced, until the rounds end: one
+        # compaction instead of one a round (the same numbering: deletions keep the order)
+        S.F = F2[keepf]
+        alive[r[win]] = False
         if np.isfinite(thr):
             # the short edges left are among those seen this round or at a kept vertex
             at_short[k[win]] = True
-            look = at_short[keepv]
+            look = at_short
         done += len(win)
         if budget is not None and done >= budget:
             break
+    if not alive.all():
+        S.F = (np.cumsum(alive) - 1)[S.F]
+        S.uv, S.X, S.face, S.bary, S.is_rim, S.locked = (
+            x[alive] for x in (S.uv, S.X, S.face, S.bary, S.is_rim, S.locked))
     S._count("collapses", done)
     return done
 
