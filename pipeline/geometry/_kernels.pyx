@@ -487,3 +487,19 @@ def faces_kept_by_collapses(const long[::1] vf_ptr, const long[::1] vf_idx,
                 Tn[out, c] = k[i] if F[t, c] == r[i] else F[t, c]
             out += 1
     return fr_arr[:out], T_arr[:out], Tn_arr[:out]
+
+
+def lift_rows(const double[:, ::1] values, const long[:, ::1] F, const long[::1] face,
+              const double[:, ::1] bary):
+    """Eq. (1) row by row: ``Σ_c bary[i, c] · values[F[face[i], c]]``, summed over the corners
+    in order (k×d)."""
+    cdef Py_ssize_t i, j, d = values.shape[1]
+    cdef long t0, t1, t2
+    out_arr = np.empty((face.shape[0], d), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    for i in range(face.shape[0]):
+        t0, t1, t2 = F[face[i], 0], F[face[i], 1], F[face[i], 2]
+        for j in range(d):
+            out[i, j] = (bary[i, 0] * values[t0, j] + bary[i, 1] * values[t1, j]
+                         + bary[i, 2] * values[t2, j])
+    return out_arr

@@ -48,7 +48,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import cells_touch_faces, walk_to_faces
+from ._kernels import cells_touch_faces, lift_rows, walk_to_faces
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -355,12 +355,11 @@ def lift(values: np.ndarray, F: np.ndarray, face: np.ndarray, bary: np.ndarray) 
 
     With ``values = V`` this maps disk samples to the surface; with colours, normals or any other
     per-vertex attribute it interpolates that attribute linearly (normals need renormalising).
+    Compiled, float64 out (the corners summed in order, as ``b0·v0 + b1·v1 + b2·v2``).
     """
     vals = np.asarray(values)
-    t = np.asarray(F)[np.asarray(face)]
-    b = np.asarray(bary, dtype=np.float64)
-    shape = (len(t),) + (1,) * (vals.ndim - 1)
-    out = b[:, 0].reshape(shape) * vals[t[:, 0]]      # one corner at a time: no (k, 3, …) copy
-    out += b[:, 1].reshape(shape) * vals[t[:, 1]]
-    out += b[:, 2].reshape(shape) * vals[t[:, 2]]
-    return out
+    rows = np.ascontiguousarray(vals.reshape(len(vals), -1), dtype=np.float64)
+    out = lift_rows(rows, np.ascontiguousarray(F, dtype=np.int64),
+                    np.ascontiguousarray(face, dtype=np.int64),
+                    np.ascontiguousarray(bary, dtype=np.float64))
+    return out.reshape((len(out),) + vals.shape[1:])
