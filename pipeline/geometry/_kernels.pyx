@@ -503,3 +503,49 @@ def lift_rows(const double[:, ::1] values, const long[:, ::1] F, const long[::1]
             out[i, j] = (bary[i, 0] * values[t0, j] + bary[i, 1] * values[t1, j]
                          + bary[i, 2] * values[t2, j])
     return out_arr
+
+
+cdef inline double _length(const double[:, ::1] X, long a, long b) noexcept nogil:
+    """``|X[a] − X[b]|`` summing the squares as numpy's einsum does here (x, z, then y)."""
+    cdef double dx = X[a, 0] - X[b, 0], dy = X[a, 1] - X[b, 1], dz = X[a, 2] - X[b, 2]
+    return sqrt((dx * dx + dz * dz) + dy * dy)
+
+
+def short_half_edge_tails(const long[:, ::1] F, const double[:, ::1] X, double thr):
+    """The tails ``F[t, c]`` of the half-edges ``F[t, c] → F[t, c+1]`` shorter than ``thr``
+    in 3D, in half-edge order."""
+    cdef Py_ssize_t t, c, out = 0
+    tails_arr = np.empty(3 * F.shape[0], dtype=np.int64)
+    cdef long[::1] tails = tails_arr
+    for t in range(F.shape[0]):
+        for c in range(3):
+            if _length(X, F[t, c], F[t, (c + 1) % 3]) < thr:
+                tails[out] = F[t, c]
+                out += 1
+    return tails_arr[:out]
+
+
+def short_edges(const long[:, ::1] F, const long[::1] twin, const double[:, ::1] X,
+                double thr):
+    """Every edge of ``F`` once (its half-edge ``h`` with ``twin[h] < 0 or twin[h] > h``)
+    shorter than ``thr`` in 3D: ``(h, a, b, twin[h], length)`` with ``h = a → b``, in
+    half-edge order."""
+    cdef Py_ssize_t h, out = 0, N = 3 * F.shape[0]
+    cdef long a, b
+    cdef double ln
+    h_arr = np.empty(N, dtype=np.int64)
+    a_arr = np.empty(N, dtype=np.int64)
+    b_arr = np.empty(N, dtype=np.int64)
+    t_arr = np.empty(N, dtype=np.int64)
+    l_arr = np.empty(N, dtype=np.float64)
+    cdef long[::1] hs = h_arr, as_ = a_arr, bs = b_arr, ts = t_arr
+    cdef double[::1] ls = l_arr
+    for h in range(N):
+        if twin[h] >= 0 and twin[h] < h:
+            continue
+        a, b = F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3]
+        ln = _length(X, a, b)
+        if ln < thr:
+            hs[out], as_[out], bs[out], ts[out], ls[out] = h, a, b, twin[h], ln
+            out += 1
+    return h_arr[:out], a_arr[:out], b_arr[:out], t_arr[:out], l_arr[:out]

@@ -89,7 +89,7 @@ import numpy as np
 
 from . import topology as topo
 from ._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
-                       faces_touching, group_by_key)
+                       faces_touching, group_by_key, short_edges, short_half_edge_tails)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -783,6 +783,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     for _ in range(max_rounds):
         F, n = S.F, S.n
         Fs = F
+        X = np.ascontiguousarray(S.X)
         if look is None and (budget is not None or np.isfinite(L_min)):
             tails = F.ravel()
             hl = norms(S.X[tails] - S.X[F[:, [1, 2, 0]].ravel()])     # half-edge lengths
@@ -797,9 +798,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             if look is None:
                 ends = tails[hl < thr]
             else:
-                Fl = F[_touching(F, look)]
-                tails = Fl.ravel()
-                ends = tails[norms(S.X[tails] - S.X[Fl[:, [1, 2, 0]].ravel()]) < thr]
+                ends = short_half_edge_tails(np.ascontiguousarray(F[_touching(F, look)],
+                                                                  dtype=np.int64), X, thr)
             if len(ends) == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
@@ -808,12 +808,11 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             at_short = np.zeros(n, bool)
             at_short[ends] = True
             Fs = F[_touching(F, at_short)]
-        h, a, b, twin, twin_all = _edge_table(Fs, with_twins=True)
-        ln = norms(S.X[a] - S.X[b])
-        cand = np.flatnonzero(ln < thr)
-        if len(cand) == 0:
+        Fs = np.ascontiguousarray(Fs, dtype=np.int64)
+        twin_all = topo.interior_edge_twins(Fs)
+        h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
+        if len(h) == 0:
             break
-        a, b, twin, h, ln = a[cand], b[cand], twin[cand], h[cand], ln[cand]
         on_b = twin < 0
         ra, rb = S.is_rim[a], S.is_rim[b]
         ok = ~(ra & rb & ~on_b)                   # an interior edge between rim vertices: no
@@ -833,9 +832,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         common = common_neighbours(A.indptr, A.indices, r, k, n)
         ok = common == np.where(on_b, 1, 2)
         # faces of r that survive (do not contain k), with r replaced by k
-        fr, T, Tn = faces_kept_by_collapses(VF.indptr, VF.indices,
-                                            np.ascontiguousarray(Fs, dtype=np.int64), r, k)
-        bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), np.ascontiguousarray(S.X),
+        fr, T, Tn = faces_kept_by_collapses(VF.indptr, VF.indices, Fs, r, k)
+        bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), X,
                                     np.ascontiguousarray(S.is_rim).view(np.uint8), T, Tn,
                                     k[fr], float(L_max))
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
