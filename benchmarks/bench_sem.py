@@ -147,7 +147,8 @@ def main(argv=None) -> None:
             its = args.scipy_iterations_1M if (solver == "scipy" and size == "1M") \
                 else args.iterations
             out = subprocess.run([sys.executable, __file__, "--_one", str(path), solver,
-                                  str(its), str(args.repeat)], capture_output=True, text=True, check=True)
+                                  str(its), str(args.repeat)],
+                                 capture_output=True, text=True, check=True)
             row = dict(json.loads(out.stdout.strip().splitlines()[-1]), size=size)
             rows.append(row)
             print(f"  {size} {solver}: {row['total_s']:.2f} s", file=sys.stderr, flush=True)

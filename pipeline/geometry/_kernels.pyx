@@ -549,3 +549,58 @@ def short_edges(const long[:, ::1] F, const long[::1] twin, const double[:, ::1]
             hs[out], as_[out], bs[out], ts[out], ls[out] = h, a, b, twin[h], ln
             out += 1
     return h_arr[:out], a_arr[:out], b_arr[:out], t_arr[:out], l_arr[:out]
+
+
+cdef inline void _cross_at(const double[:, ::1] X, long o, long u, long v, double* out
+                           ) noexcept nogil:
+    """``(X[u] − X[o]) × (X[v] − X[o])``."""
+    _normal(X, o, u, v, out)
+
+
+cdef inline double _dot3(const double* a, const double* b) noexcept nogil:
+    """``a · b`` summed as numpy's einsum does here (x, z, then y)."""
+    return (a[0] * b[0] + a[2] * b[2]) + a[1] * b[1]
+
+
+def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
+                const unsigned char[::1] is_b, const long[:, ::1] F, const long[::1] h,
+                const long[::1] twin, double cos_max):
+    """For the interior half-edges ``h`` (``a → b`` in face f, twin in face g, ``p``/``q`` the
+    corners opposite in f/g), the quad's corners and two masks: ``flat`` — the normals of f
+    and g within the dihedral angle whose cosine is ``cos_max``; ``valid`` — the new faces
+    ``(p, a, q)`` and ``(q, b, p)`` agree with the quad's normal in 3D, are counter-clockwise
+    on the disk by more than 1e-6 of the quad's area, and have not all three corners on the
+    boundary."""
+    cdef Py_ssize_t i, j, k = h.shape[0]
+    cdef long f, c, g, d, a, b, p, q
+    cdef double nf[3]
+    cdef double ng[3]
+    cdef double n1[3]
+    cdef double n2[3]
+    cdef double ns[3]
+    cdef double s1, s2, scale
+    quad_arr = np.empty((4, k), dtype=np.int64)
+    flat_arr = np.empty(k, dtype=np.bool_)
+    valid_arr = np.empty(k, dtype=np.bool_)
+    cdef long[:, ::1] quad = quad_arr
+    cdef unsigned char[::1] flat = flat_arr.view(np.uint8), valid = valid_arr.view(np.uint8)
+    for i in range(k):
+        f, c = h[i] // 3, h[i] % 3
+        g, d = twin[h[i]] // 3, twin[h[i]] % 3
+        a, b = F[f, c], F[f, (c + 1) % 3]
+        p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
+        quad[0, i], quad[1, i], quad[2, i], quad[3, i] = a, b, p, q
+        _cross_at(X, a, b, p, nf)
+        _cross_at(X, b, a, q, ng)
+        _cross_at(X, p, a, q, n1)
+        _cross_at(X, q, b, p, n2)
+        for j in range(3):
+            ns[j] = nf[j] + ng[j]
+        flat[i] = _dot3(nf, ng) >= cos_max * sqrt(_dot3(nf, nf)) * sqrt(_dot3(ng, ng))
+        s1, s2 = _signed2(uv, p, a, q), _signed2(uv, q, b, p)
+        scale = _signed2(uv, a, b, p) + _signed2(uv, b, a, q)
+        valid[i] = ((_dot3(n1, ns) > 0) and (_dot3(n2, ns) > 0)
+                    and (s1 > 1e-6 * scale) and (s2 > 1e-6 * scale)
+                    and not (is_b[p] and is_b[a] and is_b[q])
+                    and not (is_b[q] and is_b[b] and is_b[p]))
+    return quad_arr, flat_arr, valid_arr

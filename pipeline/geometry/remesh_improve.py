@@ -89,7 +89,8 @@ import numpy as np
 
 from . import topology as topo
 from ._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
-                       faces_touching, group_by_key, short_edges, short_half_edge_tails)
+                       faces_touching, flip_checks, group_by_key, short_edges,
+                       short_half_edge_tails)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -160,8 +161,10 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
     rounds)``; see the module docstring.
     """
     F = np.array(F, dtype=np.int64, copy=True)
+    X, uv = np.ascontiguousarray(X, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64)
     n, m = len(X), len(F)
     is_b = topo.boundary_vertices_mask(F, n) if boundary is None else boundary
+    is_b = np.ascontiguousarray(is_b, dtype=bool).view(np.uint8)
     cos_max = np.cos(np.radians(max_dihedral_deg))
     twin = topo.interior_edge_twins(F) if twin is None else twin
     slot = np.arange(3 * m)                                             # old slot → new slot
@@ -190,27 +193,16 @@ def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_de
         t = twin[h]
         f, c = h // 3, h % 3
         g, d = t // 3, t % 3
-        a, b = F[f, c], F[f, (c + 1) % 3]
-        p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
-        nf = cross(X[b] - X[a], X[p] - X[a])
-        ng = cross(X[a] - X[b], X[q] - X[b])
-        n1 = cross(X[a] - X[p], X[q] - X[p])                         # new face (p, a, q)
-        n2 = cross(X[b] - X[q], X[p] - X[q])                         # new face (q, b, p)
-        nsum = nf + ng
-        ok = dots(nf, ng) >= cos_max * norms(nf) * norms(ng)
+        (a, b, p, q), ok, valid = flip_checks(X, uv, is_b, F, h, twin, cos_max)
         if sag is not None:
             # a folded quad may still flip when the new edge is no farther from the input
             # surface than the old one (caps over a crease, the skewed triangles of the map)
-            folded = np.flatnonzero(~ok)
+            folded = np.flatnonzero(~ok & valid)
             if len(folded):
                 k = len(folded)
                 both = sag(np.r_[p[folded], a[folded]], np.r_[q[folded], b[folded]])
                 ok[folded] = both[:k] <= both[k:]
-        ok &= (np.einsum("ij,ij->i", n1, nsum) > 0) & (np.einsum("ij,ij->i", n2, nsum) > 0)
-        s1, s2 = _signed2(uv, p, a, q), _signed2(uv, q, b, p)
-        scale = _signed2(uv, a, b, p) + _signed2(uv, b, a, q)
-        ok &= (s1 > 1e-6 * scale) & (s2 > 1e-6 * scale)
-        ok &= ~(is_b[p] & is_b[a] & is_b[q]) & ~(is_b[q] & is_b[b] & is_b[p])
+        ok &= valid
         sel = np.flatnonzero(ok)
         if len(sel) == 0:
             break
