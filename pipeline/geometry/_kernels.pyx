@@ -604,3 +604,28 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
                     and not (is_b[p] and is_b[a] and is_b[q])
                     and not (is_b[q] and is_b[b] and is_b[p]))
     return quad_arr, flat_arr, valid_arr
+
+
+def opposite_cots(const double[:, ::1] X, const long[:, ::1] F):
+    """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
+    ``F[t,c] → F[t,c+1]``: ``−e_{c+1} · e_{c+2} / |e_0 × e_2|`` with the half-edges
+    ``e_c = X[F[t,c+1]] − X[F[t,c]]`` (the arithmetic of ``remesh_improve._opposite_cots``)."""
+    cdef Py_ssize_t t, c, j
+    cdef double e[3][3]
+    cdef double n[3]
+    cdef double inv, area2
+    out_arr = np.empty((F.shape[0], 3), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    for t in range(F.shape[0]):
+        for c in range(3):
+            for j in range(3):
+                e[c][j] = X[F[t, (c + 1) % 3], j] - X[F[t, c], j]
+        n[0] = e[0][1] * e[2][2] - e[0][2] * e[2][1]
+        n[1] = e[0][2] * e[2][0] - e[0][0] * e[2][2]
+        n[2] = e[0][0] * e[2][1] - e[0][1] * e[2][0]
+        area2 = sqrt(_dot3(n, n))
+        inv = 1.0 / (area2 if not area2 < 1e-300 else 1e-300)     # NaN stays NaN
+        out[t, 0] = -_dot3(e[1], e[2]) * inv
+        out[t, 1] = -_dot3(e[2], e[0]) * inv
+        out[t, 2] = -_dot3(e[0], e[1]) * inv
+    return out_arr

@@ -89,8 +89,8 @@ import numpy as np
 
 from . import topology as topo
 from ._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
-                       faces_touching, flip_checks, group_by_key, short_edges,
-                       short_half_edge_tails)
+                       faces_touching, flip_checks, group_by_key, opposite_cots,
+                       short_edges, short_half_edge_tails)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -129,15 +129,9 @@ def _signed2(uv: np.ndarray, a, b, c) -> np.ndarray:
 def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
     ``F[t,c] → F[t,c+1]`` (at corner ``c+2``), from one cross product per face (its norm,
-    twice the area, is shared by the three corners)."""
-    P0, P1, P2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
-    e0, e1, e2 = P1 - P0, P2 - P1, P0 - P2                 # the half-edges c = 0, 1, 2
-    inv = 1.0 / np.maximum(norms(cross(e0, e2)), 1e-300)  # |e0 × e2| = twice the area
-    out = np.empty((len(F), 3))
-    out[:, 0] = -dots(e1, e2) * inv       # at corner 2, between e1 and e2
-    out[:, 1] = -dots(e2, e0) * inv
-    out[:, 2] = -dots(e0, e1) * inv
-    return out
+    twice the area, is shared by the three corners); compiled."""
+    return opposite_cots(np.ascontiguousarray(X, dtype=np.float64),
+                         np.ascontiguousarray(F, dtype=np.int64))
 
 
 def delaunay_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
