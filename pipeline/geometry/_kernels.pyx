@@ -1,20 +1,24 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, initializedcheck=False
-"""Compiled inner loops of SEM's iteration: image areas, Laplacian block values, flip holding.
+"""Compiled inner loops: SEM's iteration and setup, point location, and remeshing's rounds.
 
 Built when the package is installed (``pip install -e .`` runs Cython and the C compiler). A
-loop here replaces numpy calls whose fixed overhead and temporaries cost more than their
-arithmetic at 10k faces, where an SEM iteration's solver floor is ~3 ms. The arithmetic is that
-of the numpy formulas they replace, operation for operation and in the same order (the module
-is compiled with ``-ffp-contract=off``: no fused multiply-adds), so results are bit for bit the
-same.
+loop here replaces numpy calls whose fixed overhead and temporaries (first-touch page faults are
+expensive on the project's machines) cost more than their arithmetic: SEM at 10k faces, where
+an iteration's solver floor is ~3 ms, and remeshing's dozens of rounds over the whole mesh.
+Each does the arithmetic of the numpy formula it replaces, operation for operation and in the
+same order — 3-vector dot products and lengths in the order numpy's einsum sums them on these
+machines (x, z, then y) — and the module is compiled with ``-ffp-contract=off`` (no fused
+multiply-adds), so maps and remeshes are bit for bit those of the numpy code. Index arrays are
+int64 (``int`` only where SciPy's CSR arrays are int32, and in the fused ``index_t``).
 """
 
 import numpy as np
 from libc.math cimport fabs, sqrt
+from libc.stdint cimport int64_t
 
 ctypedef fused index_t:
     int
-    long
+    int64_t
 
 
 def signed_double_areas(const index_t[:, ::1] F, const double complex[::1] z, double[::1] out):
@@ -31,8 +35,8 @@ cdef inline double _double_area(double complex z0, double complex z1, double com
     return e1.real * e2.imag - e1.imag * e2.real
 
 
-def laplacian_values(const double[::1] w, const long[:, ::1] edges, const long[::1] II_src,
-                     const long[::1] IB_src, const long[::1] BB_src, double[::1] diag,
+def laplacian_values(const double[::1] w, const int64_t[:, ::1] edges, const int64_t[::1] II_src,
+                     const int64_t[::1] IB_src, const int64_t[::1] BB_src, double[::1] diag,
                      double[::1] II, double[::1] IB, double[::1] BB):
     """The stored values of ``L_II``, ``L_IB``, ``L_BB`` for edge weights ``w`` (eq. 14):
     ``L_ij = −w_ij`` and ``L_ii = Σ_j w_ij``. A block's ``*_src[k]`` indexes ``[−w, diag]``.
@@ -48,7 +52,7 @@ def laplacian_values(const double[::1] w, const long[:, ::1] edges, const long[:
     _gather(w, diag, BB_src, BB)
 
 
-cdef void _gather(const double[::1] w, const double[::1] diag, const long[::1] src,
+cdef void _gather(const double[::1] w, const double[::1] diag, const int64_t[::1] src,
                   double[::1] out) noexcept:
     cdef Py_ssize_t k, s, E = w.shape[0]
     for k in range(src.shape[0]):
@@ -56,9 +60,9 @@ cdef void _gather(const double[::1] w, const double[::1] diag, const long[::1] s
         out[k] = -w[s] if s < E else diag[s - E]
 
 
-def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_idx,
+def hold_rounds(const int64_t[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_idx,
                 const double complex[::1] f, double complex[::1] g, double[::1] a2,
-                long count, long allowed, int rounds):
+                int64_t count, int64_t allowed, int rounds):
     """Hold vertices of flipped faces at ``f`` in ``g`` (in place), round by round, until at most
     ``allowed`` faces of ``g`` are flipped (``a2 <= 0``) or ``rounds`` rounds have run.
 
@@ -75,9 +79,9 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
     held_arr = np.empty(n, dtype=np.int64)
     touched_arr = np.empty(m, dtype=np.int64)
     cdef unsigned char[::1] is_held = is_held_arr
-    cdef long[::1] seen = seen_arr
-    cdef long[::1] held = held_arr
-    cdef long[::1] touched = touched_arr
+    cdef int64_t[::1] seen = seen_arr
+    cdef int64_t[::1] held = held_arr
+    cdef int64_t[::1] touched = touched_arr
     for r in range(rounds):
         if count <= allowed:
             break
@@ -112,17 +116,17 @@ def hold_rounds(const long[:, ::1] F, const int[::1] vf_ptr, const int[::1] vf_i
     return count
 
 
-cdef _buckets_by_smaller_end(const long[:, ::1] F, long n, int shift):
+cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
     """The edges ``(F[t, c+shift], F[t, c+shift+1])`` of every corner ``3 t + c`` bucketed by
     their smaller end (a counting sort), each bucket sorted by the larger end (insertion sort:
     a bucket holds a vertex's few edges). Returns ``(start, larger end, corner)``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
     cdef Py_ssize_t t, c, k, p, q, lo_v
-    cdef long a, b, key, cid
+    cdef int64_t a, b, key, cid
     start_arr = np.zeros(n + 1, dtype=np.int64)
     hi_arr = np.empty(N, dtype=np.int64)
     id_arr = np.empty(N, dtype=np.int64)
-    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
+    cdef int64_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
     for t in range(m):
         for c in range(3):
             a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
@@ -130,7 +134,7 @@ cdef _buckets_by_smaller_end(const long[:, ::1] F, long n, int shift):
     for k in range(n):
         start[k + 1] += start[k]
     fill_arr = start_arr[:n].copy()
-    cdef long[::1] fill = fill_arr
+    cdef int64_t[::1] fill = fill_arr
     for t in range(m):
         for c in range(3):
             a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
@@ -150,7 +154,7 @@ cdef _buckets_by_smaller_end(const long[:, ::1] F, long n, int shift):
     return start_arr, hi_arr, id_arr
 
 
-def unique_edges(const long[:, ::1] F, long n):
+def unique_edges(const int64_t[:, ::1] F, int64_t n):
     """The unique undirected edges of ``F`` sorted by ``(i, j)`` with ``i < j`` (E×2), and for
     every corner the index of its opposite edge (m×3): what ``np.unique`` of the keys
     ``i·n + j`` gives, by a counting sort on ``i`` and a sort of each vertex's few ``j``
@@ -158,7 +162,7 @@ def unique_edges(const long[:, ::1] F, long n):
     cdef Py_ssize_t m = F.shape[0], p, lo_v, e, E
     start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 1)
     ce_arr = np.empty(3 * m, dtype=np.int64)
-    cdef long[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
+    cdef int64_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
     E = 0
     for lo_v in range(n):
         for p in range(start[lo_v], start[lo_v + 1]):
@@ -166,7 +170,7 @@ def unique_edges(const long[:, ::1] F, long n):
                 E += 1
             ce[cid_of[p]] = E - 1
     edges_arr = np.empty((E, 2), dtype=np.int64)
-    cdef long[:, ::1] edges = edges_arr
+    cdef int64_t[:, ::1] edges = edges_arr
     e = 0
     for lo_v in range(n):
         for p in range(start[lo_v], start[lo_v + 1]):
@@ -176,7 +180,7 @@ def unique_edges(const long[:, ::1] F, long n):
     return edges_arr, ce_arr.reshape(m, 3)
 
 
-def stretch_weight_map(const long[:, ::1] corner_edge, const double[::1] double_area, long E):
+def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] double_area, int64_t E):
     """CSR arrays ``(data, indices, indptr)`` of the E×E map ``W`` of
     :func:`pipeline.geometry.laplacian.stretch_weight_map`: for the corner of face τ opposite
     edge e, with the corner's edges a and b, ``+s`` at (e, a) and (e, b) and ``−s`` at (e, e),
@@ -185,11 +189,11 @@ def stretch_weight_map(const long[:, ::1] corner_edge, const double[::1] double_
     temporaries: at 1M faces their first-touch page faults cost more than the arithmetic)."""
     cdef Py_ssize_t m = corner_edge.shape[0]
     cdef Py_ssize_t t, c, k, p, q, r, out, row_start
-    cdef long eo
+    cdef int64_t eo
     cdef int col
     cdef double s, val
     fill_arr = np.zeros(E + 1, dtype=np.int64)
-    cdef long[::1] fill = fill_arr
+    cdef int64_t[::1] fill = fill_arr
     for t in range(m):
         for c in range(3):
             fill[corner_edge[t, c] + 1] += 3
@@ -233,7 +237,7 @@ def stretch_weight_map(const long[:, ::1] corner_edge, const double[::1] double_
 
 
 def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const int[::1] W_indptr,
-                    const long[:, ::1] edges, const double complex[::1] f, double[::1] l2,
+                    const int64_t[:, ::1] edges, const double complex[::1] f, double[::1] l2,
                     double[::1] w):
     """``w = W ℓ²(f)`` (eq. 12 by :func:`stretch_weight_map`), with ``ℓ²_e = |f_i − f_j|²``
     written into ``l2``: the squared lengths and the CSR product in two passes, summing each
@@ -251,9 +255,9 @@ def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const in
         w[e] = acc
 
 
-def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1] twin,
-                  const double[:, ::1] P, const long[::1] start, const long[::1] todo,
-                  int walk, double tol, long[::1] face, double[:, ::1] bary):
+def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin,
+                  const double[:, ::1] P, const int64_t[::1] start, const int64_t[::1] todo,
+                  int walk, double tol, int64_t[::1] face, double[:, ::1] bary):
     """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]``: test the face
     (barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates` computes them;
     inside when the smallest is ≥ ``−tol``), else step to the face across the edge of the most
@@ -261,11 +265,11 @@ def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1]
     ``walk`` steps, stopping at the rim (``twin < 0``). A point found gets ``face[i]`` and its
     barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
     cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
-    cdef long f, nxt
+    cdef int64_t f, nxt
     cdef double px, py, ax, ay, bx, by, cx, cy, d, mn, s
     cdef double lam[3]
     left_arr = np.empty(todo.shape[0], dtype=np.int64)
-    cdef long[::1] left = left_arr
+    cdef int64_t[::1] left = left_arr
     for idx in range(todo.shape[0]):
         i = todo[idx]
         f = start[i]
@@ -310,14 +314,14 @@ def walk_to_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1]
     return left_arr[:n_left]
 
 
-def interior_edge_twins(const long[:, ::1] F, long n):
+def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     """For every half-edge ``3 t + c`` (``F[t, c] → F[t, c+1]``), the other half-edge of its
     undirected edge when exactly two half-edges share it, else −1: half-edges bucketed by their
     smaller end, each bucket's runs of one larger end matched."""
     cdef Py_ssize_t p, q, lo_v, end
     start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 0)
     twin_arr = np.full(3 * F.shape[0], -1, dtype=np.int64)
-    cdef long[::1] twin = twin_arr, start = start_arr, hi = hi_arr, hid_of = id_arr
+    cdef int64_t[::1] twin = twin_arr, start = start_arr, hi = hi_arr, hid_of = id_arr
     for lo_v in range(n):
         end = start[lo_v + 1]
         p = start[lo_v]
@@ -332,34 +336,34 @@ def interior_edge_twins(const long[:, ::1] F, long n):
     return twin_arr
 
 
-def group_by_key(const long[::1] keys, const long[::1] values, long n):
+def group_by_key(const int64_t[::1] keys, const int64_t[::1] values, int64_t n):
     """CSR ``(indptr, grouped values)`` of ``values`` grouped by ``keys`` in ``[0, n)``; a
     stable counting sort (each group keeps the input order)."""
     cdef Py_ssize_t i, k, N = keys.shape[0]
     indptr_arr = np.zeros(n + 1, dtype=np.int64)
     out_arr = np.empty(N, dtype=np.int64)
-    cdef long[::1] indptr = indptr_arr, out = out_arr
+    cdef int64_t[::1] indptr = indptr_arr, out = out_arr
     for i in range(N):
         indptr[keys[i] + 1] += 1
     for k in range(n):
         indptr[k + 1] += indptr[k]
     fill_arr = indptr_arr[:n].copy()
-    cdef long[::1] fill = fill_arr
+    cdef int64_t[::1] fill = fill_arr
     for i in range(N):
         out[fill[keys[i]]] = values[i]
         fill[keys[i]] += 1
     return indptr_arr, out_arr
 
 
-def common_neighbours(const long[::1] indptr, const long[::1] indices, const long[::1] r,
-                      const long[::1] k, long n):
+def common_neighbours(const int64_t[::1] indptr, const int64_t[::1] indices, const int64_t[::1] r,
+                      const int64_t[::1] k, int64_t n):
     """For every pair ``(r[i], k[i])``, how many entries of row ``r[i]`` of the adjacency CSR
     also stand in row ``k[i]`` (the link condition's common neighbours)."""
     cdef Py_ssize_t i, p
-    cdef long stamp
+    cdef int64_t stamp
     mark_arr = np.full(n, -1, dtype=np.int64)
     count_arr = np.zeros(r.shape[0], dtype=np.int64)
-    cdef long[::1] mark = mark_arr, count = count_arr
+    cdef int64_t[::1] mark = mark_arr, count = count_arr
     for i in range(r.shape[0]):
         stamp = i
         for p in range(indptr[k[i]], indptr[k[i] + 1]):
@@ -383,8 +387,8 @@ def faces_touching(const index_t[:, ::1] F, const unsigned char[::1] mark):
 
 
 def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
-                          const unsigned char[::1] is_rim, const long[:, ::1] T,
-                          const long[:, ::1] Tn, const long[::1] kept, double L_max):
+                          const unsigned char[::1] is_rim, const int64_t[:, ::1] T,
+                          const int64_t[:, ::1] Tn, const int64_t[::1] kept, double L_max):
     """For each face ``T[i]`` that a collapse rewrites as ``Tn[i]`` (the removed vertex
     replaced by ``kept[i]``), whether the new face is invalid: its disk area (twice, signed)
     at most 1e-6 of the old one's magnitude, its 3D normal turned over (non-positive dot with
@@ -414,12 +418,12 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
     return bad_arr
 
 
-cdef inline double _signed2(const double[:, ::1] uv, long a, long b, long c) noexcept nogil:
+cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c) noexcept nogil:
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 
 
-cdef inline void _normal(const double[:, ::1] X, long a, long b, long c, double* out
+cdef inline void _normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c, double* out
                          ) noexcept nogil:
     cdef double e1x = X[b, 0] - X[a, 0], e1y = X[b, 1] - X[a, 1], e1z = X[b, 2] - X[a, 2]
     cdef double e2x = X[c, 0] - X[a, 0], e2y = X[c, 1] - X[a, 1], e2z = X[c, 2] - X[a, 2]
@@ -428,15 +432,15 @@ cdef inline void _normal(const double[:, ::1] X, long a, long b, long c, double*
     out[2] = e1x * e2y - e1y * e2x
 
 
-def cells_touch_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[::1] face,
-                      const long[::1] cx, const long[::1] cy, double ox, double oy,
+def cells_touch_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] face,
+                      const int64_t[::1] cx, const int64_t[::1] cy, double ox, double oy,
                       double cell):
     """Whether the closed grid cell ``(cx[i], cy[i])`` (origin ``(ox, oy)``, side ``cell``) can
     meet the image face ``face[i]`` (either orientation): False only when the whole cell lies
     strictly outside the line of one edge, with a margin of 1e-9 cell sizes (the arithmetic of
     :func:`pipeline.geometry.locate._touches`, one pair at a time)."""
     cdef Py_ssize_t i, c
-    cdef long f
+    cdef int64_t f
     cdef double x0, y0, A2, s, px, py, qx, qy, nx, ny, mx, my, dist
     cdef double tx[3]
     cdef double ty[3]
@@ -462,20 +466,20 @@ def cells_touch_faces(const double[:, ::1] uv, const long[:, ::1] F, const long[
     return ok_arr
 
 
-def faces_kept_by_collapses(const long[::1] vf_ptr, const long[::1] vf_idx,
-                            const long[:, ::1] F, const long[::1] r, const long[::1] k):
+def faces_kept_by_collapses(const int64_t[::1] vf_ptr, const int64_t[::1] vf_idx,
+                            const int64_t[:, ::1] F, const int64_t[::1] r, const int64_t[::1] k):
     """For collapses ``r[i] → k[i]``, the faces of ``r[i]`` that survive (those without
     ``k[i]``), in the incidence's row order: ``(i of each, the face, the face with r[i]
     replaced by k[i])``."""
     cdef Py_ssize_t i, p, c, out = 0, total = 0
-    cdef long t
+    cdef int64_t t
     for i in range(r.shape[0]):
         total += vf_ptr[r[i] + 1] - vf_ptr[r[i]]
     fr_arr = np.empty(total, dtype=np.int64)
     T_arr = np.empty((total, 3), dtype=np.int64)
     Tn_arr = np.empty((total, 3), dtype=np.int64)
-    cdef long[::1] fr = fr_arr
-    cdef long[:, ::1] T = T_arr, Tn = Tn_arr
+    cdef int64_t[::1] fr = fr_arr
+    cdef int64_t[:, ::1] T = T_arr, Tn = Tn_arr
     for i in range(r.shape[0]):
         for p in range(vf_ptr[r[i]], vf_ptr[r[i] + 1]):
             t = vf_idx[p]
@@ -489,12 +493,12 @@ def faces_kept_by_collapses(const long[::1] vf_ptr, const long[::1] vf_idx,
     return fr_arr[:out], T_arr[:out], Tn_arr[:out]
 
 
-def lift_rows(const double[:, ::1] values, const long[:, ::1] F, const long[::1] face,
+def lift_rows(const double[:, ::1] values, const int64_t[:, ::1] F, const int64_t[::1] face,
               const double[:, ::1] bary):
     """Eq. (1) row by row: ``Σ_c bary[i, c] · values[F[face[i], c]]``, summed over the corners
     in order (k×d)."""
     cdef Py_ssize_t i, j, d = values.shape[1]
-    cdef long t0, t1, t2
+    cdef int64_t t0, t1, t2
     out_arr = np.empty((face.shape[0], d), dtype=np.float64)
     cdef double[:, ::1] out = out_arr
     for i in range(face.shape[0]):
@@ -505,18 +509,18 @@ def lift_rows(const double[:, ::1] values, const long[:, ::1] F, const long[::1]
     return out_arr
 
 
-cdef inline double _length(const double[:, ::1] X, long a, long b) noexcept nogil:
+cdef inline double _length(const double[:, ::1] X, int64_t a, int64_t b) noexcept nogil:
     """``|X[a] − X[b]|`` summing the squares as numpy's einsum does here (x, z, then y)."""
     cdef double dx = X[a, 0] - X[b, 0], dy = X[a, 1] - X[b, 1], dz = X[a, 2] - X[b, 2]
     return sqrt((dx * dx + dz * dz) + dy * dy)
 
 
-def short_half_edge_tails(const long[:, ::1] F, const double[:, ::1] X, double thr):
+def short_half_edge_tails(const int64_t[:, ::1] F, const double[:, ::1] X, double thr):
     """The tails ``F[t, c]`` of the half-edges ``F[t, c] → F[t, c+1]`` shorter than ``thr``
     in 3D, in half-edge order."""
     cdef Py_ssize_t t, c, out = 0
     tails_arr = np.empty(3 * F.shape[0], dtype=np.int64)
-    cdef long[::1] tails = tails_arr
+    cdef int64_t[::1] tails = tails_arr
     for t in range(F.shape[0]):
         for c in range(3):
             if _length(X, F[t, c], F[t, (c + 1) % 3]) < thr:
@@ -525,20 +529,20 @@ def short_half_edge_tails(const long[:, ::1] F, const double[:, ::1] X, double t
     return tails_arr[:out]
 
 
-def short_edges(const long[:, ::1] F, const long[::1] twin, const double[:, ::1] X,
+def short_edges(const int64_t[:, ::1] F, const int64_t[::1] twin, const double[:, ::1] X,
                 double thr):
     """Every edge of ``F`` once (its half-edge ``h`` with ``twin[h] < 0 or twin[h] > h``)
     shorter than ``thr`` in 3D: ``(h, a, b, twin[h], length)`` with ``h = a → b``, in
     half-edge order."""
     cdef Py_ssize_t h, out = 0, N = 3 * F.shape[0]
-    cdef long a, b
+    cdef int64_t a, b
     cdef double ln
     h_arr = np.empty(N, dtype=np.int64)
     a_arr = np.empty(N, dtype=np.int64)
     b_arr = np.empty(N, dtype=np.int64)
     t_arr = np.empty(N, dtype=np.int64)
     l_arr = np.empty(N, dtype=np.float64)
-    cdef long[::1] hs = h_arr, as_ = a_arr, bs = b_arr, ts = t_arr
+    cdef int64_t[::1] hs = h_arr, as_ = a_arr, bs = b_arr, ts = t_arr
     cdef double[::1] ls = l_arr
     for h in range(N):
         if twin[h] >= 0 and twin[h] < h:
@@ -551,7 +555,7 @@ def short_edges(const long[:, ::1] F, const long[::1] twin, const double[:, ::1]
     return h_arr[:out], a_arr[:out], b_arr[:out], t_arr[:out], l_arr[:out]
 
 
-cdef inline void _cross_at(const double[:, ::1] X, long o, long u, long v, double* out
+cdef inline void _cross_at(const double[:, ::1] X, int64_t o, int64_t u, int64_t v, double* out
                            ) noexcept nogil:
     """``(X[u] − X[o]) × (X[v] − X[o])``."""
     _normal(X, o, u, v, out)
@@ -563,8 +567,8 @@ cdef inline double _dot3(const double* a, const double* b) noexcept nogil:
 
 
 def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
-                const unsigned char[::1] is_b, const long[:, ::1] F, const long[::1] h,
-                const long[::1] twin, double cos_max):
+                const unsigned char[::1] is_b, const int64_t[:, ::1] F, const int64_t[::1] h,
+                const int64_t[::1] twin, double cos_max):
     """For the interior half-edges ``h`` (``a → b`` in face f, twin in face g, ``p``/``q`` the
     corners opposite in f/g), the quad's corners and two masks: ``flat`` — the normals of f
     and g within the dihedral angle whose cosine is ``cos_max``; ``valid`` — the new faces
@@ -572,7 +576,7 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
     on the disk by more than 1e-6 of the quad's area, and have not all three corners on the
     boundary."""
     cdef Py_ssize_t i, j, k = h.shape[0]
-    cdef long f, c, g, d, a, b, p, q
+    cdef int64_t f, c, g, d, a, b, p, q
     cdef double nf[3]
     cdef double ng[3]
     cdef double n1[3]
@@ -582,7 +586,7 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
     quad_arr = np.empty((4, k), dtype=np.int64)
     flat_arr = np.empty(k, dtype=np.bool_)
     valid_arr = np.empty(k, dtype=np.bool_)
-    cdef long[:, ::1] quad = quad_arr
+    cdef int64_t[:, ::1] quad = quad_arr
     cdef unsigned char[::1] flat = flat_arr.view(np.uint8), valid = valid_arr.view(np.uint8)
     for i in range(k):
         f, c = h[i] // 3, h[i] % 3
@@ -606,7 +610,7 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
     return quad_arr, flat_arr, valid_arr
 
 
-def opposite_cots(const double[:, ::1] X, const long[:, ::1] F):
+def opposite_cots(const double[:, ::1] X, const int64_t[:, ::1] F):
     """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
     ``F[t,c] → F[t,c+1]``: ``−e_{c+1} · e_{c+2} / |e_0 × e_2|`` with the half-edges
     ``e_c = X[F[t,c+1]] − X[F[t,c]]`` (the arithmetic of ``remesh_improve._opposite_cots``)."""
