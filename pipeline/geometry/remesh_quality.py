@@ -24,7 +24,6 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from . import topology as topo
 from .laplacian import face_double_areas
@@ -192,118 +191,20 @@ def closest_points_on_triangles(P: np.ndarray, A: np.ndarray, B: np.ndarray, C: 
     return Q
 
 
-def _split_large_faces(V: np.ndarray, F: np.ndarray, factor: float = 2.0, rounds: int = 6):
-    """Midpoint-subdivide (1 → 4) the faces whose bounding radius exceeds ``factor`` × the
-    median, repeatedly: the surface is unchanged, but no face is much larger than typical
-    (keeps the nearest-centroid search of :func:`point_mesh_distance` short)."""
-    V = np.asarray(V, np.float64)
-    F = np.asarray(F, np.int64)
-    orig = np.arange(len(F))
-    for _ in range(rounds):
-        T = V[F]
-        c = T.mean(axis=1)
-        r = np.sqrt(((T - c[:, None]) ** 2).sum(axis=2).max(axis=1))
-        big = r > factor * np.median(r)
-        if not big.any():
-            break
-        Fb = F[big]
-        k = len(Fb)
-        mids = np.concatenate([(V[Fb[:, 0]] + V[Fb[:, 1]]) / 2, (V[Fb[:, 1]] + V[Fb[:, 2]]) / 2,
-                               (V[Fb[:, 2]] + V[Fb[:, 0]]) / 2])
-        base = len(V)
-        V = np.vstack([V, mids])
-        m01, m12, m20 = base + np.arange(k), base + k + np.arange(k), base + 2 * k + np.arange(k)
-        new = np.concatenate([np.column_stack([Fb[:, 0], m01, m20]),
-                              np.column_stack([m01, Fb[:, 1], m12]),
-                              np.column_stack([m20, m12, Fb[:, 2]]),
-                              np.column_stack([m01, m12, m20])])
-        F = np.vstack([F[~big], new])
-        orig = np.concatenate([orig[~big], np.tile(orig[big], 4)])
-    return V, F, orig
-
-
-class _TriangleSearch:
-    """Exact closest-point queries on a triangle mesh (nearest centroids + a certificate)."""
-
-    def __init__(self, V: np.ndarray, F: np.ndarray):
-        self.V, self.F, self.orig = _split_large_faces(V, F)
-        T = self.V[self.F]
-        self.c = T.mean(axis=1)
-        self.r = np.sqrt(((T - self.c[:, None]) ** 2).sum(axis=2).max(axis=1))
-        self.rmax = float(self.r.max())
-        self.tree = cKDTree(self.c)
-
-    def query(self, P: np.ndarray, chunk: int = 50_000):
-        k = len(P)
-        dist = np.empty(k)
-        face = np.empty(k, np.int64)
-        for lo in range(0, k, chunk):
-            d, f = self._query(P[lo:lo + chunk])
-            dist[lo:lo + chunk], face[lo:lo + chunk] = d, f
-        return dist, self.orig[face]
-
-    def _exact(self, P, rows, faces):
-        tri = self.F[faces]
-        Q = closest_points_on_triangles(P[rows], self.V[tri[:, 0]], self.V[tri[:, 1]],
-                                        self.V[tri[:, 2]])
-        return np.sqrt(((Q - P[rows]) ** 2).sum(axis=1))
-
-    def _ball(self, P, bound, K):
-        """K nearest centroids within ``bound`` (per point; queried in half-octave groups of
-        the bound, each with its group's largest bound — a superset, filtered after)."""
-        dc = np.full((len(P), K), np.inf)
-        cand = np.full((len(P), K), len(self.F), np.int64)
-        group = np.floor(2 * np.log2(bound / max(self.rmax, 1e-300))).astype(np.int64)
-        for gval in np.unique(group):
-            rows = np.flatnonzero(group == gval)
-            d, c = self.tree.query(P[rows], k=K, distance_upper_bound=float(bound[rows].max()))
-            d, c = d.reshape(len(rows), K), c.reshape(len(rows), K)
-            d[d > bound[rows, None]] = np.inf
-            dc[rows], cand[rows] = d, c
-        # keep "ball exhausted" information: a row is full when its K-th neighbour is inside
-        return dc, cand
-
-    def _query(self, P):
-        """Exact distance to the face of the nearest centroid gives an upper bound ``b``; the
-        closest face's centroid is then within ``b + r_max`` (r = the faces' bounding radii),
-        so the centroids in that ball (a bounded K-nearest query, K grown until the ball is
-        exhausted) are the only candidates, and of those only the ones whose lower bound
-        ``|p − c| − r`` is below ``b`` get an exact point–triangle distance."""
-        m = len(self.F)
-        k = len(P)
-        _, f0 = self.tree.query(P, k=1)
-        f0 = np.asarray(f0, np.int64).reshape(k)
-        best = self._exact(P, np.arange(k), f0)
-        bf = f0.copy()
-        todo = np.arange(k)
-        K = min(32, m)
-        while len(todo):
-            Pt = P[todo]
-            dc, cand = self._ball(Pt, best[todo] + self.rmax * (1 + 1e-9), K)
-            valid = np.isfinite(dc)
-            lb = np.where(valid, dc - self.r[np.where(valid, cand, 0)], np.inf)
-            rr, cc = np.nonzero(lb < best[todo][:, None])
-            if len(rr):
-                fc = cand[rr, cc]
-                d = self._exact(Pt, rr, fc)
-                order = np.lexsort((d, rr))                   # per row: smallest first
-                first = order[np.r_[True, rr[order][1:] != rr[order][:-1]]]
-                rows = todo[rr[first]]
-                better = d[first] < best[rows]
-                best[rows[better]] = d[first][better]
-                bf[rows[better]] = fc[first][better]
-            if K >= m:
-                break
-            todo = todo[valid[:, -1]]                           # the ball may hold more
-            K = min(4 * K, m)
-        return best, bf
-
-
 def point_mesh_distance(P: np.ndarray, V: np.ndarray, F: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
     """Exact Euclidean distance of every point of ``P`` to the triangle mesh ``(V, F)`` and the
-    index of a closest face."""
-    return _TriangleSearch(V, F).query(np.asarray(P, np.float64))
+    index of a closest face: libigl's AABB tree (``igl.point_mesh_squared_distance``, exact
+    point–triangle distances). It replaced a nearest-centroid search with a certificate, 12×
+    slower (229k samples on choi_human_face: 2.2 → 0.19 s, distances equal to 6e-17)."""
+    import igl
+
+    P = np.ascontiguousarray(np.asarray(P, np.float64).reshape(-1, 3))
+    if len(P) == 0:
+        return np.zeros(0), np.zeros(0, np.int64)
+    sq, face, _ = igl.point_mesh_squared_distance(
+        P, np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.int64))
+    return np.sqrt(sq), np.asarray(face, np.int64)
 
 
 def surface_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0
@@ -337,9 +238,8 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
     for name, (Va, Fa, Vb, Fb) in {"output_to_input": (V, F, V_ref, F_ref),
                                    "input_to_output": (V_ref, F_ref, V, F)}.items():
         S, R = surface_samples(Va, Fa, n_random, seed)
-        search = _TriangleSearch(Vb, Fb)
-        dS, _ = search.query(S)
-        dR, _ = search.query(R)
+        d, _ = point_mesh_distance(np.vstack([S, R]), Vb, Fb)     # one tree for both
+        dS, dR = d[:len(S)], d[len(S):]
         mx = float(max(dS.max(), dR.max()))
         ms.append(float(np.mean(dR ** 2)))
         out[name] = {"max": mx, "max_rel": mx / scale, "rms": float(np.sqrt(ms[-1])),
