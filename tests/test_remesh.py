@@ -5,7 +5,6 @@ at 20k vertices (each parameterized once per session)."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

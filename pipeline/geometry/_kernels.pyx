@@ -437,8 +437,9 @@ def cells_touch_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const in
                       double cell):
     """Whether the closed grid cell ``(cx[i], cy[i])`` (origin ``(ox, oy)``, side ``cell``) can
     meet the image face ``face[i]`` (either orientation): False only when the whole cell lies
-    strictly outside the line of one edge, with a margin of 1e-9 cell sizes (the arithmetic of
-    :func:`pipeline.geometry.locate._touches`, one pair at a time)."""
+    strictly outside the line of one edge — the cell corner that minimises ``n·x`` for the
+    edge's outward normal ``n`` is farther out than a margin of 1e-9 cell sizes, so points on
+    cell borders are never missed."""
     cdef Py_ssize_t i, c
     cdef int64_t f
     cdef double x0, y0, A2, s, px, py, qx, qy, nx, ny, mx, my, dist
