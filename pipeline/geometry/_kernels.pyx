@@ -393,8 +393,8 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
     replaced by ``kept[i]``), whether the new face is invalid: its disk area (twice, signed)
     at most 1e-6 of the old one's magnitude, its 3D normal turned over (non-positive dot with
     the old), all three corners on the rim, or an edge from ``kept[i]`` longer than ``L_max``."""
-    cdef Py_ssize_t i, c, j
-    cdef double old2, new2, d, dx, dy, dz, longest
+    cdef Py_ssize_t i, c
+    cdef double old2, new2, d, longest
     cdef double no[3]
     cdef double nn[3]
     bad_arr = np.empty(T.shape[0], dtype=np.bool_)
@@ -406,13 +406,11 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
         _normal(X, Tn[i, 0], Tn[i, 1], Tn[i, 2], nn)
         longest = 0.0
         for c in range(3):
-            j = Tn[i, c]
-            dx, dy, dz = X[j, 0] - X[kept[i], 0], X[j, 1] - X[kept[i], 1], X[j, 2] - X[kept[i], 2]
-            d = sqrt(dx * dx + dy * dy + dz * dz)
+            d = _length(X, Tn[i, c], kept[i])
             if d > longest:
                 longest = d
         bad[i] = ((new2 <= 1e-6 * fabs(old2))
-                  or (no[0] * nn[0] + no[1] * nn[1] + no[2] * nn[2] <= 0)
+                  or (_dot3(no, nn) <= 0)
                   or (is_rim[Tn[i, 0]] and is_rim[Tn[i, 1]] and is_rim[Tn[i, 2]])
                   or longest > L_max)
     return bad_arr
