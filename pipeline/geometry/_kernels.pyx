@@ -9,19 +9,14 @@ Each does the arithmetic of the numpy formula it replaces, operation for operati
 same order — 3-vector dot products and lengths in the order numpy's einsum sums them on these
 machines (x, z, then y) — and the module is compiled with ``-ffp-contract=off`` (no fused
 multiply-adds), so maps and remeshes are bit for bit those of the numpy code. Index arrays are
-int64 (``int`` only where SciPy's CSR arrays are int32, and in the fused ``index_t``).
+int64 (``int`` only where SciPy's CSR arrays are int32).
 """
 
 import numpy as np
 from libc.math cimport fabs, sqrt
 from libc.stdint cimport int64_t
 
-ctypedef fused index_t:
-    int
-    int64_t
-
-
-def signed_double_areas(const index_t[:, ::1] F, const double complex[::1] z, double[::1] out):
+def signed_double_areas(const int64_t[:, ::1] F, const double complex[::1] z, double[::1] out):
     """``out[t]`` = twice the signed area of image face ``t`` (corners ``z[F[t]]``):
     ``Im(conj(z1 − z0) (z2 − z0))``, positive for counter-clockwise faces."""
     cdef Py_ssize_t t
@@ -268,6 +263,7 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
     cdef int64_t f, nxt
     cdef double px, py, ax, ay, bx, by, cx, cy, d, mn, s
     cdef double lam[3]
+    cdef bint found
     left_arr = np.empty(todo.shape[0], dtype=np.int64)
     cdef int64_t[::1] left = left_arr
     for idx in range(todo.shape[0]):
@@ -374,7 +370,7 @@ def common_neighbours(const int64_t[::1] indptr, const int64_t[::1] indices, con
     return count_arr
 
 
-def faces_touching(const index_t[:, ::1] F, const unsigned char[::1] mark):
+def faces_touching(const int64_t[:, ::1] F, const unsigned char[::1] mark):
     """Boolean mask of the faces with at least one corner ``v`` where ``mark[v]`` is set
     (``mark[F].any(axis=1)`` without the (m, 3) temporary and the slow reduction over a
     length-3 axis)."""
@@ -416,7 +412,8 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
     return bad_arr
 
 
-cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c) noexcept nogil:
+cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c
+                            ) noexcept nogil:
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 
@@ -514,18 +511,15 @@ cdef inline double _length(const double[:, ::1] X, int64_t a, int64_t b) noexcep
     return sqrt((dx * dx + dz * dz) + dy * dy)
 
 
-def short_half_edge_tails(const int64_t[:, ::1] F, const double[:, ::1] X, double thr):
-    """The tails ``F[t, c]`` of the half-edges ``F[t, c] → F[t, c+1]`` shorter than ``thr``
-    in 3D, in half-edge order."""
-    cdef Py_ssize_t t, c, out = 0
-    tails_arr = np.empty(3 * F.shape[0], dtype=np.int64)
-    cdef int64_t[::1] tails = tails_arr
+def half_edge_lengths(const int64_t[:, ::1] F, const double[:, ::1] X):
+    """3D length of every half-edge ``F[t, c] → F[t, c+1]`` (3m, half-edge order)."""
+    cdef Py_ssize_t t, c
+    out_arr = np.empty(3 * F.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
     for t in range(F.shape[0]):
         for c in range(3):
-            if _length(X, F[t, c], F[t, (c + 1) % 3]) < thr:
-                tails[out] = F[t, c]
-                out += 1
-    return tails_arr[:out]
+            out[3 * t + c] = _length(X, F[t, c], F[t, (c + 1) % 3])
+    return out_arr
 
 
 def short_edges(const int64_t[:, ::1] F, const int64_t[::1] twin, const double[:, ::1] X,
@@ -552,12 +546,6 @@ def short_edges(const int64_t[:, ::1] F, const int64_t[::1] twin, const double[:
             hs[out], as_[out], bs[out], ts[out], ls[out] = h, a, b, twin[h], ln
             out += 1
     return h_arr[:out], a_arr[:out], b_arr[:out], t_arr[:out], l_arr[:out]
-
-
-cdef inline void _cross_at(const double[:, ::1] X, int64_t o, int64_t u, int64_t v, double* out
-                           ) noexcept nogil:
-    """``(X[u] − X[o]) × (X[v] − X[o])``."""
-    _normal(X, o, u, v, out)
 
 
 cdef inline double _dot3(const double* a, const double* b) noexcept nogil:
@@ -593,10 +581,10 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
         a, b = F[f, c], F[f, (c + 1) % 3]
         p, q = F[f, (c + 2) % 3], F[g, (d + 2) % 3]
         quad[0, i], quad[1, i], quad[2, i], quad[3, i] = a, b, p, q
-        _cross_at(X, a, b, p, nf)
-        _cross_at(X, b, a, q, ng)
-        _cross_at(X, p, a, q, n1)
-        _cross_at(X, q, b, p, n2)
+        _normal(X, a, b, p, nf)
+        _normal(X, b, a, q, ng)
+        _normal(X, p, a, q, n1)
+        _normal(X, q, b, p, n2)
         for j in range(3):
             ns[j] = nf[j] + ng[j]
         flat[i] = _dot3(nf, ng) >= cos_max * sqrt(_dot3(nf, nf)) * sqrt(_dot3(ng, ng))

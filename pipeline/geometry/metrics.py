@@ -11,6 +11,7 @@ import numpy as np
 
 from . import _kernels
 from .laplacian import face_double_areas
+from .topology import _as_faces
 
 
 def as_complex_points(uv: np.ndarray) -> np.ndarray:
@@ -23,11 +24,9 @@ def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the signed area of every image face, ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``;
     positive = counter-clockwise. A compiled loop: the numpy form's (m, 3) gather and its
     temporaries cost ~6× more (SEM evaluates it several times an iteration)."""
-    F = np.asarray(F)
-    if F.dtype not in (np.int32, np.int64):
-        F = F.astype(np.int64)
+    F = np.ascontiguousarray(_as_faces(F))
     out = np.empty(len(F))
-    _kernels.signed_double_areas(np.ascontiguousarray(F), as_complex_points(uv), out)
+    _kernels.signed_double_areas(F, as_complex_points(uv), out)
     return out
 
 

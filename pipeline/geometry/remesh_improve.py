@@ -89,8 +89,8 @@ import numpy as np
 
 from . import topology as topo
 from ._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
-                       faces_touching, flip_checks, group_by_key, opposite_cots,
-                       short_edges, short_half_edge_tails)
+                       faces_touching, flip_checks, group_by_key, half_edge_lengths,
+                       opposite_cots, short_edges)
 from .locate import PointLocator, _closest_on_segments, lift
 from .remesh_quality import closest_points_on_triangles
 from .rows import cross, dots, norms
@@ -115,9 +115,7 @@ SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a
 def _touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
     """Faces (m bool) with a corner where ``mark`` (n bool) is set: ``mark[F].any(axis=1)``,
     compiled (remeshing asks this of the whole mesh in every collapse round)."""
-    F = np.asarray(F)
-    return faces_touching(np.ascontiguousarray(F if F.dtype in (np.int32, np.int64)
-                                               else F.astype(np.int64)),
+    return faces_touching(np.ascontiguousarray(topo._as_faces(F)),
                           np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
 
 
@@ -786,13 +784,13 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     look = None                     # after a round: where short edges can still be (n bool)
     thr = L_min
     alive = np.ones(S.n, bool)      # vertices not removed yet
+    X = np.ascontiguousarray(S.X)   # fixed until the rounds end (removed vertices stay)
     for _ in range(max_rounds):
-        F, n = S.F, S.n
+        F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
         Fs = F
-        X = np.ascontiguousarray(S.X)
         if look is None and (budget is not None or np.isfinite(L_min)):
             tails = F.ravel()
-            hl = norms(S.X[tails] - S.X[F[:, [1, 2, 0]].ravel()])     # half-edge lengths
+            hl = half_edge_lengths(F, X)
         if budget is not None and look is None:
             # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
             # interior edge is two half-edges); validity is checked per candidate
@@ -804,8 +802,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             if look is None:
                 ends = tails[hl < thr]
             else:
-                ends = short_half_edge_tails(np.ascontiguousarray(F[_touching(F, look)],
-                                                                  dtype=np.int64), X, thr)
+                Fl = F[_touching(F, look)]
+                ends = Fl.ravel()[half_edge_lengths(Fl, X) < thr]
             if len(ends) == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
@@ -814,7 +812,6 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             at_short = np.zeros(n, bool)
             at_short[ends] = True
             Fs = F[_touching(F, at_short)]
-        Fs = np.ascontiguousarray(Fs, dtype=np.int64)
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
         if len(h) == 0:
