@@ -308,7 +308,8 @@ class PointLocator:
         bary = np.empty((len(P), 3))
         inside = np.ones(len(P), bool)
         todo = np.arange(len(P))
-        for hint in [face.copy()] + ([] if face2 is None else [face2]):
+        # the walk reads a point's start face before it writes that point's face: no copy
+        for hint in [face] + ([] if face2 is None else [face2]):
             if len(todo) == 0:
                 break
             todo = walk_to_faces(self.uv, self.F, self._neighbours(), P,
