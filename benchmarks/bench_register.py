@@ -30,7 +30,7 @@ from pipeline.geometry.sem import SEMOptions  # noqa: E402
 from pipeline.io.landmarks import pair_landmarks, read_landmarks, resolve_landmarks  # noqa: E402
 from pipeline.stages.load import load_stage  # noqa: E402
 from pipeline.stages.parameterize import parameterize_stage  # noqa: E402
-from pipeline.stages.register import (Face, Pair, RegisterOptions, load_truth,  # noqa: E402
+from pipeline.stages.register import (Face, Pair, load_truth,  # noqa: E402
                                       nricp_baseline, register_maps)
 
 TARGETS = ("A_smile", "B_neutral", "B_smile_jawopen")
@@ -82,11 +82,10 @@ def main(argv=None) -> int:
                             ls.names, load_truth(truth, si), str(truth))
                 label = f"A_neutral → {target} | {kind} | {set_name} ({len(ls)})"
                 for variant in args.variants:
-                    opts = RegisterOptions(mobius=variant == "mobius",
-                                           energy="harmonic" if variant == "harmonic"
-                                           else "biharmonic")
+                    opts = dict(mobius=variant == "mobius",
+                                energy="harmonic" if variant == "harmonic" else "biharmonic")
                     t0 = time.perf_counter()
-                    reg = register_maps(pair, ps, pt, opts)
+                    reg = register_maps(pair, ps, pt, **opts)
                     sec = ts + tt + time.perf_counter() - t0
                     m = reg.metrics
                     e = m["dense_error"]["ours"]

@@ -10,12 +10,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from PIL import Image
 
 from pipeline.errors import UserError
 from pipeline.geometry.morph import EASINGS, ease, frame_times, interpolate, morph_frames
 from pipeline.sample import make_face
-from pipeline.stages.morph import MorphOptions, load_morph_inputs, morph_stage, write_morph
+from pipeline.stages.morph import MorphConfig, load_morph_inputs, morph_stage, write_morph
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -48,7 +49,7 @@ def test_frames_at_0_and_1_equal_source_and_registered():
 
 def test_gif_opens_with_k_frames(tmp_path):
     a, b = make_face(400, "neutral"), make_face(400, "smile")
-    m = morph_stage(a.V, b.V, a.F, MorphOptions(frames=5, easing="cosine", size=96))
+    m = morph_stage(a.V, b.V, a.F, MorphConfig(frames=5, easing="cosine", size=96))
     files = write_morph(m, tmp_path / "m")
     with Image.open(files["gif"]) as im:
         assert im.n_frames == 5 and im.size == (96, 96)
@@ -64,8 +65,8 @@ def test_gif_opens_with_k_frames(tmp_path):
 
 def test_bad_morph_input(tmp_path):
     a = make_face(400)
-    with pytest.raises(UserError, match="at least 2 frames"):
-        morph_stage(a.V, a.V, a.F, MorphOptions(frames=1))
+    with pytest.raises(ValidationError, match="greater than or equal to 2"):
+        MorphConfig(frames=1)      # the section is the options: validated once, when made
     with pytest.raises(UserError, match="same connectivity"):
         morph_stage(a.V, a.V[:-1], a.F)
     with pytest.raises(UserError, match="not a registration folder"):

@@ -151,11 +151,11 @@ def test_compose_with_inverse_identity_and_exact_landmarks():
 
 @pytest.fixture(scope="module")
 def sample_registration(tmp_path_factory):
-    from pipeline.stages.register import RegisterOptions, register_stage, sample_pair
+    from pipeline.stages.register import RegisterConfig, register_stage, sample_pair
 
     pair = sample_pair(1200, "smile")
-    reg = register_stage(pair, RegisterOptions(baseline=True,
-                                               sem=SEMOptions(mode="converged", max_iter=60)))
+    reg = register_stage(pair, RegisterConfig(sample=True, sample_vertices=1200, baseline=True),
+                         SEMOptions(mode="converged", max_iter=60))
     return reg
 
 
@@ -302,8 +302,7 @@ def ict():
 @pytest.mark.parametrize("target", ICT_TARGETS)
 def test_ict_registration_is_bijective_and_exact(ict, target, landmark_set, kind):
     from pipeline.io.landmarks import pair_landmarks, read_landmarks, resolve_landmarks
-    from pipeline.stages.register import (Face, Pair, RegisterOptions, load_truth,
-                                          register_maps)
+    from pipeline.stages.register import Face, Pair, load_truth, register_maps
 
     si, ps = ict("A_neutral", kind)
     ti, pt = ict(target, kind)
@@ -313,7 +312,7 @@ def test_ict_registration_is_bijective_and_exact(ict, target, landmark_set, kind
     face_t = Face(ti, resolve_landmarks(lt, ti.mesh, ti.info["input_vertices"])[0], "target")
     truth = ict.folder / f"ict_{target}_{kind}.obj"
     pair = Pair(face_s, face_t, ls.names, load_truth(truth, si), str(truth))
-    reg = register_maps(pair, ps, pt, RegisterOptions())
+    reg = register_maps(pair, ps, pt)
     m = reg.metrics
     assert m["flipped_faces"] == 0 and reg.ok
     assert m["landmark_residual"]["after"]["max"] <= 1e-6

@@ -48,15 +48,15 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ..config import Config, RunConfig, format_validation_error, read_yaml_mapping, resolve_path
 from ..errors import UserError
+from ..stages.registry import input_file_keys
 
 __all__ = ["ExperimentConfig", "Item", "Experiment", "load_experiment", "expand_experiment",
            "INPUT_FILE_KEYS"]
 
-# Config keys that name input files: made absolute in the items and hashed by content. (Any
-# other string value that names an existing file is hashed by content too; see cache.py.)
-INPUT_FILE_KEYS = ("input.mesh", "register.source", "register.target",
-                   "register.source_landmarks", "register.target_landmarks", "register.truth",
-                   "remesh.landmarks")
+# Config keys that name input files (each stage's ``Stage.input_files``): made absolute in the
+# items and hashed by content. (Any other string value that names an existing file is hashed by
+# content too; see cache.py.)
+INPUT_FILE_KEYS = input_file_keys()
 
 EXPERIMENT_KEYS = ("experiment", "dataset", "sweep")
 

@@ -79,9 +79,11 @@ If the input is already a clean disk, ``V``/``F`` are returned unchanged (copies
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import BaseModel, ConfigDict, Field
 from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
@@ -93,16 +95,19 @@ __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons
 ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts as zero area
 
 
-@dataclass
-class RepairOptions:
-    """What :func:`repair_mesh` may change (see the module docstring)."""
+class RepairOptions(BaseModel):
+    """What :func:`repair_mesh` may change (see the module docstring); also the ``repair``
+    section of a run config (validated once, here)."""
+
+    model_config = ConfigDict(extra="forbid")
 
     weld: bool = True
-    weld_tolerance: float = 1e-9      # relative to the bounding-box diagonal
+    weld_tolerance: float = Field(1e-9, ge=0.0)   # relative to the bounding-box diagonal
     keep_largest_component: bool = False
     close_holes: bool = False          # close every boundary loop but the longest
     split_leaf_faces: bool = True      # paper Def. 4; if False and leaves exist -> UserError
-    decimate_to_faces: int | None = None   # fast_simplification target face count
+    decimate_to_faces: Optional[int] = Field(   # fast_simplification target face count
+        None, ge=4, json_schema_extra={"flag": "--decimate"})
 
 
 @dataclass
@@ -495,10 +500,6 @@ def _decimate(M: _Mesh, target: int, report: dict, messages: list, name: str) ->
     m = len(M.F)
     if target is None or target >= m:
         return False
-    if target < 4:
-        raise UserError(
-            f"repair.decimate_to_faces = {target} is too small; use at least a few hundred faces"
-        )
     try:
         import fast_simplification as fs
     except ImportError:
@@ -753,8 +754,6 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
     # 4. weld ---------------------------------------------------------------------------------
     welded = 0
     if opts.weld:
-        if not opts.weld_tolerance >= 0:
-            raise UserError(f"repair.weld_tolerance = {opts.weld_tolerance} must be ≥ 0")
         used = np.zeros(M.n, bool)
         used[M.F.ravel()] = True
         diag = float(np.linalg.norm(M.V[used].max(0) - M.V[used].min(0)))

@@ -37,8 +37,10 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Literal, Optional
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
@@ -48,21 +50,24 @@ from .topology import vertex_faces
 from ._kernels import hold_rounds, stretch_weights
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
-MODES = ("paper", "converged")
+class SEMOptions(BaseModel):
+    """SEM's settings; also the ``parameterize`` section of a run config (validated once, here).
 
+    ``max_iter`` defaults to 10 steps in paper mode (Algorithm 1) and 1000 in converged mode.
+    """
 
-@dataclass
-class SEMOptions:
-    mode: str = "converged"
-    max_iter: int | None = None   # default: 10 in paper mode, 1000 in converged mode
-    tol: float = 1e-7             # converged: relative decrease of the energy counted as none
-    patience: int = 20            # converged: steps without progress that end a phase
-    inversion: bool = False       # Remark 2
+    model_config = ConfigDict(extra="forbid")
+
+    mode: Literal["paper", "converged"] = "converged"
+    max_iter: Optional[int] = Field(None, ge=0)
+    tol: float = Field(1e-7, gt=0.0)   # converged: relative energy decrease counted as none
+    patience: int = Field(20, ge=1)    # converged: steps without progress that end a phase
+    inversion: bool = False            # Remark 2
     stop_when_energy_rises: bool = True   # paper: Remark 3; False runs exactly max_iter steps
-    solver: str = "auto"
-    min_step: float = 1.0 / 64    # smallest damping factor tried before giving up on a step
-    max_step: float = 8.0         # converged: largest extrapolation of an accepted full step
-    refactor_every: int = 8       # converged: reuse the preconditioner's factor this many steps
+    solver: Literal["auto", "cholmod", "scipy"] = "auto"
+    min_step: float = Field(1.0 / 64, gt=0.0, le=1.0)   # smallest damping factor tried
+    max_step: float = Field(8.0, ge=1.0)   # converged: largest extrapolation of a full step
+    refactor_every: int = Field(8, ge=1)   # converged: preconditioner factor reused this often
 
     def iterations(self) -> int:
         if self.max_iter is not None:
@@ -250,8 +255,6 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     entry if given.
     """
     opt = options or SEMOptions()
-    if opt.mode not in MODES:
-        raise ValueError(f"mode must be one of {MODES}")
     V = np.asarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     timings = {}

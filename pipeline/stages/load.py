@@ -1,14 +1,44 @@
-"""Stage 1 — load and repair: a mesh file (or the embedded sample) to a clean disk mesh."""
+"""Stage ``input`` — load and repair: a mesh file (or the embedded sample) to a clean disk mesh.
+
+Config: the ``input`` section (a mesh file, or the embedded synthetic face) and the ``repair``
+section (:class:`~pipeline.geometry.repair.RepairOptions`). Makes the ``intake`` artifact.
+Writes ``input/`` only for the embedded sample (its OBJs and landmarks, so the run is
+reproducible outside the pipeline).
+"""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, Optional
+
+from pydantic import Field, model_validator
 
 from ..geometry.repair import RepairedMesh, RepairOptions, repair_mesh
+from ..io.artifacts import staged_output
 from ..io.meshio import read_mesh
-from ..sample import make_face
+from ..sample import make_face, write_sample
+from .stage import Context, Section, Stage
+
+
+class SampleInput(Section):
+    vertices: int = Field(6000, ge=300, le=1_000_000)
+    expression: Literal["neutral", "smile", "jawopen"] = "neutral"
+    identity: int = 0
+
+
+class InputConfig(Section):
+    """Exactly one of ``mesh`` (a file, relative to the config's folder) or ``sample``."""
+
+    mesh: Optional[str] = Field(None, description="OBJ, PLY, OFF, STL or MATLAB .mat (V/F) mesh")
+    sample: Optional[SampleInput] = None
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.mesh is None) == (self.sample is None):
+            raise ValueError("give exactly one of 'mesh' (a file) or 'sample' (the embedded face)")
+        return self
 
 
 @dataclass
@@ -42,3 +72,29 @@ def sample_stage(n_vertices: int = 6000, expression: str = "neutral", identity: 
                          "landmarks": face.landmarks, "repair": mesh.report,
                          "repair_messages": mesh.messages,
                          "seconds": {"generate+repair": time.perf_counter() - t0}})
+
+
+def _run(ctx: Context) -> dict:
+    section, repair = ctx.section("input"), ctx.section("repair")
+    if section.sample is not None:
+        s = section.sample
+        intake = sample_stage(s.vertices, s.expression, s.identity, repair)
+    else:
+        intake = load_stage(ctx.path(section.mesh), repair)
+    for line in intake.mesh.messages:
+        ctx.log(f"repair: {line}")
+    return {"intake": intake}
+
+
+def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    sample = ctx.section("input").sample
+    if sample is None:
+        return {}
+    with staged_output(folder) as tmp:
+        names = write_sample(tmp, n_vertices=sample.vertices)
+    return {key: folder / Path(p).name for key, p in names.items()}
+
+
+STAGE = Stage(name="input", section=InputConfig, run=_run, write=_write, makes=("intake",),
+              extra_sections={"repair": RepairOptions}, input_files=("mesh",),
+              positional=("mesh",))

@@ -17,22 +17,33 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, Optional
 
 import numpy as np
+from pydantic import Field
 
 from ..errors import UserError
-from ..geometry.morph import EASINGS, morph_frames
+from ..geometry.morph import morph_frames
 from ..io.artifacts import staged_output, write_json
 from ..io.meshio import write_obj
+from .stage import Context, Section, Stage
 
 
-@dataclass
-class MorphOptions:
-    frames: int = 24
-    easing: str = "ease-in-out"
-    frame_ms: int = 80            # GIF frame duration
-    size: int = 480               # GIF frame size in pixels (square)
-    filmstrip_frames: int = 6
+class MorphConfig(Section):
+    """Morph from the source to its registered image: the stage's options.
+
+    In a run it morphs the ``register`` stage's result; ``inputs`` (a registration folder or
+    its ``registration.npz``, or a source and a registered mesh) morphs saved files instead.
+    """
+
+    inputs: Optional[list[str]] = Field(
+        None, description="a 'register' output folder (or its registration.npz), or SOURCE and "
+                          "REGISTERED meshes with the same connectivity")
+    frames: int = Field(24, ge=2, le=2000, description="number of frames K")
+    easing: Literal["linear", "ease-in-out", "cosine"] = "ease-in-out"
+    frame_ms: int = Field(80, ge=10, le=10_000, description="GIF frame duration")
+    size: int = Field(480, ge=64, le=2048, description="GIF frame size in pixels")
+    filmstrip_frames: int = Field(6, ge=2, le=24, description="frames on filmstrip.png")
 
 
 @dataclass
@@ -40,20 +51,12 @@ class Morph:
     faces: np.ndarray
     times: np.ndarray
     frames: list
-    options: MorphOptions
+    options: MorphConfig
     metrics: dict = field(default_factory=dict)
 
 
-def morph_stage(V_source, V_registered, F, options: MorphOptions | None = None) -> Morph:
-    opt = options or MorphOptions()
-    if opt.frames < 2:
-        raise UserError(f"morph needs at least 2 frames, got {opt.frames}; pass --frames 2 or more")
-    if not 64 <= opt.size <= 4096:
-        raise UserError(f"morph frame size {opt.size} px is out of range; use 64 to 4096")
-    if opt.frame_ms < 10:
-        raise UserError(f"morph frame duration {opt.frame_ms} ms is too short; use 10 or more")
-    if opt.easing not in EASINGS:
-        raise UserError(f"unknown easing '{opt.easing}'; use one of {', '.join(EASINGS)}")
+def morph_stage(V_source, V_registered, F, options: MorphConfig | None = None) -> Morph:
+    opt = options or MorphConfig()
     V0, V1 = np.asarray(V_source, np.float64), np.asarray(V_registered, np.float64)
     if V0.shape != V1.shape:
         raise UserError(f"source has {len(V0)} vertices but the registered mesh {len(V1)}; "
@@ -147,3 +150,32 @@ def load_morph_inputs(paths: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndar
                             f"registered.obj")
         return a.V, b.V, Fa
     raise UserError("morph takes a registration folder, or a source and a registered mesh")
+
+
+def _run(ctx: Context) -> dict:
+    mc = ctx.section("morph")
+    if mc.inputs is not None:
+        V0, V1, F = load_morph_inputs(mc.inputs)
+    else:
+        from .register import display_faces
+
+        reg = ctx.artifacts["registration"]
+        S = reg.pair.source.mesh
+        V0, V1, F = S.V, reg.mapped, display_faces(S)
+    return {"morph": morph_stage(V0, V1, F, mc)}
+
+
+def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    return write_morph(ctx.artifacts["morph"], folder)
+
+
+def _summary(ctx: Context, files: dict) -> str:
+    m = ctx.artifacts["morph"]
+    return (f"{m.options.frames} frames ({m.options.easing}) in {files['frames']}, "
+            f"animation {files['gif']}, filmstrip {files['filmstrip']}")
+
+
+STAGE = Stage(name="morph", section=MorphConfig, run=_run, write=_write,
+              needs=("registration",), needs_when=lambda mc: mc.inputs is None,
+              makes=("morph",), positional=("inputs",), summary=_summary,
+              help="morph a face into its registered image (frames + GIF)")

@@ -27,6 +27,7 @@ from ..geometry.repair import RepairedMesh
 from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
 from ..io.artifacts import staged_output, write_json
 from ..io.meshio import write_obj
+from .stage import Context, Stage
 
 
 class ParameterizationFailed(RuntimeError):
@@ -63,7 +64,7 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                              "mode": options.mode, "status": result.status,
                              "iterations": result.iterations, "solver": result.solver,
                              "solver_stats": result.solver_stats,
-                             "options": vars(options).copy(), "harmonic": result.harmonic},
+                             "options": options.model_dump(), "harmonic": result.harmonic},
         "distortion": distortion,
         "history": result.history,
         "seconds": timings,
@@ -115,3 +116,29 @@ def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metri
             f"parameterization failed: {p.sem.flipped_faces} flipped faces remain after "
             f"{p.sem.iterations} iterations (status {p.sem.status}); see {out_dir / 'metrics.json'}")
     return written
+
+
+def _run(ctx: Context) -> dict:
+    intake = ctx.artifacts["intake"]
+    return {"parameterization": parameterize_stage(intake.mesh, ctx.section("parameterize"),
+                                                   ctx.progress())}
+
+
+def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    return write_parameterization(ctx.artifacts["parameterization"], folder,
+                                  {"input": ctx.artifacts["intake"].info}, figures=ctx.figures)
+
+
+def _summary(ctx: Context, files: dict) -> str:
+    p = ctx.artifacts["parameterization"]
+    d = p.metrics["distortion"]
+    return (f"{p.metrics['mesh']['vertices']} vertices, {p.sem.iterations} iterations "
+            f"({p.sem.status}), D(f) eq.28 = {d['total_area_distortion_eq28']:.5f}, "
+            f"face area distortion = {d['face_area_distortion']:.5f}, "
+            f"flipped faces = {d['flipped_faces']}, "
+            f"{sum(p.metrics['seconds'].values()):.2f} s")
+
+
+STAGE = Stage(name="parameterize", section=SEMOptions, run=_run, write=_write,
+              needs=("intake",), makes=("parameterization",), uses=("report",),
+              default_on=True, summary=_summary, help="SEM disk map of one mesh")

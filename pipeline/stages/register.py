@@ -34,8 +34,10 @@ import html
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, Optional
 
 import numpy as np
+from pydantic import Field, model_validator
 
 from ..errors import UserError
 from ..geometry.register import (DeformOptions, align, as_complex, as_uv, compose_with_inverse,
@@ -48,19 +50,51 @@ from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, re
 from ..io.meshio import read_mesh, write_obj
 from .load import Intake, load_stage, sample_stage
 from .parameterize import ParameterizationFailed, parameterize_stage
+from .stage import Context, Section, Stage
 
 
 class RegistrationFailed(RuntimeError):
     """Faces remain flipped after the deformation (exit code 1: valid input, method failed)."""
 
 
-@dataclass
-class RegisterOptions:
-    mobius: bool = False              # align by a disk Möbius map instead of a rotation
-    energy: str = "biharmonic"        # displacement smoothness: biharmonic | harmonic
-    baseline: bool = False            # also run trimesh's nricp_amberg on the same pair
-    sem: SEMOptions = field(default_factory=SEMOptions)
-    deform: DeformOptions = field(default_factory=DeformOptions)
+class RegisterConfig(Section):
+    """Landmark registration of a source face onto a target face; the stage's options.
+
+    Either ``sample: true`` (the embedded synthetic face, neutral → ``sample_expression``; the
+    target is also the ground truth) or the files (paths relative to the config's folder). The
+    meshes go through the ``repair`` section and the ``parameterize`` section's SEM options.
+    """
+
+    sample: bool = Field(False, description="the embedded synthetic face, neutral → expression")
+    sample_vertices: int = Field(3000, ge=300, le=200_000)
+    sample_expression: Literal["smile", "jawopen"] = "smile"
+    source: Optional[str] = Field(None, description="source face mesh")
+    target: Optional[str] = Field(None, description="target face mesh")
+    source_landmarks: Optional[str] = Field(
+        None, description="JSON ({'landmarks': {name: index}} or a list), CSV or TXT (indices or "
+                          "x y z points, snapped to the nearest vertex)")
+    target_landmarks: Optional[str] = Field(
+        None, description="target landmark file (default: the source's, one file for both)")
+    landmark_set: Optional[str] = Field(
+        None, description="JSON key of the landmark set, e.g. ibug68 (default 'landmarks')")
+    truth: Optional[str] = Field(
+        None, description="ground truth with the source's connectivity: report the dense error")
+    mobius: bool = Field(False, description="align the disks by a Möbius map (default: a "
+                                            "rotation)")
+    energy: Literal["biharmonic", "harmonic"] = Field(
+        "biharmonic", description="smoothness of the landmark deformation")
+    baseline: bool = Field(False, description="also run trimesh's nricp_amberg and compare")
+
+    @model_validator(mode="after")
+    def _inputs(self):
+        files = (self.source, self.target, self.source_landmarks)
+        if self.sample and any(f is not None for f in files + (self.truth,)):
+            raise ValueError("give either 'sample: true' or the files (source, target, "
+                             "source_landmarks), not both")
+        if not self.sample and any(f is None for f in files):
+            raise ValueError("give 'source', 'target' and 'source_landmarks' (and "
+                             "'target_landmarks' if they differ), or 'sample: true'")
+        return self
 
 
 @dataclass
@@ -169,7 +203,7 @@ def display_faces(mesh) -> np.ndarray:
 @dataclass
 class Registration:
     pair: Pair
-    options: RegisterOptions
+    energy: str                               # the deformation's smoothness
     uv_source: np.ndarray
     uv_target: np.ndarray
     alignment: object
@@ -215,29 +249,34 @@ def _finite_summary(err: np.ndarray | None) -> dict | None:
     return error_summary(err[np.isfinite(err)], 1.0)
 
 
-def register_stage(pair: Pair, options: RegisterOptions | None = None, progress=None,
-                   log=None) -> Registration:
+def register_stage(pair: Pair, options: RegisterConfig, sem: SEMOptions | None = None,
+                   progress=None, log=None) -> Registration:
     """Register ``pair.source`` onto ``pair.target`` (module docstring): SEM maps of both, then
     :func:`register_maps`. Raises ``ParameterizationFailed`` if a SEM map folds; never raises for
     flipped faces of the deformation — check :attr:`Registration.ok`."""
-    opt = options or RegisterOptions()
+    opt, sem = options, sem or SEMOptions()
     say = log or (lambda s: None)
     t0 = time.perf_counter()
-    ps = _parameterize(pair.source, opt.sem, progress)
+    ps = _parameterize(pair.source, sem, progress)
     t1 = time.perf_counter()
-    pt = _parameterize(pair.target, opt.sem, progress)
+    pt = _parameterize(pair.target, sem, progress)
     t2 = time.perf_counter()
     say(f"SEM: source {ps.sem.iterations} iterations ({ps.sem.status}), target "
         f"{pt.sem.iterations} iterations ({pt.sem.status})")
-    return register_maps(pair, ps, pt, opt, log,
-                         {"parameterize_source": t1 - t0, "parameterize_target": t2 - t1})
+    return register_maps(pair, ps, pt, mobius=opt.mobius, energy=opt.energy,
+                         baseline=opt.baseline, log=log,
+                         seconds={"parameterize_source": t1 - t0, "parameterize_target": t2 - t1})
 
 
-def register_maps(pair: Pair, ps, pt, options: RegisterOptions | None = None, log=None,
-                  seconds: dict | None = None) -> Registration:
+def register_maps(pair: Pair, ps, pt, *, mobius: bool = False, energy: str = "biharmonic",
+                  baseline: bool = False, log=None, seconds: dict | None = None) -> Registration:
     """Register with given SEM parameterizations ``ps`` (source) and ``pt`` (target) of
-    ``pair``'s repaired meshes (:class:`~pipeline.stages.parameterize.Parameterization`)."""
-    opt = options or RegisterOptions()
+    ``pair``'s repaired meshes (:class:`~pipeline.stages.parameterize.Parameterization`).
+
+    ``mobius``, ``energy`` and ``baseline`` are the :class:`RegisterConfig` keys of the same
+    names: the alignment (disk Möbius map or rotation), the deformation's smoothness, and
+    whether trimesh's ``nricp_amberg`` runs on the same pair for comparison.
+    """
     say = log or (lambda s: None)
     S, T = pair.source, pair.target
     if len(ps.uv) != len(S.mesh.V) or len(pt.uv) != len(T.mesh.V):
@@ -245,16 +284,16 @@ def register_maps(pair: Pair, ps, pt, options: RegisterOptions | None = None, lo
     seconds = dict(seconds or {})
     t0 = time.perf_counter()
     zt_lm = as_complex(pt.uv)[T.landmarks]
-    al = align(ps.uv, S.landmarks, zt_lm, use_mobius=opt.mobius)
+    al = align(ps.uv, S.landmarks, zt_lm, use_mobius=mobius)
     seconds["align"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    dopt = DeformOptions(**{**vars(opt.deform), "energy": opt.energy})
+    dopt = DeformOptions(energy=energy)
     de = deform_to_landmarks(S.mesh.F, al.z, S.mesh.boundary, S.landmarks, zt_lm, dopt)
     seconds["deform"] = time.perf_counter() - t0
     say(f"deformation: {de.method}, {de.substeps} sub-steps accepted, {de.rejected_substeps} "
         f"rejected, {de.flipped_faces} flipped faces")
 
-    reg = Registration(pair, opt, ps.uv, pt.uv, al, de)
+    reg = Registration(pair, energy, ps.uv, pt.uv, al, de)
     VT, FT = T.mesh.V, T.mesh.F
     diag = float(np.linalg.norm(VT.max(axis=0) - VT.min(axis=0)))
 
@@ -276,7 +315,7 @@ def register_maps(pair: Pair, ps, pt, options: RegisterOptions | None = None, lo
                       "names": pair.names, "messages": pair.messages},
         "target_bbox_diagonal": diag,
         "alignment": al.as_dict(),
-        "deformation": {"energy": opt.energy, **de.as_dict()},
+        "deformation": {"energy": energy, **de.as_dict()},
         "flipped_faces": int(de.flipped_faces),
         "landmark_residual": {
             "relative_to": "target bounding-box diagonal",
@@ -304,7 +343,7 @@ def register_maps(pair: Pair, ps, pt, options: RegisterOptions | None = None, lo
         metrics["dense_error"] = None if reg.error is None else {
             "truth": pair.truth_label, "relative_to": "target bounding-box diagonal",
             "ours": _finite_summary(reg.error)}
-    if opt.baseline:
+    if baseline:
         say("baseline: trimesh.registration.nricp_amberg …")
         reg.baseline = nricp_baseline(pair, diag)
         seconds["baseline_nricp_amberg"] = reg.baseline["seconds"]
@@ -505,3 +544,64 @@ figure{{margin:1.5em 0}}</style></head><body>
 metrics.json.</p>
 </body></html>
 """
+
+
+# ----------------------------------------------------------------------------- the stage
+
+
+def _pair(ctx: Context) -> Pair:
+    rc, repair = ctx.section("register"), ctx.section("repair")
+    if rc.sample:
+        pair = sample_pair(rc.sample_vertices, rc.sample_expression, repair)
+    else:
+        def p(v):
+            return None if v is None else ctx.path(v).resolve()
+        pair = load_pair(p(rc.source), p(rc.target), p(rc.source_landmarks),
+                         p(rc.target_landmarks), rc.landmark_set, repair, p(rc.truth))
+    for face in (pair.source, pair.target):
+        for line in face.mesh.messages:
+            ctx.log(f"repair ({face.label}): {line}")
+    for line in pair.messages:
+        ctx.log(f"landmarks: {line}")
+    return pair
+
+
+def _run(ctx: Context) -> dict:
+    reg = register_stage(_pair(ctx), ctx.section("register"), ctx.section("parameterize"),
+                         progress=ctx.progress, log=ctx.log)
+    ctx.log(f"register: {register_summary(reg)}")
+    return {"registration": reg}
+
+
+def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    return write_registration(ctx.artifacts["registration"], folder, figures=ctx.figures)
+
+
+def register_summary(reg: Registration) -> str:
+    """One line: landmark count, deformation, flips, residuals, dense errors, time."""
+    m = reg.metrics
+    lr = m["landmark_residual"]
+    parts = [f"{m['landmarks']['count']} landmarks",
+             f"deformation {m['deformation']['method']}",
+             f"flipped faces = {m['flipped_faces']}",
+             f"landmark residual before {lr['before']['max']:.2e}"
+             + (f", after {lr['after']['max']:.2e}" if lr["after"] else "")
+             + " (max, × target diagonal)"]
+    de = m.get("dense_error")
+    if de:
+        parts.append(f"dense error mean {de['ours']['mean']:.2e}, p95 {de['ours']['p95']:.2e}, "
+                     f"max {de['ours']['max']:.2e}")
+        if "nricp_amberg" in de:
+            b = de["nricp_amberg"]
+            parts.append(f"nricp_amberg mean {b['mean']:.2e}, p95 {b['p95']:.2e}, "
+                         f"max {b['max']:.2e}")
+    parts.append(f"{m['seconds']['ours_total']:.2f} s")
+    return ", ".join(parts)
+
+
+STAGE = Stage(name="register", section=RegisterConfig, run=_run, write=_write,
+              makes=("registration",), uses=("repair", "parameterize", "report"),
+              input_files=("source", "target", "source_landmarks", "target_landmarks", "truth"),
+              positional=("source", "target"),
+              summary=lambda ctx, files: register_summary(ctx.artifacts["registration"]),
+              help="landmark registration of SOURCE onto TARGET on their SEM disks")

@@ -70,7 +70,7 @@ def plot_disks(reg, path: Path) -> Path:
     flips = signed_double_areas(ud, S.mesh.F) <= 0
     de = reg.deform
     if de.ok:
-        title = (f"(d) deformed source disk ({de.method}; {reg.options.energy} energy)\n"
+        title = (f"(d) deformed source disk ({de.method}; {reg.energy} energy)\n"
                  f"landmarks on their targets, 0 flipped faces")
     else:
         title = (f"(d) FAILED: one-step solve, {int(flips.sum())} flipped faces (red)\n"

@@ -41,8 +41,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal, Optional
 
 import numpy as np
+from pydantic import Field, field_validator, model_validator
 
 from ..errors import UserError
 from ..geometry import topology as topo
@@ -53,6 +55,7 @@ from ..geometry.locate import PointLocator, lift
 from ..geometry.metrics import corner_angles, signed_double_areas
 from ..geometry.remesh_improve import RemeshState, improve_remesh
 from ..geometry.repair import RepairedMesh
+from .stage import Context, Section, Stage
 
 __all__ = ["RemeshOptions", "Remesh", "remesh_stage", "read_landmarks", "map_landmarks",
            "carry_landmarks", "boundary_corners", "interior_corners", "write_remesh"]
@@ -342,3 +345,124 @@ def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> 
         write_json(tmp / "remesh_metrics.json", metrics)
         written["metrics"] = out_dir / "remesh_metrics.json"
     return written
+
+
+# ----------------------------------------------------------------------------- the stage
+
+
+class ImproveConfig(Section):
+    """Quality pass after lifting; ``improve: false`` turns it off (the paper's plain lift),
+    ``improve: true`` means these defaults."""
+
+    flips: bool = True                       # Delaunay flips on the lifted surface
+    relax_iterations: int = Field(2, ge=0, le=50)     # tangential relaxation steps
+    relax_step: float = Field(0.5, gt=0.0, le=1.0)
+    max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
+    refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
+    refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
+    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
+
+
+class RemeshConfig(Section):
+    """Uniform remeshing through the SEM map (``configs/remesh.yaml``). Give ``vertices`` or
+    ``spacing`` (target edge length in the mesh's units)."""
+
+    vertices: Optional[int] = Field(None, ge=100, le=5_000_000,
+                                    description="vertex count of the remesh")
+    spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
+                                                               "mesh's units")
+    pattern: Literal["hexagonal", "blue_noise", "concentric"] = Field(
+        "hexagonal", description="disk sampling pattern")
+    rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
+                                                       "the rim")
+    seed: int = Field(0, description="blue noise seed")
+    improve: Optional[ImproveConfig] = Field(
+        ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
+    compare: bool = Field(True, description="pymeshlab and decimation at the same vertex count")
+    report: bool = Field(True, description="report.html and figures")
+    landmarks: Optional[str] = Field(
+        None, description="JSON {\"landmarks\": {name: input vertex index}} carried to the "
+                          "remesh")
+    distance_samples: int = Field(200_000, ge=1000, description="random samples per surface "
+                                                                "for the distances")
+
+    @field_validator("improve", mode="before")
+    @classmethod
+    def _improve_flag(cls, v):
+        if v is True:
+            return {}
+        if v is False:
+            return None
+        return v
+
+    @model_validator(mode="after")
+    def _count_or_spacing(self):
+        if (self.vertices is None) == (self.spacing is None):
+            raise ValueError("give exactly one of 'vertices' (a count) or 'spacing' (a target "
+                             "edge length in the mesh's units)")
+        return self
+
+
+def remesh_options(rc: RemeshConfig) -> RemeshOptions:
+    """The stage's options from the config section; ``improve: null`` is the paper's plain
+    lift (no improvement, no corner snapping)."""
+    imp = rc.improve
+    base = dict(vertices=rc.vertices, spacing=rc.spacing, pattern=rc.pattern,
+                rim_relax=rc.rim_relax, seed=rc.seed)
+    if imp is None:
+        return RemeshOptions(**base, improve=False, corner_angle_deg=0.0)
+    return RemeshOptions(**base, improve=True, **imp.model_dump())
+
+
+def _run(ctx: Context) -> dict:
+    from .parameterize import ParameterizationFailed
+
+    rc, intake, p = ctx.section("remesh"), ctx.artifacts["intake"], \
+        ctx.artifacts["parameterization"]
+    if not p.ok:
+        raise ParameterizationFailed(f"parameterization failed: {p.sem.flipped_faces} flipped "
+                                     f"faces remain; remeshing needs a bijective map")
+    mesh = intake.mesh
+    if rc.landmarks is not None:
+        landmarks = read_landmarks(ctx.path(rc.landmarks), mesh)
+    elif intake.info.get("landmarks"):
+        landmarks = map_landmarks(intake.info["landmarks"], mesh, "sample landmarks")
+    else:
+        landmarks = {}
+    return {"remesh": remesh_stage(mesh, p.uv, remesh_options(rc), landmarks)}
+
+
+def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    from .remesh_report import remesh_outputs
+
+    rc, r = ctx.section("remesh"), ctx.artifacts["remesh"]
+    files, metrics = remesh_outputs(ctx.artifacts["intake"].mesh,
+                                    ctx.artifacts["parameterization"], r, folder,
+                                    ctx.artifacts["intake"].info, compare=rc.compare,
+                                    report=rc.report, figures=ctx.figures,
+                                    n_random=rc.distance_samples,
+                                    progress=lambda msg: ctx.log(f"remesh: {msg}"))
+    ctx.log(f"remesh: {_summary_line(r, metrics)}")
+    for warning in metrics["warnings"]:
+        ctx.log(f"remesh: warning: {warning}")
+    return files
+
+
+def _summary_line(r: Remesh, metrics: dict) -> str:
+    sem = metrics["methods"]["sem"]
+    t = sem["triangles"]
+    d = sem.get("distance", {})
+    return (f"{len(r.V)} vertices, {len(r.F)} faces, "
+            f"{'one disk' if sem['is_disk'] else 'NOT a disk'}, "
+            f"min angle {t['min_angle_deg']:.1f}°, mean smallest angle "
+            f"{t['mean_min_angle_deg']:.1f}°, Hausdorff {100 * d.get('hausdorff_rel', 0):.3f} % "
+            f"of the diagonal, {r.seconds['total']:.2f} s")
+
+
+STAGE = Stage(name="remesh", section=RemeshConfig, run=_run, write=_write,
+              needs=("intake", "parameterization"), makes=("remesh",), uses=("report",),
+              input_files=("landmarks",),
+              summary=lambda ctx, files: ", ".join(Path(p).name for k, p in files.items()
+                                                   if k in ("obj", "metrics", "report")),
+              help="uniform remesh through the SEM disk map, with a quality report beside "
+                   "pymeshlab and decimation")

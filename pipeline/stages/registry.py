@@ -1,0 +1,73 @@
+"""The stages in pipeline order, and which of them a config runs.
+
+Adding a stage: write its module (config section model, run and write steps, ``STAGE``), add
+it to :data:`STAGES` below, and document its keys in ``configs/<stage>.yaml``. The config
+schema, the stage checks, the input-file keys and the subcommand's flags follow from here.
+"""
+
+from __future__ import annotations
+
+from . import load, morph, parameterize, register, remesh
+from .stage import Stage
+
+STAGES: tuple[Stage, ...] = (load.STAGE, parameterize.STAGE, remesh.STAGE, register.STAGE,
+                             morph.STAGE)
+
+
+def stage(name: str) -> Stage:
+    return next(s for s in STAGES if s.name == name)
+
+
+def input_file_keys() -> tuple[str, ...]:
+    """Every dotted config key that names an input file (``input.mesh``, ``register.source``…)."""
+    return tuple(f"{s.name}.{k}" for s in STAGES for k in s.input_files)
+
+
+def _a(name: str) -> str:
+    return f"an '{name}'" if name[0] in "aeiou" else f"a '{name}'"
+
+
+def _maker(artifact: str) -> Stage:
+    return next(s for s in STAGES if artifact in s.makes)
+
+
+def plan(config) -> list[Stage]:
+    """The stages ``config`` runs, in order.
+
+    A stage runs when its section is given (or has a default, ``default_on``) and every artifact
+    it needs is made by a stage before it that runs. A given section whose needs are not met is
+    an error naming the section to add; so is a config in which no stage runs.
+
+    Raises
+    ------
+    ValueError
+        With a one-line message naming the missing section.
+    """
+    made: set[str] = set()
+    running: list[Stage] = []
+    for s in STAGES:
+        section = getattr(config, s.name)
+        if section is None:
+            continue
+        missing = [n for n in s.needs_for(section) if n not in made]
+        if not missing:
+            running.append(s)
+            made.update(s.makes)
+        elif not s.default_on:
+            root = _root_section(config, missing[0])
+            raise ValueError(f"'{s.name}' needs {_a(root)} section (for its {missing[0]})")
+    if not any(not s.default_on for s in running):
+        starts = [s.name for s in STAGES if not s.needs and not s.default_on]
+        raise ValueError("give " + " or ".join(_a(n) for n in starts) + " section "
+                         "(a stage that reads its own input)")
+    return running
+
+
+def _root_section(config, artifact: str) -> str:
+    """The section to add so that ``artifact`` gets made (through default-on stages)."""
+    maker = _maker(artifact)
+    section = getattr(config, maker.name)
+    if section is not None and maker.default_on:
+        for need in maker.needs_for(section):
+            return _root_section(config, need)
+    return maker.name
