@@ -267,9 +267,11 @@ def screenshot(driver, path, png) -> Path:
     driver.get(Path(path).resolve().as_uri())
     driver.execute_script(_SCROLL_IMAGES_JS)
     WebDriverWait(driver, 20).until(lambda d: d.execute_script(_IMAGES_SETTLED_JS))
-    height = driver.execute_script("return document.documentElement.scrollHeight")
+    # the window's own frame (outer - inner height) is not part of the screenshot
+    height = driver.execute_script("return document.documentElement.scrollHeight"
+                                   " + window.outerHeight - window.innerHeight")
     size = driver.get_window_size()
-    driver.set_window_size(size["width"], max(size["height"], min(int(height) + 100, 16000)))
+    driver.set_window_size(size["width"], max(size["height"], min(int(height) + 20, 16000)))
     try:
         driver.execute_script("window.scrollTo(0, 0)")
         driver.save_screenshot(str(png))
