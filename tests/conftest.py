@@ -7,6 +7,9 @@ python path: ``pythonpath = [".", "tests"]`` in the pytest config).
 
 Shared fixtures and builders, defined here once:
 
+* synthetic faces (``pipeline.sample``): ``synthetic_face`` (a cached ``make_face``), ``face`` and
+  ``smile`` (the 6000-vertex neutral/smiling pair), ``small_face`` (an 800-vertex face written as
+  OBJ), ``sample_files`` (``write_sample`` of a 900-vertex pair and its landmarks);
 * planar disk meshes with exact facts (``delaunay_disk``, ``polar_disk``, fixtures ``ddisk`` and
   ``pdisk``), a curved surface over them (``height_field``), flip-free maps of them
   (``random_flip_free_maps``), and independent formulas of the paper (``independent_areas``,
@@ -54,6 +57,59 @@ def run_cli(*args, cwd=None):
                           capture_output=True, text=True, timeout=600,
                           env=dict(os.environ, PYTHONPATH=str(REPO)))
     return proc.returncode, proc.stdout, proc.stderr
+
+
+# ------------------------------------------------------------------------- synthetic faces
+
+
+@pytest.fixture(scope="session")
+def synthetic_face():
+    """``make_face(n_vertices, expression, identity)``, each built once per session.
+
+    The samples are shared between tests: a test that modifies ``V`` or ``F`` copies them first.
+    """
+    from pipeline.sample import make_face
+
+    cache = {}
+
+    def get(n_vertices: int = 6000, expression: str = "neutral", identity: int = 0):
+        key = (n_vertices, expression, identity)
+        if key not in cache:
+            cache[key] = make_face(n_vertices, expression, identity)
+        return cache[key]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def face(synthetic_face):
+    """The default synthetic face (6000 vertices, neutral)."""
+    return synthetic_face(6000)
+
+
+@pytest.fixture(scope="session")
+def smile(synthetic_face):
+    """The default synthetic face smiling (same connectivity and landmarks as ``face``)."""
+    return synthetic_face(6000, "smile")
+
+
+@pytest.fixture(scope="session")
+def small_face(tmp_path_factory, synthetic_face):
+    """``(path, sample)``: the 800-vertex neutral synthetic face written as ``face.obj``."""
+    from pipeline.io.meshio import write_obj
+
+    s = synthetic_face(800)
+    path = write_obj(tmp_path_factory.mktemp("face") / "face.obj", s.V, s.F)
+    return path, s
+
+
+@pytest.fixture(scope="session")
+def sample_files(tmp_path_factory):
+    """``write_sample`` of the 900-vertex neutral/smiling pair: paths under ``"neutral"``,
+    ``"smile"``, ``"landmarks"``."""
+    from pipeline.sample import write_sample
+
+    return write_sample(tmp_path_factory.mktemp("sample"), n_vertices=900)
 
 
 # ---------------------------------------------------------- planar disks and SEM formulas
