@@ -28,13 +28,9 @@ the cores that other processes kept busy meanwhile (``/proc/stat`` minus this ru
 time), since work beside the benchmark slows the parallel runs most. With ``--repeat`` each
 backend runs that many times, interleaved, and the fastest run is shown.
 
-On the 2-core development VM, quiet (other work ≈ 0), ``--repeat 2`` (2026-11-22): serial
-37.0 s; 4 × ``sem-pipeline run`` 48.2 s (1.30: each process pays ~2.8 s of start-up, imports
-and writing); process pool ×2 0.65 of serial (0.50 of the one-by-one runs); Dask on a running
-cluster 0.67; ``--scheduler local`` 0.68. Two items side by side each run ~15 % slower than
-alone (``item s`` 40.6 vs 35.3: the two vCPUs share memory bandwidth) and spawning a worker
-and importing costs ~1.3 s, so ~0.6 is the floor of the strict ratio here. (An earlier day's
-runs gave 0.58–0.62 for the pool; a forked pool with the imports inherited was slower, 0.75.)
+The ratio of N workers stays above 1/N: items side by side share memory bandwidth (their
+``item s`` sum exceeds the serial one), and each spawned worker pays interpreter start and
+imports. The README's performance section gives the current figures.
 """
 
 from __future__ import annotations

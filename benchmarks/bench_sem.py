@@ -16,8 +16,8 @@ with the analysis already done. Paper mode, exactly 10 SEM steps
 
 "total s" and the peak are the first run's. A short run (under 5 s) is then repeated
 ``--repeat`` times, each repeat followed by a floor measurement, and "per iter s" and "floor s"
-are the medians of those pairs: at 10k faces an iteration is ~4 ms and single runs on this
-shared machine scatter by ±40 %. Longer runs give one SEM run and the median of 3 floors.
+are the medians of those pairs, because iterations of a few milliseconds scatter widely from
+run to run on a shared machine. Longer runs give one SEM run and the median of 3 floors.
 """
 
 from __future__ import annotations

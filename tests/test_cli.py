@@ -11,7 +11,6 @@ import pytest
 from conftest import REPO, run_cli
 from pipeline.cli import main
 from pipeline.io.meshio import write_obj
-from pipeline.sample import make_face
 
 
 
@@ -23,14 +22,6 @@ def assert_one_line_error(code, err, *words):
     assert "Traceback" not in err
     for w in words:
         assert w.lower() in lines[0].lower(), lines[0]
-
-
-@pytest.fixture(scope="module")
-def small_face(tmp_path_factory):
-    d = tmp_path_factory.mktemp("face")
-    s = make_face(800)
-    path = write_obj(d / "face.obj", s.V, s.F)
-    return path, s
 
 
 def read_obj_vt(path):

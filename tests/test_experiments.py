@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import require_data
+from conftest import REPO, require_data
 from pipeline.cli import main
 from pipeline.config import Config
 from pipeline.errors import UserError
@@ -27,9 +27,7 @@ from pipeline.experiments.cache import FileHashes, item_hash
 from pipeline.experiments.execute import run_experiment
 from pipeline.experiments.spec import expand_experiment, load_experiment
 from pipeline.io.meshio import write_obj
-from pipeline.sample import make_face
 
-REPO = Path(__file__).resolve().parents[1]
 CONFIGS = REPO / "configs"
 SAMPLE_IDS = [f"parameterize.mode={m}__input.sample.vertices={n}"
               for m in ("paper", "converged") for n in (400, 800)]
@@ -167,8 +165,8 @@ def test_cli_bad_experiment_config_exits_2_with_one_line(tmp_path):
 # ------------------------------------------------------------------------------- hashing
 
 
-def test_content_hash_follows_file_bytes_and_settings_not_paths(tmp_path):
-    face = make_face(400)
+def test_content_hash_follows_file_bytes_and_settings_not_paths(tmp_path, synthetic_face):
+    face = synthetic_face(400)
     a = write_obj(tmp_path / "a.obj", face.V, face.F)
     data = {"dataset": {"meshes": ["a.obj"]}}
     hashes = FileHashes(tmp_path / "h.json")
@@ -243,8 +241,8 @@ def test_second_run_skips_everything_and_deleted_item_reruns(pool_run):
     assert untimed(read_summary(run_dir)) == untimed(rows)
 
 
-def test_failing_items_are_recorded_and_the_others_finish(tmp_path, capsys):
-    face = make_face(400)
+def test_failing_items_are_recorded_and_the_others_finish(tmp_path, capsys, synthetic_face):
+    face = synthetic_face(400)
     write_obj(tmp_path / "good.obj", face.V, face.F)
     V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
     F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5],

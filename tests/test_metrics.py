@@ -1,6 +1,7 @@
 """Distortion measures of §7.1 (pipeline/geometry/metrics.py) on constructed meshes whose values
 are known by hand: D(f) eq. (28), face-based area distortion, local area ratio eq. (29), stretch
-energy eq. (15) and its normalized ratio, flipped faces, angular distortion, and the summary."""
+energy eq. (15) and its normalized ratio (with its Cauchy–Schwarz bound on random flip-free maps of
+a planar disk), flipped faces, angular distortion, and the summary."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import height_field, independent_areas, random_flip_free_maps
 from pipeline.geometry import metrics
 
 # Unit square, two counter-clockwise triangles along the diagonal 0–2.
@@ -258,3 +260,32 @@ def test_area_weighted_quantile():
     assert metrics.area_weighted_quantile(v, w, 0.5) == 2.0
     assert metrics.area_weighted_quantile(v, w, 0.75) == 2.0
     assert metrics.area_weighted_quantile(v, w, 0.76) == 3.0
+
+
+def test_energy_ratio_lower_bound_and_equality_for_affine_maps(ddisk):
+    """E_S ≥ |f(M)|²/|M| (Cauchy–Schwarz), equality iff σ is constant; f = A·v of a planar
+    mesh has σ = 1/|det A| on every face, so the ratio is exactly 1."""
+    P, F, _ = ddisk
+    X = height_field(P)
+    rng = np.random.default_rng(8)
+    for uv in random_flip_free_maps(P, F, rng, k=8):
+        r = metrics.energy_ratio(X, F, uv)
+        a, A = independent_areas(uv, F), independent_areas(X, F)
+        assert r == pytest.approx(np.sum(a * a / A) * A.sum() / a.sum() ** 2, rel=1e-12)
+        assert r > 1 + 1e-4
+        assert metrics.energy_ratio(X * 3.0, F, uv * 0.2) == pytest.approx(r, rel=1e-12)
+        r_planar = metrics.energy_ratio(np.column_stack([P, np.zeros(len(P))]), F, uv)
+        assert r_planar > 1 + 1e-6
+    # a planar mesh placed in 3D by a rotation; affine maps with positive determinant
+    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    V3 = np.column_stack([P, np.zeros(len(P))]) @ Q.T + rng.normal(size=3)
+    for _ in range(5):
+        A = rng.normal(size=(2, 2))
+        if np.linalg.det(A) < 0:
+            A[:, 0] *= -1
+        uv = P @ A.T + rng.normal(size=2)
+        assert len(metrics.flipped_faces(uv, F)) == 0
+        assert metrics.energy_ratio(V3, F, uv) == pytest.approx(1.0, abs=1e-12)
+        E = metrics.stretch_energy(V3, F, uv)
+        area_M = independent_areas(V3, F).sum()
+        assert E == pytest.approx(np.linalg.det(A) ** 2 * area_M, rel=1e-12)

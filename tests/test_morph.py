@@ -6,19 +6,16 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 from pydantic import ValidationError
 from PIL import Image
 
+from conftest import REPO
 from pipeline.errors import UserError
 from pipeline.geometry.morph import EASINGS, ease, frame_times, interpolate, morph_frames
-from pipeline.sample import make_face
 from pipeline.stages.morph import MorphConfig, load_morph_inputs, morph_stage, write_morph
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("easing", EASINGS)
@@ -47,8 +44,8 @@ def test_frames_at_0_and_1_equal_source_and_registered():
     np.testing.assert_allclose(interpolate(V0, V1, 0.25), 0.75 * V0 + 0.25 * V1)
 
 
-def test_gif_opens_with_k_frames(tmp_path):
-    a, b = make_face(400, "neutral"), make_face(400, "smile")
+def test_gif_opens_with_k_frames(tmp_path, synthetic_face):
+    a, b = synthetic_face(400, "neutral"), synthetic_face(400, "smile")
     m = morph_stage(a.V, b.V, a.F, MorphConfig(frames=5, easing="cosine", size=96))
     files = write_morph(m, tmp_path / "m")
     with Image.open(files["gif"]) as im:
@@ -63,8 +60,8 @@ def test_gif_opens_with_k_frames(tmp_path):
     assert np.array_equal(F, a.F)
 
 
-def test_bad_morph_input(tmp_path):
-    a = make_face(400)
+def test_bad_morph_input(tmp_path, synthetic_face):
+    a = synthetic_face(400)
     with pytest.raises(ValidationError, match="greater than or equal to 2"):
         MorphConfig(frames=1)      # the section is the options: validated once, when made
     with pytest.raises(UserError, match="same connectivity"):

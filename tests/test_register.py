@@ -196,13 +196,6 @@ def test_registration_files(sample_registration, tmp_path):
 
 
 
-@pytest.fixture(scope="module")
-def sample_files(tmp_path_factory):
-    from pipeline.sample import write_sample
-
-    return write_sample(tmp_path_factory.mktemp("sample"), n_vertices=900)
-
-
 def test_cli_register_writes_the_contract_files(sample_files, tmp_path):
     p = sample_files
     code, out, err = run_cli("register", p["neutral"], p["smile"], "--source-landmarks",

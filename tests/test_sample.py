@@ -80,16 +80,6 @@ def _segments_cross(P):
     return bool((~adjacent).any())
 
 
-@pytest.fixture(scope="module")
-def face():
-    return make_face(6000)
-
-
-@pytest.fixture(scope="module")
-def smile():
-    return make_face(6000, expression="smile")
-
-
 # ---------------------------------------------------------------------------------- topology
 
 

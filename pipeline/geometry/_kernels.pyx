@@ -3,8 +3,9 @@
 
 Built when the package is installed (``pip install -e .`` runs Cython and the C compiler). A
 loop here replaces numpy calls whose fixed overhead and temporaries (first-touch page faults are
-expensive on the project's machines) cost more than their arithmetic: SEM at 10k faces, where
-an iteration's solver floor is ~3 ms, and remeshing's dozens of rounds over the whole mesh.
+expensive on the project's machines) cost more than their arithmetic: SEM on small meshes,
+where an iteration's solves take only milliseconds, and remeshing's dozens of rounds over the
+whole mesh.
 Each does the arithmetic of the numpy formula it replaces, operation for operation and in the
 same order — 3-vector dot products and lengths in the order numpy's einsum sums them on these
 machines (x, z, then y) — and the module is compiled with ``-ffp-contract=off`` (no fused

@@ -32,15 +32,14 @@ How a point is located (:class:`PointLocator`):
 5. **Large batches.** With at least half as many queries as image vertices (a remesh's
    samples), each query first walks, up to 8 steps across the edge of its most negative
    barycentric, from a face at its nearest image vertex (a KD-tree); only the queries the walk
-   does not settle (outside ones, a few more) go through steps 2–4. For 10^5 remesh samples:
-   camelhead_x4 0.27 → 0.17 s, choi_hand 0.44 → 0.25 s, the same positions.
+   does not settle (outside ones, a few more) go through steps 2–4. A query the walk settles
+   lies in the face it stops at (smallest barycentric ≥ −``tol``), so it gets the position
+   steps 2–4 would give; only on an edge shared by two faces may the face differ.
 
-Timings on 2 shared cores (``benchmarks/bench_remesh.py --locate``; a SEM map subdivided to
-1.45·10^6 faces, 10^5 queries): build 1.5–4 s, queries 0.2 s, against 22 s to build
-matplotlib's ``TrapezoidMapTriFinder`` and 4 s to query it (plus the same barycentric
-computation). Thin image triangles (a SEM map has 10–300× anisotropy in places) are
-registered only in the grid cells they really cross, which keeps about 3.5 registrations and
-6–13 candidates per query.
+Thin image triangles (a SEM map is strongly anisotropic in places) are registered only in the
+grid cells they really cross, not in every cell of their bounding box, which keeps the number of
+candidates per query small. ``benchmarks/bench_remesh.py --locate`` compares build and query
+times with matplotlib's ``TrapezoidMapTriFinder`` on a SEM map of about 1.45·10^6 faces.
 """
 
 from __future__ import annotations

@@ -22,8 +22,9 @@ def as_complex_points(uv: np.ndarray) -> np.ndarray:
 
 def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the signed area of every image face, ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``;
-    positive = counter-clockwise. A compiled loop: the numpy form's (m, 3) gather and its
-    temporaries cost ~6× more (SEM evaluates it several times an iteration)."""
+    positive = counter-clockwise; shape (m,) for ``uv`` (n, 2) and ``F`` (m, 3). A compiled loop:
+    the numpy form's (m, 3) gathers and temporaries cost several times its arithmetic, and SEM
+    evaluates it several times an iteration."""
     F = np.ascontiguousarray(_as_faces(F))
     out = np.empty(len(F))
     _kernels.signed_double_areas(F, as_complex_points(uv), out)

@@ -205,8 +205,8 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     vertices of the faces that the last round re-measured and found flipped (a face still flipped
     that was not re-measured had all its vertices held already). Only the faces around newly
     held vertices have their image areas (eq. 15's ``|f(τ)|``) recomputed. The rounds run
-    in compiled code (:mod:`._kernels`): in numpy each round cost ~0.1 ms of small-array
-    overhead at 10k faces, and a failed damping try runs all of them."""
+    in compiled code (:mod:`._kernels`): each round touches only a few faces, so in numpy the
+    per-call overhead would dominate, and a failed damping try runs all the rounds."""
     a2 = signed_double_areas(_as_uv(g), problem.F)
     count = int(np.count_nonzero(a2 <= 0))
     if count > allowed:
@@ -303,12 +303,12 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
 def _paper_iterations(problem, f, value, opt, record):
     """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3).
 
-    The damping search starts at twice the previous step (at most 1): once the map needs
-    damped steps, trying α = 1, ½, … again each iteration costs 4–6 failed flip-holding
-    passes (at 10k faces 8.7 of 20 ms an iteration, against a 7 ms refactorization). Measured
-    on face, lion, bunny, alligator and bunny ×4: the same first 10 iterates; in 100-step runs
-    the same except gpp_bunny, where the run went on longer before ``E_S`` rose (22 steps
-    instead of 14, D eq. 28 0.246 → 0.227)."""
+    The damping search starts at twice the previous accepted step (at most 1), not at α = 1:
+    once the map needs damped steps, retrying α = 1, ½, … every iteration costs several failed
+    flip-holding passes, each as dear as a large part of the iteration's refactorization. An
+    undamped run takes the same steps either way; a run that needs damping may accept smaller
+    steps than a search from α = 1 would, and so stop at another iteration when ``E_S``
+    rises."""
     start = 1.0
     for it in range(1, opt.iterations() + 1):
         g = sem_step(problem, f, problem.weights(f), opt.inversion)

@@ -42,18 +42,10 @@ def _as_csc_symmetric(A: sp.spmatrix) -> sp.csc_matrix:
     return A.tocsc()
 
 
-#: Below this many unknowns a refactored Laplacian gets CHOLMOD's simplicial factor, above it
-#: the supernodal one (whose dense BLAS blocks do not pay on small systems); both on a nested
-#: dissection ordering. Measured on disk Laplacians, idle machine, interleaved medians of two
-#: sessions, ms for one refactor / one 2-column solve, simplicial against supernodal: 5.2k
-#: unknowns 4.2–5.7 / 0.2–0.4 against 7.4–8.5 / 0.6–1.1; 21k 47 / 2.9 against 41 / 6.7; 53k
-#: 108–184 / 5.7–10 against 86–119 / 11–19; 133k 363 / 16 against 243 / 31; 534k 3620 / 91
-#: against 1360 / 145. SEM's default (converged) mode solves about 13 times per
-#: refactorization, paper mode 1–2 times (more with PCG): 200 converged steps on the hand
-#: (53k) take 12.4–13.2 s simplicial against 14.5–15.7 s supernodal, on the brain (48k) about
-#: the same. On the denser biharmonic pattern (19 nonzeros a row) simplicial is slower
-#: already at 17k (112 against 87 ms), so one-off and non-Laplacian systems keep supernodal
-#: LLᵀ on the default ordering.
+#: Below this many unknowns a refactored Laplacian gets CHOLMOD's simplicial LDLᵀ factor, above
+#: it the supernodal LLᵀ one (both on nested dissection): timed on disk Laplacians of 5k–534k
+#: unknowns with SEM's ~13 solves per refactorization, simplicial is faster below this size.
+#: One-off and denser (biharmonic) systems keep supernodal LLᵀ: see :class:`CholmodSolver`.
 SIMPLICIAL_BELOW = 60_000
 
 
@@ -88,9 +80,9 @@ class CholmodSolver:
                 if self._factor is None:
                     n = A.shape[0]
                     self._simplicial = self.refactored and n < SIMPLICIAL_BELOW
-                    # nested dissection: a third less fill than AMD here, so every refactor and
-                    # solve is 15–25 % faster; its analysis costs more (0.2 s more at 45k
-                    # unknowns, 0.5 s at 133k, 2.9 s at 534k), repaid within ~10 refactors
+                    # nested dissection: less fill than AMD on disk Laplacians, so each
+                    # refactor and solve is cheaper; its costlier analysis runs once and is
+                    # repaid within a few refactors, hence only for refactored systems
                     ordering = self.ordering or ("nesdis" if self.refactored else "default")
                     self._factor = cholesky(
                         A, mode="simplicial" if self._simplicial else "supernodal",
@@ -117,8 +109,9 @@ class CholmodSolver:
 class ScipySolver:
     """SuperLU with a COLAMD ordering applied symmetrically and no pivoting (SPD input).
 
-    Measured here on disk Laplacians (factor + solve): COLAMD 0.32 s at 45k unknowns and 17 s
-    at 534k; ``MMD_AT_PLUS_A`` took 9.5 s at 45k (its ordering step, not the factorization)."""
+    COLAMD rather than ``MMD_AT_PLUS_A``: on disk Laplacians the minimum-degree ordering step
+    alone costs far more than a COLAMD factorization. No pivoting keeps the LDLᵀ pivots on
+    ``U``'s diagonal, which is how a non-SPD matrix is detected."""
 
     name = "scipy"
 
@@ -161,8 +154,8 @@ def make_solver(kind: str = "auto", refactored: bool = False):
 
 #: Systems with at least this many unknowns may be solved by PCG on the previous factor.
 PCG_ABOVE = 50_000
-#: PCG iterations tried before refactoring instead (each costs one solve with the old factor;
-#: at 534k unknowns a refactorization costs about ten solves).
+#: PCG iterations tried before refactoring instead: each costs one solve with the old factor,
+#: and at the largest sizes a refactorization costs about ten solves.
 PCG_MAX_ITER = 6
 PCG_RTOL = 1e-12
 

@@ -1,0 +1,197 @@
+"""Algorithm 1 of SEM (Yueh, Lin, Wu, Yau 2019), ``pipeline/geometry/sem.py``: the flip-holding
+rule, one SEM step against eq. (19)–(22) written with dense solves, the exact case of an equiareal
+planar disk, and both modes on real meshes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import (as_complex, boundary_loop, height_field, load_mesh, random_flip_free_maps,
+                      stretch_L)
+from pipeline.geometry import metrics
+from pipeline.geometry.laplacian import laplacian_pattern
+from pipeline.geometry.sem import (SEMOptions, _Problem, hold_flipping_vertices, sem_step,
+                                   stretch_energy_minimization)
+
+
+def _reference_hold(F, f, g, allowed, rounds):
+    """The flip-holding rule with full recomputation every round: round 1 holds every vertex of
+    every flipped face; a later round holds the new vertices of flipped faces among the faces
+    around the vertices held in the round before. Returns ``(map, rounds that held vertices)``."""
+    g, held, candidates, used = g.copy(), set(), np.arange(len(F)), 0
+    for _ in range(rounds):
+        a2 = metrics.signed_double_areas(np.column_stack([g.real, g.imag]), F)
+        if np.count_nonzero(a2 <= 0) <= allowed:
+            break
+        new = {int(v) for t in candidates if a2[t] <= 0 for v in F[t]} - held
+        if not new:
+            break
+        held |= new
+        idx = np.array(sorted(new))
+        g[idx] = f[idx]
+        candidates = np.flatnonzero(np.isin(F, idx).any(axis=1))
+        used += 1
+    return g, used
+
+
+def test_flip_holding_follows_its_rule_and_keeps_exact_areas(ddisk):
+    """Compiled flip holding against the rule written plainly: the same held vertices, the
+    flipped count and energy of the result, bit for bit, for random folding displacements of
+    vertex patch (cascades that take several rounds, and cases the rounds cannot fix)."""
+    P, F, b = ddisk
+    problem = _Problem(height_field(P), F, b, "auto")
+    f = as_complex(P)
+    rng = np.random.default_rng(4)
+    rounds_seen = set()
+    for trial in range(40):
+        centre = P[rng.integers(len(P))]
+        patch = np.flatnonzero(np.linalg.norm(P - centre, axis=1) < rng.uniform(0.1, 0.5))
+        g = f.copy()
+        # a common shift folds the patch's rim; holding the rim exposes the next layer (cascade)
+        turn = rng.random(len(patch)) if trial % 2 else np.full(len(patch), rng.random())
+        g[patch] += rng.uniform(0.05, 0.4) * np.exp(2j * np.pi * turn)
+        allowed, rounds = int(trial % 3 == 0), int(rng.integers(1, 9))
+        held_g, value = hold_flipping_vertices(problem, f, g, allowed, rounds)
+        expected, used = _reference_hold(F, f, g, allowed, rounds)
+        rounds_seen.add(used)
+        np.testing.assert_array_equal(held_g, expected)
+        a2 = metrics.signed_double_areas(np.column_stack([expected.real, expected.imag]), F)
+        assert value[2] == np.count_nonzero(a2 <= 0)
+        assert value[0] == 0.5 * np.sum(a2 * a2 / problem.A2)
+        np.testing.assert_array_equal(value[3], a2)
+        assert g is not held_g or used == 0          # the input map is never modified
+    assert {0, 1, 2} <= rounds_seen and max(rounds_seen) >= 3
+
+
+# ---------------------------------------------------- an equiareal planar disk stays equiareal
+
+
+def _reference_sem_step(X, F, f, pattern):
+    """Eq. (19)–(22) with dense solves, written from the paper."""
+    L = stretch_L(X, F, np.column_stack([f.real, f.imag]), pattern).toarray()
+    I, B = pattern.interior, pattern.boundary
+    fB = np.linalg.solve(L[np.ix_(B, B)], -L[np.ix_(B, I)] @ f[I])       # (19)
+    fB = fB - fB.mean()                                                   # (20)
+    fB = fB / np.abs(fB)                                                  # (21)
+    g = np.empty_like(f)
+    g[B] = fB
+    g[I] = np.linalg.solve(L[np.ix_(I, I)], -L[np.ix_(I, B)] @ fB)        # (22)
+    return g
+
+
+def test_sem_step_matches_the_paper_equations(ddisk):
+    P, F, b = ddisk
+    X = height_field(P)
+    problem = _Problem(X, F, b, "auto")
+    f = as_complex(random_flip_free_maps(P, F, np.random.default_rng(9), k=1)[0])
+    f[b] /= np.abs(f[b])
+    w = problem.weights(f)
+    g = sem_step(problem, f, w)
+    np.testing.assert_allclose(g, _reference_sem_step(X, F, f, problem.pattern), atol=1e-10)
+
+
+def test_sem_step_fixed_point_on_symmetric_disk_but_not_on_asymmetric(pdisk, ddisk):
+    """Facts behind the next test. The identity of a planar mesh is equiareal, but it is a fixed
+    point of one SEM step (eq. 19–22) only if L_BB⁻¹ (L V)_B is radial. (L V)_B is radial
+    (∝ sin(2π/N) V_B) for equally spaced boundary points; on the N-fold symmetric polar mesh L_BB
+    is circulant so V_B is its eigenvector and the step returns the identity. On the Delaunay mesh
+    the step moves the boundary along the circle and raises both E_S and the ratio."""
+    for (P, F, b), fixed in ((pdisk, True), (ddisk, False)):
+        V = np.column_stack([P, np.zeros(len(P))])
+        f = as_complex(P)
+        g = _reference_sem_step(V, F, f, laplacian_pattern(F, len(P), b))
+        if fixed:
+            np.testing.assert_allclose(g, f, atol=1e-12)
+        else:
+            moved = np.abs(np.angle(g[b] / f[b])).max()
+            assert moved > 1e-3
+            uv = np.column_stack([g.real, g.imag])
+            assert metrics.stretch_energy(V, F, uv) > metrics.stretch_energy(V, F, P) * (1 + 1e-6)
+            assert metrics.energy_ratio(V, F, uv) > 1 + 1e-5
+
+
+@pytest.mark.parametrize("mode", ["paper", "converged"])
+@pytest.mark.parametrize("mesh", ["delaunay", "polar"])
+def test_sem_keeps_an_equiareal_planar_disk(mesh, mode, ddisk, pdisk):
+    """The identity (x, y, 0) → (x, y) is equiareal: ratio 1, D(f) = 0. Both modes start from it
+    (harmonic = identity) and must return it, unrotated: on the polar mesh it is a fixed point;
+    on the Delaunay mesh the SEM step raises E_S, so paper mode stops at once (Remark 3,
+    status energy_rose, 0 iterations) and converged mode finds no better flip-free map."""
+    P, F, b = ddisk if mesh == "delaunay" else pdisk
+    V = np.column_stack([P, np.zeros(len(P))])
+    assert metrics.energy_ratio(V, F, P) == pytest.approx(1, abs=1e-15)
+    assert metrics.total_area_distortion(V, F, P) < 1e-15
+    r = stretch_energy_minimization(V, F, b, SEMOptions(mode=mode))
+    assert r.flipped_faces == 0 and len(metrics.flipped_faces(r.uv, F)) == 0
+    assert abs(metrics.energy_ratio(V, F, r.uv) - 1) < 1e-9
+    assert metrics.total_area_distortion(V, F, r.uv) < 1e-8
+    np.testing.assert_allclose(r.uv, P, rtol=0, atol=1e-9)      # no rotation either
+    if mesh == "delaunay" and mode == "paper":
+        assert r.status == "energy_rose" and r.iterations == 0
+
+
+# --------------------------------------------------------------------- SEM on real meshes
+
+
+@pytest.fixture(scope="module")
+def face_paper():
+    V, F = load_mesh("choi_human_face")
+    b = boundary_loop(F, V)
+    return V, F, b, stretch_energy_minimization(V, F, b, SEMOptions(mode="paper"))
+
+
+def test_sem_paper_mode_human_face(face_paper):
+    V, F, b, r = face_paper
+    assert r.status == "max_iter" and r.iterations == 10
+    assert r.flipped_faces == 0 and len(metrics.flipped_faces(r.uv, F)) == 0
+    D = metrics.total_area_distortion(V, F, r.uv)
+    assert D <= 0.0045
+    np.testing.assert_allclose(np.hypot(*r.uv[b].T), 1, atol=1e-12)
+    # history: harmonic start + one entry per iteration, E_S non-increasing (Algorithm 1 stops
+    # and keeps the previous map when it rises), last entry describes the returned map
+    E = [h["stretch_energy"] for h in r.history]
+    assert len(E) == r.iterations + 1 and r.history[0]["phase"] == "harmonic"
+    assert all(b_ <= a_ for a_, b_ in zip(E, E[1:]))
+    assert E[-1] == pytest.approx(metrics.stretch_energy(V, F, r.uv), rel=1e-12)
+    assert r.history[-1]["total_area_distortion_eq28"] == pytest.approx(D, rel=1e-12)
+    assert r.history[-1]["energy_ratio"] == pytest.approx(metrics.energy_ratio(V, F, r.uv),
+                                                          rel=1e-12)
+    # SEM improves substantially on the harmonic start
+    assert D < 0.05 * r.history[0]["total_area_distortion_eq28"]
+
+
+@pytest.fixture(scope="module")
+def lion_converged():
+    V, F = load_mesh("igl_lion")
+    b = boundary_loop(F, V)
+    # the full default run (≈1400 iterations, ≈20 s here) is too slow for the suite; 200
+    # iterations reach face_area_distortion ≈ 0.010
+    return V, F, b, stretch_energy_minimization(V, F, b, SEMOptions(mode="converged",
+                                                                    max_iter=200))
+
+
+def test_sem_converged_mode_lion(lion_converged):
+    V, F, b, r = lion_converged
+    assert r.flipped_faces == 0 and len(metrics.flipped_faces(r.uv, F)) == 0
+    assert metrics.face_area_distortion(V, F, r.uv) <= 0.034
+    np.testing.assert_allclose(np.hypot(*r.uv[b].T), 1, atol=1e-12)
+    assert r.history[-1]["energy_ratio"] == pytest.approx(metrics.energy_ratio(V, F, r.uv),
+                                                          rel=1e-12)
+
+
+def test_sem_converged_mode_history_is_monotone(lion_converged):
+    """Phase A records only new flip-free bests; phase B (entries "gradient"/"sem" after the
+    phase-A best) accepts only steps that lower the ratio. So the ratio strictly decreases along
+    the whole history, every entry is flip-free, and the result is the best map recorded."""
+    V, F, b, r = lion_converged
+    ratio = [h["energy_ratio"] for h in r.history]
+    assert r.history[0]["phase"] == "harmonic" and r.history[0]["flipped_faces"] == 0
+    assert all(h["flipped_faces"] == 0 for h in r.history)
+    assert all(b_ < a_ for a_, b_ in zip(ratio, ratio[1:]))
+    assert {h["phase"] for h in r.history[1:]} <= {"sem", "gradient"}
+    assert any(h["phase"] == "gradient" for h in r.history)      # phase B was reached
+    assert min(ratio) == ratio[-1]
+    its = [h["iteration"] for h in r.history]
+    assert its == sorted(its) and its[-1] == r.iterations <= 200
