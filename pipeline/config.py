@@ -21,7 +21,7 @@ from pydantic import BaseModel, Field, ValidationError, create_model, model_vali
 
 from .errors import UserError
 from .stages.registry import STAGES, input_file_keys, plan
-from .stages.stage import Section
+from .stages.stage import Section, Stage
 
 
 class RunConfig(Section):
@@ -33,31 +33,31 @@ class ReportConfig(Section):
     figures: bool = Field(True, description="figures and report pages (false: numbers only)")
 
 
-def _stage_fields() -> dict:
-    """Config fields of the registered stages: each stage's section (``None`` unless given,
-    or its defaults for a default-on stage) and the sections it owns besides."""
-    fields: dict = {}
-    for s in STAGES:
+def config_model(stages: tuple[Stage, ...] = STAGES) -> type[BaseModel]:
+    """The run config's model: ``run``, every stage's section (``None`` unless given, or its
+    defaults for a default-on stage) and the sections it owns besides, and ``report``. Its
+    validator checks that every given stage gets what it needs (:func:`plan`)."""
+    fields: dict = {"run": (RunConfig, RunConfig())}
+    for s in stages:
         for name, model in s.extra_sections.items():
             fields[name] = (model, model())
         fields[s.name] = (s.section, s.section()) if s.default_on else \
             (Optional[s.section], None)
-    return fields
+    fields["report"] = (ReportConfig, ReportConfig())
 
-
-class _RunBase(Section):
-    @model_validator(mode="after")
-    def _stages(self):
-        plan(self)           # raises ValueError naming the missing section
+    def check_stages(self):
+        plan(self, stages)           # raises ValueError naming the missing section
         return self
 
+    with warnings.catch_warnings():
+        # The YAML key 'register' shadows only ABCMeta.register, never called on a config.
+        warnings.filterwarnings("ignore", message='Field name "register"', category=UserWarning)
+        return create_model("Config", __base__=Section, __doc__="A run config: every section.",
+                            __validators__={"_stages": model_validator(mode="after")(
+                                check_stages)}, **fields)
 
-with warnings.catch_warnings():
-    # The YAML key 'register' shadows only ABCMeta.register, which is never called on Config.
-    warnings.filterwarnings("ignore", message='Field name "register"', category=UserWarning)
-    Config = create_model("Config", __base__=_RunBase, __doc__="A run config: every section.",
-                          run=(RunConfig, RunConfig()), **_stage_fields(),
-                          report=(ReportConfig, ReportConfig()))
+
+Config = config_model()
 
 
 def _model_fields(model: type[BaseModel], loc: tuple) -> list[str]:

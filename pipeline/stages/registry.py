@@ -18,20 +18,20 @@ def stage(name: str) -> Stage:
     return next(s for s in STAGES if s.name == name)
 
 
-def input_file_keys() -> tuple[str, ...]:
+def input_file_keys(stages: tuple[Stage, ...] = STAGES) -> tuple[str, ...]:
     """Every dotted config key that names an input file (``input.mesh``, ``register.source``…)."""
-    return tuple(f"{s.name}.{k}" for s in STAGES for k in s.input_files)
+    return tuple(f"{s.name}.{k}" for s in stages for k in s.input_files)
 
 
 def _a(name: str) -> str:
     return f"an '{name}'" if name[0] in "aeiou" else f"a '{name}'"
 
 
-def _maker(artifact: str) -> Stage:
-    return next(s for s in STAGES if artifact in s.makes)
+def _maker(artifact: str, stages) -> Stage:
+    return next(s for s in stages if artifact in s.makes)
 
 
-def plan(config) -> list[Stage]:
+def plan(config, stages: tuple[Stage, ...] = STAGES) -> list[Stage]:
     """The stages ``config`` runs, in order.
 
     A stage runs when its section is given (or has a default, ``default_on``) and every artifact
@@ -45,7 +45,7 @@ def plan(config) -> list[Stage]:
     """
     made: set[str] = set()
     running: list[Stage] = []
-    for s in STAGES:
+    for s in stages:
         section = getattr(config, s.name)
         if section is None:
             continue
@@ -54,20 +54,20 @@ def plan(config) -> list[Stage]:
             running.append(s)
             made.update(s.makes)
         elif not s.default_on:
-            root = _root_section(config, missing[0])
+            root = _root_section(config, missing[0], stages)
             raise ValueError(f"'{s.name}' needs {_a(root)} section (for its {missing[0]})")
     if not any(not s.default_on for s in running):
-        starts = [s.name for s in STAGES if not s.needs and not s.default_on]
+        starts = [s.name for s in stages if not s.needs and not s.default_on]
         raise ValueError("give " + " or ".join(_a(n) for n in starts) + " section "
                          "(a stage that reads its own input)")
     return running
 
 
-def _root_section(config, artifact: str) -> str:
+def _root_section(config, artifact: str, stages) -> str:
     """The section to add so that ``artifact`` gets made (through default-on stages)."""
-    maker = _maker(artifact)
+    maker = _maker(artifact, stages)
     section = getattr(config, maker.name)
     if section is not None and maker.default_on:
         for need in maker.needs_for(section):
-            return _root_section(config, need)
+            return _root_section(config, need, stages)
     return maker.name
