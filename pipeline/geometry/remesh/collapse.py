@@ -42,8 +42,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
     ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
     around it, no new edge has a sag (:func:`edge_sag`) above ``max_sag`` (if given), and the
-    result stays valid (see the module docstring); at most ``budget`` collapses. In rounds: each takes
-    a maximal set of independent collapses, greedy from the shortest
+    result stays valid (see the module docstring); at most ``budget`` collapses. In rounds:
+    each takes a maximal set of independent collapses, greedy from the shortest
     (:func:`_independent_collapses`). With a budget the candidates are a pool of the shortest
     ``COLLAPSE_POOL × budget + COLLAPSE_POOL_MIN`` edges, chosen again when it is used up. A
     round reads only the faces at the candidates' ends (after the first, only where
@@ -143,11 +143,11 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap
     that from the surface) and taken if it passes; the candidates touching a taken ring drop
     out. Disjoint closed rings make the collapses independent: one changes only the faces at
     its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
-    The guards run only on the pass winners (a few per cent of the candidates where short edges
-    crowd together). Passes stop when one takes under ``MIS_TAIL`` of the first's. With a
-    ``budget`` (at most that many, shortest first) the passes after the first consider only
-    the shortest ``budget`` candidates, so that the budget goes to the shortest edges and not
-    to longer ones taken while shorter ones wait for the next round."""
+    The guards (the costly part) run only on the pass winners. Passes stop when one takes
+    under ``MIS_TAIL`` of the first's. With a ``budget`` (at most that many, shortest first)
+    the passes after the first consider only the shortest ``budget`` candidates, so that the
+    budget goes to the shortest edges and not to longer ones taken while shorter ones wait for
+    the next round."""
     sel = np.flatnonzero(ok)
     if len(sel) == 0:
         return sel

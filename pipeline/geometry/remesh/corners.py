@@ -44,34 +44,28 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
     """
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    total = np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V))[boundary]
-    dev = np.abs(np.degrees(total) - 180.0)
-    sharp = np.flatnonzero(dev > angle_deg)
-    return boundary[sharp[np.argsort(-dev[sharp])]]
+    return boundary[_sharpest_first(_angle_sum_deviation(V, F, 180.0)[boundary], angle_deg)]
 
 
 def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float) -> np.ndarray:
     """Interior vertices that are sharp points of the surface: the angles of their faces sum
     to less than ``360° − angle_deg`` (a cone tip) or more than ``360° + angle_deg`` (a saddle
-    spike).
-
-    Parameters
-    ----------
-    V : (n, 3) float
-    F : (m, 3) int
-    angle_deg : float
-        The tolerance; 0 or None: no corners.
-
-    Returns
-    -------
-    (k,) int
-        Vertex indices, sharpest first.
-    """
+    spike). Parameters and result as in :func:`boundary_corners`, without ``boundary``."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    total = np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
-    dev = np.abs(total - 360.0)
+    dev = _angle_sum_deviation(V, F, 360.0)
     dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
+    return _sharpest_first(dev, angle_deg)
+
+
+def _angle_sum_deviation(V: np.ndarray, F: np.ndarray, flat_deg: float) -> np.ndarray:
+    """Per vertex (n), how far in degrees the angles of its faces sum from ``flat_deg``."""
+    return np.abs(np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
+                  - flat_deg)
+
+
+def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
+    """The indices where ``dev`` exceeds ``angle_deg``, largest first."""
     sharp = np.flatnonzero(dev > angle_deg)
     return sharp[np.argsort(-dev[sharp])]
 

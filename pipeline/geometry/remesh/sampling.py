@@ -34,8 +34,9 @@ face, no dropped sample), and — since a triangle with three corners on the (ne
 circumcircle that contains the interior samples next to it — no face gets three rim corners
 (a leaf face, paper Def. 4); a flip fixes one should it ever happen. For the hexagonal pattern
 only the band along the rim goes through ``Delaunay``; the untouched lattice is triangulated by
-construction (the same triangles, without the cost of a Delaunay run over the lattice). Faces are counter-clockwise; a degenerate
-or clockwise face at the samples' own positions would be a bug and raises.
+construction (the same triangles, without a Delaunay run over the lattice). Faces are
+counter-clockwise; a degenerate or clockwise face at the samples' own positions would be a bug
+and raises.
 :func:`snap_rim` moves rim samples onto given polygon points (the input boundary's corners).
 """
 
