@@ -47,7 +47,25 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     (:func:`_independent_collapses`). With a budget the candidates are a pool of the shortest
     ``COLLAPSE_POOL × budget + COLLAPSE_POOL_MIN`` edges, chosen again when it is used up. A
     round reads only the faces at the candidates' ends (after the first, only where
-    candidates were and at the vertices kept). Returns the number of collapses."""
+    candidates were and at the vertices kept).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place; the removed vertices are dropped at the end, the others keep their
+        order.
+    L_min, L_max : float
+        3D lengths, in the mesh's units (``L_min`` may be inf: any edge, within ``budget``).
+    max_rounds : int
+    budget : int, optional
+    max_gap, max_sag : float, optional
+        The guards' tolerances, in the mesh's units.
+
+    Returns
+    -------
+    int
+        The number of collapses.
+    """
     done = 0
     look = None                     # after a round: where short edges can still be (n bool)
     thr = L_min

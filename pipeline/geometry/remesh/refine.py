@@ -32,8 +32,25 @@ SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
 
 def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
                 t: np.ndarray | None = None) -> int:
-    """Split the given (independent: no shared face) edges at their disk midpoints, or at
-    ``(1 − t)·uv[a] + t·uv[b]`` for half-edge ``a → b`` when ``t`` is given."""
+    """Split edges on the disk: face ``[a, b, p]`` becomes ``[a, w, p]`` and ``[w, b, p]``,
+    and so does the face across, with the new vertex ``w`` lifted by eq. (1).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place; its cached twins are kept up to date.
+    h : (k,) int
+        Half-edges ``a → b`` of independent edges (no two in one face).
+    twin : (k,) int
+        Their twins, −1 on the boundary (``w`` then goes on the image polygon).
+    t : (k,) float, optional
+        Split at ``(1 − t)·uv[a] + t·uv[b]``; default the disk midpoint.
+
+    Returns
+    -------
+    int
+        The number of splits, ``k``; the new vertices are the last ``k``.
+    """
     k = len(h)
     if k == 0:
         return 0
@@ -142,9 +159,24 @@ def _after_splits(S: RemeshState, n0: int, a: np.ndarray, b: np.ndarray,
 
 def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
                      budget: int | None = None) -> int:
-    """Split edges longer than ``L_max`` (3D), longest first, in independent rounds (after the
-    first, only the edges at new vertices and the candidates that waited); at most ``budget``
-    splits. Returns the number of splits."""
+    """Split edges longer than ``L_max``, longest first, in independent rounds (after the
+    first, only the edges at new vertices and the candidates that waited).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    L_max : float
+        3D length, in the mesh's units (0: any edge, to add ``budget`` vertices).
+    max_rounds : int
+    budget : int, optional
+        At most this many splits.
+
+    Returns
+    -------
+    int
+        The number of splits.
+    """
     done = 0
     active = None
     for _ in range(max_rounds):
@@ -182,8 +214,25 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
     triangles bridge over the surface; an edge split at its worst disk point puts a vertex on
     the surface inside the sliver. After the first round only the edges at new vertices (and the
     candidates that waited for a free face) are measured again; ``active`` (n bool) limits the
-    first round the same way. Returns the number of splits and the vertices whose edges were
-    still to be measured when the rounds ran out (n bool)."""
+    first round the same way.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    threshold : float
+        Sag tolerance, in the mesh's units.
+    budget : int
+        At most this many splits.
+    max_rounds : int
+    active : (n,) bool, optional
+
+    Returns
+    -------
+    splits : int
+    pending : (n',) bool
+        The vertices whose edges were still to be measured when the rounds ran out.
+    """
     done = 0
     pending = None
     for _ in range(max_rounds):
