@@ -1,39 +1,18 @@
-"""Stage 3 — uniform remeshing through the SEM map (paper §8): sample → triangulate →
-locate → lift → improve → write.
+"""Stage 3 — uniform remeshing through the SEM map (paper §8): the repaired mesh and its
+bijective disk map in, a remesh of the requested size out.
 
-1. **Sample** the image polygon evenly (:mod:`pipeline.geometry.disk_sampling`): a hexagonal
-   lattice (or blue noise / concentric rings) plus rim samples on the polygon, at the spacing
-   that gives the requested vertex count. The map is equiareal, so even on the disk means even
-   on the surface.
-2. **Triangulate** the samples (Delaunay; a disk without leaf faces, CCW).
-3. **Locate** every sample in the image of the input mesh (:mod:`pipeline.geometry.locate`).
-4. **Lift** it by eq. (1): positions and every per-vertex attribute (colours); landmarks go to
-   the nearest new vertex (the corner, nearest in 3D, of the new face that contains the
-   landmark's disk position).
-5. **Improve** (on by default, ``RemeshOptions.improve``; :mod:`..geometry.remesh_improve`):
-   sharp input corners get a vertex (on the boundary by moving a rim sample, inside by
-   snapping the nearest vertex), Delaunay flips on the lifted surface, tangential relaxation
-   made on the disk, splits of edges that leave the surface (where the map squeezes a region
-   into a sliver) balanced by collapses of the shortest edges so that the count is the request
-   again, a last relaxation and flips. Every vertex stays exactly on the input surface and
-   every face counter-clockwise on the disk. The measures before and after are both reported.
-6. **Write** ``remeshed.obj`` (``v`` with colours if the input had them, ``vt`` = the new
-   vertices' disk positions, so the output is parameterized too), ``remesh_metrics.json``,
-   ``remeshed_landmarks.json`` when there are landmarks, and ``report.html`` with its figures
-   (:mod:`pipeline.stages.remesh_report`), all-or-nothing.
+The algorithm — sample → triangulate → locate → lift → improve, landmarks to the nearest new
+vertex — is :func:`pipeline.geometry.remesh.uniform_remesh`. This stage checks the options and
+the map, lifts the per-vertex attributes (colours and any given), and writes
+``remeshed.obj`` (``v`` with colours if the input had them, ``vt`` = the new vertices' disk
+positions, so the output is parameterized too), ``remesh_metrics.json``,
+``remeshed_landmarks.json`` when there are landmarks, and ``report.html`` with its figures
+(:mod:`pipeline.stages.remesh_report`), all-or-nothing.
 
-Why improvement is on by default: the plain lift of equilateral disk triangles is skewed by
-the map's angle distortion (mean smallest angle 35–37° on the shared faces, 15–25° on
-hands and relief, against 49–51° for pymeshlab), and across slivers its edges leave the
-surface (Hausdorff 0.6–1.8 % of the diagonal at 20k vertices). Improvement raises the mean
-smallest angle to 38–48° (the 5th percentile of the faces' smallest angles to 20–37°), brings
-the Hausdorff distance under 0.5 % on every shared mesh and ICT face at 20k vertices
-(0.07–0.40 %; the hand 0.18 %), keeps the vertex count, and costs about 0.5–1 s at 20k and
-1.5–2.5 s at 100k vertices on the face and the camel head (2.5 s at 20k and 6.5 s at 100k on
-the hand and brain, where refinement adds many vertices). Turn it off
-(``improve: false``, ``--no-improve``) for the paper's plain lift.
-Where the map stretches much of the surface more than 10:1 (σ₁/σ₂, reported in
-``remesh_metrics.json``), or the Hausdorff distance exceeds 0.5 %, the run says so.
+Improvement is on by default: the plain lift of equilateral disk triangles is skewed by the
+map's angle distortion, and across the slivers the map squeezes long protrusions into, its
+edges leave the surface; the improvement pass fixes both while keeping the vertex count. Turn
+it off (``improve: false``, ``--no-improve``) for the paper's plain lift.
 """
 
 from __future__ import annotations
@@ -47,18 +26,14 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from ..errors import UserError
-from ..geometry import topology as topo
-from ..geometry.disk_sampling import (PATTERNS, DiskSamples, sample_disk, snap_rim,
-                                     triangulate_samples)
-from ..geometry.laplacian import face_double_areas
-from ..geometry.locate import PointLocator, lift
-from ..geometry.metrics import corner_angles, signed_double_areas
-from ..geometry.remesh_improve import RemeshState, improve_remesh
+from ..geometry.locate import lift
+from ..geometry.metrics import signed_double_areas
+from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
 __all__ = ["RemeshOptions", "Remesh", "remesh_stage", "read_landmarks", "map_landmarks",
-           "carry_landmarks", "boundary_corners", "interior_corners", "write_remesh"]
+           "write_remesh"]
 
 
 @dataclass
@@ -110,32 +85,6 @@ class Remesh:
     seconds: dict = field(default_factory=dict)
 
 
-def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float
-                     ) -> np.ndarray:
-    """Boundary vertices where the boundary turns sharply on the surface: the angles of the
-    faces at the vertex sum to less than ``180° − angle_deg`` or more than ``180° + angle_deg``
-    (a flat boundary has 180°). Sharpest first."""
-    if angle_deg is None or angle_deg <= 0:
-        return np.zeros(0, np.int64)
-    total = np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V))[boundary]
-    dev = np.abs(np.degrees(total) - 180.0)
-    sharp = np.flatnonzero(dev > angle_deg)
-    return boundary[sharp[np.argsort(-dev[sharp])]]
-
-
-def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float) -> np.ndarray:
-    """Interior vertices that are sharp points of the surface: the angles of their faces sum
-    to less than ``360° − angle_deg`` (a cone tip) or more than ``360° + angle_deg`` (a saddle
-    spike). Sharpest first."""
-    if angle_deg is None or angle_deg <= 0:
-        return np.zeros(0, np.int64)
-    total = np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
-    dev = np.abs(total - 360.0)
-    dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
-    sharp = np.flatnonzero(dev > angle_deg)
-    return sharp[np.argsort(-dev[sharp])]
-
-
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
     if uv.shape != (len(mesh.V), 2):
         raise UserError(f"remesh: the map has shape {uv.shape}, expected {len(mesh.V)}×2")
@@ -143,91 +92,6 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
     if flipped:
         raise UserError(f"remesh: the disk map has {flipped} flipped faces; remeshing needs a "
                         f"bijective map (parameterize with mode 'converged')")
-
-
-def disk_spacing(mesh_spacing: float, V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
-    """A target edge length on the surface as a spacing on the disk: the map scales areas by
-    ``|f(M)| / |M|`` (equiareal), so lengths by its square root on average."""
-    ratio = np.abs(signed_double_areas(uv, F)).sum() / face_double_areas(V, F).sum()
-    return float(mesh_spacing * np.sqrt(ratio))
-
-
-def carry_landmarks(landmarks: dict, mesh: RepairedMesh, uv: np.ndarray, X: np.ndarray,
-                    uv_out: np.ndarray, F_out: np.ndarray) -> dict:
-    """Each landmark (an index into the repaired mesh) → the nearest new vertex: the corner,
-    nearest in 3D, of the new face containing the landmark's disk position."""
-    if not landmarks:
-        return {}
-    names = list(landmarks)
-    idx = np.array([landmarks[k] for k in names], np.int64)
-    face, _ = PointLocator(uv_out, F_out).locate(uv[idx])
-    corners = F_out[face]                                            # (k, 3)
-    d = np.linalg.norm(X[corners] - mesh.V[idx][:, None, :], axis=2)
-    j = np.argmin(d, axis=1)
-    out = {}
-    for i, name in enumerate(names):
-        out[name] = {"input_vertex": int(idx[i]), "vertex": int(corners[i, j[i]]),
-                     "distance": float(d[i, j[i]])}
-    return out
-
-
-def _remesh_once(mesh: RepairedMesh, uv: np.ndarray, locator: PointLocator, n_vertices,
-                 spacing, options: RemeshOptions) -> tuple:
-    """One pass: sample → triangulate → locate → lift → improve. Returns
-    ``(X, F, uv, face, bary, samples, lifted, info, seconds)``."""
-    V, F, boundary = mesh.V, mesh.F, mesh.boundary
-    sec = {}
-    t = time.perf_counter()
-    samples = sample_disk(n_vertices, spacing, options.pattern, polygon=uv[boundary],
-                          relax=options.rim_relax, seed=options.seed)
-    corners = boundary_corners(mesh.V, mesh.F, boundary, options.corner_angle_deg)
-    snapped = snap_rim(samples, uv[corners]) if len(corners) else np.zeros(0, np.int64)
-    sec["sample"] = time.perf_counter() - t
-    t = time.perf_counter()
-    F_out = triangulate_samples(samples)
-    sec["delaunay"] = time.perf_counter() - t
-    t = time.perf_counter()
-    face, bary = locator.locate(samples.points)
-    sec["locate"] = time.perf_counter() - t
-    t = time.perf_counter()
-    X = lift(V, F, face, bary)
-    sec["lift"] = time.perf_counter() - t
-    lifted = (X, F_out)
-    t = time.perf_counter()
-    uv_out = samples.points
-    info = {"enabled": bool(options.improve), "rim_corners_snapped": int(len(snapped))}
-    if options.improve:
-        is_rim = np.zeros(len(uv_out), bool)
-        is_rim[:samples.n_rim] = True
-        locked = np.zeros(len(uv_out), bool)
-        locked[snapped] = True
-        X, F_out, uv_out, face, bary, imp = _improve(mesh, uv, locator, X, F_out, uv_out,
-                                                     is_rim, locked, face, bary, samples,
-                                                     options, n_vertices)
-        info.update(imp)
-    sec["improve"] = time.perf_counter() - t
-    return X, F_out, uv_out, face, bary, samples, lifted, info, sec
-
-
-def _improve(mesh, uv, locator, X, F_out, uv_out, is_rim, locked, face, bary, samples,
-             options, target):
-    """Isotropic improvement on the disk (:func:`..geometry.remesh_improve.improve_remesh`)
-    at the sampling's edge length measured on the surface."""
-    S = RemeshState(X, F_out, uv_out, is_rim, face, bary, mesh.V, mesh.F, uv, locator,
-                    uv[mesh.boundary], locked)
-    L = samples.spacing / np.sqrt(_area_ratio(mesh.V, mesh.F, uv))    # target length in 3D
-    corners = interior_corners(mesh.V, mesh.F, options.corner_angle_deg)
-    improve_remesh(S, L, options.relax_iterations, options.flips, options.max_dihedral_deg,
-                   options.relax_step, options.refine_sag, options.refine_budget, target,
-                   uv[corners])
-    info = {"enabled": True, "target_edge_length": float(L), **S.log}
-    info["seconds"] = {k: float(v) for k, v in info.get("seconds", {}).items()}
-    return S.X, S.F, S.uv, S.face, S.bary, info
-
-
-def _area_ratio(V, F, uv) -> float:
-    """``|f(M)| / |M|``: the equiareal map's scale of areas."""
-    return float(np.abs(signed_double_areas(uv, F)).sum() / face_double_areas(V, F).sum())
 
 
 def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshOptions,
@@ -244,35 +108,22 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshOptions,
     options.check()
     uv = np.asarray(uv, dtype=np.float64)
     _check_map(mesh, uv)
-    V, F, boundary = mesh.V, mesh.F, mesh.boundary
-    t0 = time.perf_counter()
-    locator = PointLocator(uv, F, boundary)
-    t_loc = time.perf_counter() - t0
-    spacing = None if options.spacing is None else options.spacing * np.sqrt(_area_ratio(V, F, uv))
-    X, F_out, uv_out, face, bary, samples, lifted, imp, sec = _remesh_once(
-        mesh, uv, locator, options.vertices, spacing, options)
-    sec["locate"] += t_loc
+    r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
+                       spacing=options.spacing, pattern=options.pattern,
+                       rim_relax=options.rim_relax, seed=options.seed, improve=options.improve,
+                       flips=options.flips, relax_iterations=options.relax_iterations,
+                       relax_step=options.relax_step, max_dihedral_deg=options.max_dihedral_deg,
+                       refine_sag=options.refine_sag, refine_budget=options.refine_budget,
+                       corner_angle_deg=options.corner_angle_deg, landmarks=landmarks)
     t = time.perf_counter()
-    colors = lift(mesh.colors, F, face, bary) if mesh.colors is not None else None
-    lifted_attrs = {k: lift(v, F, face, bary) for k, v in (attributes or {}).items()}
-    lms = carry_landmarks(landmarks or {}, mesh, uv, X, uv_out, F_out)
-    sec["attributes"] = time.perf_counter() - t
-    ratio = _area_ratio(V, F, uv)
-    info = {
-        "requested_vertices": options.vertices,
-        "requested_spacing": options.spacing,
-        "pattern": samples.pattern,
-        "vertices": int(len(X)),
-        "samples": int(len(samples.points)),
-        "rim_samples": int(samples.n_rim),
-        "spacing_disk": samples.spacing,
-        "spacing_mesh_units": samples.spacing / np.sqrt(ratio),
-        "count_evaluations": samples.iterations,
-        "improve": imp,
-        "attributes": lifted_attrs,
-    }
+    colors = lift(mesh.colors, mesh.F, r.face, r.bary) if mesh.colors is not None else None
+    lifted_attrs = {k: lift(v, mesh.F, r.face, r.bary) for k, v in (attributes or {}).items()}
+    sec = dict(r.seconds, attributes=time.perf_counter() - t)
     sec["total"] = sum(sec.values())
-    return Remesh(X, F_out, uv_out, face, bary, colors, samples, lifted, lms, info, sec)
+    info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
+            **r.info, "attributes": lifted_attrs}
+    return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted, r.landmarks,
+                  info, sec)
 
 
 def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:

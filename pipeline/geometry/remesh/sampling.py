@@ -24,8 +24,8 @@ less than 15 % (usually the count is then exact; the contract is 2 %).
 Relaxation. The seam between the lattice and the rim is irregular (the distance of the first
 lattice row to the rim varies between 0.6 h and 1.5 h). ``relax`` ODT sweeps (Chen & Xu 2004:
 each point moves to the area-weighted mean of the circumcentres of its Delaunay triangles) act
-on the interior points within 3 h of the rim, the rim fixed; they raise the smallest angle on
-the disk from about 31° to 34°.
+on the interior points within 3 h of the rim, the rim fixed, evening out the triangles of the
+seam.
 
 :func:`triangulate_samples` runs ``scipy.spatial.Delaunay`` on the samples with the rim samples
 pushed slightly outwards (by at most 0.05 h, towards the circumscribed circle), which puts every
@@ -34,8 +34,9 @@ face, no dropped sample), and — since a triangle with three corners on the (ne
 circumcircle that contains the interior samples next to it — no face gets three rim corners
 (a leaf face, paper Def. 4); a flip fixes one should it ever happen. For the hexagonal pattern
 only the band along the rim goes through ``Delaunay``; the untouched lattice is triangulated by
-construction (the same triangles, ten times faster). Faces are counter-clockwise; a degenerate
-or clockwise face at the samples' own positions would be a bug and raises.
+construction (the same triangles, without a Delaunay run over the lattice). Faces are
+counter-clockwise; a degenerate or clockwise face at the samples' own positions would be a bug
+and raises.
 :func:`snap_rim` moves rim samples onto given polygon points (the input boundary's corners).
 """
 
@@ -45,6 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import Delaunay
+
+from ..locate import _closest_on_segments
+from .halfedge import double_areas
 
 __all__ = ["DiskSamples", "PATTERNS", "sample_disk", "triangulate_samples", "rim_polygon",
            "snap_rim", "hexagonal_points", "blue_noise_points", "concentric_points"]
@@ -112,8 +116,6 @@ class _Polygon:
     def inner_distance(self, X: np.ndarray) -> np.ndarray:
         """Signed distance to the polygon, positive inside (the polygon is convex: a SEM image
         is inscribed in the circle with its vertices in angular order)."""
-        from .locate import _closest_on_segments
-
         seg, _, q = _closest_on_segments(X, self.A, self.B)
         d = np.linalg.norm(X - q, axis=1)
         e = self.B[seg] - self.A[seg]
@@ -336,9 +338,7 @@ def _delaunay(points: np.ndarray, n_rim: int, h: float) -> np.ndarray:
     alpha = min(1.0, 0.05 * h / max(float(gap.max()), 1e-300))
     Q[:n_rim] *= ((r + alpha * gap) / r)[:, None]
     F = Delaunay(Q).simplices.astype(np.int64)
-    x, y = Q[:, 0], Q[:, 1]
-    a2 = ((x[F[:, 1]] - x[F[:, 0]]) * (y[F[:, 2]] - y[F[:, 0]])
-          - (y[F[:, 1]] - y[F[:, 0]]) * (x[F[:, 2]] - x[F[:, 0]]))
+    a2 = double_areas(Q, F)
     cw = a2 < 0
     F[cw] = F[cw][:, [0, 2, 1]]
     return F
@@ -370,18 +370,10 @@ def triangulate_samples(samples: DiskSamples) -> np.ndarray:
     if not used.all():                                    # pragma: no cover - Qhull 'coplanar'
         raise RuntimeError(f"Delaunay dropped {int((~used).sum())} samples (coincident points)")
     F = _flip_leaves(P, F, nb)
-    x, y = P[:, 0], P[:, 1]
-    a2 = ((x[F[:, 1]] - x[F[:, 0]]) * (y[F[:, 2]] - y[F[:, 0]])
-          - (y[F[:, 1]] - y[F[:, 0]]) * (x[F[:, 2]] - x[F[:, 0]]))
+    a2 = double_areas(P, F)
     if np.any(a2 <= 1e-9 * max(h, 1e-300) ** 2):          # pragma: no cover
         raise RuntimeError("degenerate or clockwise face in the sample triangulation")
     return F
-
-
-def _signed_areas2(P, F):
-    x, y = P[:, 0], P[:, 1]
-    return ((x[F[:, 1]] - x[F[:, 0]]) * (y[F[:, 2]] - y[F[:, 0]])
-            - (y[F[:, 1]] - y[F[:, 0]]) * (x[F[:, 2]] - x[F[:, 0]]))
 
 
 def _hexagonal_triangulation(samples: DiskSamples) -> np.ndarray | None:
@@ -430,7 +422,7 @@ def _hexagonal_triangulation(samples: DiskSamples) -> np.ndarray | None:
     down = np.column_stack([ci, up_r, up_l])
     Fl = np.vstack([up[(up >= 0).all(axis=1)], down[(down >= 0).all(axis=1)]])
     F = np.vstack([Fb, Fl])
-    a2 = _signed_areas2(P, F)
+    a2 = double_areas(P, F)
     if len(F) != 2 * n - nb - 2 or np.any(a2 <= 0):
         return None
     # area enclosed by the rim samples (the triangulation's boundary), not the polygon's
@@ -466,7 +458,7 @@ def _flip_leaves(P: np.ndarray, F: np.ndarray, nb: int) -> np.ndarray:
                 if dd < nb:
                     continue
                 new = np.array([[c, a, dd], [c, dd, b]])
-                if (_signed_areas2(P, new) > 0).all():
+                if (double_areas(P, new) > 0).all():
                     F[t], F[g] = new[0], new[1]
                     break
             else:
@@ -485,8 +477,6 @@ def snap_rim(samples: DiskSamples, targets: np.ndarray) -> np.ndarray:
     most half a rim spacing, staying between its neighbours). Returns the indices moved."""
     if samples.polygon is None or len(targets) == 0:
         return np.zeros(0, np.int64)
-    from .locate import _closest_on_segments
-
     poly = _Polygon(samples.polygon)
     T = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
     seg, t, _ = _closest_on_segments(T, poly.A, poly.B)

@@ -1,0 +1,232 @@
+"""Edge collapses: the collapse step of isotropic remeshing (Botsch & Kobbelt 2004), 3D lengths.
+
+Used to give the vertex count back after refinement (the shortest edges are collapsed) and to
+remove slivers. A collapse ``r → k`` removes one endpoint ``r`` and keeps the other where it
+is. It is made only if
+
+* ``r`` is not a locked corner, and not a rim vertex unless the edge is a boundary edge (an
+  interior edge between two rim vertices is never collapsed);
+* the link condition holds (the ends share exactly two neighbours, one on the boundary);
+* no face flips on the disk or turns over in 3D, no face gets three boundary corners and no
+  edge gets longer than ``L_max`` (compiled: :func:`.._kernels.collapse_breaks_faces`);
+* given ``max_gap``: the removed vertex, a point of the surface, stays within ``max_gap`` of
+  the faces that replace its ring (so that collapses do not undo the refinement of folds);
+* given ``max_sag``: no new edge is farther than that from the surface (:func:`.sag.edge_sag`;
+  so that collapses do not re-create the bridges refinement removed).
+
+Collapses run in rounds; each takes a maximal set of independent ones (pairwise disjoint
+closed 1-rings of the removed vertices), greedy from the shortest edge.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import topology as topo
+from .._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
+                        half_edge_lengths, short_edges)
+from ..remesh_quality import closest_points_on_triangles
+from ..rows import norms
+from .halfedge import CSR, adjacency, touching, vertex_faces
+from .sag import edge_sag
+from .state import RemeshState
+
+COLLAPSE_POOL = 4     # with a budget, the shortest 4 × remaining + 5000 edges are checked
+COLLAPSE_POOL_MIN = 5000
+MIS_TAIL = 0.02       # a round's passes stop when one takes < 2 % of the first's collapses
+
+
+def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
+                         budget: int | None = None, max_gap: float | None = None,
+                         max_sag: float | None = None) -> int:
+    """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
+    ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
+    around it, no new edge has a sag (:func:`edge_sag`) above ``max_sag`` (if given), and the
+    result stays valid (see the module docstring); at most ``budget`` collapses. In rounds:
+    each takes a maximal set of independent collapses, greedy from the shortest
+    (:func:`_independent_collapses`). With a budget the candidates are a pool of the shortest
+    ``COLLAPSE_POOL × budget + COLLAPSE_POOL_MIN`` edges, chosen again when it is used up. A
+    round reads only the faces at the candidates' ends (after the first, only where
+    candidates were and at the vertices kept).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place; the removed vertices are dropped at the end, the others keep their
+        order.
+    L_min, L_max : float
+        3D lengths, in the mesh's units (``L_min`` may be inf: any edge, within ``budget``).
+    max_rounds : int
+    budget : int, optional
+    max_gap, max_sag : float, optional
+        The guards' tolerances, in the mesh's units.
+
+    Returns
+    -------
+    int
+        The number of collapses.
+    """
+    done = 0
+    look = None                     # after a round: where short edges can still be (n bool)
+    thr = L_min
+    alive = np.ones(S.n, bool)      # vertices not removed yet
+    X = np.ascontiguousarray(S.X)   # fixed until the rounds end (removed vertices stay)
+    for _ in range(max_rounds):
+        F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
+        Fs = F
+        if look is None and (budget is not None or np.isfinite(L_min)):
+            tails = F.ravel()
+            hl = half_edge_lengths(F, X)
+        if budget is not None and look is None:
+            # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
+            # interior edge is two half-edges); validity is checked per candidate
+            pool = 2 * (COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN)
+            thr = min(L_min, float(np.partition(hl, pool)[pool])) if pool < len(hl) else L_min
+        if np.isfinite(thr):
+            # only the faces at the ends of short edges: a collapse reads nothing but the rings
+            # of its two ends, whose faces (and so their edges' twins) are all among these
+            if look is None:
+                ends = tails[hl < thr]
+            else:
+                Fl = F[touching(F, look)]
+                ends = Fl.ravel()[half_edge_lengths(Fl, X) < thr]
+            if len(ends) == 0:
+                if thr < L_min and look is not None:
+                    look = None                  # the pool is used up: a new one
+                    continue
+                break
+            at_short = np.zeros(n, bool)
+            at_short[ends] = True
+            Fs = F[touching(F, at_short)]
+        twin_all = topo.interior_edge_twins(Fs)
+        h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
+        if len(h) == 0:
+            break
+        on_b = twin < 0
+        ra, rb = S.is_rim[a], S.is_rim[b]
+        ok = ~(ra & rb & ~on_b)                   # an interior edge between rim vertices: no
+        # remove r, keep k: never remove a rim vertex unless the edge is on the boundary, and
+        # never a locked vertex
+        keep_a = (ra & ~rb) | S.locked[a]
+        r = np.where(keep_a, b, a)
+        k = np.where(keep_a, a, b)
+        ok &= ~S.locked[r]
+        r, k, a, b, ln, on_b, h, twin = (x[ok] for x in (r, k, a, b, ln, on_b, h, twin))
+        if len(r) == 0:
+            break
+        A = adjacency(Fs, n, twin_all)
+        VF = vertex_faces(Fs, n)
+        # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
+        r, k = r.astype(np.int64), k.astype(np.int64)
+        common = common_neighbours(A.indptr, A.indices, r, k, n)
+        ok = common == np.where(on_b, 1, 2)
+        # faces of r that survive (do not contain k), with r replaced by k
+        fr, T, Tn = faces_kept_by_collapses(VF.indptr, VF.indices, Fs, r, k)
+        bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), X,
+                                    np.ascontiguousarray(S.is_rim).view(np.uint8), T, Tn,
+                                    k[fr], float(L_max))
+        ok &= np.bincount(fr[bad], minlength=len(r)) == 0
+        win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
+                                     None if budget is None else budget - done)
+        if len(win) == 0:
+            break
+        remap = np.arange(n)
+        remap[r[win]] = k[win]
+        F2 = remap[F]
+        keepf = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
+        # the removed vertices stay in the arrays, unreferenced, until the rounds end: one
+        # compaction instead of one a round (the same numbering: deletions keep the order)
+        S.set_faces(F2[keepf])
+        alive[r[win]] = False
+        if np.isfinite(thr):
+            # the short edges left are among those seen this round or at a kept vertex
+            at_short[k[win]] = True
+            look = at_short
+        done += len(win)
+        if budget is not None and done >= budget:
+            break
+    if not alive.all():
+        S.keep_vertices(alive)
+    S.tally("collapses", done)
+    return done
+
+
+def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap, max_sag,
+                           budget: int | None) -> np.ndarray:
+    """A maximal set of collapses ``r → k`` among the ``ok`` candidates whose removed vertices
+    have pairwise disjoint closed 1-rings (``A``: adjacency), greedy from the shortest ``ln``:
+    in passes, every candidate that is the shortest at all vertices of its closed ring among
+    those not yet decided is checked against the guards (``max_gap``: the removed vertex within
+    that of its new faces ``Tn`` (rows ``fr``); ``max_sag``: no new edge ``k–x`` farther than
+    that from the surface) and taken if it passes; the candidates touching a taken ring drop
+    out. Disjoint closed rings make the collapses independent: one changes only the faces at
+    its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
+    The guards (the costly part) run only on the pass winners. Passes stop when one takes
+    under ``MIS_TAIL`` of the first's. With a ``budget`` (at most that many, shortest first)
+    the passes after the first consider only the shortest ``budget`` candidates, so that the
+    budget goes to the shortest edges and not to longer ones taken while shorter ones wait for
+    the next round."""
+    sel = np.flatnonzero(ok)
+    if len(sel) == 0:
+        return sel
+    n, c = S.n, len(sel)
+    rank = np.empty(c, np.int64)
+    rank[np.argsort(ln[sel], kind="stable")] = np.arange(c)
+    pr, pv = topo.csr_rows(A.indptr, A.indices, r[sel])
+    pr = np.concatenate([pr, np.arange(c)])                # candidate → its closed ring
+    pv = np.concatenate([pv, r[sel]])
+    prank = rank[pr]
+    open_ = np.ones(c, bool)                               # not yet taken, refused or blocked
+    taken = np.zeros(n, bool)                              # vertices of taken closed rings
+    won = []
+    n_won = 0
+    while open_.any() and (budget is None or n_won < budget):
+        live = open_[pr]
+        best = np.full(n, c, np.int64)
+        np.minimum.at(best, pv[live], prank[live])
+        lost = np.bincount(pr[live & (best[pv] != prank)], minlength=c)
+        w = np.flatnonzero(open_ & (lost == 0))            # shortest in its whole ring
+        open_[w] = False
+        w = w[_collapse_guards(S, r, k, sel[w], A, fr, Tn, max_gap, max_sag)]
+        if budget is not None:
+            w = w[np.argsort(rank[w], kind="stable")][:budget - n_won]
+        mark = np.zeros(c, bool)
+        mark[w] = True
+        taken[pv[mark[pr]]] = True
+        open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
+        won.append(w)
+        n_won += len(w)
+        if budget is not None and len(won) == 1:
+            # later passes only among the shortest ``budget``: they must not spend the budget
+            # on longer edges while shorter ones wait for a ring to free up (next round)
+            open_ &= rank < budget
+        if len(w) < MIS_TAIL * len(won[0]):
+            break                    # the tail: what is left waits for the next round
+    return sel[np.concatenate(won)] if won else sel[:0]
+
+
+def _collapse_guards(S: RemeshState, r, k, cand, A: CSR, fr, Tn, max_gap, max_sag
+                     ) -> np.ndarray:
+    """Which collapses ``r[cand] → k[cand]`` pass the guards of :func:`collapse_short_edges`
+    (a bool mask over ``cand``): the removed vertex, a point of the surface, within ``max_gap``
+    of the faces ``Tn`` (rows ``fr``) that replace its ring; no new edge ``k–x`` (``x`` in
+    ``r``'s ring) farther than ``max_sag`` from the surface (:func:`edge_sag`)."""
+    good = np.ones(len(cand), bool)
+    if len(cand) and max_gap is not None:
+        at = np.full(len(r), -1, np.int64)
+        at[cand] = np.arange(len(cand))
+        rows = np.flatnonzero(at[fr] >= 0)
+        X, Tr = S.X, Tn[rows]
+        Pr = X[r[fr[rows]]]
+        gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]], X[Tr[:, 2]]))
+        near = np.full(len(cand), np.inf)
+        np.minimum.at(near, at[fr[rows]], gap)
+        good &= near <= max_gap
+    if len(cand) and max_sag is not None:
+        idx = np.flatnonzero(good)
+        wr, x = topo.csr_rows(A.indptr, A.indices, r[cand[idx]])
+        kk = k[cand[idx]][wr]
+        new_edge = x != kk
+        far = edge_sag(S, kk[new_edge], x[new_edge]) > max_sag
+        good[idx[np.bincount(wr[new_edge][far], minlength=len(idx)) > 0]] = False
+    return good

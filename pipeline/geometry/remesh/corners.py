@@ -1,0 +1,194 @@
+"""Sharp corners of the input keep a vertex of the remesh.
+
+Where the boundary turns sharply, or the surface comes to a point (cone tips, spikes), a
+uniform remesh would cut the corner off. Such input vertices are found by their angle sums
+(:func:`boundary_corners`, :func:`interior_corners`); boundary ones get a rim sample moved onto
+them before triangulation (:func:`.sampling.snap_rim`), interior ones get the nearest remesh
+vertex moved exactly onto them (:func:`snap_vertices`), or a new vertex
+(:func:`insert_vertices`) when none can move there, also when the map has put the tip beyond
+the remesh's rim, between a rim chord and the image polygon. Either way the vertex is locked:
+never moved or removed afterwards.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import topology as topo
+from ..locate import PointLocator, lift
+from ..metrics import corner_angles
+from .halfedge import double_areas, independent_by_faces, vertex_faces
+from .refine import split_edges, split_faces
+from .state import RemeshState
+
+
+def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float
+                     ) -> np.ndarray:
+    """Boundary vertices where the boundary turns sharply on the surface: the angles of the
+    faces at the vertex sum to less than ``180° − angle_deg`` or more than ``180° + angle_deg``
+    (a flat boundary has 180°).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    boundary : (b,) int
+        The boundary loop.
+    angle_deg : float
+        The tolerance; 0 or None: no corners.
+
+    Returns
+    -------
+    (k,) int
+        Vertex indices, sharpest first.
+    """
+    if angle_deg is None or angle_deg <= 0:
+        return np.zeros(0, np.int64)
+    return boundary[_sharpest_first(_angle_sum_deviation(V, F, 180.0)[boundary], angle_deg)]
+
+
+def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float) -> np.ndarray:
+    """Interior vertices that are sharp points of the surface: the angles of their faces sum
+    to less than ``360° − angle_deg`` (a cone tip) or more than ``360° + angle_deg`` (a saddle
+    spike). Parameters and result as in :func:`boundary_corners`, without ``boundary``."""
+    if angle_deg is None or angle_deg <= 0:
+        return np.zeros(0, np.int64)
+    dev = _angle_sum_deviation(V, F, 360.0)
+    dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
+    return _sharpest_first(dev, angle_deg)
+
+
+def _angle_sum_deviation(V: np.ndarray, F: np.ndarray, flat_deg: float) -> np.ndarray:
+    """Per vertex (n), how far in degrees the angles of its faces sum from ``flat_deg``."""
+    return np.abs(np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
+                  - flat_deg)
+
+
+def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
+    """The indices where ``dev`` exceeds ``angle_deg``, largest first."""
+    sharp = np.flatnonzero(dev > angle_deg)
+    return sharp[np.argsort(-dev[sharp])]
+
+
+def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float) -> np.ndarray:
+    """The targets (in order) whose lifts are at least ``min_gap`` from every locked vertex
+    and from every target kept before them."""
+    if min_gap <= 0 or len(targets_uv) == 0:
+        return targets_uv
+    f, b, _ = S.locator.locate_with_inside(targets_uv)
+    P = lift(S.V_in, S.F_in, f, b)
+    kept_pts = list(S.X[S.locked])
+    keep = []
+    for i, p in enumerate(P):
+        if all(np.linalg.norm(p - q) >= min_gap for q in kept_pts):
+            keep.append(i)
+            kept_pts.append(p)
+    S.tally("corners_too_close", len(P) - len(keep))
+    return targets_uv[keep]
+
+
+def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) -> np.ndarray:
+    """Move an interior vertex exactly onto each target (the disk image of a sharp input
+    vertex) and lock it: for each target in the given order (sharpest first), the nearest of
+    its 4 nearest free vertices on the disk whose faces stay counter-clockwise there; a target
+    none of them can take gets a new vertex (:func:`insert_vertices`) unless one of them is
+    within ``min_gap`` of it on the surface (a new edge that short would be a sliver). A target
+    within ``min_gap`` on the surface of a sharper one or of a vertex locked already is
+    dropped: two locked vertices that close keep a sliver edge no collapse may remove, and
+    the needles on it (sharp input vertices close together, as at a mouth's corners).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    targets_uv : (k, 2) float
+        Disk images of the sharp input vertices, sharpest first.
+    min_gap : float
+        In the mesh's units.
+
+    Returns
+    -------
+    (j,) int
+        The snapped and inserted vertices.
+    """
+    from scipy.spatial import cKDTree
+
+    T = _apart_on_surface(S, np.asarray(targets_uv, dtype=np.float64).reshape(-1, 2), min_gap)
+    free = np.flatnonzero(~S.is_rim & ~S.locked)
+    if len(T) == 0 or len(free) == 0:
+        return np.zeros(0, np.int64)
+    K = min(4, len(free))
+    _, J = cKDTree(S.uv[free]).query(T, k=K)
+    J = free[np.asarray(J).reshape(len(T), K)]
+    VF = vertex_faces(S.F, S.n)
+    taken = np.zeros(S.n, bool)
+    snapped, missed = [], []
+    for t, cands in zip(T, J):
+        for v in cands.tolist():
+            if taken[v]:
+                continue
+            faces = VF.indices[VF.indptr[v]:VF.indptr[v + 1]]
+            old = S.uv[v].copy()
+            S.uv[v] = t
+            Ff = S.F[faces]
+            if np.all(double_areas(S.uv, Ff) > 0):
+                taken[v] = True
+                snapped.append(v)
+                break
+            S.uv[v] = old
+        else:
+            missed.append((t, cands))
+    v = np.asarray(snapped, np.int64)
+    if len(v):
+        f, b, _ = S.locator.locate_with_inside(S.uv[v])
+        S.face[v], S.bary[v] = f, b
+        S.X[v] = lift(S.V_in, S.F_in, f, b)
+        S.locked[v] = True
+    S.tally("corners_snapped", len(v))
+    if missed:
+        T = np.array([t for t, _ in missed])
+        cands = np.array([c for _, c in missed])
+        f, b, _ = S.locator.locate_with_inside(T)
+        gap = np.linalg.norm(S.X[cands] - lift(S.V_in, S.F_in, f, b)[:, None, :], axis=2)
+        gap = gap.min(axis=1)
+        v = np.concatenate([v, insert_vertices(S, T[gap >= min_gap])])
+    return v
+
+
+def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6) -> np.ndarray:
+    """Insert a locked vertex exactly at each disk target (the image of a sharp input vertex
+    that no existing vertex could be snapped to), in rounds of targets in distinct faces of
+    the remesh: a target inside a face splits it 1 → 3, one on an edge splits the edge there.
+    A target beyond the remesh's rim — between a rim chord and the image polygon, where a
+    spike squeezed against the boundary ends up — first splits that rim edge at the polygon
+    point nearest to it, which brings the target inside. Returns the inserted vertices."""
+    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, 2)
+    done = []
+    for _ in range(max_rounds):
+        if len(T) == 0:
+            break
+        f, bary, inside = PointLocator(S.uv, S.F).locate_with_inside(T)
+        c = np.argmin(bary, axis=1)                        # the corner opposite the nearest edge
+        h = 3 * f + (c + 1) % 3                            # half-edge F[f, c+1] → F[f, c+2]
+        twin = S.twins()[h]
+        on_edge = inside & (bary.min(axis=1) < 1e-9)       # on edge h: split it exactly there
+        f2 = np.where((~inside | on_edge) & (twin >= 0), twin // 3, f)
+        first = independent_by_faces(len(S.F), f, f2, np.arange(len(T)))
+        again = np.ones(len(T), bool)
+        h, twin, t = h[first], twin[first], bary[first, (c[first] + 2) % 3]
+        # beyond the rim (projected onto a rim edge): split that edge, the target comes next round
+        out = ~inside[first] & (twin < 0)
+        on_edge = on_edge[first]
+        strict = inside[first] & ~on_edge
+        n0 = S.n
+        split_edges(S, h[out | on_edge], twin[out | on_edge], t[out | on_edge])
+        w_edge = n0 + np.flatnonzero(on_edge[out | on_edge])
+        S.locked[w_edge] = True
+        done.append(w_edge)
+        if strict.any():
+            done.append(split_faces(S, f[first[strict]], T[first[strict]], locked=True))
+        again[first[on_edge | strict]] = False
+        T = T[again]
+    v = np.concatenate(done) if done else np.zeros(0, np.int64)
+    S.tally("corners_inserted", len(v))
+    return v

@@ -1,0 +1,152 @@
+"""Delaunay flips on the lifted surface.
+
+An interior edge is flipped when its two opposite **3D** angles sum to more than π (the
+Delaunay criterion on the lifted surface), in rounds of independent flips until none is left.
+A flip is allowed only when the quad is convex on the disk (so the new edge cannot exist yet:
+the triangulation is an embedding there), no new face has three boundary corners, the new
+faces' normals agree with the old ones, and either the quad is nearly planar (dihedral angle
+below ``max_dihedral_deg``), so the surface changes by no more than a shallow fold, or — given
+a ``sag`` measure (:func:`.sag.edge_sag`) — the new edge is no farther from the input surface
+than the old one. The second rule lets the caps and needles that the map's angle distortion
+leaves on curved regions (noses, lips, fingers, sulci) flip.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import topology as topo
+from .._kernels import flip_checks, opposite_cots
+from .halfedge import independent_by_faces, touching
+
+
+def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
+    ``F[t,c] → F[t,c+1]`` (at corner ``c+2``), from one cross product per face (its norm,
+    twice the area, is shared by the three corners); compiled."""
+    return opposite_cots(np.ascontiguousarray(X, dtype=np.float64),
+                         np.ascontiguousarray(F, dtype=np.int64))
+
+
+def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
+               max_rounds: int = 12, eps: float = 1e-9, sag=None,
+               boundary: np.ndarray | None = None, active: np.ndarray | None = None,
+               twin: np.ndarray | None = None) -> tuple[np.ndarray, int, int]:
+    """Flip interior edges towards the Delaunay triangulation of the lifted surface.
+
+    The criterion ``α + β > π`` for the angles opposite an edge is tested as
+    ``cot α + cot β < 0``, with the cotangents kept per half-edge and recomputed only for the
+    faces a round changed. After the first round only the edges of changed faces are tested
+    again, and the half-edge twins are updated in place. Each round flips a set of violating
+    edges no two of which share a face, the most violating first.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+        Lifted positions.
+    F : (m, 3) int
+        Faces, counter-clockwise on the disk; not modified.
+    uv : (n, 2) float
+        Disk positions.
+    max_dihedral_deg : float
+        Quads folded less than this flip on the Delaunay criterion alone.
+    max_rounds : int
+    eps : float
+        A flip needs ``−(cot α + cot β) > eps``.
+    sag : callable ``sag(i, j) -> (k,) float``, optional
+        The distance of edges ``i–j`` from the input surface; a quad folded more than
+        ``max_dihedral_deg`` then flips when ``sag(p, q) ≤ sag(a, b)``. Without it, it never
+        flips.
+    boundary : (n,) bool, optional
+        The boundary vertices, when the caller has them.
+    active : (n,) bool, optional
+        Only the edges of faces with an active corner are tested first (after a local
+        change), and the cotangents are computed only for the faces the rounds reach.
+    twin : (3m,) int, optional
+        The half-edge twins of ``F``; updated in place to those of the result.
+
+    Returns
+    -------
+    F : (m, 3) int
+        The flipped faces (a new array; same count, still counter-clockwise on the disk).
+    flips : int
+    rounds : int
+    """
+    F = np.array(F, dtype=np.int64, copy=True)
+    X, uv = np.ascontiguousarray(X, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64)
+    n, m = len(X), len(F)
+    is_b = topo.boundary_vertices_mask(F, n) if boundary is None else boundary
+    is_b = np.ascontiguousarray(is_b, dtype=bool).view(np.uint8)
+    cos_max = np.cos(np.radians(max_dihedral_deg))
+    twin = topo.interior_edge_twins(F) if twin is None else twin
+    slot = np.arange(3 * m)                                             # old slot → new slot
+    if active is None:
+        cot = _opposite_cots(X, F).ravel()                              # per half-edge
+        have = None
+        h = np.flatnonzero(twin > slot)                                 # each interior edge once
+    else:
+        cot = np.empty(3 * m)
+        have = np.zeros(m, bool)                                        # faces with their cots
+        h = _interior_edges_of(np.flatnonzero(touching(F, active)), twin, m)
+    total, rounds = 0, 0
+    for rounds in range(1, max_rounds + 1):
+        if len(h) == 0:
+            break
+        if have is not None:
+            need = np.concatenate([h // 3, twin[h] // 3])
+            need = topo.distinct_indices(need[~have[need]], m)
+            cot.reshape(m, 3)[need] = _opposite_cots(X, F[need])
+            have[need] = True
+        viol = -(cot[h] + cot[twin[h]])                                 # > 0: not Delaunay
+        cand = np.flatnonzero(viol > eps)
+        if len(cand) == 0:
+            break
+        h, viol = h[cand], viol[cand]
+        t = twin[h]
+        f, c = h // 3, h % 3
+        g, d = t // 3, t % 3
+        (a, b, p, q), ok, valid = flip_checks(X, uv, is_b, F, h, twin, cos_max)
+        if sag is not None:
+            # a folded quad may still flip when the new edge is no farther from the input
+            # surface than the old one (caps over a crease, the skewed triangles of the map)
+            folded = np.flatnonzero(~ok & valid)
+            if len(folded):
+                k = len(folded)
+                both = sag(np.r_[p[folded], a[folded]], np.r_[q[folded], b[folded]])
+                ok[folded] = both[:k] <= both[k:]
+        ok &= valid
+        sel = np.flatnonzero(ok)
+        if len(sel) == 0:
+            break
+        win = sel[independent_by_faces(m, f[sel], g[sel], -viol[sel])]
+        f, g, c, d = f[win], g[win], c[win], d[win]
+        a, b, p, q = a[win], b[win], p[win], q[win]
+        # half-edge bookkeeping, in place: the four outer half-edges of each quad move to new
+        # slots (p→a, a→q in f; q→b, b→p in g); their twins may sit in another flipped quad
+        old = np.concatenate([3 * f + (c + 2) % 3, 3 * g + (d + 1) % 3,
+                              3 * g + (d + 2) % 3, 3 * f + (c + 1) % 3])
+        new = np.concatenate([3 * f, 3 * f + 1, 3 * g, 3 * g + 1])
+        tw = twin[old]
+        slot[old] = new
+        inner = tw >= 0
+        twin[new] = np.where(inner, slot[np.maximum(tw, 0)], -1)
+        twin[slot[tw[inner]]] = new[inner]
+        twin[3 * f + 2] = 3 * g + 2                  # the new diagonal q→p / p→q
+        twin[3 * g + 2] = 3 * f + 2
+        slot[old] = old
+        F[f] = np.column_stack([p, a, q])
+        F[g] = np.column_stack([q, b, p])
+        changed = np.concatenate([f, g])
+        cot.reshape(m, 3)[changed] = _opposite_cots(X, F[changed])
+        if have is not None:
+            have[changed] = True
+        total += len(win)
+        h = _interior_edges_of(changed, twin, m)          # next round: the changed faces' edges
+    return F, total, rounds
+
+
+def _interior_edges_of(faces: np.ndarray, twin: np.ndarray, m: int) -> np.ndarray:
+    """Every interior edge of the given faces once, as its smaller half-edge."""
+    hs = (3 * faces[:, None] + np.arange(3)).ravel()
+    ts = twin[hs]
+    return topo.distinct_indices(np.where(ts > hs, hs, ts)[ts >= 0], 3 * m)

@@ -1,0 +1,141 @@
+"""Face-array and half-edge helpers shared by the remeshing operations.
+
+Conventions. ``F`` (m×3 int) lists each face's corners counter-clockwise on the disk. Half-edge
+``h = 3·t + c`` (``c`` in 0, 1, 2) runs from corner ``F[t, c]`` to ``F[t, (c + 1) % 3]``;
+``twin[h]`` (3m int) is the opposite half-edge of the same edge in the neighbouring face, or −1
+on the boundary (:func:`..topology.interior_edge_twins`). Vertex sets are ``n`` bool masks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import topology as topo
+from .._kernels import faces_touching, group_by_key
+
+
+def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """Faces with a corner where ``mark`` is set: ``mark[F].any(axis=1)``, compiled (remeshing
+    asks this of the whole mesh in every collapse round).
+
+    Parameters
+    ----------
+    F : (m, 3) int
+    mark : (n,) bool
+
+    Returns
+    -------
+    (m,) bool
+    """
+    return faces_touching(np.ascontiguousarray(topo._as_faces(F)),
+                          np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
+
+
+def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Twice the signed area of each face on the disk, positive when counter-clockwise:
+    ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``.
+
+    Parameters
+    ----------
+    uv : (n, 2) float
+    F : (m, 3) int
+
+    Returns
+    -------
+    (m,) float
+    """
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
+            - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+def edge_table(F: np.ndarray, with_twins: bool = False, twin: np.ndarray | None = None):
+    """Every edge once, as its half-edge ``a → b`` with the larger twin (or the only one).
+
+    Parameters
+    ----------
+    F : (m, 3) int
+    with_twins : bool
+        Also return the twin of every half-edge.
+    twin : (3m,) int, optional
+        The twins of ``F`` when the caller has them.
+
+    Returns
+    -------
+    h, a, b, twin : (e,) int
+        The half-edge, its tail and head, and its twin (−1 on the boundary).
+    all_twins : (3m,) int
+        Only with ``with_twins``.
+    """
+    m = len(F)
+    twin = topo.interior_edge_twins(F) if twin is None else twin
+    he = np.arange(3 * m)
+    h = np.flatnonzero((twin < 0) | (twin > he))
+    out = (h, F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], twin[h])
+    return out + (twin,) if with_twins else out
+
+
+def independent_by_faces(m: int, f1: np.ndarray, f2: np.ndarray, priority: np.ndarray
+                         ) -> np.ndarray:
+    """Candidates chosen so that no face has two: a candidate (touching faces ``f1``, ``f2``;
+    equal for a boundary edge) is taken when it has the best (smallest) ``priority`` of both
+    its faces, ties broken by position.
+
+    Parameters
+    ----------
+    m : int
+        The number of faces.
+    f1, f2, priority : (k,)
+
+    Returns
+    -------
+    (j,) int
+        Indices into the candidates, increasing.
+    """
+    k = len(f1)
+    rank = np.empty(k, np.int64)
+    rank[np.argsort(priority, kind="stable")] = np.arange(k)
+    best = np.full(m, k, np.int64)
+    np.minimum.at(best, f1, rank)
+    np.minimum.at(best, f2, rank)
+    return np.flatnonzero((best[f1] == rank) & (best[f2] == rank))
+
+
+def independent_edges(m: int, h: np.ndarray, twin: np.ndarray, priority: np.ndarray
+                      ) -> np.ndarray:
+    """:func:`independent_by_faces` for edges given as half-edges ``h`` (k) with their twins
+    (k, −1 on the boundary): indices of edges no two of which share a face."""
+    f1 = h // 3
+    f2 = np.where(twin >= 0, twin // 3, f1)
+    return independent_by_faces(m, f1, f2, priority)
+
+
+class CSR:
+    """Rows of a compressed sparse structure: row ``i`` is ``indices[indptr[i]:indptr[i+1]]``."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray):
+        self.indptr, self.indices = indptr, indices
+
+
+def group(keys: np.ndarray, values: np.ndarray, n: int) -> CSR:
+    """``values`` grouped by ``keys`` in ``[0, n)``, in their order within a group (a compiled
+    stable counting sort)."""
+    return CSR(*group_by_key(np.ascontiguousarray(keys, dtype=np.int64),
+                             np.ascontiguousarray(values, dtype=np.int64), n))
+
+
+def adjacency(F: np.ndarray, n: int, twin: np.ndarray | None = None) -> CSR:
+    """Vertex neighbours: every half-edge ``a → b`` gives ``b`` to ``a``, and a boundary
+    half-edge also ``a`` to ``b`` (its missing direction), so in a manifold disk every
+    neighbour appears once."""
+    a = F.ravel()
+    b = F[:, [1, 2, 0]].ravel()
+    if twin is None:
+        twin = topo.interior_edge_twins(F)
+    lone = twin < 0
+    return group(np.concatenate([a, b[lone]]), np.concatenate([b, a[lone]]), n)
+
+
+def vertex_faces(F: np.ndarray, n: int) -> CSR:
+    """The faces around each vertex, in increasing order."""
+    return group(F.ravel(), np.repeat(np.arange(len(F)), 3), n)

@@ -1,0 +1,268 @@
+"""Refinement: edge splits where the remesh is too coarse or leaves the surface.
+
+* :func:`split_long_edges` — the split step of isotropic remeshing (Botsch & Kobbelt 2004) with
+  3D lengths, longest first; with a budget it gives back vertices the collapses removed.
+* :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
+  sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
+  lifted edges bridge over the surface. An edge whose straight line is farther than a
+  threshold from the surface at any of ``SAG_SAMPLES`` points ``t = 1/8 … 7/8``
+  (:func:`.sag.edge_sag_along`) is split on the disk at the worst of them, so that the new
+  vertex lies on the surface inside the sliver. Several points, not the midpoint alone: a gap
+  squeezed into a strip much thinner than the edge on the disk is seldom under the midpoint.
+
+Both split on the disk and lift the new vertex by eq. (1). A split boundary edge gets its
+vertex on the image polygon. They run in rounds of independent splits (no two in one face);
+after the first round only the edges at new vertices and the candidates that waited for a free
+face are looked at again. :func:`split_edges` keeps the state's half-edge twins up to date
+instead of recomputing them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..locate import _closest_on_segments
+from ..rows import dots, norms
+from .halfedge import edge_table, independent_edges, touching
+from .sag import SAG_WALK, edge_sag_along
+from .state import RemeshState
+
+SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
+
+
+def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
+                t: np.ndarray | None = None) -> int:
+    """Split edges on the disk: face ``[a, b, p]`` becomes ``[a, w, p]`` and ``[w, b, p]``,
+    and so does the face across, with the new vertex ``w`` lifted by eq. (1).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place; its cached twins are kept up to date.
+    h : (k,) int
+        Half-edges ``a → b`` of independent edges (no two in one face).
+    twin : (k,) int
+        Their twins, −1 on the boundary (``w`` then goes on the image polygon).
+    t : (k,) float, optional
+        Split at ``(1 − t)·uv[a] + t·uv[b]``; default the disk midpoint.
+
+    Returns
+    -------
+    int
+        The number of splits, ``k``; the new vertices are the last ``k``.
+    """
+    k = len(h)
+    if k == 0:
+        return 0
+    F = S.F
+    f, c = h // 3, h % 3
+    a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
+    on_b = twin < 0
+    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
+         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
+    if on_b.any():                               # a boundary edge's vertex goes on the polygon
+        _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
+    near_a = np.ones(k, bool) if t is None else t <= 0.5
+    mf, mb, _ = S.locator.relocate(M, np.where(near_a, S.face[a], S.face[b]), walk=SAG_WALK)
+    w = S.append_vertices(M, mf, mb, on_b)
+    tw_old = S.cached_twins()
+    m = len(F)
+    F = F.copy()
+    new = [np.column_stack([w, b, p])]
+    F[f] = np.column_stack([a, w, p])
+    inner = np.flatnonzero(~on_b)
+    g, d = twin[inner] // 3, twin[inner] % 3
+    if len(inner):
+        q = F[g, (d + 2) % 3]
+        F[g] = np.column_stack([b[inner], w[inner], q])
+        new.append(np.column_stack([w[inner], a[inner], q]))
+    S.set_faces(np.vstack([F] + new),
+                None if tw_old is None else _split_twins(tw_old, m, f, c, inner, g, d))
+    return k
+
+
+def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:
+    """The half-edge twins after :func:`split_edges` (from those before, ``tw_old``; ``m``
+    faces before): face ``f`` (edge ``a → b`` at corner ``c``) became ``[a, w, p]`` plus the new
+    face ``f2 = [w, b, p]``; for an inner edge, its twin's face ``g`` (corner ``d``) became
+    ``[b, w, q]`` plus ``g2 = [w, a, q]``. The four outer half-edges (``p→a``, ``b→p``,
+    ``q→b``, ``a→q``) keep their twins, which may themselves have moved."""
+    k, j = len(f), len(inner)
+    f2 = m + np.arange(k)
+    g2 = m + k + np.arange(j)
+    tw = np.full(3 * (m + k + j), -1, np.int64)
+    tw[:3 * m] = tw_old
+    # outer half-edges: old slot → new slot
+    old = np.concatenate([3 * f + (c + 2) % 3, 3 * f + (c + 1) % 3,
+                          3 * g + (d + 2) % 3, 3 * g + (d + 1) % 3])
+    new = np.concatenate([3 * f + 2, 3 * f2 + 1, 3 * g + 2, 3 * g2 + 1])
+    slot = np.arange(3 * m)
+    slot[old] = new
+    ext = tw_old[old]
+    # the inner half-edges of the new fans
+    fi, f2i = f[inner], f2[inner]
+    pairs = [(3 * f + 1, 3 * f2 + 2),                    # w→p ↔ p→w
+             (3 * fi, 3 * g2),                           # a→w ↔ w→a
+             (3 * g, 3 * f2i),                           # b→w ↔ w→b
+             (3 * g + 1, 3 * g2 + 2)]                    # w→q ↔ q→w
+    outer_f = np.ones(k, bool)
+    outer_f[inner] = False
+    tw[3 * f[outer_f]] = -1                              # a→w on the rim
+    tw[3 * f2[outer_f]] = -1                             # w→b on the rim
+    for x, y in pairs:
+        tw[x] = y
+        tw[y] = x
+    tw[new] = np.where(ext >= 0, slot[np.maximum(ext, 0)], -1)
+    tw[slot[ext[ext >= 0]]] = new[ext >= 0]
+    return tw
+
+
+def split_faces(S: RemeshState, faces: np.ndarray, M: np.ndarray, locked: bool = False
+                ) -> np.ndarray:
+    """Split each of the given (distinct) faces 1 → 3 at the disk point ``M`` strictly inside
+    it; returns the new vertices."""
+    mf, mb, _ = S.locator.locate_with_inside(M)
+    w = S.append_vertices(M, mf, mb, np.zeros(len(M), bool), locked)
+    a, b, c = S.F[faces, 0], S.F[faces, 1], S.F[faces, 2]
+    F = S.F.copy()
+    F[faces] = np.column_stack([a, b, w])
+    S.set_faces(np.vstack([F, np.column_stack([b, c, w]), np.column_stack([c, a, w])]))
+    return w
+
+
+def _edges_at(S: RemeshState, active: np.ndarray | None):
+    """Every edge with an ``active`` end (n bool; all edges when None) once, as
+    :func:`.halfedge.edge_table` gives them, in the half-edge numbering of ``S.F``."""
+    if active is None:
+        return edge_table(S.F, twin=S.twins())
+    # both faces of an edge with an active end contain that end: the edge table of the faces
+    # at active vertices has those edges' twins right
+    sub = np.flatnonzero(touching(S.F, active))
+    hs, a, b, ts = edge_table(S.F[sub])
+    keep = active[a] | active[b]
+    hs, a, b, ts = hs[keep], a[keep], b[keep], ts[keep]
+    h = 3 * sub[hs // 3] + hs % 3
+    return h, a, b, np.where(ts >= 0, 3 * sub[ts // 3] + ts % 3, -1)
+
+
+def _after_splits(S: RemeshState, n0: int, a: np.ndarray, b: np.ndarray,
+                  waiting: np.ndarray) -> np.ndarray:
+    """Where a round of splits leaves edges to look at again (n bool): every new edge ends at
+    a new vertex (index ≥ ``n0``), and the candidates ``waiting`` (edges ``a–b``) that were
+    not split this round are still there."""
+    active = np.zeros(S.n, bool)
+    active[n0:] = True
+    active[a[waiting]] = True
+    active[b[waiting]] = True
+    return active
+
+
+def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
+                     budget: int | None = None) -> int:
+    """Split edges longer than ``L_max``, longest first, in independent rounds (after the
+    first, only the edges at new vertices and the candidates that waited).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    L_max : float
+        3D length, in the mesh's units (0: any edge, to add ``budget`` vertices).
+    max_rounds : int
+    budget : int, optional
+        At most this many splits.
+
+    Returns
+    -------
+    int
+        The number of splits.
+    """
+    done = 0
+    active = None
+    for _ in range(max_rounds):
+        h, a, b, twin = _edges_at(S, active)
+        ln = norms(S.X[a] - S.X[b])
+        cand = np.flatnonzero(ln > L_max)
+        if budget is not None and len(cand) > 4 * (budget - done) + 1000:
+            # only the longest few can be among the longest independent ones
+            k = 4 * (budget - done) + 1000
+            cand = cand[np.argpartition(-ln[cand], k)[:k]]
+        if len(cand) == 0:
+            break
+        sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -ln[cand])]
+        if budget is not None:
+            sel = sel[np.argsort(-ln[sel], kind="stable")][:budget - done]
+        if len(sel) == 0:
+            break
+        n0 = S.n
+        done += split_edges(S, h[sel], twin[sel])
+        if budget is not None and done >= budget:
+            break
+        active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))
+    S.tally("splits", done)
+    return done
+
+
+def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int = 8,
+                  active: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """Split edges whose straight line is farther than ``threshold`` from the surface at any
+    of ``SAG_SAMPLES`` points along it, worst first, at the worst point, in independent
+    rounds, at most ``budget`` splits.
+
+    Where the equiareal map squeezes a region into a thin sliver of the disk (the sides of
+    fingers, deep folds), uniform disk samples are too sparse across it and the lifted
+    triangles bridge over the surface; an edge split at its worst disk point puts a vertex on
+    the surface inside the sliver. After the first round only the edges at new vertices (and the
+    candidates that waited for a free face) are measured again; ``active`` (n bool) limits the
+    first round the same way.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    threshold : float
+        Sag tolerance, in the mesh's units.
+    budget : int
+        At most this many splits.
+    max_rounds : int
+    active : (n,) bool, optional
+
+    Returns
+    -------
+    splits : int
+    pending : (n',) bool
+        The vertices whose edges were still to be measured when the rounds ran out.
+    """
+    done = 0
+    pending = None
+    for _ in range(max_rounds):
+        if done >= budget:
+            break
+        h, a, b, twin = _edges_at(S, active)
+        if len(h) == 0:
+            break
+        # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
+        # both tangent planes, is over a flat patch (sag 0) unless a feature narrower than the
+        # edge sits in between; only the others are probed along their length
+        na, nb = S.normals_in()[S.face[a]], S.normals_in()[S.face[b]]
+        e = S.X[b] - S.X[a]
+        probe = ((dots(na, nb) < np.cos(np.radians(10.0)))
+                 | (np.abs(dots(e, na)) > 0.5 * threshold)
+                 | (np.abs(dots(e, nb)) > 0.5 * threshold))
+        h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
+        sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
+                                      end_normals=(na[probe], nb[probe]))
+        cand = np.flatnonzero(sag > threshold)
+        if len(cand) == 0:
+            break
+        sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -sag[cand])]
+        sel = sel[np.argsort(-sag[sel], kind="stable")][:budget - done]
+        if len(sel) == 0:
+            break
+        n0 = S.n
+        done += split_edges(S, h[sel], twin[sel], t_split[sel])
+        active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))
+    else:
+        pending = active                         # the rounds ran out
+    S.tally("sag_splits", done)
+    return done, np.zeros(S.n, bool) if pending is None else pending

@@ -1,0 +1,104 @@
+"""Tangential relaxation made on the disk.
+
+Every movable vertex moves part of the way towards the area-weighted centroid of its 1-ring
+(the centroids of its faces weighted by their areas, in 3D), with the displacement projected
+onto the tangent plane (the area-weighted normal of its faces). The move is made **on the
+disk**: the 3D displacement ``d`` is pulled back through the Jacobian ``J`` (3×2) of the input
+face under the vertex, ``Δu = J⁺ d`` (:func:`.state.pullback_matrices`), and the vertex is
+re-located and lifted by eq. (1), so it stays on the input surface. Moves that would flip a
+face on the disk (or shrink it below 10⁻⁶ of its area) are halved, up to 6 times, then
+dropped; moves that would leave the image polygon are dropped.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..locate import PointLocator, lift
+from ..rows import cross, norms
+from .halfedge import double_areas, touching
+from .state import pullback_matrices
+
+
+def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
+                         locator: PointLocator, uv: np.ndarray, F: np.ndarray,
+                         face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
+                         iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None,
+                         pullback: np.ndarray | None = None):
+    """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input map.
+
+    Parameters
+    ----------
+    V_in, F_in, uv_in : (N, 3) float, (M, 3) int, (N, 2) float
+        The input mesh and its disk map.
+    locator : PointLocator
+        Point location in the input map's image.
+    uv : (n, 2) float
+        Disk positions of the remesh; not modified.
+    F : (m, 3) int
+        Its faces, counter-clockwise on the disk (unchanged: only vertices move).
+    face, bary : (n,) int, (n, 3) float
+        Where ``uv`` lies in the input map.
+    movable : (n,) bool
+        The vertices that may move (not the rim, not locked corners).
+    iterations : int
+    step : float
+        The fraction of the way to the centroid.
+    X : (n, 3) float, optional
+        The lift of ``uv``, when already computed.
+    pullback : (M, 2, 3) float, optional
+        :func:`.state.pullback_matrices` of the input, when already computed.
+
+    Returns
+    -------
+    uv, face, bary, X : new arrays
+        The moved remesh, located and lifted.
+    moved : list of int
+        Per iteration, the number of vertices that moved.
+    """
+    uv = np.array(uv, dtype=np.float64, copy=True)
+    face, bary = face.copy(), bary.copy()
+    X = lift(V_in, F_in, face, bary) if X is None else X.copy()
+    J = pullback_matrices(V_in, F_in, uv_in) if pullback is None else pullback
+    n = len(uv)
+    moved_counts = []
+    Fr = F.ravel()
+    mov = np.flatnonzero(movable)
+    area_floor = 1e-6 * double_areas(uv, F)          # per face
+    for _ in range(iterations):
+        P0, P1, P2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
+        Nf = cross(P1 - P0, P2 - P0)                                      # 2·area·normal
+        A = norms(Nf)
+        C = (P0 + P1 + P2) / 3.0
+        W = np.bincount(Fr, np.repeat(A, 3), n)
+        G = np.column_stack([np.bincount(Fr, np.repeat(A * C[:, j], 3), n) for j in range(3)])
+        N = np.column_stack([np.bincount(Fr, np.repeat(Nf[:, j], 3), n) for j in range(3)])
+        N /= np.maximum(norms(N)[:, None], 1e-300)
+        D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+        D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
+        du = np.zeros_like(uv)
+        du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
+        # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
+        for _halving in range(7):
+            new = uv + du
+            bad = double_areas(new, F) <= area_floor
+            if not bad.any():
+                break
+            verts = np.unique(F[bad].ravel())
+            du[verts] *= 0.0 if _halving == 6 else 0.5
+        go = np.flatnonzero(np.any(du != 0, axis=1))
+        f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
+        du[go[~inside]] = 0.0                    # would leave the image polygon: stays
+        while True:                              # dropping moves can flip a face: drop more
+            bad = double_areas(uv + du, F) <= area_floor
+            bad &= touching(F, np.any(du != 0, axis=1))
+            if not bad.any():
+                break
+            du[F[bad].ravel()] = 0.0
+        keep = np.any(du[go] != 0, axis=1)
+        go, f2, b2 = go[keep], f2[keep], b2[keep]
+        uv[go] += du[go]
+        face[go], bary[go] = f2, b2
+        X[go] = lift(V_in, F_in, f2, b2)
+        moved_counts.append(int(len(go)))
+    return uv, face, bary, X, moved_counts

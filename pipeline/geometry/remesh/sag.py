@@ -1,0 +1,83 @@
+"""How far a straight remesh edge leaves the input surface (its *sag*).
+
+A vertex of the remesh lies on the surface, but the straight segment between two of them
+need not: where the equiareal map squeezes a region (a finger's side, a fold, a closed mouth)
+into a thin sliver of the disk, an edge across the sliver bridges over the surface. The sag
+drives the refinement (:mod:`.refine`), the flips of folded quads (:mod:`.flips`) and the
+guards of the collapses (:mod:`.collapse`). Distances are in the mesh's units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..locate import lift
+from ..rows import dots
+from .state import RemeshState
+
+SAG_BLOCK = 262144    # sample points per point-location query
+SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
+
+
+def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """How far the straight 3D edge ``a–b`` is from the surface at its middle
+    (:func:`edge_sag_along` at ``t = 1/2``)."""
+    return edge_sag_along(S, a, b, (0.5,))[0]
+
+
+def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
+                   end_normals: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The largest distance of the straight 3D edge ``a–b`` from the surface over the points
+    ``t`` in ``ts``, and the ``t`` where it is reached.
+
+    At ``t``, ``d`` = the offset between the edge's 3D point ``(1 − t)·X[a] + t·X[b]`` and the
+    lift (eq. 1) of the disk point ``(1 − t)·uv[a] + t·uv[b]``. Its tangential part is only the
+    map's non-linearity (on a plane ``d`` is tangential however far it is), so the sag is the
+    largest component of ``d`` along the input surface's normals at that point and at the two
+    ends: bridging over a finger shows along the normal in between, skipping a fold (a closed
+    mouth) along those at the ends. Where the map squeezes a gap (between fingers, a sulcus)
+    into a strip much thinner than the edge on the disk, only a point inside the strip sees
+    it, which the midpoint seldom is; hence several ``t``.
+
+    Parameters
+    ----------
+    S : RemeshState
+    a, b : (k,) int
+        The edges' ends.
+    ts : (s,) float
+        Points along the edges, in ``[0, 1]``.
+    end_normals : pair of (k, 3) float, optional
+        The input normals under ``a`` and ``b`` when the caller has them already.
+
+    Returns
+    -------
+    sag : (k,) float
+        The largest distance, in the mesh's units.
+    t : (k,) float
+        The first ``t`` of ``ts`` where it is reached.
+    """
+    ends = (end_normals if end_normals is not None
+            else [S.normals_in()[S.face[v]] for v in (a, b)])
+    ts = np.asarray(ts, dtype=np.float64)
+    k, s = len(a), len(ts)
+    best = np.empty(k)
+    t_best = np.empty(k)
+    step = max(SAG_BLOCK // max(s, 1), 1)
+    for lo in range(0, k, step):
+        # all samples of a block of edges in one query (sample-major), each located from the
+        # face under the nearer end
+        e = np.arange(lo, min(lo + step, k))
+        T = np.repeat(ts, len(e))[:, None]
+        ea, eb = np.tile(a[e], s), np.tile(b[e], s)
+        M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
+        hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
+        mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
+        D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - T) * S.X[ea] + T * S.X[eb])
+        sag = np.abs(dots(D, S.normals_in()[mf]))
+        for n_end in ends:
+            sag = np.maximum(sag, np.abs(dots(D, np.tile(n_end[e], (s, 1)))))
+        sag = sag.reshape(s, len(e))
+        j = np.argmax(sag, axis=0)                       # the first t of the largest
+        best[e], t_best[e] = sag[j, np.arange(len(e))], ts[j]
+    return best, t_best

@@ -1,0 +1,170 @@
+"""The remesh being improved: a triangulation of the disk lifted onto the input surface.
+
+Every vertex is a disk position ``uv`` located in the input map (input face and barycentrics)
+and lifted by eq. (1): ``X = Σ bary_i · V_in[F_in[face, i]]``, so it lies exactly on the input
+surface. The operations keep two invariants: every face is counter-clockwise on the disk (the
+output stays a parameterized disk) and ``X`` is always the lift of ``uv``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import topology as topo
+from ..locate import PointLocator, lift
+from ..rows import cross, dots, norms
+
+
+def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Unit normals (m×3) of the faces ``F`` (m×3) of ``V`` (n×3); zero for a degenerate face."""
+    N = cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    return N / np.maximum(norms(N)[:, None], 1e-300)
+
+
+def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> np.ndarray:
+    """Per input face the matrix ``J⁺`` (2×3) taking a 3D displacement ``d`` to the disk.
+
+    ``Δu = J⁺ d`` is the disk displacement whose image under the face's affine map (uv → 3D,
+    Jacobian ``J`` 3×2) is the projection of ``d`` onto the face's plane:
+    ``J⁺ = E₂ G⁻¹ E₃ᵀ`` with ``E₃`` / ``E₂`` the face's two edge vectors in 3D / on the disk
+    and ``G = E₃ᵀE₃``.
+
+    Parameters
+    ----------
+    V_in : (n, 3) float
+    F_in : (m, 3) int
+    uv_in : (n, 2) float
+
+    Returns
+    -------
+    (m, 2, 3) float
+        Zero for a degenerate face.
+    """
+    E3a, E3b = V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]
+    E2a, E2b = uv_in[F_in[:, 1]] - uv_in[F_in[:, 0]], uv_in[F_in[:, 2]] - uv_in[F_in[:, 0]]
+    g11, g12, g22 = dots(E3a, E3a), dots(E3a, E3b), dots(E3b, E3b)
+    det = g11 * g22 - g12 * g12
+    det = np.where(det > 0, det, np.inf)
+    R1 = (g22[:, None] * E3a - g12[:, None] * E3b) / det[:, None]        # rows of G⁻¹E₃ᵀ
+    R2 = (g11[:, None] * E3b - g12[:, None] * E3a) / det[:, None]
+    return E2a[:, :, None] * R1[:, None, :] + E2b[:, :, None] * R2[:, None, :]
+
+
+@dataclass
+class RemeshState:
+    """A remesh on the disk, its lift, and the input map it lives on.
+
+    Attributes
+    ----------
+    X : (n, 3) float
+        Lifted positions (eq. 1 of ``uv``).
+    F : (m, 3) int
+        Faces, counter-clockwise on the disk. Replace it (``S.F = ...``) or, when the new
+        faces' half-edge twins are known, :meth:`set_faces`.
+    uv : (n, 2) float
+        Disk positions.
+    is_rim : (n,) bool
+        Vertices on the image polygon (the remesh's boundary).
+    face : (n,) int
+        Input face under each vertex.
+    bary : (n, 3) float
+        Its barycentric coordinates there.
+    V_in, F_in, uv_in : (N, 3) float, (M, 3) int, (N, 2) float
+        The input mesh and its disk map.
+    locator : PointLocator
+        Point location in the input map's image.
+    polygon : (k, 2) float
+        The image polygon ``uv_in[boundary]``.
+    locked : (n,) bool
+        Vertices never moved or removed (snapped corners); none by default.
+    log : dict
+        Operation counts (:meth:`tally`) and, from the improvement pass, seconds per step.
+    """
+
+    X: np.ndarray
+    F: np.ndarray
+    uv: np.ndarray
+    is_rim: np.ndarray
+    face: np.ndarray
+    bary: np.ndarray
+    V_in: np.ndarray
+    F_in: np.ndarray
+    uv_in: np.ndarray
+    locator: PointLocator
+    polygon: np.ndarray
+    locked: np.ndarray | None = None
+    log: dict = field(default_factory=dict)
+    _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
+    _pullback: np.ndarray | None = field(default=None, repr=False)
+    _normals_in: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self):
+        if self.locked is None:
+            self.locked = np.zeros(len(self.uv), bool)
+
+    @property
+    def n(self) -> int:
+        """The number of vertices."""
+        return len(self.uv)
+
+    # ------------------------------------------------------------------ the input map, cached
+
+    def normals_in(self) -> np.ndarray:
+        """Unit normals (M×3) of the input faces, computed once."""
+        if self._normals_in is None:
+            self._normals_in = face_normals(self.V_in, self.F_in)
+        return self._normals_in
+
+    def pullback(self) -> np.ndarray:
+        """:func:`pullback_matrices` (M×2×3) of the input map, computed once."""
+        if self._pullback is None:
+            self._pullback = pullback_matrices(self.V_in, self.F_in, self.uv_in)
+        return self._pullback
+
+    # ------------------------------------------------------------------ faces and their twins
+
+    def twins(self) -> np.ndarray:
+        """The half-edge twins (3m int) of ``F``, kept until ``F`` is replaced; read-only."""
+        if self._twin is None or self._twin[0] is not self.F:
+            self._twin = (self.F, topo.interior_edge_twins(self.F))
+        return self._twin[1]
+
+    def cached_twins(self) -> np.ndarray | None:
+        """The twins of the current ``F`` if they are known without computing them, else None."""
+        return self._twin[1] if self._twin is not None and self._twin[0] is self.F else None
+
+    def set_faces(self, F: np.ndarray, twins: np.ndarray | None = None) -> None:
+        """Replace the faces; ``twins`` (3m int), when given, are those of ``F`` and are kept."""
+        self.F = F
+        self._twin = None if twins is None else (F, twins)
+
+    # ------------------------------------------------------------------------------- vertices
+
+    def append_vertices(self, M: np.ndarray, face: np.ndarray, bary: np.ndarray,
+                        on_rim: np.ndarray, locked: bool = False) -> np.ndarray:
+        """Append vertices at the disk points ``M`` (k×2), located at ``face`` (k) /
+        ``bary`` (k×3) in the input map and lifted by eq. (1); returns their indices (k)."""
+        k = len(M)
+        w = self.n + np.arange(k)
+        self.uv = np.vstack([self.uv, M])
+        self.face = np.concatenate([self.face, face])
+        self.bary = np.vstack([self.bary, bary])
+        self.X = np.vstack([self.X, lift(self.V_in, self.F_in, face, bary)])
+        self.is_rim = np.concatenate([self.is_rim, on_rim])
+        self.locked = np.concatenate([self.locked, np.full(k, locked)])
+        return w
+
+    def keep_vertices(self, alive: np.ndarray) -> None:
+        """Drop the vertices where ``alive`` (n bool) is False, none of which a face uses; the
+        others keep their order, and ``F`` is renumbered."""
+        self.F = (np.cumsum(alive) - 1)[self.F]
+        self.uv, self.X, self.face, self.bary, self.is_rim, self.locked = (
+            x[alive] for x in (self.uv, self.X, self.face, self.bary, self.is_rim, self.locked))
+
+    # ------------------------------------------------------------------------------------ log
+
+    def tally(self, key: str, k: int) -> None:
+        """Add ``k`` to the count ``log[key]`` (operations done, for the report)."""
+        self.log[key] = self.log.get(key, 0) + int(k)

@@ -1,0 +1,174 @@
+"""Uniform remeshing through an equiareal disk map (paper §8): sample → triangulate → locate →
+lift → improve.
+
+1. **Sample** the image polygon evenly (:mod:`.sampling`) at the spacing that gives the
+   requested vertex count; the map is equiareal, so even on the disk means even on the surface.
+   Rim samples nearest the images of sharp boundary corners move onto them (:mod:`.corners`).
+2. **Triangulate** the samples (Delaunay; a disk without leaf faces, counter-clockwise).
+3. **Locate** every sample in the image of the input mesh (:mod:`..locate`).
+4. **Lift** it by eq. (1): a sample ``z`` in image face ``[f_i, f_j, f_k]`` goes to
+   ``(|[z, f_j, f_k]| v_i + |[f_i, z, f_k]| v_j + |[f_i, f_j, z]| v_k) / |[f_i, f_j, f_k]|``.
+5. **Improve** (optional, :mod:`.improve`) the triangles' shape on the surface, every vertex
+   staying on it and every face counter-clockwise on the disk.
+
+Landmarks go to the nearest new vertex (:mod:`.landmarks`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..laplacian import face_double_areas
+from ..locate import PointLocator, lift
+from ..metrics import signed_double_areas
+from .corners import boundary_corners, interior_corners
+from .improve import Stopwatch, improve_remesh
+from .landmarks import carry_landmarks
+from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
+from .state import RemeshState
+
+
+@dataclass
+class RemeshResult:
+    """A uniform remesh of a disk and what is needed to report on it.
+
+    Attributes
+    ----------
+    V : (n, 3) float
+        Vertices, on the input surface (after improvement if on).
+    F : (m, 3) int
+        Faces, counter-clockwise on the disk.
+    uv : (n, 2) float
+        The vertices' disk positions (the remesh's own parameterization).
+    face, bary : (n,) int, (n, 3) float
+        The input face under each vertex and its barycentric coordinates there (eq. 1).
+    samples : DiskSamples
+        The disk samples before improvement.
+    lifted : tuple of (k, 3) float, (l, 3) int
+        ``(V, F)`` straight after lifting, before improvement.
+    landmarks : dict
+        ``{name: {"input_vertex", "vertex", "distance"}}`` (:func:`.landmarks.carry_landmarks`).
+    info : dict
+        Counts and spacings; ``info["improve"]``: the improvement's counts and seconds.
+    seconds : dict
+        Seconds per step: sample, delaunay, locate, lift, improve, landmarks.
+    """
+
+    V: np.ndarray
+    F: np.ndarray
+    uv: np.ndarray
+    face: np.ndarray
+    bary: np.ndarray
+    samples: DiskSamples
+    lifted: tuple
+    landmarks: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+
+
+def area_scale(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
+    """``|f(M)| / |M|``: how the equiareal map scales areas (lengths by its square root on
+    average)."""
+    return float(np.abs(signed_double_areas(uv, F)).sum() / face_double_areas(V, F).sum())
+
+
+def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray, *,
+                   vertices: int | None = None, spacing: float | None = None,
+                   pattern: str = "hexagonal", rim_relax: int = 3, seed: int = 0,
+                   improve: bool = True, flips: bool = True, relax_iterations: int = 2,
+                   relax_step: float = 0.5, max_dihedral_deg: float = 20.0,
+                   refine_sag: float = 0.2, refine_budget: float = 0.3,
+                   corner_angle_deg: float = 30.0, landmarks: dict | None = None
+                   ) -> RemeshResult:
+    """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
+
+    The values are taken as given (the caller validates them).
+
+    Parameters
+    ----------
+    V : (N, 3) float
+    F : (M, 3) int
+    uv : (N, 2) float
+        The disk map, counter-clockwise and bijective.
+    boundary : (b,) int
+        The boundary loop; ``uv[boundary]`` is the image polygon.
+    vertices : int, optional
+        The requested vertex count (met within 2 %, usually exactly), or …
+    spacing : float, optional
+        … the target edge length in the mesh's units.
+    pattern : {"hexagonal", "blue_noise", "concentric"}
+    rim_relax : int
+        ODT sweeps of the sample band along the rim.
+    seed : int
+        For ``blue_noise``.
+    improve : bool
+        Run the improvement pass; the other keywords up to ``refine_budget`` are its
+        parameters (:func:`.improve.improve_remesh`).
+    corner_angle_deg : float
+        Input corners sharper than this keep a vertex (0: none).
+    landmarks : dict, optional
+        ``{name: input vertex index}``.
+
+    Returns
+    -------
+    RemeshResult
+    """
+    seconds = dict.fromkeys(("sample", "delaunay", "locate", "lift", "improve", "landmarks"),
+                            0.0)
+    lap = Stopwatch(seconds)
+    locator = PointLocator(uv, F, boundary)
+    lap("locate")
+    ratio = area_scale(V, F, uv)
+    samples = sample_disk(vertices, None if spacing is None else spacing * np.sqrt(ratio),
+                          pattern, polygon=uv[boundary], relax=rim_relax, seed=seed)
+    corners = boundary_corners(V, F, boundary, corner_angle_deg)
+    snapped = snap_rim(samples, uv[corners]) if len(corners) else np.zeros(0, np.int64)
+    lap("sample")
+    F_out = triangulate_samples(samples)
+    lap("delaunay")
+    face, bary = locator.locate(samples.points)
+    lap("locate")
+    X = lift(V, F, face, bary)
+    lap("lift")
+    lifted = (X, F_out)
+    uv_out = samples.points
+    imp = {"enabled": bool(improve), "rim_corners_snapped": int(len(snapped))}
+    if improve:
+        S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped)
+        L = samples.spacing / np.sqrt(ratio)                             # target length in 3D
+        improve_remesh(S, L, relax_iterations=relax_iterations, flips=flips,
+                       max_dihedral_deg=max_dihedral_deg, relax_step=relax_step,
+                       refine_sag=refine_sag, refine_budget=refine_budget,
+                       target_vertices=vertices,
+                       corners_uv=uv[interior_corners(V, F, corner_angle_deg)])
+        X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
+        imp.update({"enabled": True, "target_edge_length": float(L), **S.log})
+        imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
+    lap("improve")
+    carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
+    lap("landmarks")
+    info = {
+        "pattern": samples.pattern,
+        "vertices": int(len(X)),
+        "samples": int(len(samples.points)),
+        "rim_samples": int(samples.n_rim),
+        "spacing_disk": samples.spacing,
+        "spacing_mesh_units": samples.spacing / np.sqrt(ratio),
+        "count_evaluations": samples.iterations,
+        "improve": imp,
+    }
+    return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+
+
+def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) -> RemeshState:
+    """The lifted samples as a :class:`.state.RemeshState`: the rim samples on the rim, the
+    snapped rim corners locked."""
+    n = len(samples.points)
+    is_rim = np.zeros(n, bool)
+    is_rim[:samples.n_rim] = True
+    locked = np.zeros(n, bool)
+    locked[snapped] = True
+    return RemeshState(X, F_out, samples.points, is_rim, face, bary, V, F, uv, locator,
+                       uv[boundary], locked)

@@ -1,0 +1,60 @@
+"""Helpers shared by the remeshing tests (not a test module): small disk meshes, the synthetic
+face with its map (the module-scoped fixture ``face_map``; import it into a test module to use
+it) and the distance of points from a mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.geometry import topology as topo
+from pipeline.geometry.locate import PointLocator
+from pipeline.geometry.metrics import signed_double_areas
+from pipeline.geometry.remesh_quality import bounding_box_diagonal, point_mesh_distance
+from pipeline.geometry.repair import repair_mesh
+from pipeline.geometry.sem import SEMOptions
+from pipeline.sample import make_face
+from pipeline.stages.parameterize import parameterize_stage
+
+
+def disk_points(rings, per):
+    """The centre and ``rings`` concentric rings of ``per × i`` points in the unit disk."""
+    pts = [np.zeros((1, 2))]
+    for i in range(1, rings + 1):
+        t = np.linspace(0, 2 * np.pi, per * i, endpoint=False) + 0.3 * i
+        pts.append(i / rings * np.column_stack([np.cos(t), np.sin(t)]))
+    return np.vstack(pts)
+
+
+def ccw_delaunay(uv):
+    """The Delaunay triangulation of ``uv``, every face counter-clockwise."""
+    from scipy.spatial import Delaunay
+
+    F = Delaunay(uv).simplices
+    return np.where((signed_double_areas(uv, F) > 0)[:, None], F, F[:, ::-1])
+
+
+@pytest.fixture(scope="module")
+def face_map():
+    """The synthetic face (with a colour per vertex), repaired and parameterized."""
+    face = make_face(2500)
+    mesh = repair_mesh(face.V, face.F)
+    mesh.colors = (face.V - face.V.min(0)) / np.ptp(face.V, axis=0)        # a colour per vertex
+    p = parameterize_stage(mesh, SEMOptions(mode="converged", max_iter=60))
+    return face, mesh, p
+
+
+def on_surface(X, mesh):
+    """The largest distance of the points ``X`` from ``mesh``, over its bounding box diagonal."""
+    d, _ = point_mesh_distance(X, mesh.V, mesh.F)
+    return d.max() / bounding_box_diagonal(mesh.V)
+
+
+def disk_map(tent: float = 0.0):
+    """A unit disk mesh parameterized by its xy coordinates, with a tent of height ``tent``
+    (radius 0.25) at its centre: ``(uv_in, F_in, V_in, loop, locator)``."""
+    uv_in = disk_points(40, 6)
+    F_in = ccw_delaunay(uv_in)
+    V_in = np.column_stack([uv_in, tent * np.maximum(0, 1 - np.linalg.norm(uv_in, axis=1) / 0.25)])
+    loop = topo.boundary_loops(F_in)[0]
+    return uv_in, F_in, V_in, loop, PointLocator(uv_in, F_in, loop)

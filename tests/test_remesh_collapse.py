@@ -1,0 +1,62 @@
+"""Edge collapses and their guards (pipeline.geometry.remesh.collapse)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.geometry import topology as topo
+from pipeline.geometry.locate import lift
+from pipeline.geometry.remesh.collapse import collapse_short_edges
+from pipeline.geometry.remesh.sag import edge_sag
+from pipeline.geometry.remesh.state import RemeshState
+from pipeline.geometry.remesh_quality import is_disk, mesh_facts, point_mesh_distance
+from remesh_helpers import ccw_delaunay, disk_map, disk_points
+
+
+@pytest.mark.parametrize("max_gap", [None, 0.02])
+def test_collapse_gap_guard_keeps_removed_vertices_near_the_result(max_gap):
+    """A unit disk with a tent (height 0.3, radius 0.25) at its centre, parameterized by xy;
+    a coarse remesh of it collapsed as far as the rules allow. With the guard every original
+    vertex stays within the gap of the result; without it the tent's flanks are cut."""
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.3)
+    uv = np.vstack([disk_points(8, 6), [[0.004, 0.003]]])
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    X0 = lift(V_in, F_in, face, bary)
+    S = RemeshState(X0.copy(), F, uv, topo.boundary_vertices_mask(F, len(uv)), face, bary,
+                    V_in, F_in, uv_in, locator, uv_in[loop])
+    k = collapse_short_edges(S, np.inf, np.inf, max_gap=max_gap)
+    assert k > 50 and is_disk(mesh_facts(S.X, S.F))
+    d, _ = point_mesh_distance(X0, S.X, S.F)
+    if max_gap is None:
+        assert d.max() > 2 * 0.02
+    else:
+        assert d.max() <= max_gap
+
+
+def test_collapse_sag_guard_creates_no_edge_off_the_surface():
+    """The tent again: with ``max_sag`` every edge farther than it from the surface after the
+    collapses was there before (a collapse never creates one); without it some are new."""
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.3)
+    tol = 0.01
+
+    def far_edges(S):
+        E = np.sort(np.vstack([S.F[:, [0, 1]], S.F[:, [1, 2]], S.F[:, [2, 0]]]), axis=1)
+        E = np.unique(E, axis=0)
+        far = edge_sag(S, E[:, 0], E[:, 1]) > tol
+        return {tuple(S.uv[i].round(12)) + tuple(S.uv[j].round(12)) for i, j in E[far]}
+
+    new_far = {}
+    for max_sag in (None, tol):
+        uv = disk_points(8, 6)
+        F = ccw_delaunay(uv)
+        face, bary = locator.locate(uv)
+        S = RemeshState(lift(V_in, F_in, face, bary), F, uv,
+                        topo.boundary_vertices_mask(F, len(uv)), face, bary, V_in, F_in, uv_in,
+                        locator, uv_in[loop])
+        before = far_edges(S)
+        k = collapse_short_edges(S, np.inf, np.inf, max_sag=max_sag)
+        assert k > 20 and is_disk(mesh_facts(S.X, S.F))
+        new_far[max_sag] = far_edges(S) - before
+    assert len(new_far[None]) > 0 and len(new_far[tol]) == 0

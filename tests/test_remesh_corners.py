@@ -1,0 +1,44 @@
+"""Sharp input corners keep a vertex (pipeline.geometry.remesh.corners)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.geometry import topology as topo
+from pipeline.geometry.locate import PointLocator, _closest_on_segments, lift
+from pipeline.geometry.metrics import signed_double_areas
+from pipeline.geometry.remesh.corners import insert_vertices
+from pipeline.geometry.remesh.state import RemeshState
+from pipeline.geometry.remesh_quality import is_disk, mesh_facts
+from remesh_helpers import ccw_delaunay, disk_map, disk_points
+
+
+def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyond_the_rim():
+    """A flat unit disk (the image polygon: 240 points on the circle) remeshed coarsely with
+    its rim on every 10th polygon point. Targets: inside a face, a second in the same face (it
+    waits a round), and one between a rim chord and the polygon — beyond the remesh, where
+    only a rim split (its vertex on the polygon) brings it inside. Each gets a locked vertex
+    exactly there, and the result is still a counter-clockwise disk."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    ring = np.flatnonzero(np.isclose(np.linalg.norm(uv_in, axis=1), 1.0))[::10]
+    uv = np.vstack([disk_points(3, 6), uv_in[ring]])
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
+                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    a = np.arctan2(*uv_in[ring[:2]][:, ::-1].T)                  # two neighbouring rim points
+    mid = 0.5 * (a[0] + a[1]) if abs(a[1] - a[0]) < np.pi else 0.5 * (a[0] + a[1]) + np.pi
+    beyond = 0.9985 * np.array([np.cos(mid), np.sin(mid)])       # chord at cos(π/24) ≈ 0.991
+    T = np.array([[0.11, 0.07], [0.115, 0.072], beyond])
+    assert not PointLocator(S.uv, S.F).locate_with_inside(beyond[None])[2][0]
+    n0 = S.n
+    v = insert_vertices(S, T)
+    assert len(v) == 3 and S.n == n0 + 4                          # + the rim split
+    assert np.array_equal(np.sort(S.uv[v], axis=0), np.sort(T, axis=0))
+    assert S.locked[v].all() and not S.is_rim[v].any()
+    assert np.allclose(S.X[v], np.column_stack([S.uv[v], np.zeros(3)]), atol=1e-15)
+    assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
+    new_rim = np.setdiff1d(np.arange(n0, S.n), v)
+    assert S.is_rim[new_rim].all()
+    _, _, q = _closest_on_segments(S.uv[new_rim], uv_in[loop], np.roll(uv_in[loop], -1, 0))
+    assert np.allclose(q, S.uv[new_rim], atol=1e-15)               # on the image polygon

@@ -1,0 +1,104 @@
+"""Delaunay flips on the lifted surface (pipeline.geometry.remesh.flips)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.geometry.metrics import corner_angles, signed_double_areas
+from pipeline.geometry.remesh.flips import flip_edges
+from pipeline.geometry.remesh_quality import is_disk, mesh_facts
+
+
+def test_flips_of_a_plane_reach_its_delaunay_triangulation():
+    """On a plane the 3D and 2D criteria agree, so Lawson flips from any triangulation end at
+    the unique Delaunay one (rim on a circle, interior points in general position; no Delaunay
+    face then has three rim corners). Many rounds of many flips: the in-place half-edge
+    twins must stay right throughout."""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(7)
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    r, a = 0.9 * np.sqrt(rng.random(400)), 2 * np.pi * rng.random(400)
+    uv = np.vstack([np.column_stack([np.cos(t), np.sin(t)]),
+                    np.column_stack([r * np.cos(a), r * np.sin(a)])])
+    F0 = Delaunay(uv * [8.0, 1.0]).simplices                      # the Delaunay of a squash
+    F0 = np.where((signed_double_areas(uv, F0) > 0)[:, None], F0, F0[:, ::-1])
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    F, flips, rounds = flip_edges(X, F0, uv, max_rounds=500)
+    want = {tuple(sorted(f)) for f in Delaunay(uv).simplices.tolist()}
+    assert flips > 500 and rounds > 5
+    assert {tuple(sorted(f)) for f in F.tolist()} == want
+    assert np.all(signed_double_areas(uv, F) > 0)
+
+
+def test_local_flips_start_from_the_active_vertices_and_keep_the_twins():
+    """``active`` all set gives the full result; none set flips nothing; one edge spoiled in
+    a plane's Delaunay triangulation is flipped back from its four corners alone. The twins
+    passed in end as those of the result."""
+    from scipy.spatial import Delaunay
+
+    from pipeline.geometry.topology import interior_edge_twins
+
+    rng = np.random.default_rng(5)
+    uv = rng.random((300, 2))
+    F_D = Delaunay(uv).simplices
+    F_D = np.where((signed_double_areas(uv, F_D) > 0)[:, None], F_D, F_D[:, ::-1])
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    F0 = Delaunay(uv * [6.0, 1.0]).simplices
+    F0 = np.where((signed_double_areas(uv, F0) > 0)[:, None], F0, F0[:, ::-1])
+    full, k_full, _ = flip_edges(X, F0, uv, max_rounds=500)
+    twin = interior_edge_twins(F0)
+    F1, k1, _ = flip_edges(X, F0, uv, max_rounds=500, active=np.ones(len(uv), bool),
+                               twin=twin)
+    assert k1 == k_full > 100 and np.array_equal(F1, full)
+    assert np.array_equal(twin, interior_edge_twins(F1))
+    F2, k2, _ = flip_edges(X, F0, uv, active=np.zeros(len(uv), bool))
+    assert k2 == 0 and np.array_equal(F2, F0)
+    # spoil one interior edge whose quad is convex: flip it by hand
+    tw = interior_edge_twins(F_D)
+    for h in np.flatnonzero(tw > np.arange(len(tw))):
+        f, c, g, d = h // 3, h % 3, tw[h] // 3, tw[h] % 3
+        a, b, p_, q = F_D[f, c], F_D[f, (c + 1) % 3], F_D[f, (c + 2) % 3], F_D[g, (d + 2) % 3]
+        Fs = F_D.copy()
+        Fs[f], Fs[g] = [p_, a, q], [q, b, p_]
+        if np.all(signed_double_areas(uv, Fs[[f, g]]) > 1e-3):
+            break
+    active = np.zeros(len(uv), bool)
+    active[[a, b, p_, q]] = True
+    F3, k3, _ = flip_edges(X, Fs, uv, active=active)
+    assert k3 == 1
+    assert {tuple(sorted(t)) for t in F3.tolist()} == {tuple(sorted(t)) for t in F_D.tolist()}
+
+
+def _has_edge(F, i, j) -> bool:
+    return any({i, j} <= set(f) for f in F.tolist())
+
+
+def test_folded_quad_flips_only_when_the_new_edge_is_closer_to_the_surface():
+    """A cap (angle > 150° at p opposite edge a–b) folded 60° along a–b, inside a square:
+    Delaunay wants the flip to p–q, the dihedral limit (20°) forbids it; with a sag measure it
+    is made exactly when the new edge is no farther from the surface than the old one."""
+    a, b, p, q, T1, T2, B1, B2 = range(8)
+    uv = np.array([[-1.0, 0], [1, 0], [0, 0.18], [0, -1], [-2, 2], [2, 2], [-2, -2], [2, -2]])
+    F = np.array([[a, b, p], [b, a, q], [a, p, T1], [p, T2, T1], [p, b, T2], [a, T1, B1],
+                  [a, B1, q], [q, B1, B2], [q, B2, b], [b, B2, T2]])
+    assert np.all(signed_double_areas(uv, F) > 0)
+    fold = np.radians(60)                  # the half y < 0 turned 60° about the a–b axis
+    y = uv[:, 1]
+    X = np.column_stack([uv[:, 0], np.where(y < 0, y * np.cos(fold), y),
+                         np.where(y < 0, -y * np.sin(fold), 0.0)])
+    assert np.degrees(corner_angles(X, F))[0, 2] > 150            # the cap's angle at p
+    F0, _, _ = flip_edges(X, F, uv)
+    assert _has_edge(F0, a, b) and not _has_edge(F0, p, q)       # held by the dihedral limit
+
+    def sag(new_closer):
+        def measure(i, j):
+            pq = np.isin(i, [p, q]) & np.isin(j, [p, q])
+            return np.where(pq, 0.01 if new_closer else 0.09, 0.05)
+        return measure
+
+    F1, _, _ = flip_edges(X, F, uv, sag=sag(True))
+    assert _has_edge(F1, p, q) and not _has_edge(F1, a, b)
+    assert np.all(signed_double_areas(uv, F1) > 0) and is_disk(mesh_facts(X, F1))
+    F2, _, _ = flip_edges(X, F, uv, sag=sag(False))
+    assert _has_edge(F2, a, b) and not _has_edge(F2, p, q)

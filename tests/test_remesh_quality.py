@@ -1,0 +1,83 @@
+"""Quality measures of a remesh (pipeline.geometry.remesh_quality)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import require_data
+from pipeline.geometry.remesh_quality import (closest_points_on_triangles, is_disk, mesh_facts,
+                                              point_mesh_distance, surface_distance,
+                                              triangle_quality, valence_stats)
+from pipeline.geometry.repair import repair_mesh
+from pipeline.geometry.sem import SEMOptions
+from pipeline.io.meshio import read_mesh
+from pipeline.stages.parameterize import parameterize_stage
+from pipeline.stages.remesh import RemeshOptions, remesh_stage
+
+
+def lattice_mesh(k=20, h=1.0):
+    """An equilateral triangle lattice (a parallelogram patch) in the plane z = 0."""
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    P = np.column_stack([(i + 0.5 * j).ravel() * h, (j * np.sqrt(3) / 2).ravel() * h,
+                         np.zeros(i.size)])
+    idx = np.arange((k + 1) ** 2).reshape(k + 1, k + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[:-1, 1:].ravel(), \
+        idx[1:, 1:].ravel()
+    return P, np.vstack([np.column_stack([a, b, c]), np.column_stack([b, d, c])])
+
+
+def test_quality_of_an_equilateral_lattice():
+    V, F = lattice_mesh(12)
+    q = triangle_quality(V, F)
+    assert abs(q["min_angle_deg"] - 60) < 1e-9 and abs(q["mean_min_angle_deg"] - 60) < 1e-9
+    assert q["area_cv"] < 1e-12 and q["edge_length_cv"] < 1e-12
+    assert q["fraction_min_angle_below_30"] == 0.0
+    v = valence_stats(F, len(V))
+    assert v["interior_fraction_6"] == 1.0
+    assert is_disk(mesh_facts(V, F))
+
+
+def test_point_triangle_distance_is_exact():
+    rng = np.random.default_rng(0)
+    A, B, C = rng.normal(size=(3, 300, 3))
+    P = rng.normal(size=(300, 3)) * 2
+    Q = closest_points_on_triangles(P, A, B, C)
+    t = np.linspace(0, 1, 301)
+    u, v = np.meshgrid(t, t)
+    ok = u + v <= 1
+    u, v = u[ok], v[ok]
+    for i in range(0, 300, 30):
+        S = A[i] + u[:, None] * (B[i] - A[i]) + v[:, None] * (C[i] - A[i])
+        dense = np.linalg.norm(S - P[i], axis=1).min()
+        ours = np.linalg.norm(Q[i] - P[i])
+        assert ours <= dense + 1e-12 and ours >= dense - 2e-2
+
+
+def test_surface_distance_of_a_shifted_plane_is_the_shift():
+    V, F = lattice_mesh(10)
+    W = V + np.array([0.0, 0.0, 0.25])
+    d = surface_distance(V, F, W, F, n_random=5000)
+    assert abs(d["hausdorff"] - 0.25) < 1e-12 and abs(d["rms"] - 0.25) < 1e-12
+    assert surface_distance(V, F, V, F, n_random=2000)["hausdorff"] < 1e-14
+    dist, _ = point_mesh_distance(np.array([[3.0, 2.0, -1.5]]), V, F)
+    assert abs(dist[0] - 1.5) < 1e-12
+
+
+def test_hausdorff_agrees_with_meshlab():
+    pymeshlab = pytest.importorskip("pymeshlab")
+    path = require_data("faces", "ict", "ict_A_neutral_disk.obj")
+    raw = read_mesh(path)
+    mesh = repair_mesh(raw.V, raw.faces)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper"))
+    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000))
+    ours = surface_distance(mesh.V, mesh.F, r.V, r.F, n_random=100_000)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(mesh.V, mesh.F.astype(np.int32)))
+    ms.add_mesh(pymeshlab.Mesh(r.V, r.F.astype(np.int32)))
+    for (s, t), key in (((1, 0), "output_to_input"), ((0, 1), "input_to_output")):
+        ml = ms.get_hausdorff_distance(sampledmesh=s, targetmesh=t, samplevert=True,
+                                       sampleedge=True, sampleface=True, samplenum=300_000,
+                                       maxdist=pymeshlab.PercentageValue(50))["max"]
+        # both are sampled lower bounds of the same maximum
+        assert 0.85 * ml <= ours[key]["max"] <= 1.15 * ml

@@ -1,0 +1,263 @@
+"""Stage 3, uniform remeshing (pipeline.stages.remesh): the stage on a synthetic face, the
+baselines, the files, the CLI and the config; then every shared disk mesh at 20k vertices
+(each parameterized once per session)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import require_data, run_cli
+from pipeline.geometry import topology as topo
+from pipeline.geometry.locate import lift
+from pipeline.geometry.metrics import signed_double_areas
+from pipeline.geometry.remesh_quality import remesh_quality, triangle_quality
+from pipeline.geometry.sem import SEMOptions
+from pipeline.io.meshio import write_obj
+from pipeline.sample import make_face
+from pipeline.stages.parameterize import parameterize_stage
+from pipeline.stages.remesh import RemeshOptions, remesh_stage
+from pipeline.stages.remesh_report import remesh_warnings
+from remesh_helpers import face_map, on_surface  # noqa: F401  (face_map: a fixture)
+
+
+@pytest.mark.parametrize("improve", [False, True])
+def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
+    face, mesh, p = face_map
+    lms = face.landmarks
+    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000, improve=improve), lms)
+    q = remesh_quality(mesh.V, mesh.F, r.V, r.F, n_random=20000)
+    assert q["is_disk"] and q["facts"]["degenerate_faces"] == 0
+    assert abs(len(r.V) - 3000) <= 60
+    assert on_surface(r.V, mesh) <= 1e-9                          # every vertex on the surface
+    assert np.all(signed_double_areas(r.uv, r.F) > 0)              # a valid map to the disk
+    assert np.allclose(lift(mesh.V, mesh.F, r.face, r.bary), r.V, atol=0, rtol=0)
+    assert np.allclose(r.colors, lift(mesh.colors, mesh.F, r.face, r.bary))
+    assert set(r.landmarks) == set(lms)
+    spacing = r.info["spacing_mesh_units"]
+    for name, d in r.landmarks.items():
+        assert np.linalg.norm(r.V[d["vertex"]] - mesh.V[lms[name]]) <= 1.5 * spacing
+    if not improve:                                               # the paper's plain lift
+        assert np.array_equal(r.V, r.lifted[0]) and np.array_equal(r.F, r.lifted[1])
+    else:
+        t0 = triangle_quality(*r.lifted)
+        t1 = q["triangles"]
+        assert t1["mean_min_angle_deg"] > t0["mean_min_angle_deg"]
+        assert t1["min_angle_p05_deg"] > t0["min_angle_p05_deg"]
+
+
+def test_stage_with_spacing(face_map):
+    _, mesh, p = face_map
+    L = 0.6
+    r = remesh_stage(mesh, p.uv, RemeshOptions(spacing=L))
+    E, _ = topo.edges_with_faces(r.F)
+    med = np.median(np.linalg.norm(r.V[E[:, 0]] - r.V[E[:, 1]], axis=1))
+    assert 0.8 * L < med < 1.2 * L
+
+
+def test_bad_options_are_user_errors(face_map):
+    from pipeline.errors import UserError
+
+    _, mesh, p = face_map
+    for opts in (RemeshOptions(), RemeshOptions(vertices=100, spacing=1.0),
+                 RemeshOptions(vertices=10), RemeshOptions(vertices=1000, pattern="square")):
+        with pytest.raises(UserError):
+            remesh_stage(mesh, p.uv, opts)
+    bad = p.uv.copy()
+    bad[:, 0] *= -1                                               # every face flipped
+    with pytest.raises(UserError):
+        remesh_stage(mesh, bad, RemeshOptions(vertices=1000))
+
+
+def test_baselines_hit_the_vertex_count(face_map):
+    from pipeline.stages import baselines
+
+    _, mesh, _ = face_map
+    d = baselines.decimate(mesh.V, mesh.F, 1000)
+    assert abs(len(d.V) - 1000) <= 0.05 * 1000
+    assert baselines.decimate(mesh.V, mesh.F, len(mesh.V)) is None
+    if not baselines.pymeshlab_available():
+        pytest.skip("pymeshlab not installed")
+    b = baselines.isotropic_remesh(mesh.V, mesh.F, 1500)
+    assert abs(len(b.V) - 1500) <= 0.05 * 1500 and len(b.runs) >= 1
+
+
+@pytest.fixture(scope="module")
+def small_face_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("remesh_face")
+    face = make_face(1500)
+    path = write_obj(d / "face.obj", face.V, face.F)
+    (d / "landmarks.json").write_text(json.dumps({"landmarks": face.landmarks}))
+    return path, d / "landmarks.json", face
+
+
+def test_cli_remesh_writes_the_contract_files(small_face_file, tmp_path):
+    import trimesh
+
+    mesh_path, lms, face = small_face_file
+    out = tmp_path / "out"
+    code, stdout, err = run_cli("remesh", mesh_path, "-o", out, "--vertices", 1200,
+                                "--landmarks", lms, "--max-iter", 40)
+    assert code == 0, err
+    for name in ("remeshed.obj", "remesh_metrics.json", "report.html", "remesh_renders.png",
+                 "remesh_min_angle.png", "remesh_valence.png", "remesh_disk.png",
+                 "remeshed_landmarks.json"):
+        assert (out / name).is_file(), name
+    assert not list(out.glob(".partial-*"))
+    m = json.loads((out / "remesh_metrics.json").read_text())
+    sem = m["methods"]["sem"]
+    assert sem["is_disk"] and sem["facts"]["vertices"] == 1200
+    assert {"pymeshlab_isotropic", "fast_simplification", "sem_lifted", "input"} <= set(
+        m["methods"])
+    assert any(row["measure"].startswith("Hausdorff") for row in m["table"])
+    assert m["warnings"] == remesh_warnings(m["parameterization"]["distortion"], m["methods"])
+    for warning in m["warnings"]:
+        assert f"remesh: warning: {warning}" in err
+    html = (out / "report.html").read_text()
+    assert "stretch anisotropy σ₁/σ₂" in html
+    for png in ("remesh_renders.png", "remesh_min_angle.png", "remesh_valence.png",
+                "remesh_disk.png"):
+        assert f'src="{png}"' in html
+    assert "<table>" in html and "% of bbox diagonal" in html
+    tm = trimesh.load(out / "remeshed.obj", process=False)
+    assert len(tm.vertices) == 1200 and len(tm.faces) == sem["facts"]["faces"]
+    text = (out / "remeshed.obj").read_text()
+    assert text.count("\nvt ") == 1200                              # one vt per vertex
+    V = np.array(tm.vertices)
+    F = np.array(tm.faces)
+    assert topo.euler_characteristic(F, len(V)) == 1 and len(topo.boundary_loops(F)) == 1
+    lm = json.loads((out / "remeshed_landmarks.json").read_text())["landmarks"]
+    assert set(lm) == set(face.landmarks)
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--vertices", "500", "--spacing", "0.1"], ["exactly one"]),
+    ([], ["exactly one"]),
+    (["--vertices", "5"], ["vertices"]),
+    (["--vertices", "500", "--pattern", "square"], ["pattern"]),
+])
+def test_cli_remesh_bad_arguments_are_one_line(small_face_file, tmp_path, args, words):
+    mesh_path, _, _ = small_face_file
+    code, _, err = run_cli("remesh", mesh_path, "-o", tmp_path / "o", *args)
+    lines = [x for x in err.strip().splitlines() if x.strip()]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("error: "), err
+    assert "Traceback" not in err
+    for w in words:
+        assert w in lines[0]
+
+
+def test_cli_remesh_missing_mesh(tmp_path):
+    code, _, err = run_cli("remesh", tmp_path / "nope.obj", "-o", tmp_path / "o",
+                           "--vertices", "500")
+    assert code == 2 and "does not exist" in err
+
+
+def test_config_runs_remesh_after_parameterize(tmp_path):
+    from pipeline.config import load_config
+    from pipeline.runner import run_config
+
+    cfg = tmp_path / "remesh.yaml"
+    cfg.write_text("run: {name: r}\ninput: {sample: {vertices: 1200}}\n"
+                   "parameterize: {max_iter: 40}\n"
+                   "remesh: {vertices: 1000, compare: false, distance_samples: 5000}\n"
+                   "report: {figures: false}\n")
+    config, base = load_config(cfg)
+    run_dir = run_config(config, base, tmp_path / "out")
+    rem = run_dir / "remesh"
+    assert (rem / "remeshed.obj").is_file() and (rem / "report.html").is_file()
+    lm = json.loads((rem / "remeshed_landmarks.json").read_text())["landmarks"]
+    assert len(lm) == 16                                          # the sample's landmarks
+    manifest = json.loads((run_dir / "manifest.json").read_text())
+    assert "remesh" in manifest["stages"]
+
+
+def test_config_remesh_keys_are_checked(tmp_path):
+    from pipeline.config import load_config
+    from pipeline.errors import UserError
+
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("input: {sample: {vertices: 1200}}\nremesh: {vertices: 1000, patern: x}\n")
+    with pytest.raises(UserError, match="did you mean 'pattern'"):
+        load_config(cfg)
+    cfg.write_text("input: {sample: {vertices: 1200}}\nremesh: {pattern: hexagonal}\n")
+    with pytest.raises(UserError, match="exactly one"):
+        load_config(cfg)
+    cfg.write_text("input: {sample: {vertices: 1200}}\n"
+                   "remesh: {vertices: 1000, improve: {flip: true}}\n")
+    with pytest.raises(UserError, match="did you mean 'flips'"):
+        load_config(cfg)
+
+
+MESHES = [
+    "meshes/c3d_alligator.obj", "meshes/choi_chinese_lion.obj", "meshes/choi_hand.obj",
+    "meshes/choi_human_brain.obj", "meshes/choi_human_face.obj", "meshes/gpp_bunny.obj",
+    "meshes/gpp_face.obj", "meshes/igl_camel_b.obj", "meshes/igl_camelhead.obj",
+    "meshes/igl_lion.obj", "faces/ict/ict_A_neutral_disk.obj", "faces/ict/ict_A_smile_disk.obj",
+    "faces/ict/ict_B_neutral_disk.obj", "faces/ict/ict_B_smile_jawopen_disk.obj",
+]
+
+
+@pytest.fixture(scope="module")
+def remeshed_20k():
+    from pipeline.stages.load import load_stage
+
+    cache = {}
+
+    def get(rel):
+        if rel not in cache:
+            intake = load_stage(require_data(*rel.split("/")))
+            p = parameterize_stage(intake.mesh, SEMOptions(mode="converged", max_iter=60))
+            assert p.ok
+            r = remesh_stage(intake.mesh, p.uv, RemeshOptions(vertices=20000))
+            q = remesh_quality(intake.mesh.V, intake.mesh.F, r.V, r.F, n_random=50_000)
+            cache[rel] = (intake.mesh, r, q, p.metrics["distortion"])
+        return cache[rel]
+
+    return get
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_remesh_is_one_disk_at_20k(remeshed_20k, rel):
+    mesh, r, q, _ = remeshed_20k(rel)
+    f = q["facts"]
+    assert q["is_disk"], f
+    assert f["euler_characteristic"] == 1 and f["boundary_loops"] == 1
+    assert f["degenerate_faces"] == 0
+    assert abs(len(r.V) - 20000) <= 0.02 * 20000
+    assert np.all(signed_double_areas(r.uv, r.F) > 0)          # consistently oriented, bijective
+    assert on_surface(r.V, mesh) <= 1e-9
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel):
+    _, _, q, _ = remeshed_20k(rel)
+    assert q["distance"]["hausdorff_rel"] <= 0.005
+
+
+def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
+    calm = {"anisotropy_median": 2.0, "anisotropy_p90": 4.0, "anisotropy_area_above_10": 0.25}
+    close = {"sem": {"distance": {"hausdorff_rel": 0.005}},
+             "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.003}}}
+    assert remesh_warnings(calm, close) == []                  # both exactly at the limits
+    assert remesh_warnings({}, {}) == []                        # nothing measured: no claim
+    stretched = dict(calm, anisotropy_median=6.8, anisotropy_area_above_10=0.31)
+    far = {"sem": {"distance": {"hausdorff_rel": 0.0089}},
+           "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.0031}}}
+    w = remesh_warnings(stretched, far)
+    assert len(w) == 2
+    assert "31 % of the surface more than 10:1" in w[0] and "σ₁/σ₂ = 6.8" in w[0]
+    assert "0.89 %" in w[1] and "pymeshlab's is 0.31 %" in w[1]
+    w = remesh_warnings(calm, {"sem": far["sem"]})              # --no-compare: no reference
+    assert len(w) == 1 and "pymeshlab" not in w[0]
+
+
+def test_real_mesh_anisotropy_warning_at_20k(remeshed_20k):
+    """The hand's map stretches about a third of its surface more than 10:1 (the fingers);
+    the human face's almost none: the warning tells them apart."""
+    *_, hand = remeshed_20k("meshes/choi_hand.obj")
+    *_, face = remeshed_20k("meshes/choi_human_face.obj")
+    assert hand["anisotropy_area_above_10"] > 0.25 and hand["anisotropy_median"] > 5
+    assert face["anisotropy_area_above_10"] < 0.02 and face["anisotropy_median"] < 2.5
+    assert len(remesh_warnings(hand, {})) == 1 and remesh_warnings(face, {}) == []
