@@ -72,7 +72,7 @@ SUB = ("flips", "relax", "refine", "count")
 
 
 def bench_remesh(names, counts, repeat):
-    from pipeline.stages.remesh import RemeshOptions, remesh_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     rows = []
     for name in names:
@@ -81,7 +81,7 @@ def bench_remesh(names, counts, repeat):
         for n in counts:
             runs = []
             for _ in range(repeat):
-                r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=n))
+                r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=n))
                 sub = r.info["improve"].get("seconds", {})
                 runs.append([r.seconds.get(k, 0.0) for k in STEPS] + [sub.get(k, 0.0)
                                                                       for k in SUB])

@@ -13,7 +13,7 @@ from pipeline.geometry.repair import repair_mesh
 from pipeline.geometry.sem import SEMOptions
 from pipeline.io.meshio import read_mesh
 from pipeline.stages.parameterize import parameterize_stage
-from pipeline.stages.remesh import RemeshOptions, remesh_stage
+from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
 
 def lattice_mesh(k=20, h=1.0):
@@ -70,7 +70,7 @@ def test_hausdorff_agrees_with_meshlab():
     raw = read_mesh(path)
     mesh = repair_mesh(raw.V, raw.faces)
     p = parameterize_stage(mesh, SEMOptions(mode="paper"))
-    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000))
+    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=3000))
     ours = surface_distance(mesh.V, mesh.F, r.V, r.F, n_random=100_000)
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(mesh.V, mesh.F.astype(np.int32)))

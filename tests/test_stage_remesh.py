@@ -18,7 +18,7 @@ from pipeline.geometry.sem import SEMOptions
 from pipeline.io.meshio import write_obj
 from pipeline.sample import make_face
 from pipeline.stages.parameterize import parameterize_stage
-from pipeline.stages.remesh import RemeshOptions, remesh_stage
+from pipeline.stages.remesh import RemeshConfig, remesh_stage
 from pipeline.stages.remesh_report import remesh_warnings
 from remesh_helpers import face_map, on_surface  # noqa: F401  (face_map: a fixture)
 
@@ -27,7 +27,7 @@ from remesh_helpers import face_map, on_surface  # noqa: F401  (face_map: a fixt
 def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
     face, mesh, p = face_map
     lms = face.landmarks
-    r = remesh_stage(mesh, p.uv, RemeshOptions(vertices=3000, improve=improve), lms)
+    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=3000, improve=improve), lms)
     q = remesh_quality(mesh.V, mesh.F, r.V, r.F, n_random=20000)
     assert q["is_disk"] and q["facts"]["degenerate_faces"] == 0
     assert abs(len(r.V) - 3000) <= 60
@@ -51,24 +51,27 @@ def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
 def test_stage_with_spacing(face_map):
     _, mesh, p = face_map
     L = 0.6
-    r = remesh_stage(mesh, p.uv, RemeshOptions(spacing=L))
+    r = remesh_stage(mesh, p.uv, RemeshConfig(spacing=L))
     E, _ = topo.edges_with_faces(r.F)
     med = np.median(np.linalg.norm(r.V[E[:, 0]] - r.V[E[:, 1]], axis=1))
     assert 0.8 * L < med < 1.2 * L
 
 
 def test_bad_options_are_user_errors(face_map):
+    from pydantic import ValidationError
+
     from pipeline.errors import UserError
 
     _, mesh, p = face_map
-    for opts in (RemeshOptions(), RemeshOptions(vertices=100, spacing=1.0),
-                 RemeshOptions(vertices=10), RemeshOptions(vertices=1000, pattern="square")):
-        with pytest.raises(UserError):
-            remesh_stage(mesh, p.uv, opts)
+    # the section is the options: validated once, when made
+    for kwargs in ({}, dict(vertices=100, spacing=1.0), dict(vertices=10),
+                   dict(vertices=1000, pattern="square")):
+        with pytest.raises(ValidationError):
+            RemeshConfig(**kwargs)
     bad = p.uv.copy()
     bad[:, 0] *= -1                                               # every face flipped
     with pytest.raises(UserError):
-        remesh_stage(mesh, bad, RemeshOptions(vertices=1000))
+        remesh_stage(mesh, bad, RemeshConfig(vertices=1000))
 
 
 def test_baselines_hit_the_vertex_count(face_map):
@@ -210,7 +213,7 @@ def remeshed_20k():
             intake = load_stage(require_data(*rel.split("/")))
             p = parameterize_stage(intake.mesh, SEMOptions(mode="converged", max_iter=60))
             assert p.ok
-            r = remesh_stage(intake.mesh, p.uv, RemeshOptions(vertices=20000))
+            r = remesh_stage(intake.mesh, p.uv, RemeshConfig(vertices=20000))
             q = remesh_quality(intake.mesh.V, intake.mesh.F, r.V, r.F, n_random=50_000)
             cache[rel] = (intake.mesh, r, q, p.metrics["distortion"])
         return cache[rel]

@@ -32,40 +32,61 @@ from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
-__all__ = ["RemeshOptions", "Remesh", "remesh_stage", "read_landmarks", "map_landmarks",
+__all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks", "map_landmarks",
            "write_remesh"]
 
 
-@dataclass
-class RemeshOptions:
-    vertices: int | None = None          # requested vertex count, or …
-    spacing: float | None = None         # … target edge length in the mesh's units
-    pattern: str = "hexagonal"           # hexagonal | blue_noise | concentric
-    rim_relax: int = 3                   # ODT sweeps of the band near the rim (disk)
-    improve: bool = True
-    flips: bool = True
-    relax_iterations: int = 2            # tangential relaxation steps (each followed by flips)
-    relax_step: float = 0.5
-    max_dihedral_deg: float = 20.0       # flips in quads flatter than this (more folded:
-                                         # only towards an edge closer to the surface)
-    refine_sag: float = 0.2              # split edges farther than this × spacing from the
-    refine_budget: float = 0.3           # surface (at most this fraction of the vertices);
-                                         # also the tolerance of count correction's collapses
-    corner_angle_deg: float = 30.0       # input corners sharper than this keep a vertex
-    seed: int = 0                        # blue noise
+class ImproveConfig(Section):
+    """Quality pass after lifting; ``improve: false`` turns it off (the paper's plain lift),
+    ``improve: true`` means these defaults."""
 
-    def check(self) -> None:
+    flips: bool = True                       # Delaunay flips on the lifted surface
+    relax_iterations: int = Field(2, ge=0, le=50)     # tangential relaxation steps
+    relax_step: float = Field(0.5, gt=0.0, le=1.0)
+    max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
+    refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
+    refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
+    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
+
+
+class RemeshConfig(Section):
+    """Uniform remeshing through the SEM map (``configs/remesh.yaml``). Give ``vertices`` or
+    ``spacing`` (target edge length in the mesh's units)."""
+
+    vertices: Optional[int] = Field(None, ge=100, le=5_000_000,
+                                    description="vertex count of the remesh")
+    spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
+                                                               "mesh's units")
+    pattern: Literal[PATTERNS] = Field(
+        "hexagonal", description="disk sampling pattern")
+    rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
+                                                       "the rim")
+    seed: int = Field(0, description="blue noise seed")
+    improve: Optional[ImproveConfig] = Field(
+        ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
+    compare: bool = Field(True, description="pymeshlab and decimation at the same vertex count")
+    report: bool = Field(True, description="report.html and figures")
+    landmarks: Optional[str] = Field(
+        None, description="JSON {\"landmarks\": {name: input vertex index}} carried to the "
+                          "remesh")
+    distance_samples: int = Field(200_000, ge=1000, description="random samples per surface "
+                                                                "for the distances")
+
+    @field_validator("improve", mode="before")
+    @classmethod
+    def _improve_flag(cls, v):
+        if v is True:
+            return {}
+        if v is False:
+            return None
+        return v
+
+    @model_validator(mode="after")
+    def _count_or_spacing(self):
         if (self.vertices is None) == (self.spacing is None):
-            raise UserError("remesh: give exactly one of 'vertices' (a count) or 'spacing' "
-                            "(a target edge length in the mesh's units)")
-        if self.vertices is not None and not 100 <= int(self.vertices) <= 5_000_000:
-            raise UserError(f"remesh: vertices = {self.vertices} is out of range; "
-                            f"use 100 … 5000000")
-        if self.spacing is not None and not self.spacing > 0:
-            raise UserError(f"remesh: spacing = {self.spacing} must be > 0")
-        if self.pattern not in PATTERNS:
-            raise UserError(f"remesh: unknown pattern '{self.pattern}'; use one of "
-                            f"{', '.join(PATTERNS)}")
+            raise ValueError("give exactly one of 'vertices' (a count) or 'spacing' (a target "
+                             "edge length in the mesh's units)")
+        return self
 
 
 @dataclass
@@ -94,7 +115,7 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
                         f"bijective map (parameterize with mode 'converged')")
 
 
-def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshOptions,
+def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
                  landmarks: dict | None = None, attributes: dict | None = None) -> Remesh:
     """Remesh a repaired disk through its bijective disk map ``uv`` (see the module docstring).
 
@@ -105,16 +126,15 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshOptions,
     With a requested count, the improvement ends by splitting or collapsing edges until the
     count is the request again (usually exactly).
     """
-    options.check()
     uv = np.asarray(uv, dtype=np.float64)
     _check_map(mesh, uv)
+    # improve: null is the paper's plain lift: no improvement and no corner snapping
+    imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
     r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
                        spacing=options.spacing, pattern=options.pattern,
-                       rim_relax=options.rim_relax, seed=options.seed, improve=options.improve,
-                       flips=options.flips, relax_iterations=options.relax_iterations,
-                       relax_step=options.relax_step, max_dihedral_deg=options.max_dihedral_deg,
-                       refine_sag=options.refine_sag, refine_budget=options.refine_budget,
-                       corner_angle_deg=options.corner_angle_deg, landmarks=landmarks)
+                       rim_relax=options.rim_relax, seed=options.seed,
+                       improve=options.improve is not None, landmarks=landmarks,
+                       **imp.model_dump())
     t = time.perf_counter()
     colors = lift(mesh.colors, mesh.F, r.face, r.bary) if mesh.colors is not None else None
     lifted_attrs = {k: lift(v, mesh.F, r.face, r.bary) for k, v in (attributes or {}).items()}
@@ -201,70 +221,6 @@ def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> 
 # ----------------------------------------------------------------------------- the stage
 
 
-class ImproveConfig(Section):
-    """Quality pass after lifting; ``improve: false`` turns it off (the paper's plain lift),
-    ``improve: true`` means these defaults."""
-
-    flips: bool = True                       # Delaunay flips on the lifted surface
-    relax_iterations: int = Field(2, ge=0, le=50)     # tangential relaxation steps
-    relax_step: float = Field(0.5, gt=0.0, le=1.0)
-    max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
-    refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
-    refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
-    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
-
-
-class RemeshConfig(Section):
-    """Uniform remeshing through the SEM map (``configs/remesh.yaml``). Give ``vertices`` or
-    ``spacing`` (target edge length in the mesh's units)."""
-
-    vertices: Optional[int] = Field(None, ge=100, le=5_000_000,
-                                    description="vertex count of the remesh")
-    spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
-                                                               "mesh's units")
-    pattern: Literal["hexagonal", "blue_noise", "concentric"] = Field(
-        "hexagonal", description="disk sampling pattern")
-    rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
-                                                       "the rim")
-    seed: int = Field(0, description="blue noise seed")
-    improve: Optional[ImproveConfig] = Field(
-        ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
-    compare: bool = Field(True, description="pymeshlab and decimation at the same vertex count")
-    report: bool = Field(True, description="report.html and figures")
-    landmarks: Optional[str] = Field(
-        None, description="JSON {\"landmarks\": {name: input vertex index}} carried to the "
-                          "remesh")
-    distance_samples: int = Field(200_000, ge=1000, description="random samples per surface "
-                                                                "for the distances")
-
-    @field_validator("improve", mode="before")
-    @classmethod
-    def _improve_flag(cls, v):
-        if v is True:
-            return {}
-        if v is False:
-            return None
-        return v
-
-    @model_validator(mode="after")
-    def _count_or_spacing(self):
-        if (self.vertices is None) == (self.spacing is None):
-            raise ValueError("give exactly one of 'vertices' (a count) or 'spacing' (a target "
-                             "edge length in the mesh's units)")
-        return self
-
-
-def remesh_options(rc: RemeshConfig) -> RemeshOptions:
-    """The stage's options from the config section; ``improve: null`` is the paper's plain
-    lift (no improvement, no corner snapping)."""
-    imp = rc.improve
-    base = dict(vertices=rc.vertices, spacing=rc.spacing, pattern=rc.pattern,
-                rim_relax=rc.rim_relax, seed=rc.seed)
-    if imp is None:
-        return RemeshOptions(**base, improve=False, corner_angle_deg=0.0)
-    return RemeshOptions(**base, improve=True, **imp.model_dump())
-
-
 def _run(ctx: Context) -> dict:
     from .parameterize import ParameterizationFailed
 
@@ -280,7 +236,7 @@ def _run(ctx: Context) -> dict:
         landmarks = map_landmarks(intake.info["landmarks"], mesh, "sample landmarks")
     else:
         landmarks = {}
-    return {"remesh": remesh_stage(mesh, p.uv, remesh_options(rc), landmarks)}
+    return {"remesh": remesh_stage(mesh, p.uv, rc, landmarks)}
 
 
 def _write(ctx: Context, folder: Path) -> dict[str, Path]:
