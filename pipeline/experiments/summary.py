@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 from urllib.parse import quote
 
-from .cache import atomic_write_text
+from ..io.artifacts import atomic_write_text
 
 SKIP_KEYS = {"history", "landmarks", "repair_messages", "messages"}
 FIXED = ["item", "status", "error", "seconds", "hash"]
