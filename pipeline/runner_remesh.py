@@ -41,7 +41,7 @@ def run_remesh(rc: RemeshConfig, intake, parameterization, out_dir, base: Path |
     """Remesh the intake's mesh through the map and write the stage's files into
     ``out_dir``. Landmarks: ``rc.landmarks`` (a JSON file, relative to ``base``) or those of
     the embedded sample. Returns ``(files, metrics)``."""
-    from .stages.remesh_report import remesh_outputs
+    from .stages.remesh import remesh_outputs
 
     log = log or (lambda line: print(line, file=sys.stderr, flush=True))
     mesh = intake.mesh

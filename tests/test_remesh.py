@@ -30,7 +30,7 @@ from pipeline.io.meshio import read_mesh, write_obj
 from pipeline.sample import make_face
 from pipeline.stages.parameterize import parameterize_stage
 from pipeline.stages.remesh import RemeshOptions, remesh_stage
-from pipeline.stages.remesh_report import remesh_warnings
+from pipeline.report.remesh import remesh_warnings
 
 
 def uneven_polygon(k=40, seed=0):

@@ -78,10 +78,11 @@ class Camera:
 
     def rotated(self, R: np.ndarray) -> Camera:
         """The same camera turned in the screen plane: new screen positions are the old ones
-        times ``R`` (2×2, det +1); the window is kept (see :meth:`fitted`)."""
+        times ``R`` (2×2, det +1). The light turns with the screen (it stays above left); the
+        window is kept (see :meth:`fitted`)."""
         right = R[0, 0] * self.right + R[1, 0] * self.up
         up = R[0, 1] * self.right + R[1, 1] * self.up
-        return replace(self, right=right, up=up)
+        return replace(self, right=right, up=up, light=_head_light(right, up, self.toward))
 
     def fitted(self, pts: list[np.ndarray], margin: float) -> Camera:
         """The same view with a square window around every point of ``pts`` (arrays k×3)."""
@@ -91,6 +92,12 @@ class Camera:
         mid = 0.5 * (lo + hi)
         return replace(self, xlim=(mid[0] - half, mid[0] + half),
                        ylim=(mid[1] - half, mid[1] + half))
+
+
+def _head_light(right: np.ndarray, up: np.ndarray, toward: np.ndarray) -> np.ndarray:
+    """The light: from near the viewer, slightly above left on the screen (unit 3-vector)."""
+    light = toward + 0.5 * up - 0.4 * right
+    return light / np.linalg.norm(light)
 
 
 def camera_for(V: np.ndarray, F: np.ndarray, extra: list[np.ndarray] | None = None,
@@ -115,9 +122,7 @@ def camera_for(V: np.ndarray, F: np.ndarray, extra: list[np.ndarray] | None = No
         up = W[1] - (W[1] @ normal) * normal
     up /= np.linalg.norm(up)
     right = np.cross(up, normal)
-    light = normal + 0.5 * up - 0.4 * right
-    light /= np.linalg.norm(light)
-    cam = Camera(c, right, up, normal, light, (0.0, 1.0), (0.0, 1.0))
+    cam = Camera(c, right, up, normal, _head_light(right, up, normal), (0.0, 1.0), (0.0, 1.0))
     return cam.fitted([V] + [np.asarray(e, dtype=np.float64) for e in (extra or [])], margin)
 
 
