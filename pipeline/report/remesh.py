@@ -45,9 +45,9 @@ COLORS = {"input": "0.45", "sem_lifted": "tab:cyan", "sem": "tab:blue",
           "pymeshlab_isotropic": "tab:orange", "fast_simplification": "tab:green"}
 COMPARED = ("sem", "pymeshlab_isotropic", "fast_simplification")
 STYLE = """
-table.cmp th, table.cmp td { text-align: right; } table.cmp tbody th { text-align: left; }
+.cmp th, .cmp td { text-align: right; } .cmp tbody th { text-align: left; }
 td.unit { color: #666; text-align: left; } td.best { background: #dff0d8; font-weight: bold; }
-table.cmp td.unit, table.cmp td.na { text-align: left; }
+.cmp td.unit, .cmp td.na { text-align: left; }
 td.na { color: #888; font-size: 0.85em; }
 .vs { display: flex; gap: 2em; } .vs > div { flex: 1; } h3 { margin: 0.3em 0; }
 """
@@ -399,8 +399,8 @@ SEM map: {e(str(pm.get('mode')))} mode, {e(str(pm.get('iterations')))} iteration
 distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
 {warn}
 <h2>Side by side, at the same vertex count</h2>
-<table class="cmp"><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
-<tbody>{''.join(body)}</tbody></table>
+<div class="cmp"><table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
+<tbody>{''.join(body)}</tbody></table></div>
 <p class="caption">Green: best of the three compared methods (ours improved, pymeshlab,
 decimation); the input and our plain lift are shown for reference. Angles are measured on the
 3D faces. Valence counts edges at interior vertices. Distances: samples on each surface — all
