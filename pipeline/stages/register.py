@@ -194,17 +194,23 @@ def _parameterize(face: Face, opts: SEMOptions, progress):
     return p
 
 
+def _truth_at_source(pair: Pair) -> tuple[np.ndarray, np.ndarray]:
+    """The source vertices with a finite ground-truth position (k indices) and those
+    positions (k×3)."""
+    src = pair.source.mesh.source_index
+    ok = (src >= 0) & (src < len(pair.truth))
+    T = pair.truth[src[ok]]
+    good = np.isfinite(T).all(axis=1)
+    return np.flatnonzero(ok)[good], T[good]
+
+
 def _dense_error(points: np.ndarray, pair: Pair, diag: float) -> np.ndarray | None:
     """Per source vertex ``|points_i − truth_{source_index(i)}| / diag`` (NaN where no truth)."""
     if pair.truth is None:
         return None
-    src = pair.source.mesh.source_index
     err = np.full(len(points), np.nan)
-    ok = (src >= 0) & (src < len(pair.truth))
-    T = pair.truth[src[ok]]
-    good = np.isfinite(T).all(axis=1)
-    idx = np.flatnonzero(ok)[good]
-    err[idx] = np.linalg.norm(points[idx] - T[good], axis=1) / diag
+    idx, T = _truth_at_source(pair)
+    err[idx] = np.linalg.norm(points[idx] - T, axis=1) / diag
     return err
 
 
@@ -433,11 +439,8 @@ def report_view(reg: Registration):
     truth = None
     if reg.mapped is not None and reg.pair.truth is not None:
         truth = np.array(reg.mapped)
-        src = S.mesh.source_index
-        ok = (src >= 0) & (src < len(reg.pair.truth))
-        tv = reg.pair.truth[src[ok]]
-        good = np.isfinite(tv).all(axis=1)
-        truth[np.flatnonzero(ok)[good]] = tv[good]
+        idx, known = _truth_at_source(reg.pair)
+        truth[idx] = known
     base = reg.baseline or {}
     return RegistrationView(
         source_vertices=S.mesh.V, source_faces=S.mesh.F,
