@@ -17,7 +17,8 @@ Colours are float64 in [0, 1] (integer 0–255 data is divided by 255). Every fa
 :class:`~pipeline.errors.UserError` with a one-line message.
 
 :func:`write_obj` writes ``v``/``vt``/``f`` atomically (:func:`.artifacts.atomic_write`) using
-one ``%``-format over all rows, which is fast for 10^6 faces and writes every float with its shortest round-trip representation.
+one ``%``-format over all rows, which is fast for 10^6 faces and writes every float with its
+shortest round-trip representation.
 """
 
 from __future__ import annotations

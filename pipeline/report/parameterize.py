@@ -76,9 +76,6 @@ def _new_figure(name: str):
     return new_figure(*FIGURE_SIZES[name], dpi=DPI, layout="constrained")
 
 
-def _save(fig, path) -> Path:
-    return save_png(fig, path, DPI)
-
 
 def _as_arrays(uv, F):
     uv = np.asarray(uv, dtype=np.float64)[:, :2]
@@ -190,7 +187,7 @@ def plot_disk_area_ratio(uv, F, ratio_per_vertex, path, title=None) -> Path:
     fig.text(0.01, 0.005, _outside_note(R, limit), fontsize=6.5, color="0.3", ha="left",
              va="bottom")
     fig.get_layout_engine().set(rect=(0, 0.03, 1, 0.97))
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # -------------------------------------------------------------------- 2. histogram, Fig. 4
@@ -248,7 +245,7 @@ def plot_area_ratio_histogram(ratio_per_vertex, path, title=None) -> Path:
         ax.text(0.5, 0.5, "no finite area ratio", ha="center", va="center",
                 transform=ax.transAxes)
     ax.set_title(title or "Local area ratios", fontsize=11)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # --------------------------------------------------------------------- 5. angles, Fig. 5
@@ -284,7 +281,7 @@ def plot_angle_histogram(angular_distortion_deg, path, title=None) -> Path:
     else:
         ax.text(0.5, 0.5, "no angles", ha="center", va="center", transform=ax.transAxes)
     ax.set_title(title or "Angular distortion", fontsize=11)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ----------------------------------------------------------------- 3. convergence, Fig. 7
@@ -390,7 +387,7 @@ def plot_convergence(history, path, title=None) -> Path:
     elif len(hist):
         sub += ", no flipped faces"
     fig.suptitle(f"{title or 'SEM convergence'}\n{sub}", fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ------------------------------------------------------------- 4. surface next to its disk
@@ -460,7 +457,7 @@ def plot_surface_and_disk(V, F, uv, values, path, title=None, *, value_label=Non
         cb.set_label(value_label or "value per vertex (1–99 percentile colour range)")
     fig.suptitle(f"{title or 'Surface and its disk parameterization'}\n"
                  f"{_mesh_label(len(V), len(F))}", fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ------------------------------------------------------------------------- the stage's files

@@ -82,9 +82,6 @@ def _figure(width: float, height: float):
     return new_figure(width, height, dpi=DPI, layout="constrained")
 
 
-def _save(fig, path: Path) -> Path:
-    return save_png(fig, path, DPI)
-
 
 MESH_COLOR = (0.78, 0.80, 0.84)        # a light blue-grey for every mesh in the renders
 
@@ -132,7 +129,7 @@ def plot_renders(path: Path, methods: dict[str, Method], V_in, F_in) -> Path:
     axs[2, 0].set_ylabel("zoom: where ours is farthest\nfrom the input (red box)", fontsize=8)
     fig.suptitle("Same orthographic view for every mesh (flat shading; darker = back faces)",
                  fontsize=9)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 def plot_min_angles(path: Path, methods: dict[str, Method]) -> Path:
@@ -153,7 +150,7 @@ def plot_min_angles(path: Path, methods: dict[str, Method]) -> Path:
     ax.set_ylabel("faces (%) per 1° bin")
     ax.legend(fontsize=7, loc="upper left")
     ax.set_xlim(0, 60)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 def plot_valence(path: Path, methods: dict[str, Method]) -> Path:
@@ -174,7 +171,7 @@ def plot_valence(path: Path, methods: dict[str, Method]) -> Path:
     ax.set_xlabel("valence of interior vertices (6 = regular)")
     ax.set_ylabel("interior vertices (%)")
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 def plot_disk(path: Path, uv: np.ndarray, F: np.ndarray, methods: dict[str, Method]) -> Path:
@@ -201,7 +198,7 @@ def plot_disk(path: Path, uv: np.ndarray, F: np.ndarray, methods: dict[str, Meth
     cb.set_label("smallest angle of the face on the surface (°)")
     fig.suptitle("Our remesh on the disk: faces coloured by their smallest angle on the surface "
                  "(red: skewed by the map's angle distortion)", fontsize=9)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ------------------------------------------------------------------------------- HTML
@@ -391,7 +388,8 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
              if "anisotropy_median" in dd else "")
     warn = "".join(f'<p class="warn"><b>Warning:</b> {e(w)}.</p>\n'
                    for w in meta.get("warnings", []))
-    text = f"""<p>Input: <code>{e(str(meta.get('source', '')))}</code> — {len(methods['input'].V)} vertices,
+    n_in = len(methods["input"].V)
+    text = f"""<p>Input: <code>{e(str(meta.get('source', '')))}</code> — {n_in} vertices,
 {len(methods['input'].F)} faces after repair; bounding-box diagonal
 {dist.get('scale_bbox_diagonal', float('nan')):.4g} (the input's units). Requested:
 {e(str(meta.get('target')))} vertices, pattern <code>{e(str(info.get('pattern')))}</code>.
