@@ -19,7 +19,7 @@ from pipeline.io.meshio import write_obj
 from pipeline.sample import make_face
 from pipeline.stages.parameterize import parameterize_stage
 from pipeline.stages.remesh import RemeshConfig, remesh_stage
-from pipeline.stages.remesh_report import remesh_warnings
+from pipeline.report.remesh import remesh_warnings
 from remesh_helpers import face_map, on_surface  # noqa: F401  (face_map: a fixture)
 
 
@@ -237,23 +237,6 @@ def test_real_mesh_remesh_is_one_disk_at_20k(remeshed_20k, rel):
 def test_real_mesh_hausdorff_at_20k(remeshed_20k, rel):
     _, _, q, _ = remeshed_20k(rel)
     assert q["distance"]["hausdorff_rel"] <= 0.005
-
-
-def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
-    calm = {"anisotropy_median": 2.0, "anisotropy_p90": 4.0, "anisotropy_area_above_10": 0.25}
-    close = {"sem": {"distance": {"hausdorff_rel": 0.005}},
-             "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.003}}}
-    assert remesh_warnings(calm, close) == []                  # both exactly at the limits
-    assert remesh_warnings({}, {}) == []                        # nothing measured: no claim
-    stretched = dict(calm, anisotropy_median=6.8, anisotropy_area_above_10=0.31)
-    far = {"sem": {"distance": {"hausdorff_rel": 0.0089}},
-           "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.0031}}}
-    w = remesh_warnings(stretched, far)
-    assert len(w) == 2
-    assert "31 % of the surface more than 10:1" in w[0] and "σ₁/σ₂ = 6.8" in w[0]
-    assert "0.89 %" in w[1] and "pymeshlab's is 0.31 %" in w[1]
-    w = remesh_warnings(calm, {"sem": far["sem"]})              # --no-compare: no reference
-    assert len(w) == 1 and "pymeshlab" not in w[0]
 
 
 def test_real_mesh_anisotropy_warning_at_20k(remeshed_20k):

@@ -33,6 +33,7 @@ from pathlib import Path
 from .. import __version__
 from ..config import resolve_path
 from ..errors import UserError
+from ..io.artifacts import atomic_write_text
 from .spec import INPUT_FILE_KEYS, Item
 
 PARTIAL_PREFIX = ".partial-"
@@ -147,20 +148,6 @@ def needs_run(record: dict | None, digest: str, retry_failed: bool = False) -> b
 
 
 # ------------------------------------------------------------------------------- folders
-
-
-def atomic_write_text(path: Path, text: str) -> Path:
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.chmod(tmp, 0o644)                 # mkstemp's 0600 is for the temporary name only
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def new_staging(run_dir: Path, item_id: str) -> tuple[Path, Path]:

@@ -302,8 +302,8 @@ def run_experiment(experiment, out_root: str | Path | None = None, workers: int 
     ``scheduler`` (default: the config's ``experiment.scheduler``; a Dask address or
     ``local``) choose the backend. Returns which items ran, were skipped and failed.
     """
-    from .cache import (FileHashes, atomic_write_text, clean_partials, item_hash, needs_run,
-                        read_record, run_lock)
+    from ..io.artifacts import atomic_write_text
+    from .cache import FileHashes, clean_partials, item_hash, needs_run, read_record, run_lock
     from .summary import write_summary
 
     settings = experiment.settings.experiment

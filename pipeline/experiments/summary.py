@@ -6,20 +6,21 @@ one column per swept key), then the metrics of every stage: each stage's ``metri
 ``<stage>_metrics.json``) flattened to dotted keys prefixed with the stage folder, e.g.
 ``parameterize.distortion.face_area_distortion`` or ``parameterize.seconds.sem``. Lists (the
 iteration history) and landmark tables are left out. The HTML sorts on a header click (inline
-script, no network) and links each item's folder, log, ``item.json``, metrics and reports.
+script, no network) and links each item's folder, log, ``item.json``, metrics and reports; it
+is built on the shared page writer (:mod:`pipeline.report.html`).
 """
 
 from __future__ import annotations
 
 import csv
-import html
 import io
 import json
 import math
 from pathlib import Path
 from urllib.parse import quote
 
-from .cache import atomic_write_text
+from ..io.artifacts import atomic_write_text
+from ..report import html as h
 
 SKIP_KEYS = {"history", "landmarks", "repair_messages", "messages"}
 FIXED = ["item", "status", "error", "seconds", "hash"]
@@ -151,9 +152,9 @@ function sortBy(th) {
 """
 
 _STYLE = """
-body { font: 13px system-ui, sans-serif; margin: 1em; }
-table { border-collapse: collapse; }
-th, td { border: 1px solid #ccc; padding: 2px 6px; white-space: nowrap; }
+body { font-size: 13px; margin: 1em; max-width: none; }
+table { font-size: 1em; }
+th, td { padding: 2px 6px; white-space: nowrap; }
 th { background: #eee; cursor: pointer; position: sticky; top: 0; }
 th[data-order=asc]::after { content: ' \\25B2'; } th[data-order=desc]::after { content: ' \\25BC'; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
@@ -163,11 +164,9 @@ td.error { white-space: normal; max-width: 40em; }
 
 
 def _html(columns: list[str], rows: list[dict], title: str) -> str:
-    e = html.escape
+    e = h.esc
     n_ok = sum(r["status"] == "ok" for r in rows)
-    out = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{e(title)}</title>",
-           f"<style>{_STYLE}</style><script>{_SCRIPT}</script></head><body>",
-           f"<h1>{e(title)}</h1><p>{len(rows)} items: {n_ok} ok, {len(rows) - n_ok} failed or "
+    out = [f"<p>{len(rows)} items: {n_ok} ok, {len(rows) - n_ok} failed or "
            f"missing. Click a header to sort. Also: <a href='summary.csv'>summary.csv</a>.</p>",
            "<table><thead><tr><th onclick='sortBy(this)'>files</th>"]
     out += [f"<th onclick='sortBy(this)'>{e(c)}</th>" for c in columns]
@@ -189,5 +188,5 @@ def _html(columns: list[str], rows: list[dict], title: str) -> str:
                 text_html = e(text)
             out.append(f"<td{cls} data-v='{e(key)}'>{text_html}</td>")
         out.append("</tr>")
-    out.append("</tbody></table></body></html>\n")
-    return "\n".join(out)
+    out.append("</tbody></table>")
+    return h.page(title, "\n".join(out), style=_STYLE, script=_SCRIPT)

@@ -16,16 +16,14 @@ triangulated (so the repair can count them), nothing is welded or cleaned — th
 Colours are float64 in [0, 1] (integer 0–255 data is divided by 255). Every failure is a
 :class:`~pipeline.errors.UserError` with a one-line message.
 
-:func:`write_obj` writes ``v``/``vt``/``f`` atomically (temp file in the same folder, then
-``os.replace``) using one ``%``-format over all rows, which is fast for 10^6 faces and writes
-every float with its shortest round-trip representation.
+:func:`write_obj` writes ``v``/``vt``/``f`` atomically (:func:`.artifacts.atomic_write`) using
+one ``%``-format over all rows, which is fast for 10^6 faces and writes every float with its
+shortest round-trip representation.
 """
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.errors import UserError
+
+from .artifacts import atomic_write
 
 __all__ = ["RawMesh", "SUPPORTED_EXTENSIONS", "read_mesh", "write_obj"]
 
@@ -460,12 +460,6 @@ def read_mesh(path) -> RawMesh:
     return mesh
 
 
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
 def _format_rows(fmt: str, arr: np.ndarray) -> str:
     """``fmt`` repeated once per row of ``arr`` and filled with one ``%`` operation."""
     if len(arr) == 0:
@@ -511,19 +505,4 @@ def write_obj(path, V, F, uv=None, colors=None, header=None) -> Path:
         parts.append(_format_rows("f %d/%d %d/%d %d/%d\n", np.repeat(F1, 2, axis=1)))
     else:
         parts.append(_format_rows("f %d %d %d\n", F1))
-    text = "".join(parts)
-    folder = path.parent if str(path.parent) else Path(".")
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())          # mkstemp creates 0600; use normal permissions
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+    return atomic_write(path, "".join(parts))

@@ -9,7 +9,10 @@ target surface by the registration) and the source faces (one connectivity). Out
 * ``morph.gif`` — the animation (shaded orthographic render, one camera, light and scale for all
   frames; loops forever);
 * ``filmstrip.png`` — up to 6 frames side by side, first and last included;
-* ``morph.json`` — frame count, easing, times, sizes.
+* ``morph.json`` — frame count, easing, times, sizes;
+* ``report.html`` — the animation, the filmstrip and those numbers.
+
+The renders and the page are built by :mod:`pipeline.report.morph`.
 """
 
 from __future__ import annotations
@@ -67,26 +70,10 @@ def morph_stage(V_source, V_registered, F, options: MorphConfig | None = None) -
                   "vertices": int(len(V0)), "faces": int(len(F))})
 
 
-def _filmstrip(images: list[np.ndarray], times: np.ndarray, count: int, path: Path) -> Path:
-    from .render import new_figure, save_figure
-
-    k = min(count, len(images))
-    pick = np.unique(np.round(np.linspace(0, len(images) - 1, k)).astype(int))
-    fig = new_figure(2.2 * len(pick), 2.5, dpi=110)
-    for j, i in enumerate(pick):
-        ax = fig.add_axes((j / len(pick), 0.0, 1.0 / len(pick), 0.88))
-        ax.imshow(images[i])
-        ax.set_axis_off()
-        fig.text((j + 0.5) / len(pick), 0.93, f"frame {i}, t = {times[i]:.2f}", ha="center",
-                 fontsize=8)
-    return save_figure(fig, path)
-
-
 def write_morph(m: Morph, out_dir, progress=None) -> dict[str, Path]:
-    """Write the frames, ``morph.gif``, ``filmstrip.png`` and ``morph.json`` all-or-nothing."""
-    from PIL import Image
-
-    from .render import camera_for, render_rgb
+    """Write the frames, ``morph.gif``, ``filmstrip.png``, ``morph.json`` and ``report.html``
+    all-or-nothing."""
+    from ..report import morph as report
 
     out_dir = Path(out_dir)
     t0 = time.perf_counter()
@@ -98,26 +85,20 @@ def write_morph(m: Morph, out_dir, progress=None) -> dict[str, Path]:
             write_obj(tmp / "frames" / f"frame_{k:0{width}d}.obj", V, m.faces,
                       header=f"sem-pipeline morph frame {k} of {len(m.frames)}, t = {t:.6f}")
         t1 = time.perf_counter()
-        cam = camera_for(m.frames[0], m.faces, extra=m.frames[1:])
-        images = []
-        for k, (t, V) in enumerate(zip(m.times, m.frames)):
-            images.append(render_rgb(V, m.faces, cam, m.options.size, label=f"t = {t:.2f}"))
-            if progress is not None:
-                progress(k, len(m.frames))
-        gif = [Image.fromarray(im) for im in images]
-        gif[0].save(tmp / "morph.gif", save_all=True, append_images=gif[1:],
-                    duration=m.options.frame_ms, loop=0, optimize=False)
-        _filmstrip(images, m.times, m.options.filmstrip_frames, tmp / "filmstrip.png")
+        report.write_media(tmp, m.frames, m.faces, m.times, m.options.size, m.options.frame_ms,
+                           m.options.filmstrip_frames, progress)
         t2 = time.perf_counter()
         m.metrics["seconds"] = {"frames_obj": t1 - t0, "render": t2 - t1}
         m.metrics["files"] = {"frames": f"frames/frame_{0:0{width}d}.obj … "
                                         f"frame_{len(m.frames) - 1:0{width}d}.obj",
                               "animation": "morph.gif", "filmstrip": "filmstrip.png"}
         write_json(tmp / "morph.json", m.metrics)
+        report.write_report(tmp, m.metrics)
     written["frames"] = out_dir / "frames"
     written["gif"] = out_dir / "morph.gif"
     written["filmstrip"] = out_dir / "filmstrip.png"
     written["metrics"] = out_dir / "morph.json"
+    written["report"] = out_dir / "report.html"
     return written
 
 

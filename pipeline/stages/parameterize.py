@@ -8,10 +8,12 @@ Files (contract in ``shared/docs/DESIGN.md``):
 * ``metrics.json`` — mesh and repair report, SEM status, §7.1 distortion measures, the energy
   and distortion of every iteration, time per phase;
 * figures (paper Figs. 3, 4, 5, 7): ``disk_area_ratio.png``, ``area_ratio_histogram.png``,
-  ``angle_histogram.png``, ``convergence.png``, ``surface_and_disk.png``.
+  ``angle_histogram.png``, ``convergence.png``, ``surface_and_disk.png``;
+* ``report.html`` — the metrics table and the figures (:mod:`pipeline.report.parameterize`).
 
-A map with flipped faces is a failure: its ``metrics.json`` (status ``failed``) and figures are
-written for diagnosis, the map files are not, and :class:`ParameterizationFailed` is raised.
+A map with flipped faces is a failure: its ``metrics.json`` (status ``failed``), report and
+figures are written for diagnosis, the map files are not, and :class:`ParameterizationFailed`
+is raised.
 """
 
 from __future__ import annotations
@@ -22,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry.metrics import angular_distortion, distortion_summary, local_area_ratios
+from ..geometry.metrics import distortion_summary
 from ..geometry.repair import RepairedMesh
 from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
-from ..io.artifacts import staged_output, write_json
+from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import write_obj
 from .stage import Context, Stage
 
@@ -74,24 +76,16 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
 
 def write_figures(p: Parameterization, folder: Path) -> list[Path]:
     """The paper's figures for this map (Figs. 3, 4, 5, 7) into ``folder``."""
-    from . import figures
+    from ..report import parameterize as report
 
-    V, F, uv = p.mesh.V, p.mesh.F, p.uv
-    R = local_area_ratios(V, F, uv)
-    return [
-        figures.plot_disk_area_ratio(uv, F, R, folder / "disk_area_ratio.png"),
-        figures.plot_area_ratio_histogram(R, folder / "area_ratio_histogram.png"),
-        figures.plot_angle_histogram(angular_distortion(V, F, uv).ravel(),
-                                     folder / "angle_histogram.png"),
-        figures.plot_convergence(p.sem.history, folder / "convergence.png"),
-        figures.plot_surface_and_disk(V, F, uv, np.log2(np.clip(R, 1e-6, None)),
-                                      folder / "surface_and_disk.png"),
-    ]
+    return report.write_figures(folder, p.mesh.V, p.mesh.F, p.uv, p.sem.history)
 
 
 def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metrics: dict | None
                            = None, figures: bool = True) -> dict[str, Path]:
     """Write the stage's files into ``out_dir`` all-or-nothing; raise if the map failed."""
+    from ..report import parameterize as report
+
     out_dir = Path(out_dir)
     metrics = dict(extra_metrics or {}, **p.metrics)
     written = {}
@@ -99,18 +93,20 @@ def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metri
     with staged_output(out_dir) as tmp:
         if p.ok:
             m = p.mesh
-            np.savez_compressed(tmp / "parameterization.npz", vertices=m.V, faces=m.F, uv=p.uv,
-                                boundary=m.boundary, source_index=m.source_index)
+            save_npz(tmp / "parameterization.npz", vertices=m.V, faces=m.F, uv=p.uv,
+                     boundary=m.boundary, source_index=m.source_index)
             write_obj(tmp / "parameterized.obj", m.V, m.F, uv=p.uv, colors=m.colors,
                       header="SEM equiareal disk parameterization (sem-pipeline); vt = uv")
             written["npz"] = out_dir / "parameterization.npz"
             written["obj"] = out_dir / "parameterized.obj"
-        if figures:
-            for path in write_figures(p, tmp):
-                written[path.stem] = out_dir / path.name
+        figs = write_figures(p, tmp) if figures else []
+        for path in figs:
+            written[path.stem] = out_dir / path.name
         metrics["seconds"] = dict(metrics["seconds"], write=time.perf_counter() - t0)
         write_json(tmp / "metrics.json", metrics)
         written["metrics"] = out_dir / "metrics.json"
+        report.write_report(tmp, metrics, [f.name for f in figs])
+        written["report"] = out_dir / "report.html"
     if not p.ok:
         raise ParameterizationFailed(
             f"parameterization failed: {p.sem.flipped_faces} flipped faces remain after "

@@ -21,7 +21,7 @@ Files (contract in ``shared/docs/DESIGN.md``):
 * ``registered.obj`` — the source connectivity on the target geometry. Faces of holes the
   repair closed (fans to a centre vertex) are left out, so the holes stay open as in the input.
 * ``metrics.json``, ``report.html`` and figures (``disks.png``, ``surfaces.png``,
-  ``error_on_face.png`` with a ground truth).
+  ``error_on_face.png`` with a ground truth), built by :mod:`pipeline.report.register`.
 
 A registration that leaves flipped faces is a failure: ``metrics.json``, the report and its
 figures are written for diagnosis, the map files are not, and :class:`RegistrationFailed` is
@@ -30,7 +30,6 @@ raised (exit code 1).
 
 from __future__ import annotations
 
-import html
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +43,7 @@ from ..geometry.register import (DeformOptions, align, as_complex, as_uv, compos
                                  deform_to_landmarks, error_summary)
 from ..geometry.repair import RepairOptions
 from ..geometry.sem import SEMOptions
-from ..io.artifacts import staged_output, write_json
+from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, read_landmarks,
                             resolve_landmarks)
 from ..io.meshio import read_mesh, write_obj
@@ -229,17 +228,23 @@ def _parameterize(face: Face, opts: SEMOptions, progress):
     return p
 
 
+def _truth_at_source(pair: Pair) -> tuple[np.ndarray, np.ndarray]:
+    """The source vertices with a finite ground-truth position (k indices) and those
+    positions (k×3)."""
+    src = pair.source.mesh.source_index
+    ok = (src >= 0) & (src < len(pair.truth))
+    T = pair.truth[src[ok]]
+    good = np.isfinite(T).all(axis=1)
+    return np.flatnonzero(ok)[good], T[good]
+
+
 def _dense_error(points: np.ndarray, pair: Pair, diag: float) -> np.ndarray | None:
     """Per source vertex ``|points_i − truth_{source_index(i)}| / diag`` (NaN where no truth)."""
     if pair.truth is None:
         return None
-    src = pair.source.mesh.source_index
     err = np.full(len(points), np.nan)
-    ok = (src >= 0) & (src < len(pair.truth))
-    T = pair.truth[src[ok]]
-    good = np.isfinite(T).all(axis=1)
-    idx = np.flatnonzero(ok)[good]
-    err[idx] = np.linalg.norm(points[idx] - T[good], axis=1) / diag
+    idx, T = _truth_at_source(pair)
+    err[idx] = np.linalg.norm(points[idx] - T, axis=1) / diag
     return err
 
 
@@ -427,18 +432,17 @@ def _normal_flips(V0: np.ndarray, V1: np.ndarray, F: np.ndarray) -> int:
 def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict[str, Path]:
     """Write the stage's files all-or-nothing; raise :class:`RegistrationFailed` if faces
     remain flipped (the metrics, report and figures are still written)."""
+    from ..report import register as report
+
     out_dir = Path(out_dir)
     written: dict[str, Path] = {}
     S, T = reg.pair.source.mesh, reg.pair.target.mesh
     t0 = time.perf_counter()
     with staged_output(out_dir) as tmp:
-        figs = []
-        if figures:
-            from . import register_figures as rf
-            figs = rf.write_all(reg, tmp)
+        figs = report.write_figures(tmp, report_view(reg)) if figures else []
         if reg.ok:
             Fd = display_faces(S)
-            np.savez_compressed(
+            save_npz(
                 tmp / "registration.npz", mapped_points=reg.mapped, target_face=reg.face,
                 target_barycentric=reg.bary, source_vertices=S.V, source_faces=Fd,
                 source_index=S.source_index, source_landmarks=reg.pair.source.landmarks,
@@ -453,8 +457,7 @@ def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict
             written["obj"] = out_dir / "registered.obj"
         reg.metrics["seconds"]["write"] = time.perf_counter() - t0
         write_json(tmp / "metrics.json", reg.metrics)
-        (tmp / "report.html").write_text(report_html(reg, [p.name for p in figs]),
-                                         encoding="utf-8")
+        report.write_report(tmp, reg.metrics, [p.name for p in figs])
         written["metrics"] = out_dir / "metrics.json"
         written["report"] = out_dir / "report.html"
         for p in figs:
@@ -466,84 +469,30 @@ def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict
     return written
 
 
-def _fmt(x, spec=".3e"):
-    if x is None:
-        return "–"
-    if isinstance(x, float):
-        return format(x, spec)
-    return html.escape(str(x))
+def report_view(reg: Registration):
+    """The plain arrays and metrics the report shows
+    (:class:`pipeline.report.register.RegistrationView`)."""
+    from ..report.register import RegistrationView
 
-
-def report_html(reg: Registration, figures: list[str]) -> str:
-    """A self-contained HTML summary (figures referenced by relative path)."""
-    m = reg.metrics
-    lr = m["landmark_residual"]
-    rows = [
-        ("status", m["status"]),
-        ("source", f"{m['source']['file']} — {m['source']['vertices']} vertices, "
-                   f"{m['source']['faces']} faces, {m['source']['holes_closed']} holes closed"),
-        ("target", f"{m['target']['file']} — {m['target']['vertices']} vertices, "
-                   f"{m['target']['faces']} faces, {m['target']['holes_closed']} holes closed"),
-        ("landmarks", f"{m['landmarks']['count']} paired by {m['landmarks']['paired_by']}"),
-        ("SEM (source / target)",
-         f"{m['source']['sem']['iterations']} / {m['target']['sem']['iterations']} iterations, "
-         f"D(f) eq. 28 = {m['source']['sem']['total_area_distortion_eq28']:.4f} / "
-         f"{m['target']['sem']['total_area_distortion_eq28']:.4f}"),
-        ("alignment", f"{m['alignment']['kind']}, θ = {m['alignment']['theta_deg']:.2f}°, "
-                      f"a = {m['alignment']['a'][0]:.4f} + {m['alignment']['a'][1]:.4f}i"),
-        ("deformation", f"{m['deformation']['energy']} energy, {m['deformation']['method']}, "
-                        f"{m['deformation']['accepted_substeps']} sub-steps accepted, "
-                        f"{m['deformation']['rejected_substeps']} rejected"),
-        ("flipped faces", m["flipped_faces"]),
-        ("landmark residual before deformation (mean / max, ÷ diagonal)",
-         f"{_fmt(lr['before']['mean'])} / {_fmt(lr['before']['max'])}"),
-        ("landmark residual after (max, ÷ diagonal)",
-         _fmt(lr["after"]["max"]) if lr["after"] else "–"),
-        ("target bounding-box diagonal", f"{m['target_bbox_diagonal']:.4g}"),
-        ("source vertices mapped into filled holes",
-         m.get("source_vertices_mapped_into_filled_holes", "–")),
-        ("time, ours (s)", f"{m['seconds']['ours_total']:.2f}"),
-    ]
-    table = "\n".join(f"<tr><th>{html.escape(str(k))}</th><td>"
-                      f"{html.escape(v) if isinstance(v, str) else _fmt(v)}</td></tr>"
-                      for k, v in rows)
-    dense = ""
-    de = m.get("dense_error")
-    if de:
-        head = "<tr><th>method</th><th>mean</th><th>95th pct</th><th>max</th>" \
-               "<th>landmark residual max</th><th>time (s)</th></tr>"
-        body = (f"<tr><td>ours (SEM + bijective deformation)</td><td>{_fmt(de['ours']['mean'])}"
-                f"</td><td>{_fmt(de['ours']['p95'])}</td><td>{_fmt(de['ours']['max'])}</td>"
-                f"<td>{_fmt(lr['after']['max'] if lr['after'] else None)}</td>"
-                f"<td>{m['seconds']['ours_total']:.2f}</td></tr>")
-        if "nricp_amberg" in de:
-            b = m["baseline"]
-            body += (f"<tr><td>trimesh nricp_amberg</td><td>{_fmt(de['nricp_amberg']['mean'])}"
-                     f"</td><td>{_fmt(de['nricp_amberg']['p95'])}</td>"
-                     f"<td>{_fmt(de['nricp_amberg']['max'])}</td>"
-                     f"<td>{_fmt(b['landmark_residual']['max'])}</td>"
-                     f"<td>{b['seconds']:.2f}</td></tr>")
-        dense = (f"<h2>Dense error against the ground truth</h2><p>Truth: "
-                 f"{html.escape(de['truth'])}. Distance between the registered position of "
-                 f"source vertex i and truth vertex i, relative to the target's bounding-box "
-                 f"diagonal, over {de['ours']['count']} vertices.</p><table>{head}{body}</table>")
-    imgs = "\n".join(f'<figure><img src="{html.escape(f)}" alt="{html.escape(f)}">'
-                     f'<figcaption>{html.escape(f)}</figcaption></figure>' for f in figures)
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>sem-pipeline registration report</title>
-<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}}
-table{{border-collapse:collapse;margin:1em 0}}th,td{{border:1px solid #ccc;padding:4px 8px;
-text-align:left;font-size:14px}}th{{background:#f4f4f4}}img{{max-width:100%}}
-figure{{margin:1.5em 0}}</style></head><body>
-<h1>Landmark registration on the equiareal disk</h1>
-<table>{table}</table>
-{dense}
-<h2>Figures</h2>
-{imgs}
-<p style="color:#777;font-size:12px">Written by sem-pipeline register; numbers from
-metrics.json.</p>
-</body></html>
-"""
+    S, T = reg.pair.source, reg.pair.target
+    truth = None
+    if reg.mapped is not None and reg.pair.truth is not None:
+        truth = np.array(reg.mapped)
+        idx, known = _truth_at_source(reg.pair)
+        truth[idx] = known
+    base = reg.baseline or {}
+    return RegistrationView(
+        source_vertices=S.mesh.V, source_faces=S.mesh.F,
+        source_display_faces=display_faces(S.mesh),
+        source_landmarks=S.landmarks, target_vertices=T.mesh.V, target_faces=T.mesh.F,
+        target_display_faces=display_faces(T.mesh), target_landmarks=T.landmarks,
+        aligned_uv=as_uv(reg.alignment.z), target_uv=np.asarray(reg.uv_target),
+        deformed_uv=as_uv(reg.deform.z), alignment_kind=reg.alignment.kind,
+        energy=reg.energy, deform_ok=bool(reg.deform.ok),
+        deform_method=reg.deform.method, path_reached=float(reg.deform.path_reached),
+        metrics=reg.metrics, mapped=reg.mapped, error=reg.error, truth_points=truth,
+        truth_label=reg.pair.truth_label, baseline_points=base.get("points"),
+        baseline_error=base.get("error"))
 
 
 # ----------------------------------------------------------------------------- the stage

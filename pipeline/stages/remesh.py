@@ -7,7 +7,7 @@ the map, lifts the per-vertex attributes (colours and any given), and writes
 ``remeshed.obj`` (``v`` with colours if the input had them, ``vt`` = the new vertices' disk
 positions, so the output is parameterized too), ``remesh_metrics.json``,
 ``remeshed_landmarks.json`` when there are landmarks, and ``report.html`` with its figures
-(:mod:`pipeline.stages.remesh_report`), all-or-nothing.
+(:mod:`pipeline.report.remesh`), all-or-nothing (:func:`remesh_outputs`).
 
 Improvement is on by default: the plain lift of equilateral disk triangles is skewed by the
 map's angle distortion, and across the slivers the map squeezes long protrusions into, its
@@ -32,8 +32,8 @@ from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
-__all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks", "map_landmarks",
-           "write_remesh"]
+__all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks",
+           "map_landmarks", "write_remesh", "compare_methods", "remesh_outputs"]
 
 
 class ImproveConfig(Section):
@@ -218,6 +218,112 @@ def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> 
     return written
 
 
+# ------------------------------------------------------------------ measure, compare, write
+
+
+def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
+                    compare: bool = True, n_random: int = 200_000, seed: int = 0,
+                    progress=None) -> dict[str, Method]:
+    """Measure the input, our lifted and improved remeshes and (``compare``) the baselines."""
+    from ..geometry.remesh_quality import remesh_quality
+    from ..report.remesh import Method
+    from . import baselines
+
+    def say(msg):
+        if progress:
+            progress(msg)
+
+    out: dict[str, Method] = {}
+    out["input"] = Method("input", V_in, F_in, None,
+                          remesh_quality(V_in, F_in, V_in, F_in, distance=False))
+    Xl, Fl = remesh.lifted
+    say("measuring the lifted remesh")
+    out["sem_lifted"] = Method("sem_lifted", Xl, Fl, remesh.seconds["sample"]
+                               + remesh.seconds["delaunay"] + remesh.seconds["locate"]
+                               + remesh.seconds["lift"],
+                               remesh_quality(V_in, F_in, Xl, Fl, n_random, seed))
+    say("measuring the improved remesh")
+    out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
+                        remesh_quality(V_in, F_in, remesh.V, remesh.F, n_random, seed))
+    if not compare:
+        return out
+    if baselines.pymeshlab_available():
+        say("pymeshlab isotropic explicit remeshing (solving for the target length)")
+        b = baselines.isotropic_remesh(V_in, F_in, target)
+        out["pymeshlab_isotropic"] = Method(
+            "pymeshlab_isotropic", b.V, b.F, b.seconds,
+            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
+            extra={"runs": b.runs, "parameters": b.parameter,
+                   "seconds_all_runs": b.seconds_all_runs})
+    else:
+        out["pymeshlab_isotropic"] = Method("pymeshlab_isotropic", None, None,
+                                            note="pymeshlab is not installed "
+                                                 "(pip install pymeshlab)")
+    say("fast-simplification decimation")
+    b = baselines.decimate(V_in, F_in, target)
+    if b is None:
+        out["fast_simplification"] = Method(
+            "fast_simplification", None, None,
+            note=f"not applicable: decimation only removes vertices and the input has "
+                 f"{len(V_in)} ≤ {target}")
+    else:
+        out["fast_simplification"] = Method(
+            "fast_simplification", b.V, b.F, b.seconds,
+            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
+            extra={"runs": b.runs, "parameters": b.parameter,
+                   "seconds_all_runs": b.seconds_all_runs})
+    return out
+
+
+def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | None = None,
+                   compare: bool = True, report: bool = True, figures: bool = True,
+                   n_random: int = 200_000, progress=None):
+    """Measure, compare and write everything of the remesh stage into ``out_dir``; returns
+    ``(files, metrics)``."""
+    from ..geometry.remesh_quality import bounding_box_diagonal
+    from ..report.remesh import (LABELS, comparison_table, plain_metrics, remesh_warnings,
+                                 verdicts, write_report)
+
+    t0 = time.perf_counter()
+    target = remesh.info.get("requested_vertices") or len(remesh.V)
+    methods = compare_methods(mesh.V, mesh.F, remesh, target, compare, n_random,
+                              progress=progress)
+    t_measure = time.perf_counter() - t0
+    pm = parameterization.metrics
+    rows = comparison_table(methods)
+    metrics = {
+        "input": dict(input_info or {}, vertices=int(len(mesh.V)), faces=int(len(mesh.F)),
+                      bbox_diagonal=bounding_box_diagonal(mesh.V)),
+        "parameterization": {"mode": pm["parameterization"]["mode"],
+                             "iterations": pm["parameterization"]["iterations"],
+                             "status": pm["parameterization"]["status"],
+                             "distortion": pm["distortion"],
+                             "seconds": float(sum(pm["seconds"].values()))},
+        "remesh": {k: v for k, v in remesh.info.items() if k != "attributes"},
+        "landmarks": remesh.landmarks,
+        "methods": {k: {"label": LABELS[k], "available": m.ok, "note": m.note,
+                        "seconds": m.seconds, **plain_metrics(m.quality),
+                        **({"baseline": m.extra} if m.extra else {})}
+                    for k, m in methods.items()},
+        "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
+        "seconds": dict(remesh.seconds, measure=t_measure),
+    }
+    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"])
+    metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
+                          for k, (b, w) in verdicts(rows, methods).items()}
+    meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
+            "source": (input_info or {}).get("source", ""), "target": target,
+            "parameterization": metrics["parameterization"],
+            "parameterization_seconds": metrics["parameterization"]["seconds"],
+            "angular_distortion_deg": pm["distortion"]["angular_distortion_mean_deg"],
+            "distortion": pm["distortion"], "warnings": metrics["warnings"],
+            "remesh": metrics["remesh"]}
+    writer = ((lambda tmp: write_report(tmp, methods, remesh.uv, remesh.F, meta, figures))
+              if report else None)
+    files = write_remesh(remesh, out_dir, metrics, writer)
+    return files, metrics
+
+
 # ----------------------------------------------------------------------------- the stage
 
 
@@ -240,8 +346,6 @@ def _run(ctx: Context) -> dict:
 
 
 def _write(ctx: Context, folder: Path) -> dict[str, Path]:
-    from .remesh_report import remesh_outputs
-
     rc, r = ctx.section("remesh"), ctx.artifacts["remesh"]
     files, metrics = remesh_outputs(ctx.artifacts["intake"].mesh,
                                     ctx.artifacts["parameterization"], r, folder,

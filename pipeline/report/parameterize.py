@@ -1,10 +1,10 @@
-"""Figures of a disk parameterization (the paper's Fig. 3, 4, 5 and 7, plus a surface/disk view).
+"""The parameterize stage's report: the paper's figures of a disk map (Figs. 3, 4, 5 and 7, plus
+a surface/disk view) and ``report.html`` with the metrics table and the figures.
 
-Every function is pure: arrays in, one PNG file out, the :class:`~pathlib.Path` returned. Parent
-folders are created, and the file is written atomically (saved under a temporary name in the same
-folder, then ``os.replace``-d), so a reader never sees a half-written PNG. Figures are built on
-:class:`matplotlib.figure.Figure` with the Agg canvas and never registered with pyplot, so nothing
-is left open (``plt.get_fignums()`` stays empty) and the functions are safe to call from threads.
+Every ``plot_*`` function is pure: arrays in, one PNG file out, the :class:`~pathlib.Path`
+returned; parent folders are created and the file is written atomically
+(:func:`.figure.save_png`), so a reader never sees a half-written PNG. Nothing is left open in
+pyplot (``plt.get_fignums()`` stays empty) and the functions are safe to call from threads.
 
 Every figure has a fixed pixel size, ``FIGURE_SIZES[name]`` inches × :data:`DPI` (no tight
 bounding box; text is kept inside by the constrained layout engine).
@@ -23,23 +23,18 @@ beyond the limits, and the figure states how many vertices do.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.colors import Normalize
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.ticker import FixedLocator, MaxNLocator
+from matplotlib.tri import Triangulation
 
-matplotlib.use("Agg")
-
-import numpy as np  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.artist import Artist, allow_rasterization  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
-from matplotlib.ticker import FixedLocator, MaxNLocator  # noqa: E402
-from matplotlib.tri import Triangulation  # noqa: E402
+from ..geometry.metrics import angular_distortion, local_area_ratios
+from . import html as h
+from .figure import camera_for, draw_surface, new_figure, save_png, unit_disk_axes
 
 __all__ = [
     "DPI",
@@ -50,6 +45,8 @@ __all__ = [
     "plot_surface_and_disk",
     "plot_angle_histogram",
     "log2_ratio_limit",
+    "write_figures",
+    "write_report",
 ]
 
 DPI = 150
@@ -75,31 +72,9 @@ PHASE_STYLE = {                        # history 'phase' -> (colour, marker, leg
 # ------------------------------------------------------------------------------------ helpers
 
 
-def _new_figure(name: str, **kwargs) -> Figure:
-    fig = Figure(figsize=FIGURE_SIZES[name], dpi=DPI, layout="constrained", **kwargs)
-    FigureCanvasAgg(fig)
-    return fig
+def _new_figure(name: str):
+    return new_figure(*FIGURE_SIZES[name], dpi=DPI, layout="constrained")
 
-
-def _save(fig: Figure, path) -> Path:
-    """Write ``fig`` to ``path`` atomically (temp file in the same folder + ``os.replace``)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.png", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=DPI)
-        os.chmod(tmp, 0o644)              # mkstemp creates 0600; a figure is for everyone to read
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    finally:
-        fig.clear()
-    return path
 
 
 def _as_arrays(uv, F):
@@ -175,16 +150,8 @@ def _draw_disk(ax, uv, F, values, norm, cmap, *, edges: bool):
     mappable = ax.tripcolor(tri, values, shading="gouraud", cmap=cmap, norm=norm, rasterized=True)
     if edges:
         ax.triplot(tri, color="k", lw=0.15, alpha=0.35, rasterized=True)
-    t = np.linspace(0.0, 2.0 * np.pi, 721)
-    ax.plot(np.cos(t), np.sin(t), color="k", lw=0.8)
-    ax.set_aspect("equal")
     pad = 1.04 * max(1.0, float(np.max(np.abs(uv))) if len(uv) else 1.0)
-    ax.set_xlim(-pad, pad)
-    ax.set_ylim(-pad, pad)
-    ax.set_xticks([])
-    ax.set_yticks([])
-    for s in ax.spines.values():
-        s.set_visible(False)
+    unit_disk_axes(ax, pad, circle_color="k", circle_lw=0.8, spines=False)
     return mappable
 
 
@@ -220,7 +187,7 @@ def plot_disk_area_ratio(uv, F, ratio_per_vertex, path, title=None) -> Path:
     fig.text(0.01, 0.005, _outside_note(R, limit), fontsize=6.5, color="0.3", ha="left",
              va="bottom")
     fig.get_layout_engine().set(rect=(0, 0.03, 1, 0.97))
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # -------------------------------------------------------------------- 2. histogram, Fig. 4
@@ -278,7 +245,7 @@ def plot_area_ratio_histogram(ratio_per_vertex, path, title=None) -> Path:
         ax.text(0.5, 0.5, "no finite area ratio", ha="center", va="center",
                 transform=ax.transAxes)
     ax.set_title(title or "Local area ratios", fontsize=11)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # --------------------------------------------------------------------- 5. angles, Fig. 5
@@ -314,7 +281,7 @@ def plot_angle_histogram(angular_distortion_deg, path, title=None) -> Path:
     else:
         ax.text(0.5, 0.5, "no angles", ha="center", va="center", transform=ax.transAxes)
     ax.set_title(title or "Angular distortion", fontsize=11)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ----------------------------------------------------------------- 3. convergence, Fig. 7
@@ -420,22 +387,10 @@ def plot_convergence(history, path, title=None) -> Path:
     elif len(hist):
         sub += ", no flipped faces"
     fig.suptitle(f"{title or 'SEM convergence'}\n{sub}", fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ------------------------------------------------------------- 4. surface next to its disk
-
-
-def _plane_frame(V, F):
-    """Orthonormal frame (e1, e2, e3) of the best-fit plane of ``V`` (PCA), right-handed, with
-    ``e3`` on the side the area-weighted face normals point to (the viewer)."""
-    c = V.mean(axis=0)
-    _, _, Vt = np.linalg.svd(V - c, full_matrices=False)
-    e1, e2, e3 = Vt[0], Vt[1], np.cross(Vt[0], Vt[1])
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]).sum(axis=0)
-    if n @ e3 < 0:              # look at the front: flip e3, and e2 to stay right-handed
-        e2, e3 = -e2, -e3
-    return c, e1, e2, e3
 
 
 def _align_rotation(P, uv):
@@ -449,53 +404,12 @@ def _align_rotation(P, uv):
     return R
 
 
-class _GouraudRGB(Artist):
-    """Triangles with one RGBA colour per corner, interpolated (Agg ``draw_gouraud_triangles``),
-    drawn in the given order. ``tris`` is (m, 3, 2) in data coordinates, ``colors`` (m, 3, 4)."""
-
-    def __init__(self, tris, colors, **kwargs):
-        super().__init__()
-        self.set(**kwargs)
-        self._tris = np.ascontiguousarray(tris, dtype=np.float64)
-        self._colors = np.ascontiguousarray(colors, dtype=np.float64)
-
-    @allow_rasterization
-    def draw(self, renderer):
-        if not self.get_visible() or len(self._tris) == 0:
-            return
-        renderer.open_group("gouraud_rgb", gid=self.get_gid())
-        gc = renderer.new_gc()
-        self._set_gc_clip(gc)
-        renderer.draw_gouraud_triangles(gc, self._tris, self._colors, self.get_transform())
-        gc.restore()
-        renderer.close_group("gouraud_rgb")
-        self.stale = False
-
-
-def _surface_view(V, F):
-    """Orthographic projection on the best-fit plane: 2D points, depth per vertex and a Lambert
-    shade in [0, 1] per vertex (area-weighted vertex normals, a head light slightly above left)."""
-    c, e1, e2, e3 = _plane_frame(V, F)
-    X = V - c
-    P = np.column_stack([X @ e1, X @ e2])
-    depth = X @ e3
-    Nf = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])     # area weighted
-    N = np.column_stack([np.bincount(F.ravel(), weights=np.repeat(Nf[:, j], 3),
-                                     minlength=len(V)) for j in range(3)])
-    N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
-    light = e3 + 0.35 * e2 - 0.25 * e1
-    light /= np.linalg.norm(light)
-    lam = N @ light
-    shade = np.where(N @ e3 >= 0, 0.3 + 0.7 * np.clip(lam, 0, 1), 0.2 + 0.2 * np.abs(lam))
-    return P, depth, shade
-
-
 def plot_surface_and_disk(V, F, uv, values, path, title=None, *, value_label=None) -> Path:
     """The surface (left) and its disk image (right) coloured by the same per-vertex ``values``.
 
-    The surface is drawn as an orthographic view onto its best-fit (PCA) plane, seen from the side
-    its normals point to, rotated in the plane to best match the disk (so corresponding regions
-    sit in the same place), with flat Lambert shading times the colour, faces drawn back to front.
+    The surface is drawn by the report camera (:func:`.figure.camera_for`: orthographic onto its
+    best-fit plane, from the side its normals point to), turned in the plane to best match the
+    disk (so corresponding regions sit in the same place), Gouraud-shaded times the colour.
     ``values`` is per vertex. Without ``value_label``, positive values with a median in
     (0.5, 2) are taken to be the local area ratio ``R(v)`` and drawn as ``log2 R`` exactly like
     :func:`plot_disk_area_ratio`; any other values, or any values given with a ``value_label``
@@ -522,25 +436,12 @@ def plot_surface_and_disk(V, F, uv, values, path, title=None, *, value_label=Non
         draw = np.where(np.isfinite(vals), vals, fill)
         norm, cmap = Normalize(lo, hi), "viridis"
 
-    P, depth, shade = _surface_view(V, F)
-    P = P @ _align_rotation(P, uv)
-    order = np.argsort(depth[F].mean(axis=1), kind="stable")      # back to front
-    Fo = F[order]
-    rgba = matplotlib.colormaps[cmap](norm(draw))                  # per vertex
-    rgba[:, :3] *= shade[:, None]
+    cam = camera_for(V, F)
+    cam = cam.rotated(_align_rotation(cam.project(V)[0], uv)).fitted([V], 0.03)
 
     fig = _new_figure("surface_and_disk")
     ax_s, ax_d = fig.subplots(1, 2)
-    ax_s.add_artist(_GouraudRGB(P[Fo], rgba[Fo], transform=ax_s.transData, rasterized=True))
-    lo_xy, hi_xy = P.min(axis=0), P.max(axis=0)
-    pad = 0.03 * float(np.max(hi_xy - lo_xy))
-    ax_s.set_xlim(lo_xy[0] - pad, hi_xy[0] + pad)
-    ax_s.set_ylim(lo_xy[1] - pad, hi_xy[1] + pad)
-    ax_s.set_aspect("equal")
-    ax_s.set_xticks([])
-    ax_s.set_yticks([])
-    for s in ax_s.spines.values():
-        s.set_visible(False)
+    draw_surface(ax_s, V, F, cam, vertex_values=draw, norm=norm, cmap=cmap)
     ax_s.set_title("surface M (orthographic view on its best-fit plane,\n"
                    "rotated to match the disk; shaded)", fontsize=9)
 
@@ -556,4 +457,63 @@ def plot_surface_and_disk(V, F, uv, values, path, title=None, *, value_label=Non
         cb.set_label(value_label or "value per vertex (1–99 percentile colour range)")
     fig.suptitle(f"{title or 'Surface and its disk parameterization'}\n"
                  f"{_mesh_label(len(V), len(F))}", fontsize=10)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
+
+
+# ------------------------------------------------------------------------- the stage's files
+
+
+def write_figures(folder: Path, V, F, uv, history) -> list[Path]:
+    """The paper's figures of the map ``uv`` (n×2) of ``V`` (n×3), ``F`` (m×3) with its SEM
+    ``history`` (one dict per iterate) into ``folder``."""
+    folder = Path(folder)
+    R = local_area_ratios(V, F, uv)
+    return [
+        plot_disk_area_ratio(uv, F, R, folder / "disk_area_ratio.png"),
+        plot_area_ratio_histogram(R, folder / "area_ratio_histogram.png"),
+        plot_angle_histogram(angular_distortion(V, F, uv).ravel(),
+                             folder / "angle_histogram.png"),
+        plot_convergence(history, folder / "convergence.png"),
+        plot_surface_and_disk(V, F, uv, np.log2(np.clip(R, 1e-6, None)),
+                              folder / "surface_and_disk.png"),
+    ]
+
+
+CAPTIONS = {
+    "disk_area_ratio.png": "The disk image coloured by the local area ratio R(v) of eq. (29) "
+                           "(paper Fig. 3): 1 everywhere for an equiareal map.",
+    "area_ratio_histogram.png": "Histogram of the local area ratios (paper Fig. 4).",
+    "angle_histogram.png": "Angular distortion per corner (paper Fig. 5).",
+    "convergence.png": "Convergence of SEM: energy ratio and area distortion per iterate "
+                       "(paper Fig. 7).",
+    "surface_and_disk.png": "The surface and its disk image, coloured by the same per-vertex "
+                            "values.",
+}
+
+
+def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
+    """``report.html`` of the parameterize stage: the numbers of ``metrics`` (the stage's
+    ``metrics.json``) and the figures ``figure_names`` (files in ``folder``)."""
+    mesh = metrics.get("mesh", {})
+    par = metrics.get("parameterization", {})
+    dist = metrics.get("distortion", {})
+    rows = [
+        ("status", metrics.get("status")),
+        ("mesh", f"{mesh.get('vertices')} vertices, {mesh.get('faces')} faces, "
+                 f"{mesh.get('boundary_vertices')} on the boundary, "
+                 f"{mesh.get('added_vertices')} added by the repair"),
+        ("method", par.get("method")),
+        ("mode", par.get("mode")),
+        ("SEM status", par.get("status")),
+        ("iterations", par.get("iterations")),
+        ("linear solver", par.get("solver")),
+    ]
+    rows += [(k.replace("_", " "), v) for k, v in dist.items()]
+    seconds = metrics.get("seconds", {})
+    rows += [(f"time: {k} (s)", float(v)) for k, v in seconds.items()
+             if isinstance(v, (int, float))]
+    body = (h.kv_table(rows, ".6g")
+            + ("<h2>Figures</h2>\n" + h.figures(figure_names, CAPTIONS) if figure_names else "")
+            + '\n<p class="foot">Written by sem-pipeline parameterize; numbers from '
+              "metrics.json.</p>")
+    return h.write_page(Path(folder) / "report.html", "SEM disk parameterization", body)

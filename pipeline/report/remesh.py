@@ -1,47 +1,37 @@
-"""The remesh report: our remesh measured side by side with what users remesh with today.
+"""The remesh stage's report: our remesh measured side by side with what users remesh with today.
 
-:func:`compare_methods` measures (:func:`pipeline.geometry.remesh_quality.remesh_quality`)
-the input, our remesh straight after lifting (the paper's §8), our improved remesh, and — at
-the same vertex count — pymeshlab's isotropic explicit remeshing and fast-simplification's
-quadric decimation (:mod:`pipeline.stages.baselines`). :func:`write_report` writes
-``report.html`` (self-contained apart from its PNGs, linked relatively) with one table, the
-figures and captions saying how everything was measured and where each method wins:
+The stage (:func:`pipeline.stages.remesh.remesh_outputs`) measures every mesh into a
+:class:`Method`; :func:`write_report` writes ``report.html`` (self-contained apart from its PNGs,
+linked relatively) with one table, the verdicts, the figures and captions saying how
+everything was measured and where each method wins:
 
-* ``remesh_renders.png`` — every mesh seen the same way (orthographic view along the input's
-  least-variance axis, flat Lambert shading, back faces darker), full view and two zoomed
-  crops with the edges drawn: the middle of the surface and the place where our remesh is
+* ``remesh_renders.png`` — every mesh seen the same way (the report camera,
+  :func:`.figure.camera_for` of the input, flat shading, back faces darker), full view and two
+  zoomed crops with the edges drawn: the middle of the surface and the place where our remesh is
   farthest from the input;
 * ``remesh_min_angle.png`` — distribution of the smallest angle of every face;
 * ``remesh_valence.png`` — valence of interior vertices;
 * ``remesh_disk.png`` — our remesh on the disk, faces coloured by their smallest angle on the
   surface (where the map's angle distortion is, and what improvement did).
 
-:func:`remesh_outputs` is what the runner and the CLI call after :func:`..remesh.remesh_stage`.
+:func:`comparison_table`, :func:`verdicts` and :func:`remesh_warnings` also feed
+``remesh_metrics.json``.
 """
 
 from __future__ import annotations
 
-import html
-import os
-import tempfile
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.collections import PolyCollection
 
-matplotlib.use("Agg")
+from ..geometry.remesh_quality import point_mesh_distance
+from . import html as h
+from .figure import camera_for, draw_surface, new_figure, save_png
 
-import numpy as np  # noqa: E402
-from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from ..geometry.remesh_quality import (bounding_box_diagonal, point_mesh_distance,  # noqa: E402
-                                       remesh_quality)
-from . import baselines  # noqa: E402
-
-__all__ = ["Method", "compare_methods", "write_report", "remesh_outputs", "plain_metrics"]
+__all__ = ["Method", "LABELS", "comparison_table", "verdicts", "remesh_warnings",
+           "plain_metrics", "write_report"]
 
 DPI = 110
 LABELS = {
@@ -54,6 +44,13 @@ LABELS = {
 COLORS = {"input": "0.45", "sem_lifted": "tab:cyan", "sem": "tab:blue",
           "pymeshlab_isotropic": "tab:orange", "fast_simplification": "tab:green"}
 COMPARED = ("sem", "pymeshlab_isotropic", "fast_simplification")
+STYLE = """
+.cmp th, .cmp td { text-align: right; } .cmp tbody th { text-align: left; }
+td.unit { color: #666; text-align: left; } td.best { background: #dff0d8; font-weight: bold; }
+.cmp td.unit, .cmp td.na { text-align: left; }
+td.na { color: #888; font-size: 0.85em; }
+.vs { display: flex; gap: 2em; } .vs > div { flex: 1; } h3 { margin: 0.3em 0; }
+"""
 
 
 @dataclass
@@ -78,143 +75,18 @@ def plain_metrics(q: dict) -> dict:
     return q
 
 
-def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
-                    compare: bool = True, n_random: int = 200_000, seed: int = 0,
-                    progress=None) -> dict[str, Method]:
-    """Measure the input, our lifted and improved remeshes and (``compare``) the baselines."""
-    def say(msg):
-        if progress:
-            progress(msg)
-
-    out: dict[str, Method] = {}
-    out["input"] = Method("input", V_in, F_in, None,
-                          remesh_quality(V_in, F_in, V_in, F_in, distance=False))
-    Xl, Fl = remesh.lifted
-    say("measuring the lifted remesh")
-    out["sem_lifted"] = Method("sem_lifted", Xl, Fl, remesh.seconds["sample"]
-                               + remesh.seconds["delaunay"] + remesh.seconds["locate"]
-                               + remesh.seconds["lift"],
-                               remesh_quality(V_in, F_in, Xl, Fl, n_random, seed))
-    say("measuring the improved remesh")
-    out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
-                        remesh_quality(V_in, F_in, remesh.V, remesh.F, n_random, seed))
-    if not compare:
-        return out
-    if baselines.pymeshlab_available():
-        say("pymeshlab isotropic explicit remeshing (solving for the target length)")
-        b = baselines.isotropic_remesh(V_in, F_in, target)
-        out["pymeshlab_isotropic"] = Method(
-            "pymeshlab_isotropic", b.V, b.F, b.seconds,
-            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
-            extra={"runs": b.runs, "parameters": b.parameter,
-                   "seconds_all_runs": b.seconds_all_runs})
-    else:
-        out["pymeshlab_isotropic"] = Method("pymeshlab_isotropic", None, None,
-                                            note="pymeshlab is not installed "
-                                                 "(pip install pymeshlab)")
-    say("fast-simplification decimation")
-    b = baselines.decimate(V_in, F_in, target)
-    if b is None:
-        out["fast_simplification"] = Method(
-            "fast_simplification", None, None,
-            note=f"not applicable: decimation only removes vertices and the input has "
-                 f"{len(V_in)} ≤ {target}")
-    else:
-        out["fast_simplification"] = Method(
-            "fast_simplification", b.V, b.F, b.seconds,
-            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
-            extra={"runs": b.runs, "parameters": b.parameter,
-                   "seconds_all_runs": b.seconds_all_runs})
-    return out
-
-
 # ------------------------------------------------------------------------------- figures
 
 
-def _figure(w, h):
-    fig = Figure(figsize=(w, h), dpi=DPI, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
+def _figure(width: float, height: float):
+    return new_figure(width, height, dpi=DPI, layout="constrained")
 
 
-def _save(fig, path: Path) -> Path:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.png", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=DPI)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+
+MESH_COLOR = (0.78, 0.80, 0.84)        # a light blue-grey for every mesh in the renders
 
 
-class _View:
-    """Orthographic view of the input along its least-variance axis (PCA), from the side its
-    face normals point to; the same view for every mesh."""
-
-    def __init__(self, V, F):
-        self.c = V.mean(axis=0)
-        _, _, Wt = np.linalg.svd(V - self.c, full_matrices=False)
-        e3 = Wt[2]
-        n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]).sum(axis=0)
-        if n @ e3 < 0:
-            e3 = -e3
-        # "up" on the screen: the model's +y axis when it is not along the view (faces and most
-        # scans are stored y-up), else the direction of largest extent
-        up = np.array([0.0, 1.0, 0.0]) - e3[1] * e3
-        if np.linalg.norm(up) < 0.3:
-            up = Wt[0] - (Wt[0] @ e3) * e3
-        e2 = up / np.linalg.norm(up)
-        e1 = np.cross(e2, e3)
-        self.E = np.stack([e1, e2, e3])
-        light = e3 + 0.35 * e2 - 0.25 * e1
-        self.light = light / np.linalg.norm(light)
-
-    def project(self, X):
-        Y = (X - self.c) @ self.E.T
-        return Y[:, :2], Y[:, 2]
-
-    def draw(self, ax, V, F, window=None, edges=False, colors=None):
-        P, depth = self.project(V)
-        if window is not None:
-            (x0, x1), (y0, y1) = window
-            C = P[F].mean(axis=1)
-            pad = 0.15 * (x1 - x0)
-            keep = ((C[:, 0] > x0 - pad) & (C[:, 0] < x1 + pad)
-                    & (C[:, 1] > y0 - pad) & (C[:, 1] < y1 + pad))
-            F = F[keep]
-            if colors is not None:
-                colors = colors[keep]
-        N = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-        N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
-        lam = N @ self.light
-        front = N @ self.E[2] >= 0
-        shade = np.where(front, 0.3 + 0.7 * np.clip(lam, 0, 1), 0.15 + 0.2 * np.abs(lam))
-        base = np.array([0.78, 0.80, 0.84]) if colors is None else colors[:, :3]
-        rgb = np.clip(base * shade[:, None], 0, 1)
-        order = np.argsort(depth[F].mean(axis=1), kind="stable")
-        pc = PolyCollection(P[F[order]], facecolors=rgb[order],
-                            edgecolors=(0.05, 0.05, 0.1, 0.9) if edges else "none",
-                            linewidths=0.35 if edges else 0.0, antialiased=edges,
-                            rasterized=True)
-        ax.add_collection(pc)
-        if window is None:
-            lo, hi = P.min(axis=0), P.max(axis=0)
-            pad = 0.02 * float((hi - lo).max())
-            ax.set_xlim(lo[0] - pad, hi[0] + pad)
-            ax.set_ylim(lo[1] - pad, hi[1] + pad)
-        else:
-            ax.set_xlim(*window[0])
-            ax.set_ylim(*window[1])
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-
-
-def _windows(view: _View, methods: dict[str, Method], V_in, F_in):
+def _windows(view, methods: dict[str, Method], V_in, F_in):
     """Two zoom windows (about 14 of our edge lengths wide): the middle of the surface and the
     place where our remesh is farthest from the input."""
     sem = methods["sem"]
@@ -239,16 +111,17 @@ def _windows(view: _View, methods: dict[str, Method], V_in, F_in):
 def plot_renders(path: Path, methods: dict[str, Method], V_in, F_in) -> Path:
     keys = [k for k in ("input", "sem_lifted", "sem", "pymeshlab_isotropic",
                         "fast_simplification") if methods.get(k) and methods[k].ok]
-    view = _View(V_in, F_in)
+    view = camera_for(V_in, F_in, margin=0.02)
     wins, _ = _windows(view, methods, V_in, F_in)
     fig = _figure(3.0 * len(keys), 9.2)
     axs = fig.subplots(3, len(keys), squeeze=False)
     for j, k in enumerate(keys):
         m = methods[k]
-        view.draw(axs[0, j], m.V, m.F)
+        draw_surface(axs[0, j], m.V, m.F, view, shading="flat", color=MESH_COLOR)
         axs[0, j].set_title(f"{LABELS[k]}\n{len(m.V)} vertices, {len(m.F)} faces", fontsize=8)
         for i, w in enumerate(wins):
-            view.draw(axs[1 + i, j], m.V, m.F, window=w, edges=True)
+            draw_surface(axs[1 + i, j], m.V, m.F, view, shading="flat", color=MESH_COLOR,
+                         window=w, edges=True)
             for (x0, x1), (y0, y1) in [w]:
                 axs[0, j].plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0],
                                color=("tab:red" if i else "tab:purple"), lw=0.8)
@@ -256,7 +129,7 @@ def plot_renders(path: Path, methods: dict[str, Method], V_in, F_in) -> Path:
     axs[2, 0].set_ylabel("zoom: where ours is farthest\nfrom the input (red box)", fontsize=8)
     fig.suptitle("Same orthographic view for every mesh (flat shading; darker = back faces)",
                  fontsize=9)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 def plot_min_angles(path: Path, methods: dict[str, Method]) -> Path:
@@ -277,7 +150,7 @@ def plot_min_angles(path: Path, methods: dict[str, Method]) -> Path:
     ax.set_ylabel("faces (%) per 1° bin")
     ax.legend(fontsize=7, loc="upper left")
     ax.set_xlim(0, 60)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 def plot_valence(path: Path, methods: dict[str, Method]) -> Path:
@@ -298,14 +171,15 @@ def plot_valence(path: Path, methods: dict[str, Method]) -> Path:
     ax.set_xlabel("valence of interior vertices (6 = regular)")
     ax.set_ylabel("interior vertices (%)")
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
-def plot_disk(path: Path, remesh, methods: dict[str, Method]) -> Path:
+def plot_disk(path: Path, uv: np.ndarray, F: np.ndarray, methods: dict[str, Method]) -> Path:
+    """Our remesh (disk positions ``uv`` n×2, faces ``F`` m×3) on the disk, faces coloured by
+    their smallest angle on the surface; the whole disk and a zoom at the rim."""
     fig = _figure(11.0, 5.2)
     axs = fig.subplots(1, 2)
     mn = methods["sem"].quality["triangles"]["_per_face_min_angle"]
-    uv, F = remesh.uv, remesh.F
     for ax, zoom in zip(axs, (False, True)):
         pc = PolyCollection(uv[F], array=mn, cmap="RdYlGn", clim=(0, 60),
                             edgecolors="k" if zoom else "none",
@@ -324,7 +198,7 @@ def plot_disk(path: Path, remesh, methods: dict[str, Method]) -> Path:
     cb.set_label("smallest angle of the face on the surface (°)")
     fig.suptitle("Our remesh on the disk: faces coloured by their smallest angle on the surface "
                  "(red: skewed by the map's angle distortion)", fontsize=9)
-    return _save(fig, path)
+    return save_png(fig, path, DPI)
 
 
 # ------------------------------------------------------------------------------- HTML
@@ -426,9 +300,13 @@ def verdicts(rows, methods) -> dict[str, tuple[list[str], list[str]]]:
     return out
 
 
-def write_report(folder: Path, methods: dict[str, Method], remesh, meta: dict,
-                 figures: bool = True) -> list[Path]:
-    """``report.html`` and its figures into ``folder``; returns the paths written."""
+def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np.ndarray,
+                 meta: dict, figures: bool = True) -> list[Path]:
+    """``report.html`` and its figures into ``folder``; returns the paths written.
+
+    ``methods``: every measured mesh by key (``input``, ``sem_lifted``, ``sem``, baselines);
+    ``uv`` (n×2), ``F`` (m×3): our remesh on the disk; ``meta``: what the page says about the
+    input, the request, the map and the warnings."""
     folder = Path(folder)
     V_in, F_in = methods["input"].V, methods["input"].F
     paths = []
@@ -436,7 +314,7 @@ def write_report(folder: Path, methods: dict[str, Method], remesh, meta: dict,
         paths.append(plot_renders(folder / "remesh_renders.png", methods, V_in, F_in))
         paths.append(plot_min_angles(folder / "remesh_min_angle.png", methods))
         paths.append(plot_valence(folder / "remesh_valence.png", methods))
-        paths.append(plot_disk(folder / "remesh_disk.png", remesh, methods))
+        paths.append(plot_disk(folder / "remesh_disk.png", uv, F, methods))
     rows = comparison_table(methods)
     paths.append(_write_html(folder / "report.html", rows, methods, meta,
                              verdicts(rows, methods), [p.name for p in paths]))
@@ -444,7 +322,7 @@ def write_report(folder: Path, methods: dict[str, Method], remesh, meta: dict,
 
 
 def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
-    e = html.escape
+    e = h.esc
     keys = [k for k in ("input", "sem_lifted", "sem", "pymeshlab_isotropic",
                         "fast_simplification") if k in methods]
     head = "".join(f"<th>{e(LABELS[k])}</th>" for k in keys)
@@ -478,7 +356,7 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
             runs = m.extra.get("runs", [])
             notes[k] = (f"time of the reported run; {len(runs)} run(s) to hit the vertex count "
                         f"took {m.extra.get('seconds_all_runs', float('nan')):.2f} s; "
-                        f"parameters {e(str(m.extra.get('parameters')))}")
+                        f"parameters {m.extra.get('parameters')}")
         elif m is not None:
             notes[k] = m.note
     li = lambda xs: "".join(f"<li>{e(x)}</li>" for x in xs) or "<li>none</li>"  # noqa: E731
@@ -510,25 +388,8 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
              if "anisotropy_median" in dd else "")
     warn = "".join(f'<p class="warn"><b>Warning:</b> {e(w)}.</p>\n'
                    for w in meta.get("warnings", []))
-    text = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<title>Remesh report: {e(meta.get('name', ''))}</title>
-<style>
-body {{ font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222;
-       line-height: 1.45; padding: 0 1em; }}
-table {{ border-collapse: collapse; font-size: 0.9em; margin: 1em 0; }}
-th, td {{ border: 1px solid #ccc; padding: 0.3em 0.6em; text-align: right; }}
-th {{ background: #f3f3f3; }} tbody th {{ text-align: left; font-weight: normal; }}
-td.unit {{ color: #666; text-align: left; }} td.best {{ background: #dff0d8; font-weight: bold; }}
-td.na {{ color: #888; font-size: 0.85em; text-align: left; }}
-figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; border: 1px solid #ddd; }}
-figcaption, .caption {{ color: #555; font-size: 0.9em; }}
-code {{ background: #f4f4f4; padding: 0 0.2em; }}
-p.warn {{ background: #fcf3d9; border-left: 4px solid #e0a800; padding: 0.5em 0.8em; }}
-.vs {{ display: flex; gap: 2em; }} .vs > div {{ flex: 1; }} h3 {{ margin: 0.3em 0; }}
-</style></head><body>
-<h1>Uniform remeshing through the SEM disk map: {e(meta.get('name', ''))}</h1>
-<p>Input: <code>{e(str(meta.get('source', '')))}</code> — {len(methods['input'].V)} vertices,
+    n_in = len(methods["input"].V)
+    text = f"""<p>Input: <code>{e(str(meta.get('source', '')))}</code> — {n_in} vertices,
 {len(methods['input'].F)} faces after repair; bounding-box diagonal
 {dist.get('scale_bbox_diagonal', float('nan')):.4g} (the input's units). Requested:
 {e(str(meta.get('target')))} vertices, pattern <code>{e(str(info.get('pattern')))}</code>.
@@ -536,8 +397,8 @@ SEM map: {e(str(pm.get('mode')))} mode, {e(str(pm.get('iterations')))} iteration
 distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
 {warn}
 <h2>Side by side, at the same vertex count</h2>
-<table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
-<tbody>{''.join(body)}</tbody></table>
+<div class="cmp"><table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
+<tbody>{''.join(body)}</tbody></table></div>
 <p class="caption">Green: best of the three compared methods (ours improved, pymeshlab,
 decimation); the input and our plain lift are shown for reference. Angles are measured on the
 3D faces. Valence counts edges at interior vertices. Distances: samples on each surface — all
@@ -560,11 +421,9 @@ leave the surface, {imp.get('sag_splits', 0)} here, balanced by as many collapse
 shortest edges) removes most but not all of it, and sharp features are kept only at corner
 vertices ({imp.get('corners_snapped', 0)} interior, {imp.get('rim_corners_snapped', 0)} on
 the boundary), not along creases.</p>
-{fig_html}
-</body></html>
-"""
-    path.write_text(text, encoding="utf-8")
-    return path
+{fig_html}"""
+    return h.write_page(path, f"Remesh report: {meta.get('name', '')}", text, style=STYLE,
+                        h1=f"Uniform remeshing through the SEM disk map: {meta.get('name', '')}")
 
 
 HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
@@ -591,49 +450,3 @@ def remesh_warnings(distortion: dict, methods: dict) -> list[str]:
                    f"bounding-box diagonal (Hausdorff){ref}: edges bridge over regions the map "
                    f"squeezes into slivers (protrusions, deep folds); more vertices reduce it")
     return out
-
-
-def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | None = None,
-                   compare: bool = True, report: bool = True, figures: bool = True,
-                   n_random: int = 200_000, progress=None):
-    """Measure, compare and write everything of the remesh stage into ``out_dir``; returns
-    ``(files, metrics)``."""
-    from .remesh import write_remesh
-
-    t0 = time.perf_counter()
-    target = remesh.info.get("requested_vertices") or len(remesh.V)
-    methods = compare_methods(mesh.V, mesh.F, remesh, target, compare, n_random,
-                              progress=progress)
-    t_measure = time.perf_counter() - t0
-    pm = parameterization.metrics
-    rows = comparison_table(methods)
-    metrics = {
-        "input": dict(input_info or {}, vertices=int(len(mesh.V)), faces=int(len(mesh.F)),
-                      bbox_diagonal=bounding_box_diagonal(mesh.V)),
-        "parameterization": {"mode": pm["parameterization"]["mode"],
-                             "iterations": pm["parameterization"]["iterations"],
-                             "status": pm["parameterization"]["status"],
-                             "distortion": pm["distortion"],
-                             "seconds": float(sum(pm["seconds"].values()))},
-        "remesh": {k: v for k, v in remesh.info.items() if k != "attributes"},
-        "landmarks": remesh.landmarks,
-        "methods": {k: {"label": LABELS[k], "available": m.ok, "note": m.note,
-                        "seconds": m.seconds, **plain_metrics(m.quality),
-                        **({"baseline": m.extra} if m.extra else {})}
-                    for k, m in methods.items()},
-        "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
-        "seconds": dict(remesh.seconds, measure=t_measure),
-    }
-    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"])
-    metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
-                          for k, (b, w) in verdicts(rows, methods).items()}
-    meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
-            "source": (input_info or {}).get("source", ""), "target": target,
-            "parameterization": metrics["parameterization"],
-            "parameterization_seconds": metrics["parameterization"]["seconds"],
-            "angular_distortion_deg": pm["distortion"]["angular_distortion_mean_deg"],
-            "distortion": pm["distortion"], "warnings": metrics["warnings"],
-            "remesh": metrics["remesh"]}
-    writer = (lambda tmp: write_report(tmp, methods, remesh, meta, figures)) if report else None
-    files = write_remesh(remesh, out_dir, metrics, writer)
-    return files, metrics

@@ -1,5 +1,5 @@
-"""Figures of a disk parameterization (pipeline/stages/figures.py): PNG files of the right pixel
-size, written atomically (no temp files left), no figures left open, robust to odd input."""
+"""Figures of a disk parameterization (pipeline/report/parameterize.py): PNG files of the right
+pixel size, written atomically (no temp files left), no figures left open, robust to odd input."""
 
 import matplotlib
 
@@ -14,7 +14,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from pipeline.geometry.metrics import angular_distortion, local_area_ratios  # noqa: E402
 from pipeline.geometry.sem import SEMOptions, stretch_energy_minimization  # noqa: E402
 from pipeline.sample import make_face  # noqa: E402
-from pipeline.stages import figures  # noqa: E402
+from pipeline.report import parameterize as figures  # noqa: E402
 
 
 def _boundary_loop(F, V):

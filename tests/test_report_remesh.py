@@ -1,0 +1,58 @@
+"""The remesh report (pipeline/report/remesh.py): the comparison table, the verdicts, the
+warnings and the page, on small meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.geometry.remesh_quality import remesh_quality
+from pipeline.report.remesh import (Method, comparison_table, remesh_warnings, verdicts,
+                                    write_report)
+from pipeline.sample import make_face
+
+
+def _methods():
+    a, b = make_face(900), make_face(400)
+    V, F = np.asarray(a.V, float), np.asarray(a.F)
+    Vb, Fb = np.asarray(b.V, float), np.asarray(b.F)
+    return {"input": Method("input", V, F, None, remesh_quality(V, F, V, F, distance=False)),
+            "sem": Method("sem", Vb, Fb, 0.5, remesh_quality(V, F, Vb, Fb, 2000, 0)),
+            "pymeshlab_isotropic": Method("pymeshlab_isotropic", None, None,
+                                          note="pymeshlab is not installed"),
+            "fast_simplification": Method("fast_simplification", Vb, Fb, 0.1,
+                                          remesh_quality(V, F, Vb, Fb, 2000, 0))}
+
+
+def test_table_verdicts_and_page(tmp_path):
+    methods = _methods()
+    rows = comparison_table(methods)
+    assert rows[0]["measure"] == "vertices" and rows[0]["values"]["sem"] == len(methods["sem"].V)
+    assert all(r["values"]["pymeshlab_isotropic"] is None for r in rows)
+    v = verdicts(rows, methods)
+    # the same mesh on both sides: every measure ties except the time
+    assert set(v) == {"fast_simplification"}
+    assert v["fast_simplification"] == ([], ["time: 0.50 vs 0.10 s"])
+    paths = write_report(tmp_path, methods, np.zeros((len(methods["sem"].V), 2)),
+                         methods["sem"].F, {"name": "face", "target": 400}, figures=False)
+    assert [p.name for p in paths] == ["report.html"]
+    text = paths[0].read_text(encoding="utf-8")
+    assert text.startswith("<!DOCTYPE html>") and "<table>" in text
+    assert "pymeshlab is not installed" in text and "&amp;#x27;" not in text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+
+
+def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
+    calm = {"anisotropy_median": 2.0, "anisotropy_p90": 4.0, "anisotropy_area_above_10": 0.25}
+    close = {"sem": {"distance": {"hausdorff_rel": 0.005}},
+             "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.003}}}
+    assert remesh_warnings(calm, close) == []                  # both exactly at the limits
+    assert remesh_warnings({}, {}) == []                        # nothing measured: no claim
+    stretched = dict(calm, anisotropy_median=6.8, anisotropy_area_above_10=0.31)
+    far = {"sem": {"distance": {"hausdorff_rel": 0.0089}},
+           "pymeshlab_isotropic": {"distance": {"hausdorff_rel": 0.0031}}}
+    w = remesh_warnings(stretched, far)
+    assert len(w) == 2
+    assert "31 % of the surface more than 10:1" in w[0] and "σ₁/σ₂ = 6.8" in w[0]
+    assert "0.89 %" in w[1] and "pymeshlab's is 0.31 %" in w[1]
+    w = remesh_warnings(calm, {"sem": far["sem"]})              # --no-compare: no reference
+    assert len(w) == 1 and "pymeshlab" not in w[0]
