@@ -230,7 +230,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=cmd_run)
 
     for stage in STAGES:
-        if stage.summary is not None:
+        if stage.command:
             add_stage_parser(sub, stage)
 
     exp = sub.add_parser("experiment", help="run a config over a dataset and a parameter sweep "

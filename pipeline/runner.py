@@ -61,10 +61,12 @@ def run_config(config, base: Path, out_root: str | Path | None = None) -> Path:
     run_dir = Path(out_root) if out_root else Path(config.run.out_dir)   # relative to the cwd
     run_dir = run_dir / config.run.name
     t0 = time.perf_counter()
-    _, files, seconds = run_stages(config, base, lambda name: run_dir / name, config.run.name)
-    manifest = {"config": config.model_dump(), "versions": versions(),
-                "stages": {name: {k: str(v) for k, v in f.items()} for name, f in files.items()},
-                "stage_seconds": seconds, "seconds": time.perf_counter() - t0}
-    write_run_index(run_dir, files, config.run.name, manifest)
-    write_json(run_dir / "manifest.json", manifest)
+    ctx, files, seconds = run_stages(config, base, lambda name: run_dir / name, config.run.name)
+    write_json(run_dir / "manifest.json", {
+        "config": config.model_dump(), "versions": versions(),
+        "stages": {name: {k: str(v) for k, v in f.items()} for name, f in files.items()},
+        "stage_seconds": seconds, "seconds": time.perf_counter() - t0})
+    summaries = {s.name: s.summary(ctx, files.get(s.name, {})) for s in plan(config)
+                 if s.summary is not None}
+    write_run_index(run_dir, files, config.run.name, summaries, seconds)
     return run_dir

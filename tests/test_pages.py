@@ -39,16 +39,19 @@ def remesh_out(sample_dir, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def register_run(tmp_path_factory):
-    """configs/morph_sample.yaml, small: the run folder (register/ and morph/ inside)."""
+    """configs/sample.yaml (the whole chain), small: the run folder with input/, parameterize/,
+    remesh/, register/, morph/ and index.html."""
     root = tmp_path_factory.mktemp("runs")
-    config = root / "morph_small.yaml"
+    config = root / "chain_small.yaml"
     config.write_text(
-        "run: {name: morph_small}\n"
-        "register: {sample: true, sample_vertices: 800, sample_expression: smile}\n"
+        "run: {name: chain_small}\n"
+        "input: {sample: {vertices: 1500}}\n"
         "parameterize: {mode: converged, max_iter: 30}\n"
+        "remesh: {vertices: 800}\n"
+        "register: {sample: true, sample_vertices: 800, sample_expression: smile}\n"
         "morph: {frames: 4, easing: ease-in-out}\n")
     _ok(run_cli("run", config, "--out", root / "out"), "pipeline run")
-    return root / "out" / "morph_small"
+    return root / "out" / "chain_small"
 
 
 @pytest.fixture(scope="module")
@@ -80,6 +83,37 @@ def test_register_report_shows_every_figure(chrome, register_run):
     assert set(figures) <= set(seen["image_paths"]), (
         f"{page}: figures written but not shown: "
         f"{sorted(f.name for f in set(figures) - set(seen['image_paths']))}")
+
+
+@pytest.mark.parametrize("stage", ["parameterize", "remesh", "morph"])
+def test_stage_reports_of_a_run_show_every_figure(chrome, register_run, stage):
+    folder = register_run / stage
+    seen = check_page(chrome, folder / "report.html", root=register_run)
+    figures = sorted(p.resolve() for p in folder.glob("*.png")) + \
+        sorted(p.resolve() for p in folder.glob("*.gif"))
+    assert figures, f"{stage} wrote no figure"
+    assert set(figures) <= set(seen["image_paths"]), (
+        f"{stage}/report.html: figures written but not shown: "
+        f"{sorted(f.name for f in set(figures) - set(seen['image_paths']))}")
+
+
+def test_run_index_links_every_stage_report_and_file(chrome, register_run):
+    import json
+
+    page = register_run / "index.html"
+    seen = check_page(chrome, page)
+    manifest = json.loads((register_run / "manifest.json").read_text())
+    assert list(manifest["stages"]) == ["input", "parameterize", "remesh", "register", "morph"]
+    linked = {p.resolve() for p in seen["link_paths"]}
+    for stage, files in manifest["stages"].items():
+        for key, path in files.items():
+            assert Path(path).resolve() in linked, f"index.html: no link to {stage} {key}"
+        if stage != "input":
+            assert (register_run / stage / "report.html").resolve() in linked, stage
+    assert (register_run / "manifest.json").resolve() in linked
+    shown = set(seen["image_paths"])
+    for png in register_run.glob("*/*.png"):
+        assert png.resolve() in shown, f"index.html: no thumbnail of {png}"
 
 
 def test_experiment_summary_links_every_item(chrome, experiment_dir):

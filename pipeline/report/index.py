@@ -12,6 +12,7 @@ __all__ = ["write_run_index"]
 STYLE = """
 section.stage { border-top: 1px solid #ddd; margin-top: 1.5em; }
 p.report a { font-weight: bold; } span.missing { color: #a00; }
+div.thumbs img { height: 160px; margin: 0 6px 6px 0; border: 1px solid #ddd; }
 """
 
 
@@ -24,7 +25,8 @@ def _relative(path: Path, run_dir: Path) -> str:
 
 
 def write_run_index(run_dir, stages: dict[str, dict[str, Path]], title: str = "",
-                    meta: dict | None = None) -> Path:
+                    summaries: dict[str, str] | None = None,
+                    seconds: dict[str, float] | None = None) -> Path:
     """Write ``<run_dir>/index.html`` and return its path.
 
     Parameters
@@ -34,21 +36,30 @@ def write_run_index(run_dir, stages: dict[str, dict[str, Path]], title: str = ""
         function returns them), in the order the stages ran; the file named ``report.html``
         (or the ``report`` key) is linked first, a path that does not exist is marked missing.
     title : the page title (default: the folder's name).
-    meta : shown as a table above the stages (config, times, versions …).
+    summaries, seconds : stage name → its one-line result and its time, for the overview table.
     """
     run_dir = Path(run_dir)
-    parts = []
-    if meta:
-        parts.append(h.kv_table(list(meta.items()), ".4g"))
+    summaries, seconds = summaries or {}, seconds or {}
+    overview, parts = [], []
     for stage, files in stages.items():
         files = {k: Path(p) for k, p in (files or {}).items()}
         full = {k: (p if p.is_absolute() else run_dir / p) for k, p in files.items()}
         report = next((k for k, p in files.items() if k == "report" or p.name == "report.html"),
                       None)
-        out = [f'<section class="stage"><h2>{h.esc(stage)}</h2>']
-        if report is not None and full[report].exists():
-            out.append(f'<p class="report">{h.link(_relative(files[report], run_dir), "report")}'
-                       f"</p>")
+        has_report = report is not None and full[report].exists()
+        report_link = h.link(_relative(files[report], run_dir), "report") if has_report else "–"
+        overview.append([f'<a href="#{h.esc(stage)}">{h.esc(stage)}</a>',
+                         h.fmt(seconds[stage], ".2f") if stage in seconds else "–",
+                         h.esc(summaries.get(stage, "")), report_link])
+        out = [f'<section class="stage" id="{h.esc(stage)}"><h2>{h.esc(stage)}</h2>']
+        if has_report:
+            out.append(f'<p class="report">{report_link}</p>')
+        thumbs = [_relative(p, run_dir) for k, p in files.items()
+                  if p.suffix in (".png", ".gif") and full[k].exists()]
+        if thumbs:
+            out.append('<div class="thumbs">' + "".join(
+                f'<a href="{h.href(t)}"><img src="{h.href(t)}" alt="{h.esc(t)}"></a>'
+                for t in thumbs) + "</div>")
         rows = []
         for k, p in files.items():
             rel = _relative(p, run_dir)
@@ -58,7 +69,13 @@ def write_run_index(run_dir, stages: dict[str, dict[str, Path]], title: str = ""
         out.append(h.table(["file", "path"], rows) if rows else "<p>no files</p>")
         out.append("</section>")
         parts.append("\n".join(out))
-    if not stages:
-        parts.append("<p>No stage has written files yet.</p>")
-    return h.write_page(run_dir / "index.html", title or run_dir.name, "\n".join(parts),
-                        style=STYLE)
+    head = []
+    if overview:
+        head.append(h.table(["stage", "seconds", "result", "report"], overview))
+    else:
+        head.append("<p>No stage has written files yet.</p>")
+    if (run_dir / "manifest.json").exists() or stages:
+        head.append(f"<p>Config snapshot, versions and timings: "
+                    f"{h.link('manifest.json', 'manifest.json')}</p>")
+    return h.write_page(run_dir / "index.html", title or run_dir.name,
+                        "\n".join(head + parts), style=STYLE)

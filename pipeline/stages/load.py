@@ -95,6 +95,13 @@ def _write(ctx: Context, folder: Path) -> dict[str, Path]:
     return {key: folder / Path(p).name for key, p in names.items()}
 
 
+def _summary(ctx: Context, files: dict) -> str:
+    intake = ctx.artifacts["intake"]
+    m = intake.mesh
+    return (f"{intake.info['source']}: {len(m.V)} vertices, {len(m.F)} faces after repair"
+            + (f" ({len(m.messages)} repairs, see metrics)" if m.messages else ""))
+
+
 STAGE = Stage(name="input", section=InputConfig, run=_run, write=_write, makes=("intake",),
               extra_sections={"repair": RepairOptions}, input_files=("mesh",),
-              positional=("mesh",))
+              positional=("mesh",), summary=_summary, command=False)

@@ -152,8 +152,8 @@ def _write(ctx: Context, folder: Path) -> dict[str, Path]:
 
 def _summary(ctx: Context, files: dict) -> str:
     m = ctx.artifacts["morph"]
-    return (f"{m.options.frames} frames ({m.options.easing}) in {files['frames']}, "
-            f"animation {files['gif']}, filmstrip {files['filmstrip']}")
+    return (f"{m.options.frames} frames ({m.options.easing}) in frames/, animation morph.gif, "
+            f"filmstrip filmstrip.png")
 
 
 STAGE = Stage(name="morph", section=MorphConfig, run=_run, write=_write,

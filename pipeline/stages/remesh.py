@@ -104,6 +104,7 @@ class Remesh:
     landmarks: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)   # remesh_metrics.json, once written
 
 
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
@@ -353,14 +354,16 @@ def _write(ctx: Context, folder: Path) -> dict[str, Path]:
                                     report=rc.report, figures=ctx.figures,
                                     n_random=rc.distance_samples,
                                     progress=lambda msg: ctx.log(f"remesh: {msg}"))
-    ctx.log(f"remesh: {_summary_line(r, metrics)}")
+    r.metrics = metrics
+    ctx.log(f"remesh: {_summary(ctx, files)}")
     for warning in metrics["warnings"]:
         ctx.log(f"remesh: warning: {warning}")
     return files
 
 
-def _summary_line(r: Remesh, metrics: dict) -> str:
-    sem = metrics["methods"]["sem"]
+def _summary(ctx: Context, files: dict) -> str:
+    r = ctx.artifacts["remesh"]
+    sem = r.metrics["methods"]["sem"]
     t = sem["triangles"]
     d = sem.get("distance", {})
     return (f"{len(r.V)} vertices, {len(r.F)} faces, "
@@ -373,7 +376,6 @@ def _summary_line(r: Remesh, metrics: dict) -> str:
 STAGE = Stage(name="remesh", section=RemeshConfig, run=_run, write=_write,
               needs=("intake", "parameterization"), makes=("remesh",), uses=("report",),
               input_files=("landmarks",),
-              summary=lambda ctx, files: ", ".join(Path(p).name for k, p in files.items()
-                                                   if k in ("obj", "metrics", "report")),
+              summary=_summary,
               help="uniform remesh through the SEM disk map, with a quality report beside "
                    "pymeshlab and decimation")

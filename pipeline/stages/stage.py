@@ -121,8 +121,11 @@ class Stage:
         Keys of the section given as positional arguments of the subcommands that run this
         stage (``input.mesh`` → ``MESH``).
     summary : callable or None
-        ``summary(ctx, files) -> str``: the subcommand's closing line; a stage without one has
-        no subcommand of its own.
+        ``summary(ctx, files) -> str``: the stage's one-line result (the subcommand's closing
+        line, the run index's overview).
+    command : bool
+        Whether the stage has a subcommand of its own (``input`` has none: every subcommand
+        that needs a mesh reads one).
     help : str
         The subcommand's one-line help.
     """
@@ -140,6 +143,7 @@ class Stage:
     input_files: tuple[str, ...] = ()
     positional: tuple[str, ...] = ()
     summary: Optional[Callable[[Context, dict], str]] = None
+    command: bool = True
     help: str = ""
 
     def needs_for(self, section) -> tuple[str, ...]:
