@@ -669,6 +669,7 @@ def write_sample(out_dir, n_vertices: int = 6000) -> dict[str, Path]:
     (``{"source": ..., "landmarks": {name: index}}``, 0-based vertex indices, valid for both).
     Returns the paths under the keys ``"neutral"``, ``"smile"``, ``"landmarks"``.
     """
+    from pipeline.io.artifacts import atomic_write_text
     from pipeline.io.meshio import write_obj
 
     out = Path(out_dir)
@@ -687,9 +688,7 @@ def write_sample(out_dir, n_vertices: int = 6000) -> dict[str, Path]:
         write_obj(p, face.V, face.F, header=header)
         paths[expr] = p
     p = out / "sample_face_landmarks.json"
-    p.write_text(
-        json.dumps({"source": "synthetic (sem-pipeline sample.py)", "landmarks": lms}, indent=2)
-        + "\n"
-    )
+    atomic_write_text(p, json.dumps({"source": "synthetic (sem-pipeline sample.py)",
+                                     "landmarks": lms}, indent=2) + "\n")
     paths["landmarks"] = p
     return paths

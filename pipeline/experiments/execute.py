@@ -175,8 +175,10 @@ def run_item(payload: dict) -> dict:
 def _write_yaml(path: Path, data: dict) -> None:
     import yaml
 
-    path.write_text("# This item's full single-run config: sem-pipeline run config.yaml\n"
-                    + yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    from ..io.artifacts import atomic_write_text
+
+    atomic_write_text(path, "# This item's full single-run config: sem-pipeline run "
+                            "config.yaml\n" + yaml.safe_dump(data, sort_keys=False))
 
 
 def _lost_item(payload: dict, exc: BaseException) -> dict:
