@@ -601,7 +601,7 @@ def flip_checks(const double[:, ::1] X, const double[:, ::1] uv,
 def opposite_cots(const double[:, ::1] X, const int64_t[:, ::1] F):
     """Per face (k×3): column ``c`` is the cotangent of the angle opposite half-edge
     ``F[t,c] → F[t,c+1]``: ``−e_{c+1} · e_{c+2} / |e_0 × e_2|`` with the half-edges
-    ``e_c = X[F[t,c+1]] − X[F[t,c]]`` (the arithmetic of ``remesh_improve._opposite_cots``)."""
+    ``e_c = X[F[t,c+1]] − X[F[t,c]]`` (called by ``remesh.flips._opposite_cots``)."""
     cdef Py_ssize_t t, c, j
     cdef double e[3][3]
     cdef double n[3]
