@@ -195,8 +195,8 @@ def point_mesh_distance(P: np.ndarray, V: np.ndarray, F: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
     """Exact Euclidean distance of every point of ``P`` to the triangle mesh ``(V, F)`` and the
     index of a closest face: libigl's AABB tree (``igl.point_mesh_squared_distance``, exact
-    point–triangle distances). It replaced a nearest-centroid search with a certificate, 12×
-    slower (229k samples on choi_human_face: 2.2 → 0.19 s, distances equal to 6e-17)."""
+    point–triangle distances), built once per mesh, so the hundreds of thousands of samples of
+    the report's Hausdorff and RMS distances take a fraction of a second."""
     import igl
 
     P = np.ascontiguousarray(np.asarray(P, np.float64).reshape(-1, 3))
