@@ -474,8 +474,7 @@ def write_figures(folder: Path, V, F, uv, history) -> list[Path]:
         plot_angle_histogram(angular_distortion(V, F, uv).ravel(),
                              folder / "angle_histogram.png"),
         plot_convergence(history, folder / "convergence.png"),
-        plot_surface_and_disk(V, F, uv, np.log2(np.clip(R, 1e-6, None)),
-                              folder / "surface_and_disk.png"),
+        plot_surface_and_disk(V, F, uv, R, folder / "surface_and_disk.png"),
     ]
 
 
