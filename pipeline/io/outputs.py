@@ -43,11 +43,12 @@ _RENAME_EXCHANGE = 2
 
 
 def format_bytes(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(n) < 1024 or unit == "TiB":
+    """``1536`` → ``"1.5 KiB"`` (powers of 1024, up to EiB)."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if abs(n) < 1024:
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
         n /= 1024
-    return f"{n:.1f} PiB"            # unreachable; keeps type checkers quiet
+    return f"{n:.3g} EiB"
 
 
 def _kind(path: Path) -> str:
