@@ -210,9 +210,11 @@ def end_with_parent() -> None:
     """End this process when its parent dies: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux,
     else a daemon thread that polls the parent's pid. A pool worker whose experiment was
     killed must not go on writing into the folder without its lock."""
+    import multiprocessing
     import signal
 
-    parent = os.getppid()
+    spawner = multiprocessing.parent_process()      # the pool's process, even if it died
+    parent = spawner.pid if spawner is not None else os.getppid()
     try:
         import ctypes
 
@@ -226,7 +228,7 @@ def end_with_parent() -> None:
             os._exit(137)
 
         threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
-    if os.getppid() != parent:                 # the parent died before the line above
+    if os.getppid() != parent:                 # the parent died before this process got here
         os._exit(137)
 
 
