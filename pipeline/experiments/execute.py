@@ -329,7 +329,10 @@ def run_experiment(experiment, out_root: str | Path | None = None, workers: int 
 
     ``workers`` (default: the config's ``experiment.workers``, else the machine's cores) and
     ``scheduler`` (default: the config's ``experiment.scheduler``; a Dask address or
-    ``local``) choose the backend. Returns which items ran, were skipped and failed.
+    ``local``) choose the backend. The experiment's folder is checked and locked like a run's
+    (:mod:`pipeline.io.outputs`; it is not replaced: its finished items are the cache), and
+    the summary is written also when the run is interrupted (unfinished items: ``missing``).
+    Returns which items ran, were skipped and failed.
     """
     from ..io.artifacts import atomic_write_text
     from ..io.outputs import check_output_folder, output_lock
