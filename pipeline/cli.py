@@ -159,7 +159,7 @@ def cmd_stage(args) -> int:
     from pydantic import ValidationError
 
     from .config import Config, format_validation_error
-    from .runner import run_stages
+    from .runner import run_command
     from .stages.registry import stage as find
 
     stage = find(args.stage)
@@ -170,22 +170,26 @@ def cmd_stage(args) -> int:
         raise UserError(format_validation_error(exc, prog, names=_flag_names(stage))) from None
     positional = [getattr(args, k) for _, _, keys in _sections(stage) for k in keys]
     label = Path(str(positional[0][0] if isinstance(positional[0], list) else positional[0])).name
-    out = Path(args.out)
-    ctx, files, _ = run_stages(config, Path.cwd(),
-                               lambda name: out if name == stage.name else None, label)
-    print(f"{out}: {stage.summary(ctx, files.get(stage.name, {}))}")
+    ctx, files = run_command(config, stage.name, args.out, label)
+    print(f"{args.out}: {stage.summary(ctx, files)}")
     return 0
 
 
 # ------------------------------------------------------------------------ the other commands
 
 
+def _check_out(value: str | None) -> None:
+    if value is not None and not value.strip():
+        raise UserError("--out: empty path; give a folder name or leave --out out")
+
+
 def cmd_run(args) -> int:
     from .config import load_config
     from .runner import run_config
 
+    _check_out(args.out)
     config, base = load_config(args.config)
-    run_dir = run_config(config, base, args.out)
+    run_dir = run_config(config, base, args.out, config_file=args.config)
     print(f"{run_dir}: done (open {run_dir / 'index.html'}; manifest {run_dir / 'manifest.json'})")
     return 0
 
@@ -194,6 +198,7 @@ def cmd_experiment(args) -> int:
     from .experiments.execute import run_experiment
     from .experiments.spec import load_experiment
 
+    _check_out(args.out)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be at least 1 (got {args.workers})")
     exp = load_experiment(args.config)
@@ -208,8 +213,19 @@ def cmd_experiment(args) -> int:
 
 
 def cmd_sample(args) -> int:
-    from .sample import write_sample
+    from pydantic import ValidationError
 
+    from .config import format_validation_error
+    from .io.outputs import check_output_folder
+    from .sample import write_sample
+    from .stages.load import SampleInput
+
+    try:
+        SampleInput(vertices=args.vertices)
+    except ValidationError as exc:
+        raise UserError(format_validation_error(exc, "sem-pipeline sample", SampleInput,
+                                                {("vertices",): "--vertices"})) from None
+    check_output_folder(args.out, 1 << 20, flag="-o", replace=False)
     paths = write_sample(args.out, n_vertices=args.vertices)
     print("\n".join(str(p) for p in paths.values()))
     return 0
@@ -254,10 +270,37 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _os_error(exc: OSError) -> str:
+    """A file system error (a full disk, no permission, a read-only file system) as one line."""
+    import errno
+
+    where = f" '{exc.filename}'" if exc.filename else ""
+    fix = {errno.ENOSPC: "free some space or choose another output folder",
+           errno.EDQUOT: "free some space or choose another output folder",
+           errno.EACCES: "check the permissions or choose another folder",
+           errno.EPERM: "check the permissions or choose another folder",
+           errno.EROFS: "choose a folder on a writable file system"}.get(
+        exc.errno, "check the path and the file system")
+    return f"cannot access{where}: {exc.strerror or exc}; {fix}"
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM: unwinds like Ctrl-C, so the build folder is removed and the lock released."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
 def main(argv=None) -> int:
+    import signal
+    import threading
+
     from .stages.parameterize import ParameterizationFailed
     from .stages.register import RegistrationFailed
 
+    main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
     try:
         args = build_parser().parse_args(argv)
         return args.func(args)
@@ -267,6 +310,16 @@ def main(argv=None) -> int:
     except (ParameterizationFailed, RegistrationFailed) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:
+        print(f"error: {_os_error(exc)}", file=sys.stderr)
+        return UserError.exit_code
+    except MemoryError:
+        print("error: out of memory; ask for less (fewer vertices, frames or a smaller "
+              "input) or run on a machine with more memory", file=sys.stderr)
+        return UserError.exit_code
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, previous)

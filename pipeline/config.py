@@ -2,8 +2,9 @@
 
 A config has one section per stage (each stage module declares its model; the registry in
 :mod:`pipeline.stages.registry` lists them), plus ``run`` (name and output folder) and ``report``.
-It is read with ``yaml.safe_load`` and validated by those models (``extra="forbid"``), so an
-unknown key, a wrong type or a missing file is one line naming the key, e.g.
+It is read with a safe YAML loader that refuses a duplicated key, and validated by those models
+(``extra="forbid"``, no NaN or infinite numbers), so an unknown key, a wrong type or a missing
+file is one line naming the key, e.g.
 ``config.yaml: parameterize.max_iters: unknown key; did you mean 'max_iter'?``. Input paths are
 relative to the config file's folder; ``run.out_dir`` to the working directory. Every key is
 documented in ``configs/<stage>.yaml``.
@@ -17,7 +18,8 @@ from pathlib import Path
 from typing import Optional
 
 import yaml
-from pydantic import BaseModel, Field, ValidationError, create_model, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, ValidationError, create_model,
+                      field_validator, model_validator)
 
 from .errors import UserError
 from .stages.registry import STAGES, input_file_keys, plan
@@ -27,6 +29,16 @@ from .stages.stage import Section, Stage
 class RunConfig(Section):
     name: str = Field("run", description="outputs go to <out_dir>/<name>/")
     out_dir: str = "outputs"          # relative to the working directory
+
+    @field_validator("name")
+    @classmethod
+    def _plain_name(cls, name: str) -> str:
+        """A folder name inside ``out_dir``: no separators, no ``.``/``..``, not empty."""
+        if not name.strip() or name in (".", "..") or any(c in name for c in "/\\\0") \
+                or name != name.strip():
+            raise ValueError("must be a plain folder name (no '/', '\\', '..', surrounding "
+                             "spaces or empty name); put folders into run.out_dir or --out")
+        return name
 
 
 class ReportConfig(Section):
@@ -40,9 +52,9 @@ def config_model(stages: tuple[Stage, ...] = STAGES) -> type[BaseModel]:
     fields: dict = {"run": (RunConfig, RunConfig())}
     for s in stages:
         for name, model in s.extra_sections.items():
-            fields[name] = (model, model())
-        fields[s.name] = (s.section, s.section()) if s.default_on else \
-            (Optional[s.section], None)
+            fields[name] = (finite(model), finite(model)())
+        section = finite(s.section)
+        fields[s.name] = (section, section()) if s.default_on else (Optional[section], None)
     fields["report"] = (ReportConfig, ReportConfig())
 
     def check_stages(self):
@@ -55,6 +67,18 @@ def config_model(stages: tuple[Stage, ...] = STAGES) -> type[BaseModel]:
         return create_model("Config", __base__=Section, __doc__="A run config: every section.",
                             __validators__={"_stages": model_validator(mode="after")(
                                 check_stages)}, **fields)
+
+
+def finite(model: type[BaseModel]) -> type[BaseModel]:
+    """``model``, or a subclass of it that refuses NaN and infinite numbers when ``model``
+    allows them (a kernel's options model such as ``SEMOptions``: in a config, ``tol: .inf``
+    is a mistake like ``tol: -1``). Instances are instances of ``model``."""
+    if model.model_config.get("allow_inf_nan") is False:
+        return model
+    return type(model.__name__, (model,), {
+        "model_config": ConfigDict(**{**model.model_config, "allow_inf_nan": False}),
+        "__module__": model.__module__, "__doc__": model.__doc__,
+        "__qualname__": model.__qualname__})
 
 
 Config = config_model()
@@ -93,7 +117,8 @@ def format_validation_error(exc: ValidationError, source: str,
         return f"{source}: {where}: required key is missing"
     given = err.get("input")
     given = "" if isinstance(given, dict) else f" (got {given!r})"
-    return f"{source}: {where}: {err['msg']}{given}"
+    msg = err["msg"].removeprefix("Value error, ")
+    return f"{source}: {where}: {msg}{given}"
 
 
 def load_config(path: str | Path) -> tuple[Config, Path]:
@@ -109,13 +134,37 @@ def load_config(path: str | Path) -> tuple[Config, Path]:
     return config, base
 
 
+class StrictLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that refuses a key given twice in one mapping (the safe loader
+    keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+            except TypeError:                # an unhashable key: the base class reports it
+                break
+            if duplicate:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key '{key}' is given twice in one mapping",
+                    key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep)
+
+
 def read_yaml_mapping(path: Path) -> dict:
-    """The top-level mapping of a YAML file (``yaml.safe_load``); one-line errors."""
+    """The top-level mapping of a YAML file (:class:`StrictLoader`: safe, no duplicated keys);
+    one-line errors."""
     if not path.is_file():
         raise UserError(f"config file '{path}' not found; pass the path to a YAML file "
                         f"(examples in configs/)")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=StrictLoader)
+    except OSError as exc:
+        raise UserError(f"cannot read config '{path}': {exc.strerror}; check the path and "
+                        f"permissions") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

@@ -27,12 +27,10 @@ import os
 import shutil
 import tempfile
 import uuid
-from contextlib import contextmanager
 from pathlib import Path
 
 from .. import __version__
 from ..config import resolve_path
-from ..errors import UserError
 from ..io.artifacts import atomic_write_text
 from .spec import INPUT_FILE_KEYS, Item
 
@@ -178,23 +176,3 @@ def clean_partials(run_dir: Path) -> list[Path]:
             shutil.rmtree(p, ignore_errors=True)
             gone.append(p)
     return gone
-
-
-@contextmanager
-def run_lock(run_dir: Path):
-    """Hold an exclusive lock on ``<run>/.lock`` (released by the OS if the process dies)."""
-    try:
-        import fcntl
-    except ImportError:                  # not POSIX: no lock
-        yield
-        return
-    with open(Path(run_dir) / ".lock", "a+") as f:
-        try:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            raise UserError(f"another experiment run is writing to '{run_dir}'; wait for it to "
-                            f"finish or use another --out") from None
-        try:
-            yield
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)

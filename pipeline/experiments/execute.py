@@ -3,7 +3,7 @@
 :func:`run_experiment` hashes every item, skips the finished ones (:mod:`.cache`), runs the
 rest with a progress bar over items (tqdm, stderr) and writes the summary (:mod:`.summary`).
 Each item runs :func:`run_item`: the ordinary single-run runner
-(:func:`pipeline.runner.run_config`) into a staging folder, its stderr/stdout captured into
+(:func:`pipeline.runner.write_run`) into a staging folder, its stderr/stdout captured into
 ``<item>/log.txt`` (with the traceback on failure), then ``item.json`` (status, hash, params,
 error, timings, flattened metrics, links) and an atomic rename into ``<run>/<item>/``. A failing
 item is recorded and the others go on.
@@ -130,7 +130,7 @@ def run_item(payload: dict) -> dict:
     """Run one item into its atomic folder and return its record (never raises for a failing
     item; only an interruption propagates, leaving a ``.partial-*`` folder to clean)."""
     from ..config import Config, check_input_files
-    from ..runner import run_config
+    from ..runner import write_run
     from .cache import RECORD, new_staging, publish
     from .summary import collect_metrics
     from ..io.artifacts import write_json
@@ -156,7 +156,7 @@ def run_item(payload: dict) -> dict:
                 config = Config.model_validate(payload["data"])
                 _write_yaml(item_dir / "config.yaml", payload["data"])
                 check_input_files(config, base, f"item '{item_id}'")
-                run_config(config, base, out_root=staging)
+                write_run(config, base, item_dir)
                 record["status"] = "ok"
             except Exception as exc:           # recorded; the other items go on
                 record.update(status="failed", error=_one_line(exc),
@@ -206,9 +206,36 @@ def _lost_item(payload: dict, exc: BaseException) -> dict:
 # ------------------------------------------------------------------------------ backends
 
 
+def end_with_parent() -> None:
+    """End this process when its parent dies: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux,
+    else a daemon thread that polls the parent's pid. A pool worker whose experiment was
+    killed must not go on writing into the folder without its lock."""
+    import multiprocessing
+    import signal
+
+    spawner = multiprocessing.parent_process()      # the pool's process, even if it died
+    parent = spawner.pid if spawner is not None else os.getppid()
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(1, signal.SIGKILL, 0, 0, 0) != 0:       # 1 = PR_SET_PDEATHSIG
+            raise OSError(ctypes.get_errno(), "prctl")
+    except (OSError, AttributeError):
+        def watch():
+            while os.getppid() == parent:
+                time.sleep(0.5)
+            os._exit(137)
+
+        threading.Thread(target=watch, name="end-with-parent", daemon=True).start()
+    if os.getppid() != parent:                 # the parent died before this process got here
+        os._exit(137)
+
+
 def _init_worker() -> None:
     import signal
 
+    end_with_parent()
     for var in THREAD_VARS:                 # before numpy is imported in this process
         os.environ[var] = "1"
     # Ctrl-C reaches the whole process group: a worker stops at once (its item's staging
@@ -302,19 +329,24 @@ def run_experiment(experiment, out_root: str | Path | None = None, workers: int 
 
     ``workers`` (default: the config's ``experiment.workers``, else the machine's cores) and
     ``scheduler`` (default: the config's ``experiment.scheduler``; a Dask address or
-    ``local``) choose the backend. Returns which items ran, were skipped and failed.
+    ``local``) choose the backend. The experiment's folder is checked and locked like a run's
+    (:mod:`pipeline.io.outputs`; it is not replaced: its finished items are the cache), and
+    the summary is written also when the run is interrupted (unfinished items: ``missing``).
+    Returns which items ran, were skipped and failed.
     """
     from ..io.artifacts import atomic_write_text
-    from .cache import FileHashes, clean_partials, item_hash, needs_run, read_record, run_lock
+    from ..io.outputs import check_output_folder, output_lock
+    from .cache import FileHashes, clean_partials, item_hash, needs_run, read_record
     from .summary import write_summary
 
     settings = experiment.settings.experiment
     workers = workers or settings.workers or os.cpu_count() or 1
     scheduler = scheduler or settings.scheduler
-    run_dir = experiment.run_dir(out_root).resolve()
-    run_dir.mkdir(parents=True, exist_ok=True)
+    run_dir = check_output_folder(experiment.run_dir(out_root), 1 << 20, flag="experiment folder",
+                                  replace=False)
     outcome = Outcome(run_dir)
-    with run_lock(run_dir):
+    with output_lock(run_dir):
+        run_dir.mkdir(parents=True, exist_ok=True)
         clean_partials(run_dir)
         hashes = FileHashes(run_dir / ".file_hashes.json")
         todo, listing = [], []
@@ -364,9 +396,10 @@ def run_experiment(experiment, out_root: str | Path | None = None, workers: int 
             elif todo:
                 _pool(todo, workers, done)
         finally:
+            # also when interrupted: the summary lists the finished items, the rest 'missing'
             bar.close()
-        outcome.failed = [i.id for i in experiment.items
-                          if outcome.records.get(i.id, {}).get("status") != "ok"]
-        outcome.summary = write_summary(run_dir, experiment.items, outcome.records,
-                                        title=experiment.name)
+            outcome.failed = [i.id for i in experiment.items
+                              if outcome.records.get(i.id, {}).get("status") != "ok"]
+            outcome.summary = write_summary(run_dir, experiment.items, outcome.records,
+                                            title=experiment.name)
     return outcome

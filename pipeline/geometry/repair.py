@@ -97,9 +97,9 @@ ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts
 
 class RepairOptions(BaseModel):
     """What :func:`repair_mesh` may change (see the module docstring); also the ``repair``
-    section of a run config (validated once, here)."""
+    section of a run config (validated once, here); NaN and infinite numbers are errors."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     weld: bool = True
     weld_tolerance: float = Field(1e-9, ge=0.0)   # relative to the bounding-box diagonal

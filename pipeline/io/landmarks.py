@@ -13,7 +13,8 @@ Accepted files (indices are 0-based vertex indices of the *input* mesh file):
   spaces; ``#`` starts a comment; a first line without numbers is a header and is skipped.
 
 3D points are snapped to the nearest vertex of the mesh (:func:`resolve_landmarks`), and the
-snapping distance is reported. Every problem is a one-line :class:`~pipeline.errors.UserError`.
+snapping distance is reported; a point more than :data:`MAX_SNAP` bounding-box diagonals away
+is an error. A name given twice (in a JSON object or a table) is an error. Every problem is a one-line :class:`~pipeline.errors.UserError`.
 
 Pairing (:func:`pair_landmarks`): by name when both sets are named, else by order.
 """
@@ -29,8 +30,12 @@ import numpy as np
 
 from ..errors import UserError
 
-__all__ = ["LandmarkSet", "KEY_ALIASES", "read_landmarks", "landmarks_from_dict",
+__all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmarks", "landmarks_from_dict",
            "pair_landmarks", "resolve_landmarks"]
+
+# A point landmark farther from the mesh than this many bounding-box diagonals is an error
+# (points of another mesh or in other units), not a landmark to snap.
+MAX_SNAP = 1.0
 
 KEY_ALIASES = {"ibug68": "ibug68_0based_vertex_indices", "ibug": "ibug68_0based_vertex_indices",
                "named": "landmarks"}
@@ -127,6 +132,32 @@ def landmarks_from_dict(data, where: str = "landmarks", key: str | None = None) 
                     f"got {type(data).__name__}")
 
 
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_pairs(pairs: list) -> dict:
+    seen = set()
+    for key, _ in pairs:
+        if key in seen:
+            raise _DuplicateKey(key)
+        seen.add(key)
+    return dict(pairs)
+
+
+def parse_json(text: str, where: str) -> object:
+    """JSON of a landmark file; a key given twice in one object (``json`` keeps the last
+    silently) and a syntax error are one-line errors."""
+    try:
+        return json.loads(text, object_pairs_hook=_unique_pairs)
+    except _DuplicateKey as exc:
+        raise UserError(f"{where}: name '{exc}' appears twice; landmark names must be "
+                        f"unique") from None
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{where}: not valid JSON (line {exc.lineno}: {exc.msg}); "
+                        f"fix the file") from None
+
+
 _SPLIT = re.compile(r"[,;\t ]+")
 
 
@@ -179,12 +210,8 @@ def read_landmarks(path, key: str | None = None) -> LandmarkSet:
     ext = path.suffix.lower()
     try:
         if ext == ".json":
-            try:
-                data = json.loads(path.read_text(encoding="utf-8"))
-            except json.JSONDecodeError as exc:
-                raise UserError(f"{path}: not valid JSON (line {exc.lineno}: {exc.msg}); "
-                                f"fix the file") from None
-            lms = landmarks_from_dict(data, str(path), key)
+            lms = landmarks_from_dict(parse_json(path.read_text(encoding="utf-8"), str(path)),
+                                      str(path), key)
         elif ext in (".csv", ".txt"):
             if key is not None:
                 raise UserError(f"{path}: a landmark set name ('{key}') only applies to JSON "
@@ -261,6 +288,12 @@ def resolve_landmarks(lms: LandmarkSet, mesh, n_input: int, label: str = "landma
             snapped.append(float(d[j]))
     if snapped:
         diag = float(np.linalg.norm(mesh.V.max(axis=0) - mesh.V.min(axis=0)))
+        far = int(np.argmax(snapped))
+        if snapped[far] > MAX_SNAP * diag:
+            k = int(np.flatnonzero(lms.indices < 0)[far])
+            raise UserError(f"{label}: point landmark {lms.label(k)} is {snapped[far]:.4g} from "
+                            f"the mesh, {snapped[far] / diag:.3g} bounding-box diagonals (more "
+                            f"than {MAX_SNAP:g}); check its units and the mesh it belongs to")
         messages.append(f"{label}: snapped {len(snapped)} point landmarks to the nearest vertex "
                         f"(distance max {max(snapped):.4g}, mean {np.mean(snapped):.4g}; "
                         f"{max(snapped) / diag:.2e} of the bounding-box diagonal)")

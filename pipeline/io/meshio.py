@@ -7,13 +7,15 @@ triangulated (so the repair can count them), nothing is welded or cleaned — th
 * ``.obj`` — own parser: ``v x y z [w]`` or ``v x y z r g b [a]`` (per-vertex colours), ``f`` with
   ``v``, ``v/vt``, ``v/vt/vn`` or ``v//vn`` tokens, negative (relative) indices, polygons; every
   other statement (``vt``, ``vn``, ``g``, ``o``, ``usemtl``, comments …) is ignored.
-* ``.off`` — own parser for ASCII ``OFF``/``COFF``/``NOFF``/``CNOFF`` (colours from ``COFF``).
+* ``.off`` — own parser for ASCII ``OFF``/``COFF``/``NOFF``/``CNOFF`` (colours from ``COFF``);
+  the header's vertex and face counts must match the lines that follow, exactly.
 * ``.ply``, ``.stl`` — via ``trimesh.load(path, process=False, force='mesh')`` (vertex order kept;
   an STL is a triangle soup whose duplicated corners the repair welds).
 * ``.mat`` — MATLAB (v7 or older) via ``scipy.io.loadmat``: vertices ``V`` or ``v``, faces ``F`` or
   ``f`` (1-based), optional colours ``C`` or ``colors``.
 
-Colours are float64 in [0, 1] (integer 0–255 data is divided by 255). Every failure is a
+Colours are float64 in [0, 1] (integer 0–255 data is divided by 255). Coordinates must be
+finite and at most :data:`MAX_COORDINATE` in magnitude. Every failure is a
 :class:`~pipeline.errors.UserError` with a one-line message.
 
 :func:`write_obj` writes ``v``/``vt``/``f`` atomically (:func:`.artifacts.atomic_write`) using
@@ -37,6 +39,9 @@ from .artifacts import atomic_write
 __all__ = ["RawMesh", "SUPPORTED_EXTENSIONS", "read_mesh", "write_obj"]
 
 SUPPORTED_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".mat")
+# Largest coordinate magnitude read: squared lengths and products of areas stay far from
+# float64 overflow (≈ 1.8e308).
+MAX_COORDINATE = 1e60
 
 
 @dataclass
@@ -282,6 +287,12 @@ def _read_off(path: Path) -> RawMesh:
             f"{where}: file ends early (header announces {nv} vertices and {nf} faces); "
             f"fix the file"
         )
+    extra = len(lines) - (pos + nv + nf)
+    if extra:
+        raise UserError(
+            f"{where}: header announces {nv} vertices and {nf} faces but {extra} more lines "
+            f"follow them; fix the counts in the header"
+        )
     counts = np.fromiter((len(s.split()) for s in vlines), dtype=np.int64, count=nv)
     try:
         flat = _parse_floats(" ".join(vlines))
@@ -457,6 +468,11 @@ def read_mesh(path) -> RawMesh:
     if not np.all(np.isfinite(mesh.V)):
         bad = int(np.count_nonzero(~np.isfinite(mesh.V).all(axis=1)))
         raise UserError(f"{path}: {bad} vertices have NaN/inf coordinates; fix the file")
+    big = float(np.abs(mesh.V).max(initial=0.0))
+    if big > MAX_COORDINATE:
+        raise UserError(f"{path}: coordinates up to {big:.3g} overflow in squared lengths and "
+                        f"areas (the limit is {MAX_COORDINATE:.0e} in magnitude); rescale the "
+                        f"mesh")
     return mesh
 
 

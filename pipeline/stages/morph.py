@@ -102,6 +102,29 @@ def write_morph(m: Morph, out_dir, progress=None) -> dict[str, Path]:
     return written
 
 
+def check_morph_arrays(V0, V1, F, where: str):
+    """``(V_source, V_registered, F)`` as float64, float64, int64 once they are a morph's
+    inputs: n×3 finite positions twice, m ≥ 1 triangles indexing them; else a one-line
+    :class:`UserError`."""
+    V0, V1, F = np.asarray(V0), np.asarray(V1), np.asarray(F)
+    n = len(V0)
+    problem = None
+    if V0.ndim != 2 or V0.shape[1:] != (3,) or n == 0 or V1.shape != V0.shape:
+        problem = f"vertex arrays of shapes {V0.shape} and {V1.shape} (need two equal n×3)"
+    elif not (np.issubdtype(V0.dtype, np.number) and np.issubdtype(V1.dtype, np.number)):
+        problem = "non-numeric vertex arrays"
+    elif not (np.isfinite(V0).all() and np.isfinite(V1).all()):
+        problem = "NaN or infinite vertex positions"
+    elif F.ndim != 2 or F.shape[1:] != (3,) or len(F) == 0 or \
+            not np.issubdtype(F.dtype, np.integer):
+        problem = f"faces of shape {F.shape} and type {F.dtype} (need m×3 integers)"
+    elif F.min() < 0 or F.max() >= n:
+        problem = f"face indices outside 0…{n - 1}"
+    if problem:
+        raise UserError(f"{where}: {problem}; re-run the registration that wrote it")
+    return V0.astype(np.float64), V1.astype(np.float64), F.astype(np.int64)
+
+
 def load_morph_inputs(paths: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(V_source, V_registered, F)`` from a registration folder / ``registration.npz``, or from
     two meshes with the same connectivity (source, registered)."""
@@ -115,12 +138,16 @@ def load_morph_inputs(paths: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndar
             raise UserError(f"'{p}' is not a registration folder (no registration.npz); pass "
                             f"the folder 'sem-pipeline register' wrote, or SOURCE and "
                             f"REGISTERED meshes")
+        import zipfile
+
         try:
-            with np.load(npz) as z:
-                return z["source_vertices"], z["mapped_points"], z["source_faces"]
-        except (KeyError, ValueError, OSError) as exc:
+            with np.load(npz, allow_pickle=False) as z:
+                arrays = z["source_vertices"], z["mapped_points"], z["source_faces"]
+        except (KeyError, ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            reason = " ".join(str(exc).split())[:120] or type(exc).__name__
             raise UserError(f"{npz}: not a registration written by sem-pipeline register "
-                            f"({exc}); re-run the registration") from None
+                            f"({reason}); re-run the registration") from None
+        return check_morph_arrays(*arrays, where=str(npz))
     if len(paths) == 2:
         a, b = read_mesh(paths[0]), read_mesh(paths[1])
         Fa = triangulate_polygons(a.faces, len(a.V))[0]
@@ -146,6 +173,16 @@ def _run(ctx: Context) -> dict:
     return {"morph": morph_stage(V0, V1, F, mc)}
 
 
+def _check(ctx: Context) -> None:
+    """Refuse frames × size that do not fit in memory (every rendered frame is kept for the
+    GIF and the filmstrip: ``size² × 4`` bytes each)."""
+    from ..limits import check_memory
+
+    mc = ctx.section("morph")
+    check_memory(mc.frames * mc.size ** 2 * 4, f"morph: {mc.frames} frames of {mc.size}² "
+                                                f"pixels", "ask for fewer frames or a smaller size")
+
+
 def _write(ctx: Context, folder: Path) -> dict[str, Path]:
     return write_morph(ctx.artifacts["morph"], folder)
 
@@ -158,5 +195,5 @@ def _summary(ctx: Context, files: dict) -> str:
 
 STAGE = Stage(name="morph", section=MorphConfig, run=_run, write=_write,
               needs=("registration",), needs_when=lambda mc: mc.inputs is None,
-              makes=("morph",), positional=("inputs",), summary=_summary,
+              makes=("morph",), positional=("inputs",), summary=_summary, check=_check,
               help="morph a face into its registered image (frames + GIF)")

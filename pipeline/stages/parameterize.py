@@ -26,7 +26,9 @@ import numpy as np
 
 from ..geometry.metrics import distortion_summary
 from ..geometry.repair import RepairedMesh
+from ..errors import UserError
 from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
+from ..geometry.solvers import NotPositiveDefinite
 from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import write_obj
 from .stage import Context, Stage
@@ -51,9 +53,16 @@ class Parameterization:
 
 def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                        progress=None) -> Parameterization:
-    """Run SEM on the repaired mesh and measure the result (§7.1)."""
+    """Run SEM on the repaired mesh and measure the result (§7.1); a singular system (a mesh of
+    a few faces) is a one-line :class:`UserError`."""
     options = options or SEMOptions()
-    result = stretch_energy_minimization(mesh.V, mesh.F, mesh.boundary, options, progress)
+    try:
+        result = stretch_energy_minimization(mesh.V, mesh.F, mesh.boundary, options, progress)
+    except NotPositiveDefinite as exc:
+        interior = len(mesh.V) - len(mesh.boundary)
+        raise UserError(f"SEM's linear system is singular on this mesh ({len(mesh.V)} vertices, "
+                        f"{interior} interior; {exc}): a mesh this small or degenerate has no "
+                        f"SEM map; pass a finer mesh") from None
     t0 = time.perf_counter()
     distortion = distortion_summary(mesh.V, mesh.F, result.uv)
     timings = dict(result.timings, metrics=time.perf_counter() - t0)

@@ -49,11 +49,14 @@ class ImproveConfig(Section):
     corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
 
 
+MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim
+
+
 class RemeshConfig(Section):
     """Uniform remeshing through the SEM map (``configs/remesh.yaml``). Give ``vertices`` or
     ``spacing`` (target edge length in the mesh's units)."""
 
-    vertices: Optional[int] = Field(None, ge=100, le=5_000_000,
+    vertices: Optional[int] = Field(None, ge=MIN_VERTICES, le=5_000_000,
                                     description="vertex count of the remesh")
     spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
                                                                "mesh's units")
@@ -151,16 +154,16 @@ def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
     """Landmarks from a JSON file: ``{"landmarks": {name: index}}`` or ``{name: index}``,
     0-based indices of the *input file's* vertices; mapped to the repaired mesh through
     ``source_index`` (a landmark whose vertex the repair removed is an error)."""
-    import json
+    from ..io.landmarks import parse_json
 
     path = Path(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = parse_json(path.read_text(encoding="utf-8"), f"landmarks file '{path}'")
     except FileNotFoundError:
         raise UserError(f"landmarks file '{path}' not found") from None
-    except (OSError, ValueError) as exc:
-        raise UserError(f"landmarks file '{path}' is not valid JSON ({exc}); "
-                        f"expected {{\"landmarks\": {{name: vertex index}}}}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"landmarks file '{path}' cannot be read ({exc}); "
+                        f"expected JSON {{\"landmarks\": {{name: vertex index}}}}") from None
     if isinstance(data, dict) and isinstance(data.get("landmarks"), dict):
         data = data["landmarks"]
     if not isinstance(data, dict) or not data or not all(
@@ -346,6 +349,41 @@ def _run(ctx: Context) -> dict:
     return {"remesh": remesh_stage(mesh, p.uv, rc, landmarks)}
 
 
+# Peak memory per remeshed vertex (lattice, triangulation, lift, improvement, measures and
+# report; measured ≈ 2.5 KiB on the sample face, with margin).
+BYTES_PER_VERTEX = 4096
+
+
+def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
+    """The remesh's vertex count: the requested one, or for a spacing ``h`` the count of an
+    equilateral lattice on the surface, ``area / (√3/2 · h²)``."""
+    if rc.vertices is not None:
+        return float(rc.vertices)
+    return surface_area / (np.sqrt(3) / 2 * rc.spacing ** 2)
+
+
+def _check(ctx: Context) -> None:
+    """Refuse a spacing that gives too few vertices, and a request that needs more memory than
+    the limit (:mod:`pipeline.limits`), before the map is computed."""
+    from ..geometry.laplacian import face_double_areas
+    from ..limits import check_memory
+
+    rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
+    area = float(face_double_areas(mesh.V, mesh.F).sum() / 2)
+    n = expected_vertices(rc, area)
+    if rc.spacing is not None:
+        if n < MIN_VERTICES:
+            most = np.sqrt(area / (np.sqrt(3) / 2 * MIN_VERTICES))
+            raise UserError(f"remesh: spacing {rc.spacing:g} gives about {n:.3g} vertices on this "
+                            f"mesh (area {area:.4g}); the remesh needs at least {MIN_VERTICES}: "
+                            f"give a spacing of at most {most:.3g} (or --vertices)")
+        what = f"remesh: spacing {rc.spacing:g} gives about {n:.3g} vertices, which"
+        fix = "give a larger spacing (or --vertices)"
+    else:
+        what, fix = f"remesh: {rc.vertices} vertices", "ask for fewer vertices"
+    check_memory(n * BYTES_PER_VERTEX, what, fix)
+
+
 def _write(ctx: Context, folder: Path) -> dict[str, Path]:
     rc, r = ctx.section("remesh"), ctx.artifacts["remesh"]
     files, metrics = remesh_outputs(ctx.artifacts["intake"].mesh,
@@ -376,6 +414,6 @@ def _summary(ctx: Context, files: dict) -> str:
 STAGE = Stage(name="remesh", section=RemeshConfig, run=_run, write=_write,
               needs=("intake", "parameterization"), makes=("remesh",), uses=("report",),
               input_files=("landmarks",),
-              summary=_summary,
+              summary=_summary, check=_check, check_needs=("intake",),
               help="uniform remesh through the SEM disk map, with a quality report beside "
                    "pymeshlab and decimation")

@@ -8,7 +8,9 @@ A stage module ends with one :class:`Stage` value, ``STAGE``, listed in
 * the **artifacts** it needs (made by earlier stages) and makes (for later ones),
 * its **run** step (compute, no files) and its **write** step (its folder, all-or-nothing),
 * the keys of its section that name **input files** (checked before anything runs, made
-  absolute and hashed by content in experiments).
+  absolute and hashed by content in experiments),
+* optionally a **check** of its request's resources (:mod:`pipeline.limits`), run as soon as
+  the artifacts it needs exist, so an impossible request fails before the long stages run.
 
 The runner (:mod:`pipeline.runner`) walks the registry for ``sem-pipeline run``, for every
 per-stage subcommand and for every experiment item; the config schema, its checks and the
@@ -29,9 +31,10 @@ __all__ = ["Section", "Stage", "Context", "Progress"]
 
 
 class Section(BaseModel):
-    """Base of every config section: unknown keys are errors (``extra="forbid"``)."""
+    """Base of every config section: unknown keys are errors (``extra="forbid"``), and so are
+    NaN and infinite numbers (``allow_inf_nan=False``)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 def _log_stderr(line: str) -> None:
@@ -123,6 +126,12 @@ class Stage:
     summary : callable or None
         ``summary(ctx, files) -> str``: the stage's one-line result (the subcommand's closing
         line, the run index's overview).
+    check : callable or None
+        ``check(ctx) -> None``: refuse a request that cannot fit (a one-line ``UserError``
+        from :func:`pipeline.limits.check_memory`), run before any stage computes when
+        ``check_needs`` is empty, else as soon as the artifacts it names exist.
+    check_needs : tuple[str, ...]
+        The artifacts ``check`` reads (``intake`` for a request relative to the mesh).
     command : bool
         Whether the stage has a subcommand of its own (``input`` has none: every subcommand
         that needs a mesh reads one).
@@ -143,6 +152,8 @@ class Stage:
     input_files: tuple[str, ...] = ()
     positional: tuple[str, ...] = ()
     summary: Optional[Callable[[Context, dict], str]] = None
+    check: Optional[Callable[[Context], None]] = None
+    check_needs: tuple[str, ...] = ()
     command: bool = True
     help: str = ""
 
