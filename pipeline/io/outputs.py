@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import Iterable
 
 from ..errors import UserError
+from .artifacts import _umask
 
 __all__ = ["MARKER", "check_output_folder", "output_lock", "replaced_folder", "clean_leftovers",
            "output_folder", "format_bytes"]
@@ -236,7 +237,7 @@ def _publish(build: Path, dest: Path) -> None:
 
 
 def _write_marker(build: Path, command: str) -> None:
-    from .artifacts import write_json
+    from .artifacts import _umask, write_json
 
     entries = sorted(os.listdir(build))
     write_json(build / MARKER, {"written_by": "sem-pipeline", "command": command,
@@ -257,6 +258,7 @@ def replaced_folder(dest: Path, command: str = "", keep_on=()):
     """
     dest = Path(dest)
     build = Path(tempfile.mkdtemp(prefix=_prefixes(dest)[0], dir=dest.parent))
+    os.chmod(build, 0o777 & ~_umask())     # mkdtemp makes it private; the result is not
     try:
         try:
             yield build
