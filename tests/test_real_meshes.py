@@ -1,5 +1,5 @@
 """Acceptance on the shared real meshes: bijective maps everywhere, the issue's distortion bounds,
-and the CHOLMOD fast path equal to the SciPy path.
+and the fast paths (MKL PARDISO, CHOLMOD) equal to the SciPy path.
 
 Converged mode runs with an iteration cap here to keep the suite to a few minutes; the default
 (tol-based) run goes further — its figures are in the README and benchmarks.
@@ -17,7 +17,7 @@ from conftest import DATA_DIR, require_data
 from pipeline.geometry.metrics import distortion_summary
 from pipeline.geometry.repair import RepairOptions
 from pipeline.geometry.sem import SEMOptions, stretch_energy_minimization
-from pipeline.geometry.solvers import cholmod_available
+from pipeline.geometry.solvers import cholmod_available, pardiso_available
 from pipeline.stages.load import load_stage
 
 MESHES = ["c3d_alligator", "choi_chinese_lion", "choi_hand", "choi_human_brain",
@@ -93,13 +93,14 @@ def test_paper_mode_on_the_human_face_reaches_the_papers_accuracy():
     assert d["total_area_distortion_eq28"] <= 0.0045
 
 
-def _need_cholmod():
-    if not cholmod_available():
+def _need(kind):
+    if not {"cholmod": cholmod_available, "pardiso": pardiso_available}[kind]():
         if os.environ.get("CI") == "true":
-            pytest.fail("scikit-sparse (CHOLMOD) is not installed on CI; .ci/run installs it")
-        pytest.skip("scikit-sparse not installed: the fast path is optional")
+            pytest.fail(f"solver {kind} is not installed on CI; .ci/run installs it")
+        pytest.skip(f"solver {kind} not installed")
 
 
+@pytest.mark.parametrize("fast", ["pardiso", "cholmod"])
 @pytest.mark.parametrize("name, options", [
     ("choi_human_face", dict(mode="paper")),
     ("choi_hand", dict(mode="paper")),
@@ -107,16 +108,17 @@ def _need_cholmod():
     ("igl_camel_b", dict(mode="paper")),
     ("igl_lion", dict(mode="converged", max_iter=40)),
 ])
-def test_fast_path_equals_scipy_path(name, options):
-    """CHOLMOD (with PCG on old factors above 50k unknowns) and SuperLU give the same maps."""
-    _need_cholmod()
+def test_fast_path_equals_scipy_path(name, options, fast):
+    """PARDISO, CHOLMOD (with PCG on old factors above 50k unknowns) and SuperLU give the same
+    maps: same iterations, same stop, coordinates equal to 1e-9."""
+    _need(fast)
     require_data("meshes", f"{name}.obj")
     m = _mesh(f"meshes/{name}.obj")
     maps = {}
-    for solver in ("cholmod", "scipy"):
+    for solver in (fast, "scipy"):
         r = stretch_energy_minimization(m.V, m.F, m.boundary, SEMOptions(solver=solver, **options))
         assert r.solver == solver
         maps[solver] = r
-    a, b = maps["cholmod"], maps["scipy"]
+    a, b = maps[fast], maps["scipy"]
     assert a.iterations == b.iterations and a.status == b.status
     assert np.abs(a.uv - b.uv).max() <= 1e-9 * np.abs(b.uv).max()

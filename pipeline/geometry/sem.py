@@ -64,7 +64,7 @@ class SEMOptions(BaseModel):
     patience: int = Field(20, ge=1)    # converged: steps without progress that end a phase
     inversion: bool = False            # Remark 2
     stop_when_energy_rises: bool = True   # paper: Remark 3; False runs exactly max_iter steps
-    solver: Literal["auto", "cholmod", "scipy"] = "auto"
+    solver: Literal["auto", "pardiso", "cholmod", "scipy"] = "auto"
     min_step: float = Field(1.0 / 64, gt=0.0, le=1.0)   # smallest damping factor tried
     max_step: float = Field(8.0, ge=1.0)   # converged: largest extrapolation of a full step
     refactor_every: int = Field(8, ge=1)   # converged: preconditioner factor reused this often
