@@ -56,10 +56,15 @@ def _mkl_pardiso():
         if _MKL_PARDISO is None:
             try:
                 import pypardiso
-                fn = pypardiso.PyPardisoSolver().libmkl.pardiso
+                lib = pypardiso.PyPardisoSolver().libmkl
+                fn = lib.pardiso
+                set_threads = lib.MKL_Set_Num_Threads_Local
             except (ImportError, OSError, AttributeError):
                 _MKL_PARDISO = False
             else:
+                set_threads.argtypes = [ctypes.c_int]
+                set_threads.restype = ctypes.c_int
+                fn.set_threads = set_threads
                 i32 = ctypes.POINTER(ctypes.c_int32)
                 fn.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32,
                                ctypes.c_void_p, i32, i32, i32, i32, i32, i32,
@@ -187,6 +192,11 @@ class PardisoSolver:
     refinement off (``iparm[7] = 0``: the Cholesky factor of an SPD Laplacian is exact to
     rounding). A non-positive pivot makes phase 22 fail (error −4), reported as
     ``NotPositiveDefinite``; a missing diagonal entry (``A_ii = 0``) is caught before the call.
+
+    MKL runs on ``threads`` threads during these calls (``MKL_Set_Num_Threads_Local``, restored
+    after each call), one by default: on this project's 2-core machines shared with other
+    processes, MKL's OpenMP threads waiting for each other made a refactor + solve 5–50× slower
+    than one thread (3k–45k unknowns, ``benchmarks/bench_sem.py``).
     """
 
     name = "pardiso"
@@ -194,7 +204,8 @@ class PardisoSolver:
     #: so two PCG iterations already cost more than refactoring
     pcg_max_iter = 0
 
-    def __init__(self, refactored: bool = False):
+    def __init__(self, refactored: bool = False, threads: int = 1):
+        self.threads = threads
         self._fn = _mkl_pardiso()
         if self._fn is None:
             raise UserError("solver 'pardiso' requested but pypardiso/MKL is not installed")
@@ -220,14 +231,18 @@ class PardisoSolver:
         X = None if B is None else np.zeros((n, nrhs), order="F")
         err = ctypes.c_int32(0)
         one = ctypes.c_int32(1)
-        self._fn(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
-                 ctypes.byref(one), ctypes.byref(ctypes.c_int32(2)),
-                 ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
-                 None if data is None else data.ctypes.data,
-                 self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32), None,
-                 ctypes.byref(ctypes.c_int32(nrhs)), self.iparm.ctypes.data_as(i32),
-                 ctypes.byref(ctypes.c_int32(0)), None if B is None else B.ctypes.data,
-                 None if X is None else X.ctypes.data, ctypes.byref(err))
+        previous = self._fn.set_threads(self.threads)
+        try:
+            self._fn(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
+                     ctypes.byref(one), ctypes.byref(ctypes.c_int32(2)),
+                     ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
+                     None if data is None else data.ctypes.data,
+                     self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32), None,
+                     ctypes.byref(ctypes.c_int32(nrhs)), self.iparm.ctypes.data_as(i32),
+                     ctypes.byref(ctypes.c_int32(0)), None if B is None else B.ctypes.data,
+                     None if X is None else X.ctypes.data, ctypes.byref(err))
+        finally:
+            self._fn.set_threads(previous)
         return err.value, X
 
     def _analyse(self, A: sp.csr_matrix) -> None:
