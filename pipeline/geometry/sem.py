@@ -344,8 +344,10 @@ def _paper_iterations(problem, f, value, opt, record):
     of a folded start counts as progress even if ``E_S`` rises. The iteration ends early only
     when no damped step lowers ``E_S``: status ``energy_rose`` if the SEM step itself adds no
     flipped face (a stationary map: Remark 3's stop), else ``stalled``. With
-    ``stop_when_energy_rises=False`` every SEM step is kept, exactly ``max_iter`` of them (folded
-    iterates included). Returns ``(f, evaluation, iterations, status, reason)``."""
+    ``stop_when_energy_rises=False`` every SEM step is kept whatever ``E_S`` does, and a damped
+    step only has to add no flipped face: exactly ``max_iter`` iterations, ending on a map with
+    no more flipped faces than the start. Returns ``(f, evaluation, iterations, status,
+    reason)``."""
     max_iter = opt.iterations()
     it, start = 0, 1.0
     g_f, g_v = f, value            # the Algorithm-1 iterate (may be folded)
@@ -367,7 +369,7 @@ def _paper_iterations(problem, f, value, opt, record):
             if not opt.stop_when_energy_rises or v[0] < g_v[0] * (1.0 - PAPER_RTOL):
                 it += 1
                 g_f, g_v = g, v
-                if v[2] <= value[2] or not opt.stop_when_energy_rises:
+                if v[2] <= value[2]:
                     for entry in excursion:
                         commit(*entry, 1.0, "sem")
                     excursion = []
@@ -381,6 +383,8 @@ def _paper_iterations(problem, f, value, opt, record):
         current = value
 
         def better(v):
+            if not opt.stop_when_energy_rises:
+                return True                   # the largest α that adds no flipped face
             return v[2] < current[2] or (v[2] == current[2]
                                          and v[0] < current[0] * (1.0 - PAPER_RTOL))
 
