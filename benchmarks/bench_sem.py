@@ -128,7 +128,7 @@ def measure(mesh_path: str, solver: str, iterations: int, repeat: int) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", nargs="+", default=list(SIZES), choices=list(SIZES))
-    ap.add_argument("--solvers", nargs="+", default=["cholmod", "scipy"])
+    ap.add_argument("--solvers", nargs="+", default=["pardiso", "cholmod", "scipy"])
     ap.add_argument("--iterations", type=int, default=10)
     ap.add_argument("--scipy-iterations-1M", type=int, default=2,
                     help="SciPy at 1M faces takes ~40 s an iteration; run fewer")

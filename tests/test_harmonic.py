@@ -65,3 +65,29 @@ def test_harmonic_map_of_real_disk_is_flip_free_on_the_unit_circle(name):
     L_II, L_IB, _ = laplacian_blocks(pattern, w)
     res = L_II @ h.f[pattern.interior] + L_IB @ h.f[b]
     assert np.abs(res).max() < 1e-9 * np.abs(L_IB @ h.f[b]).max()
+
+
+def test_harmonic_map_falls_back_to_tutte_when_the_clamped_map_still_folds(monkeypatch):
+    """If the clamped weights still leave a flipped face, the start is Tutte's embedding (all
+    weights 1): flip-free, and equal to its own harmonic system's solution. Forced here by
+    strongly negative weights on every fifth edge of igl_lion (so the first map folds) and a
+    clamp that keeps them."""
+    import pipeline.geometry.harmonic as harmonic
+
+    V, F = load_mesh("igl_lion")
+    b = boundary_loop(F, V)
+    pattern = laplacian_pattern(F, len(V), b)
+
+    def folding_weights(pattern, corner_values):
+        w = edge_weights(pattern, corner_values)
+        w[::5] = -10 * np.abs(w).mean()
+        return w
+
+    monkeypatch.setattr(harmonic, "edge_weights", folding_weights)
+    monkeypatch.setattr(harmonic, "clamp_positive", lambda w: w)
+    h = harmonic.harmonic_map(V, F, pattern)
+    assert h.weights == "uniform (Tutte)" and h.flipped_faces == 0
+    uv = np.column_stack([h.f.real, h.f.imag])
+    assert len(metrics.flipped_faces(uv, F)) == 0
+    L_II, L_IB, _ = laplacian_blocks(pattern, np.ones(len(pattern.edges)))
+    np.testing.assert_allclose(L_II @ h.f[pattern.interior], -(L_IB @ h.f[b]), atol=1e-12)

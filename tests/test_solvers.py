@@ -1,6 +1,6 @@
-"""Sparse SPD solvers of SEM, ``pipeline/geometry/solvers.py``: SciPy and CHOLMOD agree on an SPD
-Laplacian block, refactor on a kept pattern, and raise ``NotPositiveDefinite`` on matrices that are
-not SPD (Remark 1: the blocks are SPD only for positive weights).
+"""Sparse SPD solvers of SEM, ``pipeline/geometry/solvers.py``: SciPy, MKL PARDISO and CHOLMOD
+agree on an SPD Laplacian block, refactor on a kept pattern, and raise ``NotPositiveDefinite`` on
+matrices that are not SPD (Remark 1: the blocks are SPD only for positive weights).
 """
 
 from __future__ import annotations
@@ -15,9 +15,19 @@ from pipeline.errors import UserError
 from pipeline.geometry.laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                                          laplacian_blocks, laplacian_pattern)
 from pipeline.geometry.solvers import (NotPositiveDefinite, cholmod_available, make_solver,
-                                       solve_complex)
+                                       pardiso_available, solve_complex)
 
 IN_CI = os.environ.get("CI") == "true"
+AVAILABLE = {"scipy": lambda: True, "pardiso": pardiso_available, "cholmod": cholmod_available}
+
+
+def _need(kind):
+    """Skip a test of an optional solver that is not installed; on CI both are (pypardiso is a
+    default dependency on x86-64, scikit-sparse the ``fast`` extra .ci/run installs)."""
+    if not AVAILABLE[kind]():
+        if IN_CI:
+            pytest.fail(f"solver {kind} is not installed on CI")
+        pytest.skip(f"solver {kind} is not installed")
 
 
 @pytest.fixture(scope="module")
@@ -30,39 +40,35 @@ def spd_block(ddisk):
     return L_II
 
 
-def _kinds():
-    if cholmod_available():
-        return ["scipy", "cholmod"]
-    if IN_CI:
-        pytest.fail("scikit-sparse (CHOLMOD) not installed in CI")
-    return ["scipy"]
-
-
-def test_solvers_agree_on_spd_block(spd_block):
+@pytest.mark.parametrize("refactored", [False, True])
+@pytest.mark.parametrize("kind", ["scipy", "pardiso", "cholmod"])
+def test_solvers_agree_on_spd_block(kind, refactored, spd_block):
+    _need(kind)
     A = spd_block
     rng = np.random.default_rng(10)
     b = rng.normal(size=A.shape[0]) + 1j * rng.normal(size=A.shape[0])
-    ref = np.linalg.solve(A.toarray(), b)
-    sols = {}
-    for kind in _kinds():
-        s = make_solver(kind)
-        sols[kind] = solve_complex(s, A, b)
-        np.testing.assert_allclose(sols[kind], ref, rtol=1e-10, atol=0)
-        # refactorization with new values on the same pattern (reused analysis)
+    s = make_solver(kind, refactored=refactored)
+    np.testing.assert_allclose(solve_complex(s, A, b), np.linalg.solve(A.toarray(), b),
+                               rtol=1e-10, atol=0)
+    # refactorizations with new values on the same pattern (the analysis reused), twice
+    for _ in range(2):
         A2 = A + sp.diags(rng.uniform(0.1, 1.0, A.shape[0]))
         np.testing.assert_allclose(solve_complex(s, A2, b), np.linalg.solve(A2.toarray(), b),
                                    rtol=1e-10)
-    if "cholmod" in sols:
-        np.testing.assert_allclose(sols["cholmod"], sols["scipy"], rtol=1e-10, atol=0)
-    if not cholmod_available():
-        pytest.skip("CHOLMOD part skipped: scikit-sparse not installed")
+    # a new pattern is analysed anew, not solved with the old analysis
+    n = A.shape[0]      # (SPD: the new entries shift eigenvalues by at most 0.2, the diagonal by 1)
+    A3 = (A + 0.1 * (sp.eye(n, k=3) + sp.eye(n, k=-3)) + sp.eye(n)).tocsr()
+    np.testing.assert_allclose(solve_complex(s, A3, b), np.linalg.solve(A3.toarray(), b),
+                               rtol=1e-10)
+    s.release()
 
 
 def test_make_solver_rejects_unknown_kind():
     with pytest.raises(UserError):
         make_solver("bogus")
     assert make_solver("scipy").name == "scipy"
-    assert make_solver("auto").name == ("cholmod" if cholmod_available() else "scipy")
+    auto = "pardiso" if pardiso_available() else "cholmod" if cholmod_available() else "scipy"
+    assert make_solver("auto").name == auto
 
 
 def _grid_laplacian(m):
@@ -72,16 +78,14 @@ def _grid_laplacian(m):
 
 @pytest.mark.parametrize("refactored", [False, True])
 @pytest.mark.parametrize("case", ["negative_definite", "indefinite", "negative_definite_large"])
-@pytest.mark.parametrize("kind", ["scipy", "cholmod"])
+@pytest.mark.parametrize("kind", ["scipy", "pardiso", "cholmod"])
 def test_non_spd_matrix_raises_not_positive_definite(kind, case, refactored, spd_block):
     """Remark 1: the blocks are SPD only for positive weights; the solvers must say when they are
     not (sem.py catches NotPositiveDefinite). CHOLMOD is supernodal LLᵀ by default and
     simplicial LDLᵀ for refactored systems below SIMPLICIAL_BELOW unknowns (all three cases
-    here), where only the pivot check can tell. "large" = 10⁴ unknowns."""
-    if kind == "cholmod" and not cholmod_available():
-        if IN_CI:
-            pytest.fail("scikit-sparse (CHOLMOD) not installed in CI")
-        pytest.skip("scikit-sparse not installed")
+    here), where only the pivot check can tell; PARDISO's SPD factorization stops at a
+    non-positive pivot. "large" = 10⁴ unknowns."""
+    _need(kind)
     A = spd_block
     if case == "negative_definite":
         M = -A
@@ -95,17 +99,15 @@ def test_non_spd_matrix_raises_not_positive_definite(kind, case, refactored, spd
 
 
 @pytest.mark.parametrize("refactored", [False, True])
-def test_cholmod_refactor_to_indefinite_raises_and_drops_the_factor(refactored, spd_block):
+@pytest.mark.parametrize("kind", ["pardiso", "cholmod"])
+def test_refactor_to_indefinite_raises_and_drops_the_factor(kind, refactored, spd_block):
     """SEM refactors one pattern with new values: an indefinite matrix after an SPD one must
     raise (not solve with negative LDLᵀ pivots) and leave no usable factor; the next SPD matrix
     is factored again on the kept analysis and solved exactly."""
-    if not cholmod_available():
-        if IN_CI:
-            pytest.fail("scikit-sparse (CHOLMOD) not installed in CI")
-        pytest.skip("scikit-sparse not installed")
+    _need(kind)
     A = spd_block
     lam = np.linalg.eigvalsh(A.toarray())
-    solver = make_solver("cholmod", refactored=refactored)
+    solver = make_solver(kind, refactored=refactored)
     solver.factorize(A)
     assert solver.has_factor()
     with pytest.raises(NotPositiveDefinite):
@@ -117,10 +119,13 @@ def test_cholmod_refactor_to_indefinite_raises_and_drops_the_factor(refactored, 
     np.testing.assert_allclose(solver.solve(A2 @ X), X, rtol=1e-10, atol=1e-10)
 
 
-@pytest.mark.parametrize("kind", ["scipy", "cholmod"])
-def test_singular_matrix_raises_not_positive_definite(kind):
-    if kind == "cholmod" and not cholmod_available():
-        pytest.skip("scikit-sparse not installed")
+@pytest.mark.parametrize("stored_zero", [False, True])
+@pytest.mark.parametrize("kind", ["scipy", "pardiso", "cholmod"])
+def test_singular_matrix_raises_not_positive_definite(kind, stored_zero):
+    """A zero diagonal entry, stored or not (PARDISO needs every diagonal entry stored)."""
+    _need(kind)
     M = sp.csr_matrix(np.diag([2.0, 1.0, 3.0, 0.0]))
+    if stored_zero:
+        M = sp.csr_matrix((np.array([2.0, 1.0, 3.0, 0.0]), np.arange(4), np.arange(5)))
     with pytest.raises(NotPositiveDefinite):
         make_solver(kind).factorize(M)

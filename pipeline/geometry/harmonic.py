@@ -9,7 +9,7 @@ import numpy as np
 from .laplacian import (LaplacianPattern, corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks)
 from .metrics import flipped_faces
-from .solvers import make_solver, solve_complex
+from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
 
 def arc_length_circle(V: np.ndarray, boundary: np.ndarray) -> np.ndarray:
@@ -24,7 +24,7 @@ def arc_length_circle(V: np.ndarray, boundary: np.ndarray) -> np.ndarray:
 @dataclass
 class HarmonicMap:
     f: np.ndarray               # complex, n
-    weights: str                # "cotangent" or "cotangent, clamped positive"
+    weights: str                # "cotangent", "cotangent, clamped positive" or "uniform (Tutte)"
     negative_weights: int       # cotangent weights ≤ 0 on the input mesh
     flipped_faces: int          # of the returned map
 
@@ -44,9 +44,11 @@ def harmonic_map(V: np.ndarray, F: np.ndarray, pattern: LaplacianPattern, solver
     """Discrete harmonic map with the cotangent Laplacian (eq. 5–6): ``L_II f_I = −L_IB f_B``.
 
     Cotangent weights are negative across edges with obtuse opposite angles summing past π, and
-    the map can then fold. If it does, it is recomputed with those weights clamped positive, which
-    is bijective by Tutte's theorem; the result says which weights were used. ``double_area``:
-    ``2|τ|`` per face when the caller has it.
+    the map can then fold (or ``L_II`` stop being SPD). Then it is recomputed with those weights
+    clamped positive, which is bijective by Tutte's theorem. In floating point a clamped weight (1e-6 × the mean) can
+    leave a sliver face with a non-positive computed area; if any face is still flipped, the map
+    is Tutte's own embedding, all weights 1. The result says which weights were used.
+    ``double_area``: ``2|τ|`` per face when the caller has it.
     """
     solver = solver or make_solver()
     dA = face_double_areas(V, F) if double_area is None else double_area
@@ -61,12 +63,21 @@ def harmonic_map(V: np.ndarray, F: np.ndarray, pattern: LaplacianPattern, solver
         f[pattern.interior] = solve_complex(solver, L_II, -(L_IB @ fB))
         return f
 
-    f = solve(w)
-    uv = np.column_stack([f.real, f.imag])
-    flips = len(flipped_faces(uv, F))
+    def attempt(weights):
+        """``(map, flipped faces)``, or ``(None, None)`` if ``L_II`` is not SPD (Remark 1)."""
+        try:
+            f = solve(weights)
+        except NotPositiveDefinite:
+            return None, None
+        return f, len(flipped_faces(np.column_stack([f.real, f.imag]), F))
+
+    f, flips = attempt(w)
     label = "cotangent"
-    if flips and n_negative:
-        f = solve(clamp_positive(w))
-        flips = len(flipped_faces(np.column_stack([f.real, f.imag]), F))
+    if (f is None or flips) and n_negative:
+        f, flips = attempt(clamp_positive(w))
         label = "cotangent, clamped positive"
+    if f is None or flips:
+        f_tutte, flips_tutte = attempt(np.ones_like(w))
+        if f is None or flips_tutte < flips:
+            f, flips, label = f_tutte, flips_tutte, "uniform (Tutte)"
     return HarmonicMap(f, label, n_negative, flips)

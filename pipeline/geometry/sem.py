@@ -10,9 +10,12 @@ One SEM step from a map ``f`` (complex, one value per vertex), line for line:
 
 Modes:
 
-* ``paper`` — Algorithm 1: at most ``max_iter`` (10) steps from the harmonic map; stop and keep
-  the previous map as soon as ``E_S`` rises (Remark 3). A step that would flip a face is damped,
-  ``f + α (f_SEM − f)`` with the boundary kept on the circle, halving α until it does not.
+* ``paper`` — Algorithm 1: ``max_iter`` (10) SEM steps from the harmonic map, each kept while
+  ``E_S`` falls (Remark 3), through folded intermediate maps as in the paper. Where Algorithm 1
+  would stop early or end on a folded map, it goes back to the last map kept and continues with
+  damped steps that add no flipped face — the SEM step ``f + α (f_SEM − f)`` (boundary back on
+  the circle), else a preconditioned gradient step — and stops early only when no such step
+  lowers ``E_S`` (:func:`_paper_iterations`).
 * ``converged`` — iterate until the energy stops decreasing. The plain SEM fixed-point iteration
   is fast at first but is not a descent method: on real meshes its energy turns back up and it
   passes through folded maps (negative stretch weights, Remark 4). So:
@@ -30,7 +33,9 @@ Modes:
 
 The returned map is the best flip-free map found, so it has no flipped face whenever the
 harmonic start has none (guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
-what remains, and callers treat a non-zero count as failure.
+what remains, and callers treat a non-zero count as failure; ``SEMResult.stop_reason`` says why
+the iteration ended and ``SEMResult.steps`` how many steps of each kind were taken (both go into
+the ``parameterization`` section of ``metrics.json``).
 """
 
 from __future__ import annotations
@@ -64,7 +69,7 @@ class SEMOptions(BaseModel):
     patience: int = Field(20, ge=1)    # converged: steps without progress that end a phase
     inversion: bool = False            # Remark 2
     stop_when_energy_rises: bool = True   # paper: Remark 3; False runs exactly max_iter steps
-    solver: Literal["auto", "cholmod", "scipy"] = "auto"
+    solver: Literal["auto", "pardiso", "cholmod", "scipy"] = "auto"
     min_step: float = Field(1.0 / 64, gt=0.0, le=1.0)   # smallest damping factor tried
     max_step: float = Field(8.0, ge=1.0)   # converged: largest extrapolation of a full step
     refactor_every: int = Field(8, ge=1)   # converged: preconditioner factor reused this often
@@ -86,6 +91,20 @@ class SEMResult:
     timings: dict = field(default_factory=dict)    # seconds per phase
     solver: str = ""
     solver_stats: dict = field(default_factory=dict)   # factorizations / PCG solves per system
+    stop_reason: str = ""                # why the iteration ended, in words
+    steps: dict = field(default_factory=dict)   # accepted steps by kind (see step_counts)
+
+
+def step_counts(history: list) -> dict:
+    """Accepted steps by kind: ``sem`` (the full SEM step, or longer), ``sem_damped`` (α < 1),
+    ``gradient`` (preconditioned gradient steps), from the history entries after the start."""
+    counts = {"sem": 0, "sem_damped": 0, "gradient": 0}
+    for h in history[1:]:
+        kind = h["phase"]
+        if kind == "sem" and h["step"] < 1.0:
+            kind = "sem_damped"
+        counts[kind] = counts.get(kind, 0) + 1
+    return counts
 
 
 def _as_uv(f: np.ndarray) -> np.ndarray:
@@ -285,9 +304,9 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     value = problem.evaluate(f)
     record(0, f, value, 0.0, "harmonic")
     if opt.mode == "paper":
-        f, value, it, status = _paper_iterations(problem, f, value, opt, record)
+        f, value, it, status, reason = _paper_iterations(problem, f, value, opt, record)
     else:
-        f, value, it, status = _converged_iterations(problem, f, value, opt, record)
+        f, value, it, status, reason = _converged_iterations(problem, f, value, opt, record)
     timings["sem"] = time.perf_counter() - t_start
     solver_stats = {name: getattr(sv, "stats", {}) for name, sv in
                     (("interior", problem.solver_I), ("preconditioner", problem.solver_P),
@@ -297,32 +316,104 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
                                "flipped_faces": h.flipped_faces},
                      history=history, timings=timings, solver=problem.solver_I.name,
-                     solver_stats=solver_stats)
+                     solver_stats=solver_stats, stop_reason=reason, steps=step_counts(history))
+
+
+#: Paper mode: a relative decrease of ``E_S`` below this counts as none (rounding, not progress).
+PAPER_RTOL = 1e-13
 
 
 def _paper_iterations(problem, f, value, opt, record):
-    """Algorithm 1: stop at ``max_iter`` or as soon as ``E_S`` rises (Remark 3).
+    """Algorithm 1 for at most ``max_iter`` steps, with damped steps where it would stop early.
 
-    The damping search starts at twice the previous accepted step (at most 1), not at α = 1:
-    once the map needs damped steps, retrying α = 1, ½, … every iteration costs several failed
-    flip-holding passes, each as dear as a large part of the iteration's refactorization. An
-    undamped run takes the same steps either way; a run that needs damping may accept smaller
-    steps than a search from α = 1 would, and so stop at another iteration when ``E_S``
-    rises."""
-    start = 1.0
-    for it in range(1, opt.iterations() + 1):
-        g = sem_step(problem, f, problem.weights(f), opt.inversion)
-        step = line_search(problem, f, g, value, lambda v: True, opt.min_step, hold=True,
-                           start=start)
+    Each iteration takes the SEM step, eq. (19)–(22), from the current Algorithm-1 iterate and
+    keeps it if ``E_S`` falls (Remark 3). Like the paper's algorithm it may pass through folded
+    maps (negative stretch weights, Remark 4; the step is then solved with clamped weights,
+    :func:`sem_step`): such iterates are held back and enter the history only once a later
+    iterate has no more flipped faces than the last map kept. Where Algorithm 1 would end —
+    ``E_S`` rises, or ``max_iter`` is reached on a folded iterate — the iteration goes back to the
+    last map kept and goes on from there with damped steps that never add a flipped face:
+
+    1. the SEM step damped, ``f + α (f_SEM − f)`` with the boundary back on the circle (α halved
+       from twice the last accepted α down to ``min_step``, vertices of faces that would flip
+       held in place), the largest α that lowers ``E_S`` — phase ``sem``, step α;
+    2. else the preconditioned gradient step on the interior (:func:`gradient_step`, a descent
+       direction for ``E_S``), damped the same way — phase ``gradient``.
+
+    After a folded excursion that failed, only damped steps are taken. A step that unflips faces
+    of a folded start counts as progress even if ``E_S`` rises. The iteration ends early only
+    when no damped step lowers ``E_S``: status ``energy_rose`` if the SEM step itself adds no
+    flipped face (a stationary map: Remark 3's stop), else ``stalled``. With
+    ``stop_when_energy_rises=False`` every SEM step is kept whatever ``E_S`` does, and a damped
+    step only has to add no flipped face: exactly ``max_iter`` iterations, ending on a map with
+    no more flipped faces than the start. Returns ``(f, evaluation, iterations, status,
+    reason)``."""
+    max_iter = opt.iterations()
+    it, start = 0, 1.0
+    g_f, g_v = f, value            # the Algorithm-1 iterate (may be folded)
+    excursion = []                 # folded iterates since the last map kept: (it, map, value)
+    undamped = True                # False once a folded excursion has failed
+
+    def commit(i, h, v, alpha, kind):
+        nonlocal f, value
+        f, value = h, v
+        record(i, h, v, alpha, kind)
+
+    while it < max_iter or excursion:
+        if it >= max_iter:                     # ended on a folded iterate: back, then damped
+            it, excursion, undamped = excursion[0][0] - 1, [], False
+            continue
+        if undamped:
+            g = sem_step(problem, g_f, problem.weights(g_f), opt.inversion)
+            v = problem.evaluate(g)
+            if not opt.stop_when_energy_rises or v[0] < g_v[0] * (1.0 - PAPER_RTOL):
+                it += 1
+                g_f, g_v = g, v
+                if v[2] <= value[2]:
+                    for entry in excursion:
+                        commit(*entry, 1.0, "sem")
+                    excursion = []
+                    commit(it, g, v, 1.0, "sem")
+                else:
+                    excursion.append((it, g, v))
+                continue
+            if excursion:                      # E_S rose after folded iterates: go back
+                it, excursion, undamped = excursion[0][0] - 1, [], False
+        # a damped step from the last map kept
+        current = value
+
+        def better(v):
+            if not opt.stop_when_energy_rises:
+                return True                   # the largest α that adds no flipped face
+            return v[2] < current[2] or (v[2] == current[2]
+                                         and v[0] < current[0] * (1.0 - PAPER_RTOL))
+
+        w = problem.weights(f)
+        g_sem = sem_step(problem, f, w, opt.inversion)
+        step, kind = line_search(problem, f, g_sem, current, better, opt.min_step, hold=True,
+                                 start=start), "sem"
         if step is None:
-            return f, value, it - 1, "stalled"
-        g, new, alpha = step
-        if new[0] > value[0] and opt.stop_when_energy_rises:
-            return f, value, it - 1, "energy_rose"
-        f, value = g, new
-        start = min(1.0, 2.0 * alpha)
-        record(it, f, value, alpha, "sem")
-    return f, value, opt.iterations(), "max_iter"
+            try:
+                g = gradient_step(problem, f, w, laplacian_blocks(problem.pattern, w))
+                step, kind = line_search(problem, f, g, current, better, opt.min_step,
+                                         hold=True), "gradient"
+            except NotPositiveDefinite:
+                step = None
+        if step is None:
+            if hold_flipping_vertices(problem, f, g_sem, current[2])[1][2] <= current[2]:
+                reason = (f"iteration {it + 1}: the SEM step raises E_S (Remark 3) and no "
+                          f"damped SEM or gradient step down to α = {opt.min_step:g} lowers it")
+                return f, value, it, "energy_rose", reason
+            reason = (f"iteration {it + 1}: every damped SEM and gradient step down to α = "
+                      f"{opt.min_step:g} flips faces or raises E_S")
+            return f, value, it, "stalled", reason
+        it += 1
+        g, v, alpha = step
+        if kind == "sem":
+            start = min(1.0, 2.0 * alpha)
+        commit(it, g, v, alpha, kind)
+        g_f, g_v = f, value
+    return f, value, it, "max_iter", f"reached max_iter = {max_iter}"
 
 
 def _converged_iterations(problem, f, value, opt, record):
@@ -346,6 +437,7 @@ def _converged_iterations(problem, f, value, opt, record):
     if best is not None:
         f, value = best
     status, quiet = "max_iter", 0
+    reason = f"reached max_iter = {max_iter}"
     order = ["gradient", "sem"]
     age = None                      # iterations since the preconditioner was factored
     while it < max_iter:                                            # phase B
@@ -371,6 +463,8 @@ def _converged_iterations(problem, f, value, opt, record):
             step = None                     # a damped stale step: refactor and try again
         if step is None:
             status = "stalled" if quiet < opt.patience else "converged"
+            reason = (f"no SEM or gradient step down to α = {opt.min_step:g} lowers the energy "
+                      "ratio without flipping a face")
             break
         it += 1
         if kind != order[0]:
@@ -381,5 +475,7 @@ def _converged_iterations(problem, f, value, opt, record):
         record(it, f, value, alpha, kind)
         if quiet >= opt.patience:
             status = "converged"
+            reason = (f"the energy ratio fell by less than tol = {opt.tol:g} (relative) in "
+                      f"{opt.patience} steps in a row")
             break
-    return f, value, it, status
+    return f, value, it, status, reason

@@ -2,16 +2,30 @@
 
 Every SEM iteration solves ``L_II X = B`` (and the small ``L_BB`` system) with the same sparsity
 pattern and new values (Remark 1 of the paper: both blocks are SPD when the weights are
-positive). The fast path is CHOLMOD through scikit-sparse: the fill-reducing ordering and the
-symbolic factorization are computed on the first call and every later call only refactors
-numerically (``cholesky_inplace``). The fallback is SciPy's SuperLU in symmetric mode (it cannot
-keep an analysis between calls). Both take real right-hand sides with two columns (the real and
-imaginary parts of the complex map), never a complex one (see ``shared/docs/SOLVERS.md``).
+positive). Three solvers, each analysing a pattern once where it can:
+
+* ``pardiso`` — MKL PARDISO (the ``mkl`` wheel, located through ``pypardiso``, a default
+  dependency on x86-64 Linux and Windows) called directly: SPD type (mtype 2) on the upper
+  triangle, analysis (phase 11) once per pattern, numeric refactorization (phase 22) and solve
+  (phase 33) after that, no iterative refinement. pypardiso's own ``spsolve`` is not used: it
+  re-analyses whenever the values change and treats the matrix as unsymmetric.
+* ``cholmod`` — CHOLMOD through scikit-sparse (the optional ``fast`` extra; needs SuiteSparse
+  headers to build): ordering and symbolic factorization on the first call, ``cholesky_inplace``
+  after that.
+* ``scipy`` — SuperLU in symmetric mode, the fallback everywhere (it cannot keep an analysis).
+
+``auto`` takes PARDISO when it loads, then CHOLMOD, then SciPy: PARDISO's refactor + solve was
+the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py`` (the README's performance
+table). All take real right-hand sides with two columns (the real and imaginary parts of the
+complex map), never a complex one (see ``shared/docs/SOLVERS.md``).
 """
 
 from __future__ import annotations
 
+import ctypes
+import threading
 import warnings
+import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -19,7 +33,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import UserError
 
-SOLVER_KINDS = ("auto", "cholmod", "scipy")
+SOLVER_KINDS = ("auto", "pardiso", "cholmod", "scipy")
 
 
 def cholmod_available() -> bool:
@@ -30,8 +44,49 @@ def cholmod_available() -> bool:
     return True
 
 
+_MKL_LOCK = threading.Lock()
+_MKL_PARDISO = None      # the ctypes function, once loaded; False when it cannot be loaded
+
+
+def _mkl_pardiso():
+    """MKL's ``pardiso`` entry point from the ``mkl`` wheel (found by pypardiso's loader), or
+    ``None`` when pypardiso or MKL is not installed."""
+    global _MKL_PARDISO
+    with _MKL_LOCK:
+        if _MKL_PARDISO is None:
+            try:
+                import pypardiso
+                lib = pypardiso.PyPardisoSolver().libmkl
+                fn = lib.pardiso
+                set_threads = lib.MKL_Set_Num_Threads_Local
+            except (ImportError, OSError, AttributeError):
+                _MKL_PARDISO = False
+            else:
+                set_threads.argtypes = [ctypes.c_int]
+                set_threads.restype = ctypes.c_int
+                fn.set_threads = set_threads
+                i32 = ctypes.POINTER(ctypes.c_int32)
+                fn.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32,
+                               ctypes.c_void_p, i32, i32, i32, i32, i32, i32,
+                               ctypes.c_void_p, ctypes.c_void_p, i32]
+                fn.restype = None
+                _MKL_PARDISO = fn
+    return _MKL_PARDISO or None
+
+
+def pardiso_available() -> bool:
+    return _mkl_pardiso() is not None
+
+
 class NotPositiveDefinite(RuntimeError):
     """The matrix handed to the Cholesky solver is not SPD (negative weights dominate)."""
+
+
+def _same_pattern(key, A: sp.spmatrix) -> bool:
+    """Whether ``A`` (CSR or CSC) has the pattern ``key = (indptr, indices)`` of an analysed
+    matrix: the very index arrays (SEM's blocks share them) or equal ones."""
+    return key is not None and (key[1] is A.indices or (
+        np.array_equal(key[0], A.indptr) and np.array_equal(key[1], A.indices)))
 
 
 def _as_csc_symmetric(A: sp.spmatrix) -> sp.csc_matrix:
@@ -61,9 +116,11 @@ class CholmodSolver:
     iff all are positive)."""
 
     name = "cholmod"
+    pcg_max_iter = 6       # see PCG_MAX_ITER
 
     def __init__(self, ordering: str | None = None, refactored: bool = False):
         self._factor = None
+        self._key = None         # (indptr, indices) of the analysed pattern
         self._simplicial = False
         self._valid = False      # False after a failed refactorization (analysis kept)
         self.ordering = ordering
@@ -74,10 +131,13 @@ class CholmodSolver:
 
         A = _as_csc_symmetric(A)
         self._valid = False
+        if not _same_pattern(self._key, A):
+            self._factor = None            # a new pattern needs its own analysis
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # CHOLMOD warns (not raises) on some non-SPD input
             try:
                 if self._factor is None:
+                    self._key = (A.indptr, A.indices)
                     n = A.shape[0]
                     self._simplicial = self.refactored and n < SIMPLICIAL_BELOW
                     # nested dissection: less fill than AMD on disk Laplacians, so each
@@ -106,6 +166,137 @@ class CholmodSolver:
         self._valid = False
 
 
+def _pardiso_release(pt: np.ndarray, iparm: np.ndarray) -> None:
+    """PARDISO phase −1: free every internal array of the handle ``pt`` (a no-op if unused)."""
+    if not pt.any():
+        return
+    fn = _mkl_pardiso()
+    one, err = ctypes.c_int32(1), ctypes.c_int32(0)
+    i32 = ctypes.POINTER(ctypes.c_int32)
+    dummy = np.zeros(1, dtype=np.int32)
+    fn(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one), ctypes.byref(one),
+       ctypes.byref(ctypes.c_int32(2)), ctypes.byref(ctypes.c_int32(-1)), ctypes.byref(one),
+       None, dummy.ctypes.data_as(i32), dummy.ctypes.data_as(i32), None, ctypes.byref(one),
+       iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(0)), None, None,
+       ctypes.byref(err))
+    pt[:] = 0
+
+
+class PardisoSolver:
+    """MKL PARDISO for SPD matrices (mtype 2) with the analysis kept per sparsity pattern.
+
+    The first ``factorize`` of a pattern stores its upper triangle's CSR index arrays (zero-based,
+    ``iparm[34]``) and where each of their entries sits in the full matrix's ``data``, and runs
+    the analysis (phase 11, METIS nested dissection). Every call then gathers the upper
+    triangle's values and refactors numerically (phase 22); ``solve`` is phase 33 with iterative
+    refinement off (``iparm[7] = 0``: the Cholesky factor of an SPD Laplacian is exact to
+    rounding). A non-positive pivot makes phase 22 fail (error −4), reported as
+    ``NotPositiveDefinite``; a missing diagonal entry (``A_ii = 0``) is caught before the call.
+
+    MKL runs on ``threads`` threads during these calls (``MKL_Set_Num_Threads_Local``, restored
+    after each call), one by default: on this project's 2-core machines shared with other
+    processes, MKL's OpenMP threads waiting for each other made a refactor + solve 5–50× slower
+    than one thread (3k–45k unknowns, ``benchmarks/bench_sem.py``).
+    """
+
+    name = "pardiso"
+    #: no PCG on an old factor: a PARDISO solve costs about half a refactorization + solve,
+    #: so two PCG iterations already cost more than refactoring
+    pcg_max_iter = 0
+
+    def __init__(self, refactored: bool = False, threads: int = 1):
+        self.threads = threads
+        self._fn = _mkl_pardiso()
+        if self._fn is None:
+            raise UserError("solver 'pardiso' requested but pypardiso/MKL is not installed")
+        self.pt = np.zeros(64, dtype=np.int64)     # PARDISO's opaque handle
+        self.iparm = np.zeros(64, dtype=np.int32)
+        ip = self.iparm
+        ip[0] = 1      # iparm given here, not defaults
+        ip[1] = 2      # METIS nested dissection ordering
+        ip[7] = 0      # no iterative refinement
+        ip[9] = 13     # pivot perturbation 1e-13 (unused for SPD)
+        ip[34] = 1     # zero-based ia/ja
+        self._key = None          # (indptr, indices) of the analysed full pattern
+        self._upper = None        # positions of the upper triangle in the full data array
+        self._ia = self._ja = None
+        self._valid = False
+        self.refactored = refactored
+        self._finalizer = weakref.finalize(self, _pardiso_release, self.pt, self.iparm)
+
+    def _call(self, phase: int, data: np.ndarray | None, B: np.ndarray | None = None):
+        i32 = ctypes.POINTER(ctypes.c_int32)
+        n = len(self._ia) - 1
+        nrhs = 1 if B is None else B.shape[1]
+        X = None if B is None else np.zeros((n, nrhs), order="F")
+        err = ctypes.c_int32(0)
+        one = ctypes.c_int32(1)
+        previous = self._fn.set_threads(self.threads)
+        try:
+            self._fn(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
+                     ctypes.byref(one), ctypes.byref(ctypes.c_int32(2)),
+                     ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
+                     None if data is None else data.ctypes.data,
+                     self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32), None,
+                     ctypes.byref(ctypes.c_int32(nrhs)), self.iparm.ctypes.data_as(i32),
+                     ctypes.byref(ctypes.c_int32(0)), None if B is None else B.ctypes.data,
+                     None if X is None else X.ctypes.data, ctypes.byref(err))
+        finally:
+            self._fn.set_threads(previous)
+        return err.value, X
+
+    def _analyse(self, A: sp.csr_matrix) -> None:
+        _pardiso_release(self.pt, self.iparm)
+        n = A.shape[0]
+        rows = np.repeat(np.arange(n), np.diff(A.indptr))
+        upper = np.flatnonzero(A.indices >= rows)          # CSR rows sorted: diagonal first
+        ja = A.indices[upper].astype(np.int32)
+        ia = np.zeros(n + 1, dtype=np.int32)
+        np.cumsum(np.bincount(rows[upper], minlength=n), out=ia[1:])
+        self._ia, self._ja, self._upper = ia, ja, upper
+        self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
+        self._key = (A.indptr, A.indices)
+        if self._has_diagonal:
+            err, _ = self._call(11, np.ascontiguousarray(A.data[upper]))
+            if err:
+                raise RuntimeError(f"PARDISO analysis failed with error {err}")
+
+    def factorize(self, A: sp.spmatrix) -> None:
+        A = A.tocsr() if not sp.isspmatrix_csr(A) else A
+        if not A.has_sorted_indices:
+            A = A.sorted_indices()
+        A = A.astype(np.float64, copy=False)
+        self._valid = False
+        if not _same_pattern(self._key, A):
+            self._analyse(A)
+        if not self._has_diagonal:
+            raise NotPositiveDefinite("matrix is not positive definite (a zero diagonal entry)")
+        self._data = np.ascontiguousarray(A.data[self._upper])
+        err, _ = self._call(22, self._data)
+        if err == -4:
+            raise NotPositiveDefinite("matrix is not positive definite (PARDISO pivot ≤ 0)")
+        if err:
+            raise RuntimeError(f"PARDISO factorization failed with error {err}")
+        self._valid = True
+
+    def solve(self, B: np.ndarray) -> np.ndarray:
+        B = np.asfortranarray(B, dtype=np.float64)
+        one = B.ndim == 1
+        err, X = self._call(33, self._data, B.reshape(len(B), -1, order="F"))
+        if err:
+            raise RuntimeError(f"PARDISO solve failed with error {err}")
+        X = np.ascontiguousarray(X)
+        return X[:, 0] if one else X
+
+    def has_factor(self) -> bool:
+        return self._valid
+
+    def release(self) -> None:
+        _pardiso_release(self.pt, self.iparm)
+        self._key = None
+        self._valid = False
+
+
 class ScipySolver:
     """SuperLU with a COLAMD ordering applied symmetrically and no pivoting (SPD input).
 
@@ -114,6 +305,7 @@ class ScipySolver:
     ``U``'s diagonal, which is how a non-SPD matrix is detected."""
 
     name = "scipy"
+    pcg_max_iter = 6
 
     def __init__(self):
         self._lu = None
@@ -140,10 +332,16 @@ class ScipySolver:
 
 
 def make_solver(kind: str = "auto", refactored: bool = False):
-    """A fresh solver of the requested kind; ``auto`` prefers CHOLMOD when installed.
-    ``refactored``: Laplacians of one pattern refactored many times (see ``CholmodSolver``)."""
+    """A fresh solver of the requested kind; ``auto`` prefers PARDISO, then CHOLMOD, when
+    installed. ``refactored``: Laplacians of one pattern refactored many times (see
+    ``CholmodSolver``)."""
     if kind not in SOLVER_KINDS:
         raise UserError(f"unknown solver '{kind}'; use one of {', '.join(SOLVER_KINDS)}")
+    if kind == "pardiso" and not pardiso_available():
+        raise UserError("solver 'pardiso' requested but pypardiso (MKL) is not installed; "
+                        "pip install pypardiso (x86-64) or use solver: auto")
+    if kind == "pardiso" or (kind == "auto" and pardiso_available()):
+        return PardisoSolver(refactored=refactored)
     if kind == "cholmod" and not cholmod_available():
         raise UserError("solver 'cholmod' requested but scikit-sparse is not installed; "
                         "pip install scikit-sparse (needs libsuitesparse-dev) or use solver: auto")
@@ -154,8 +352,9 @@ def make_solver(kind: str = "auto", refactored: bool = False):
 
 #: Systems with at least this many unknowns may be solved by PCG on the previous factor.
 PCG_ABOVE = 50_000
-#: PCG iterations tried before refactoring instead: each costs one solve with the old factor,
-#: and at the largest sizes a refactorization costs about ten solves.
+#: PCG iterations tried before refactoring instead (CHOLMOD, SuperLU): each costs one solve
+#: with the old factor, and at the largest sizes a refactorization costs about ten solves. A
+#: solver's ``pcg_max_iter`` says its own budget (0: never).
 PCG_MAX_ITER = 6
 PCG_RTOL = 1e-12
 
@@ -205,14 +404,16 @@ def solve_complex(solver, A: sp.spmatrix, b: np.ndarray, x0: np.ndarray | None =
 
     For large systems with a starting guess ``x0`` (the previous iterate) and a factor of an
     earlier matrix of the same pattern, preconditioned CG with that factor is tried first
-    (warm start; ``PCG_MAX_ITER`` iterations to a relative residual of ``PCG_RTOL``); only if it
-    does not converge is ``A`` refactored. ``solver.stats`` counts both outcomes.
+    (warm start; the solver's ``pcg_max_iter`` iterations to a relative residual of
+    ``PCG_RTOL``); only if it does not converge is ``A`` refactored. ``solver.stats`` counts
+    both outcomes.
     """
     B = np.column_stack([b.real, b.imag])
     stats = solver.__dict__.setdefault("stats", {"factorizations": 0, "pcg_solves": 0,
                                                  "pcg_iterations": 0})
-    if x0 is not None and A.shape[0] >= PCG_ABOVE and solver.has_factor():
-        X, its = pcg(A, B, np.column_stack([x0.real, x0.imag]), solver.solve, PCG_MAX_ITER)
+    budget = getattr(solver, "pcg_max_iter", PCG_MAX_ITER)
+    if x0 is not None and budget and A.shape[0] >= PCG_ABOVE and solver.has_factor():
+        X, its = pcg(A, B, np.column_stack([x0.real, x0.imag]), solver.solve, budget)
         if X is not None:
             stats["pcg_solves"] += 1
             stats["pcg_iterations"] += its
