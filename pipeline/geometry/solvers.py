@@ -14,9 +14,11 @@ positive). Three solvers, each analysing a pattern once where it can:
   after that.
 * ``scipy`` — SuperLU in symmetric mode, the fallback everywhere (it cannot keep an analysis).
 
-``auto`` takes PARDISO when it loads, then CHOLMOD, then SciPy: PARDISO's refactor + solve was
-the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py`` (the README's performance
-table). All take real right-hand sides with two columns (the real and imaginary parts of the
+``auto`` takes CHOLMOD when it is installed (an explicit opt-in), then PARDISO, then SciPy.
+PARDISO's refactor + solve is the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py``
+(the README's performance table), but converged mode mostly solves with a kept factor, where
+CHOLMOD's solves are faster, and loading MKL costs up to a second per process: on meshes below
+about 100k faces converged maps take longer with PARDISO, above it about as long. All take real right-hand sides with two columns (the real and imaginary parts of the
 complex map), never a complex one (see ``shared/docs/SOLVERS.md``).
 """
 
@@ -332,7 +334,7 @@ class ScipySolver:
 
 
 def make_solver(kind: str = "auto", refactored: bool = False):
-    """A fresh solver of the requested kind; ``auto`` prefers PARDISO, then CHOLMOD, when
+    """A fresh solver of the requested kind; ``auto`` prefers CHOLMOD, then PARDISO, when
     installed. ``refactored``: Laplacians of one pattern refactored many times (see
     ``CholmodSolver``)."""
     if kind not in SOLVER_KINDS:
@@ -340,13 +342,13 @@ def make_solver(kind: str = "auto", refactored: bool = False):
     if kind == "pardiso" and not pardiso_available():
         raise UserError("solver 'pardiso' requested but pypardiso (MKL) is not installed; "
                         "pip install pypardiso (x86-64) or use solver: auto")
-    if kind == "pardiso" or (kind == "auto" and pardiso_available()):
-        return PardisoSolver(refactored=refactored)
     if kind == "cholmod" and not cholmod_available():
         raise UserError("solver 'cholmod' requested but scikit-sparse is not installed; "
                         "pip install scikit-sparse (needs libsuitesparse-dev) or use solver: auto")
     if kind == "cholmod" or (kind == "auto" and cholmod_available()):
         return CholmodSolver(refactored=refactored)
+    if kind == "pardiso" or (kind == "auto" and pardiso_available()):
+        return PardisoSolver(refactored=refactored)
     return ScipySolver()
 
 
