@@ -38,7 +38,7 @@ MIS_TAIL = 0.02       # a round's passes stop when one takes < 2 % of the first'
 
 def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
                          budget: int | None = None, max_gap: float | None = None,
-                         max_sag: float | None = None) -> int:
+                         max_sag: float | None = None, at: np.ndarray | None = None) -> int:
     """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
     ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
     around it, no new edge has a sag (:func:`edge_sag`) above ``max_sag`` (if given), and the
@@ -60,6 +60,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     budget : int, optional
     max_gap, max_sag : float, optional
         The guards' tolerances, in the mesh's units.
+    at : (n,) bool, optional
+        Only edges with both ends marked (the short edges of skinny faces).
 
     Returns
     -------
@@ -100,6 +102,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             Fs = F[touching(F, at_short)]
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
+        if at is not None:
+            h, a, b, twin, ln = (x[at[a] & at[b]] for x in (h, a, b, twin, ln))
         if len(h) == 0:
             break
         on_b = twin < 0

@@ -78,10 +78,12 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    vertices: int | None = None, spacing: float | None = None,
                    pattern: str = "hexagonal", rim_relax: int = 3, seed: int = 0,
                    improve: bool = True, flips: bool = True, relax_iterations: int = 2,
-                   relax_step: float = 0.5, max_dihedral_deg: float = 20.0,
+                   relax_step: float = 1.0, max_dihedral_deg: float = 20.0,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
-                   corner_angle_deg: float = 30.0, landmarks: dict | None = None
-                   ) -> RemeshResult:
+                   corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
+                   final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
+                   min_angle_deg: float = 20.0,
+                   landmarks: dict | None = None) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -104,8 +106,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     seed : int
         For ``blue_noise``.
     improve : bool
-        Run the improvement pass; the other keywords up to ``refine_budget`` are its
-        parameters (:func:`.improve.improve_remesh`).
+        Run the improvement pass; ``flips`` … ``refine_budget`` and ``isotropic_iterations``
+        … ``min_angle_deg`` are its parameters (:func:`.improve.improve_remesh`).
     corner_angle_deg : float
         Input corners sharper than this keep a vertex (0: none).
     landmarks : dict, optional
@@ -141,7 +143,10 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         improve_remesh(S, L, relax_iterations=relax_iterations, flips=flips,
                        max_dihedral_deg=max_dihedral_deg, relax_step=relax_step,
                        refine_sag=refine_sag, refine_budget=refine_budget,
-                       target_vertices=vertices,
+                       target_vertices=vertices, isotropic_iterations=isotropic_iterations,
+                       final_relax_iterations=final_relax_iterations,
+                       pinned_relax_iterations=pinned_relax_iterations,
+                       min_angle_deg=min_angle_deg,
                        corners_uv=uv[interior_corners(V, F, corner_angle_deg)])
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         imp.update({"enabled": True, "target_edge_length": float(L), **S.log})
