@@ -24,7 +24,7 @@ from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
 from .corners import boundary_corners, interior_corners
-from .improve import Stopwatch, improve_remesh
+from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
 from .state import RemeshState
@@ -150,6 +150,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                        corners_uv=uv[interior_corners(V, F, corner_angle_deg)])
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         imp.update({"enabled": True, "target_edge_length": float(L), **S.log})
+        imp["below_min_angle"] = below_min_angle(S, V, min_angle_deg)
         imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     lap("improve")
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
@@ -165,6 +166,21 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "improve": imp,
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+
+
+def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
+    """The faces the minimum-angle pass left below ``min_angle_deg``: how many, how many of
+    them have a corner on a sharp input corner (a locked vertex) and which input vertices those
+    corners are (the nearest input vertex of each)."""
+    from scipy.spatial import cKDTree
+
+    bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
+    at_corner = S.locked[S.F[bad]].any(axis=1) if len(bad) else np.zeros(0, bool)
+    corners = np.unique(S.F[bad[at_corner]][S.locked[S.F[bad[at_corner]]]])
+    names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
+    return {"threshold_deg": float(min_angle_deg), "faces": int(len(bad)),
+            "at_input_corners": int(at_corner.sum()),
+            "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)})}
 
 
 def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) -> RemeshState:
