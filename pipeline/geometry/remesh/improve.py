@@ -37,7 +37,12 @@ The schedule (:func:`improve_remesh`):
 9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
    faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
    splits for the count and flips. It is a best effort: a face it cannot fix stays (the
-   report counts the faces below the minimum).
+   report counts the faces below the minimum);
+10. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
+    or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
+    refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
+    (:func:`.halfedge.disk_shape`) — so it normally has nothing to do; the caller checks that
+    none is left (:func:`.uniform.uniform_remesh` raises otherwise).
 """
 
 from __future__ import annotations
@@ -148,6 +153,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
+    ops.repair_degenerate(target)
+    lap("repair")
     return S
 
 
@@ -248,6 +255,23 @@ class _Operations:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
 
+    def repair_degenerate(self, target: int, passes: int = 3) -> None:
+        """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
+        first, under no guard but the result's validity, the count given back by splits, then
+        flips; the operations do not make such faces, so this normally finds none."""
+        S = self.S
+        for _ in range(passes):
+            bad = degenerate_faces(S)
+            if len(bad) == 0:
+                return
+            S.tally("degenerate_repaired", len(bad))
+            at = np.zeros(S.n, bool)
+            at[S.F[bad].ravel()] = True
+            collapse_short_edges(S, np.inf, np.inf, at=at)
+            if S.n < target:
+                split_long_edges(S, 0.0, budget=target - S.n)
+            self.flip()
+
     def restore_count(self, target: int) -> None:
         """Collapse the slivers and as many of the shortest edges as the count exceeds
         ``target``, under the guards (without the sag guard if it refuses too many); split the
@@ -300,6 +324,19 @@ def _at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
         return np.zeros(len(X), bool)
     key = {p.tobytes() for p in np.ascontiguousarray(P)}
     return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
+
+
+def degenerate_faces(S: RemeshState) -> np.ndarray:
+    """The faces (indices) of ``S`` that are degenerate on the surface (a repeated or
+    coincident corner, or zero area: :func:`..remesh_quality.degenerate_faces`) or not
+    counter-clockwise on the disk."""
+    from ..remesh_quality import degenerate_faces as degenerate_3d
+    from .halfedge import double_areas
+
+    bad = np.zeros(len(S.F), bool)
+    bad[degenerate_3d(S.X, S.F)] = True
+    bad |= ~(double_areas(S.uv, S.F) > 0)
+    return np.flatnonzero(bad)
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:

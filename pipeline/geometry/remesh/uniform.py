@@ -153,6 +153,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         imp["below_min_angle"] = below_min_angle(S, V, min_angle_deg)
         imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     lap("improve")
+    check_remesh(X, F_out, uv_out)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -166,6 +167,24 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "improve": imp,
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+
+
+class RemeshFailed(RuntimeError):
+    """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
+    the disk); it is never written."""
+
+
+def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
+    """Raise :class:`RemeshFailed` if a face of the remesh is degenerate on the surface
+    (:func:`..remesh_quality.degenerate_faces`) or not counter-clockwise on the disk."""
+    from ..remesh_quality import degenerate_faces
+
+    flat = degenerate_faces(X, F)
+    clockwise = np.flatnonzero(~(signed_double_areas(uv, F) > 0))
+    if len(flat) or len(clockwise):
+        raise RemeshFailed(f"remesh: {len(flat)} degenerate faces and {len(clockwise)} faces "
+                           f"not counter-clockwise on the disk are left (first: "
+                           f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
 
 
 def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
