@@ -56,16 +56,8 @@ def disk_shape(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     equilateral face, 0 for a degenerate one). The operations keep it at least
     ``DISK_SHAPE_MIN`` for every face they make: a face thinner than that on the disk is
     counter-clockwise only up to rounding, and a later split of its long edge can land on its
-    third corner (two vertices at one point, a zero-length edge on the surface).
-
-    Parameters
-    ----------
-    uv : (n, 2) float
-    F : (m, 3) int
-
-    Returns
-    -------
-    (m,) float
+    third corner (two vertices at one point, a zero-length edge on the surface). Arguments as
+    for :func:`double_areas`; (m,) float.
     """
     a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
     longest = np.maximum.reduce([((b - a) ** 2).sum(axis=1), ((c - b) ** 2).sum(axis=1),
