@@ -11,7 +11,7 @@ from pipeline.geometry.remesh.collapse import collapse_short_edges
 from pipeline.geometry.remesh.sag import edge_sag
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts, point_mesh_distance
-from remesh_helpers import ccw_delaunay, disk_map, disk_points
+from remesh_helpers import ccw_delaunay, disk_map, disk_points, face_map  # noqa: F401
 
 
 @pytest.mark.parametrize("max_gap", [None, 0.02])
@@ -60,3 +60,25 @@ def test_collapse_sag_guard_creates_no_edge_off_the_surface():
         assert k > 20 and is_disk(mesh_facts(S.X, S.F))
         new_far[max_sag] = far_edges(S) - before
     assert len(new_far[None]) > 0 and len(new_far[tol]) == 0
+
+
+def test_collapse_only_between_marked_vertices(face_map):
+    """``at``: only edges with both ends marked collapse; every other vertex stays."""
+    from pipeline.geometry.locate import PointLocator, lift
+    from pipeline.geometry.remesh.sampling import sample_disk, triangulate_samples
+    from pipeline.geometry.remesh.state import RemeshState
+
+    _, mesh, p = face_map
+    s = sample_disk(1500, polygon=p.uv[mesh.boundary])
+    L = PointLocator(p.uv, mesh.F, mesh.boundary)
+    face, bary = L.locate(s.points)
+    X = lift(mesh.V, mesh.F, face, bary)
+    rim = np.arange(len(X)) < s.n_rim
+    S = RemeshState(X, triangulate_samples(s), s.points, rim, face, bary, mesh.V, mesh.F, p.uv,
+                    L, p.uv[mesh.boundary])
+    at = np.zeros(S.n, bool)
+    at[np.flatnonzero(~rim)[:40]] = True
+    before = {tuple(x) for x in S.X[~at]}
+    done = collapse_short_edges(S, np.inf, np.inf, at=at)
+    assert done > 0 and S.n == len(X) - done
+    assert before <= {tuple(x) for x in S.X}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
@@ -41,3 +42,46 @@ def test_improvement_steps_keep_the_disk(face_map):
     assert c == 100 and S.n == len(X)
     assert is_disk(mesh_facts(S.X, S.F)) and np.all(signed_double_areas(S.uv, S.F) > 0)
     assert on_surface(S.X, mesh) <= 1e-9
+
+
+def test_a_degenerate_face_is_repaired_or_the_remesh_fails_loudly():
+    """A zero-length edge (the split of ``A–B`` forced onto ``P``, see
+    test_remesh_refine) is collapsed by the safety net at the end of the improvement; a remesh
+    that still has a degenerate or clockwise face raises instead of being written."""
+    from pipeline.geometry.remesh.halfedge import edge_table
+    from pipeline.geometry.remesh.improve import _Operations, degenerate_faces
+    from pipeline.geometry.remesh.refine import split_edges
+    from pipeline.geometry.remesh.uniform import RemeshFailed, check_remesh
+    from test_remesh_refine import thin_face_state
+
+    S = thin_face_state()
+    h, a, b, twin = edge_table(S.F, twin=S.twins())
+    ab = np.flatnonzero(((a == 0) & (b == 1)) | ((a == 1) & (b == 0)))
+    split_edges(S, h[ab], twin[ab])                  # the unguarded split: w on P
+    assert len(degenerate_faces(S)) == 2
+    with pytest.raises(RemeshFailed, match="2 degenerate faces"):
+        check_remesh(S.X, S.F, S.uv)
+    _Operations(S, 0.2, True, 20.0, 0.5, 0.0).repair_degenerate(target=S.n - 1)
+    assert len(degenerate_faces(S)) == 0 and S.log["degenerate_repaired"] == 2
+    check_remesh(S.X, S.F, S.uv)
+    assert is_disk(mesh_facts(S.X, S.F))
+
+
+def test_alligator_paper_map_20k_has_no_degenerate_face():
+    """c3d_alligator's 10-step map squeezes much of the body thin (median stretch 9:1): at
+    20k vertices, splits and flips there once drove faces to rounding-level thinness on the
+    disk and a split landed on a vertex (NaN angles). Every face is proper now."""
+    from conftest import require_data
+    from pipeline.geometry.remesh_quality import degenerate_faces as degenerate_3d
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = load_stage(require_data("meshes", "c3d_alligator.obj")).mesh
+    p = parameterize_stage(mesh, SEMOptions(mode="paper"))
+    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=20000))
+    assert len(degenerate_3d(r.V, r.F)) == 0
+    assert np.isfinite(corner_angles(r.V, r.F)).all()
+    assert (signed_double_areas(r.uv, r.F) > 0).all()
+    assert abs(len(r.V) - 20000) <= 400

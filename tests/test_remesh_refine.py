@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry import topology as topo
+from pipeline.geometry.locate import lift
 from pipeline.geometry.metrics import signed_double_areas
-from pipeline.geometry.remesh.halfedge import edge_table, independent_by_faces
-from pipeline.geometry.remesh.refine import split_edges
+from pipeline.geometry.remesh.halfedge import (DISK_SHAPE_MIN, disk_shape, edge_table,
+                                               independent_by_faces)
+from pipeline.geometry.remesh.improve import degenerate_faces
+from pipeline.geometry.remesh.refine import split_edges, split_long_edges
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import disk_map
@@ -34,3 +37,29 @@ def test_split_edges_keeps_the_cached_twins_right():
         assert S.cached_twins() is not None                            # kept, not dropped
         assert np.array_equal(S.twins(), topo.interior_edge_twins(S.F))
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
+
+
+def thin_face_state():
+    """Four faces on a disk map with a tent: face ``[A, B, P]`` is thin on the disk (``P`` is
+    1e-14 above the midpoint of ``A–B``) but not on the surface (the tent lifts ``P``), the
+    state a chain of splits and flips in a squeezed region of a real map reached."""
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.1)
+    uv = np.array([[-0.2, 0.0], [0.2, 0.0], [0.0, 1e-14], [0.0, -0.2], [0.0, 0.2]])
+    F = np.array([[0, 1, 2], [1, 0, 3], [0, 2, 4], [2, 1, 4]])
+    face, bary = locator.locate(uv)
+    X = lift(V_in, F_in, face, bary)
+    rim = np.array([True, True, False, True, True])
+    return RemeshState(X, F, uv, rim, face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+
+
+def test_split_never_lands_on_the_corner_of_a_face_thin_on_the_disk():
+    """Splitting ``A–B`` of the thin face at its disk midpoint would put the new vertex on
+    ``P``: two vertices at one point, a zero-length edge (the NaN angles of c3d_alligator at
+    20k). The split is refused: no face thinner than DISK_SHAPE_MIN on the disk is made."""
+    S = thin_face_state()
+    assert len(degenerate_faces(S)) == 0 and (signed_double_areas(S.uv, S.F) > 0).all()
+    split_long_edges(S, 0.35)                       # only A–B (0.4) is longer
+    assert len(degenerate_faces(S)) == 0
+    assert (signed_double_areas(S.uv, S.F) > 0).all()
+    fresh = disk_shape(S.uv, S.F[4:])               # the faces the splits made, if any
+    assert (fresh >= DISK_SHAPE_MIN).all()

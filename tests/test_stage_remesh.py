@@ -247,3 +247,24 @@ def test_real_mesh_anisotropy_warning_at_20k(remeshed_20k):
     assert hand["anisotropy_area_above_10"] > 0.25 and hand["anisotropy_median"] > 5
     assert face["anisotropy_area_above_10"] < 0.02 and face["anisotropy_median"] < 2.5
     assert len(remesh_warnings(hand, {})) == 1 and remesh_warnings(face, {}) == []
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_remesh_is_isotropic_at_20k(remeshed_20k, rel):
+    """The isotropic rounds: the mean smallest angle is near the equilateral's 60° (≥ 47°)
+    and under 2.5 % of the faces have an angle under 30° (the lift alone: 12–47 %)."""
+    _, r, q, _ = remeshed_20k(rel)
+    t = q["triangles"]
+    assert t["mean_min_angle_deg"] >= 47.0
+    assert t["fraction_min_angle_below_30"] <= 0.025
+
+
+@pytest.mark.parametrize("rel", MESHES)
+def test_real_mesh_below_min_angle_is_what_the_definition_counts(remeshed_20k, rel):
+    """``below_min_angle`` counts the faces whose 3D smallest angle is under 20°, exactly."""
+    _, r, q, _ = remeshed_20k(rel)
+    below = r.info["improve"]["below_min_angle"]
+    assert below["threshold_deg"] == 20.0
+    assert below["faces"] == int((q["triangles"]["_per_face_min_angle"] < 20.0).sum())
+    assert 0 <= below["at_input_corners"] <= below["faces"]
+    assert below["faces"] <= 0.02 * len(r.F)

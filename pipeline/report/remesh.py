@@ -430,12 +430,20 @@ HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
 ANISOTROPY_SHARE = 0.25       # of the surface stretched more than 10:1
 
 
-def remesh_warnings(distortion: dict, methods: dict) -> list[str]:
+def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
-    stretch anisotropy); ``methods``: ``remesh_metrics.json``'s ``methods`` block."""
+    stretch anisotropy); ``methods``: ``remesh_metrics.json``'s ``methods`` block; ``below``:
+    the faces the minimum-angle pass left (``remesh.improve.below_min_angle``)."""
     out = []
+    if below and below.get("faces"):
+        corners = below.get("input_corner_vertices") or []
+        named = (f", {below['at_input_corners']} of them at sharp input corners (input "
+                 f"vertices {', '.join(map(str, corners[:10]))}{' …' if len(corners) > 10 else ''})"
+                 if below.get("at_input_corners") else ", none at a sharp input corner")
+        out.append(f"{below['faces']} faces keep an angle below {below['threshold_deg']:g}°"
+                   f"{named}")
     share = distortion.get("anisotropy_area_above_10", 0.0)
     if share > ANISOTROPY_SHARE:
         out.append(f"the SEM map stretches {100 * share:.0f} % of the surface more than 10:1 "

@@ -42,11 +42,15 @@ class ImproveConfig(Section):
 
     flips: bool = True                       # Delaunay flips on the lifted surface
     relax_iterations: int = Field(2, ge=0, le=50)     # tangential relaxation steps
-    relax_step: float = Field(0.5, gt=0.0, le=1.0)
+    relax_step: float = Field(1.0, gt=0.0, le=1.0)
     max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
     refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
     refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
     corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
+    isotropic_iterations: int = Field(4, ge=0, le=50)   # split/collapse/flip/relax rounds
+    final_relax_iterations: int = Field(6, ge=0, le=50)   # relax + flips after the count
+    pinned_relax_iterations: int = Field(2, ge=0, le=50)  # after the second sag refinement
+    min_angle_deg: float = Field(20.0, ge=0.0, le=40.0)   # the last pass's minimum angle
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim
@@ -312,7 +316,8 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
         "seconds": dict(remesh.seconds, measure=t_measure),
     }
-    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"])
+    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"],
+                                          remesh.info.get("improve", {}).get("below_min_angle"))
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,

@@ -8,7 +8,8 @@ is. It is made only if
   interior edge between two rim vertices is never collapsed);
 * the link condition holds (the ends share exactly two neighbours, one on the boundary);
 * no face flips on the disk or turns over in 3D, no face gets three boundary corners and no
-  edge gets longer than ``L_max`` (compiled: :func:`.._kernels.collapse_breaks_faces`);
+  edge gets longer than ``L_max`` (compiled: :func:`.._kernels.collapse_breaks_faces`), and
+  no new face is thinner on the disk than ``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`);
 * given ``max_gap``: the removed vertex, a point of the surface, stays within ``max_gap`` of
   the faces that replace its ring (so that collapses do not undo the refinement of folds);
 * given ``max_sag``: no new edge is farther than that from the surface (:func:`.sag.edge_sag`;
@@ -27,7 +28,7 @@ from .._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_
                         half_edge_lengths, short_edges)
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
-from .halfedge import CSR, adjacency, touching, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, disk_shape, touching, vertex_faces
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -38,7 +39,7 @@ MIS_TAIL = 0.02       # a round's passes stop when one takes < 2 % of the first'
 
 def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds: int = 8,
                          budget: int | None = None, max_gap: float | None = None,
-                         max_sag: float | None = None) -> int:
+                         max_sag: float | None = None, at: np.ndarray | None = None) -> int:
     """Collapse edges shorter than ``L_min`` (3D), shortest first, when no edge longer than
     ``L_max`` appears, the removed vertex stays within ``max_gap`` (if given) of the new faces
     around it, no new edge has a sag (:func:`edge_sag`) above ``max_sag`` (if given), and the
@@ -60,6 +61,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     budget : int, optional
     max_gap, max_sag : float, optional
         The guards' tolerances, in the mesh's units.
+    at : (n,) bool, optional
+        Only edges with both ends marked (the short edges of skinny faces).
 
     Returns
     -------
@@ -100,6 +103,8 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             Fs = F[touching(F, at_short)]
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
+        if at is not None:
+            h, a, b, twin, ln = (x[at[a] & at[b]] for x in (h, a, b, twin, ln))
         if len(h) == 0:
             break
         on_b = twin < 0
@@ -125,6 +130,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), X,
                                     np.ascontiguousarray(S.is_rim).view(np.uint8), T, Tn,
                                     k[fr], float(L_max))
+        bad |= disk_shape(S.uv, Tn) < DISK_SHAPE_MIN
         ok &= np.bincount(fr[bad], minlength=len(r)) == 0
         win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
                                      None if budget is None else budget - done)

@@ -4,7 +4,8 @@ An interior edge is flipped when its two opposite **3D** angles sum to more than
 Delaunay criterion on the lifted surface), in rounds of independent flips until none is left.
 A flip is allowed only when the quad is convex on the disk (so the new edge cannot exist yet:
 the triangulation is an embedding there), no new face has three boundary corners, the new
-faces' normals agree with the old ones, and either the quad is nearly planar (dihedral angle
+faces' normals agree with the old ones and are not thinner on the disk than
+``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`), and either the quad is nearly planar (dihedral angle
 below ``max_dihedral_deg``), so the surface changes by no more than a shallow fold, or — given
 a ``sag`` measure (:func:`.sag.edge_sag`) — the new edge is no farther from the input surface
 than the old one. The second rule lets the caps and needles that the map's angle distortion
@@ -17,7 +18,7 @@ import numpy as np
 
 from .. import topology as topo
 from .._kernels import flip_checks, opposite_cots
-from .halfedge import independent_by_faces, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by_faces, touching
 
 
 def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -115,6 +116,7 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
                 both = sag(np.r_[p[folded], a[folded]], np.r_[q[folded], b[folded]])
                 ok[folded] = both[:k] <= both[k:]
         ok &= valid
+        ok[ok] = _shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])
         sel = np.flatnonzero(ok)
         if len(sel) == 0:
             break
@@ -143,6 +145,15 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         total += len(win)
         h = _interior_edges_of(changed, twin, m)          # next round: the changed faces' edges
     return F, total, rounds
+
+
+def _shapes_kept(uv: np.ndarray, p, a, q, b) -> np.ndarray:
+    """Whether both new faces ``(p, a, q)`` and ``(q, b, p)`` of a flip keep a disk shape of at
+    least ``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`)."""
+    if len(p) == 0:
+        return np.zeros(0, bool)
+    shape = disk_shape(uv, np.column_stack([p, a, q, q, b, p]).reshape(-1, 3)).reshape(-1, 2)
+    return shape.min(axis=1) >= DISK_SHAPE_MIN
 
 
 def _interior_edges_of(faces: np.ndarray, twin: np.ndarray, m: int) -> np.ndarray:

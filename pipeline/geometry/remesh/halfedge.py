@@ -13,6 +13,8 @@ import numpy as np
 from .. import topology as topo
 from .._kernels import faces_touching, group_by_key
 
+DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
+
 
 def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
     """Faces with a corner where ``mark`` is set: ``mark[F].any(axis=1)``, compiled (remeshing
@@ -47,6 +49,20 @@ def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+def disk_shape(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Twice the signed disk area of each face over its longest disk edge squared (√3/2 for an
+    equilateral face, 0 for a degenerate one). The operations keep it at least
+    ``DISK_SHAPE_MIN`` for every face they make: a face thinner than that on the disk is
+    counter-clockwise only up to rounding, and a later split of its long edge can land on its
+    third corner (two vertices at one point, a zero-length edge on the surface). Arguments as
+    for :func:`double_areas`; (m,) float.
+    """
+    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
+    longest = np.maximum.reduce([((b - a) ** 2).sum(axis=1), ((c - b) ** 2).sum(axis=1),
+                                 ((a - c) ** 2).sum(axis=1)])
+    return double_areas(uv, F) / np.maximum(longest, 1e-300)
 
 
 def edge_table(F: np.ndarray, with_twins: bool = False, twin: np.ndarray | None = None):

@@ -19,13 +19,30 @@ The schedule (:func:`improve_remesh`):
    where the sag test cannot see them); flips; the sag splits again around what changed and
    what the rounds left (they can run out where a steep wall is squeezed against the rim),
    flips;
-4. count correction: collapse the shortest edges (slivers shorter than ``SLIVER × L`` and as
+4. ``isotropic_iterations`` rounds of isotropic remeshing on the surface
+   (:meth:`_Operations.isotropic_step`: split edges longer than ``ISO_LONG × L``, collapse
+   those shorter than ``ISO_SHORT × L`` under the guards, flips, a smoothing step, flips) —
+   the equiareal samples give the density, these rounds the shape;
+5. count correction: collapse the shortest edges (slivers shorter than ``SLIVER × L`` and as
    many more as the refinement added) under the gap and sag guards at ``refine_sag × L``, so
    that they do not undo the refinement; without the sag guard if it leaves the count above
    the target; split the longest edges if below;
-5. one more smoothing step and flips;
-6. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
-   guards, the count given back by splits, each followed by flips.
+6. ``final_relax_iterations`` × (smoothing step, flips): the area-weighted centroid steps
+   even out the face areas;
+7. the sag refinement again (the smoothing moves vertices off the folds the first one
+   caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and flips with
+   the new sag vertices pinned;
+8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
+   guards, the count given back by splits, each followed by flips;
+9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
+   faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
+   splits for the count and flips. It is a best effort: a face it cannot fix stays (the
+   report counts the faces below the minimum);
+10. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
+    or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
+    refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
+    (:func:`.halfedge.disk_shape`) — so it normally has nothing to do; the caller checks that
+    none is left (:func:`.uniform.uniform_remesh` raises otherwise).
 """
 
 from __future__ import annotations
@@ -49,6 +66,8 @@ from .state import RemeshState
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
+ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
+LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 
 
@@ -56,7 +75,11 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    max_dihedral_deg: float = 20.0, relax_step: float = 0.5,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
                    target_vertices: int | None = None,
-                   corners_uv: np.ndarray | None = None) -> RemeshState:
+                   corners_uv: np.ndarray | None = None,
+                   isotropic_iterations: int = 4,
+                   final_relax_iterations: int = 6,
+                   pinned_relax_iterations: int = 2,
+                   min_angle_deg: float = 20.0) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -83,6 +106,14 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         The count to restore after refinement; default: the count after refinement.
     corners_uv : (k, 2) float, optional
         Disk images of sharp interior input vertices, sharpest first.
+    isotropic_iterations : int
+        Rounds of split / collapse / flip / smoothing at the target length (step 4).
+    final_relax_iterations : int
+        Smoothing steps after the count correction (step 6; none if ``relax_iterations`` is 0).
+    pinned_relax_iterations : int
+        Smoothing steps after the second sag refinement (step 7).
+    min_angle_deg : float
+        The minimum-angle pass's threshold (step 9; 0: no pass).
 
     Returns
     -------
@@ -104,15 +135,26 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.refine(budget=int(refine_budget * S.n))
         lap("refine")
     target = S.n if target_vertices is None else int(target_vertices)
+    for _ in range(isotropic_iterations):
+        ops.isotropic_step()
+        lap("isotropic")
     ops.restore_count(target)
     lap("count")
-    if relax_iterations > 0:
+    for _ in range(final_relax_iterations if relax_iterations > 0 else 0):
         ops.relax()
         lap("relax")
         ops.flip()
         lap("flips")
+    if refine_sag > 0:
+        ops.refine_pinned(target, int(refine_budget * S.n), pinned_relax_iterations)
+        lap("refine")
     ops.remove_slivers(target)
     lap("count")
+    if min_angle_deg > 0:
+        ops.guarantee(target, min_angle_deg)
+        lap("guarantee")
+    ops.repair_degenerate(target)
+    lap("repair")
     return S
 
 
@@ -168,6 +210,68 @@ class _Operations:
         refine_by_sag(S, self.refine_sag * L, budget - done, active=active)
         self.flip(since=F1)
 
+    def isotropic_step(self) -> None:
+        """One round of isotropic remeshing on the surface (Botsch & Kobbelt 2004), made on
+        the disk: split edges longer than ``ISO_LONG × L``, collapse those shorter than
+        ``ISO_SHORT × L`` under the guards, flips, a relaxation step, flips."""
+        S, L, tol = self.S, self.L, self.tol
+        split_long_edges(S, ISO_LONG * L)
+        collapse_short_edges(S, ISO_SHORT * L, ISO_LONG * L, max_gap=tol, max_sag=tol)
+        self.flip()
+        self.relax()
+        self.flip()
+
+    def refine_pinned(self, target: int, budget: int, relax_iterations: int) -> None:
+        """Sag refinement again after the relaxation (which moves vertices off the folds the
+        first one caught), the count restored by guarded collapses, then ``relax_iterations``
+        relaxation steps and flips with the new sag vertices pinned where they catch the
+        surface."""
+        S = self.S
+        corners = S.X[S.locked].copy()
+        n0 = S.n
+        self.refine(budget)
+        S.locked[n0:] = True
+        self.restore_count(target)
+        for _ in range(relax_iterations):
+            self.relax()
+            self.flip()
+        S.locked = _at_points(S.X, corners)
+
+    def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
+        """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
+        below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
+        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips."""
+        S, L, tol = self.S, self.L, self.tol
+        for i in range(passes):
+            bad = skinny_faces(S.X, S.F, min_angle_deg)
+            if len(bad) == 0:
+                break
+            at = np.zeros(S.n, bool)
+            at[S.F[bad].ravel()] = True
+            at &= ~S.is_rim
+            t = None if tol is None else tol * (1.0 if i < passes // 2 else LOOSE)
+            collapse_short_edges(S, L, 2.0 * L, max_gap=t, max_sag=t, at=at)
+            if S.n < target:
+                split_long_edges(S, 0.0, budget=target - S.n)
+            self.flip()
+
+    def repair_degenerate(self, target: int, passes: int = 3) -> None:
+        """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
+        first, under no guard but the result's validity, the count given back by splits, then
+        flips; the operations do not make such faces, so this normally finds none."""
+        S = self.S
+        for _ in range(passes):
+            bad = degenerate_faces(S)
+            if len(bad) == 0:
+                return
+            S.tally("degenerate_repaired", len(bad))
+            at = np.zeros(S.n, bool)
+            at[S.F[bad].ravel()] = True
+            collapse_short_edges(S, np.inf, np.inf, at=at)
+            if S.n < target:
+                split_long_edges(S, 0.0, budget=target - S.n)
+            self.flip()
+
     def restore_count(self, target: int) -> None:
         """Collapse the slivers and as many of the shortest edges as the count exceeds
         ``target``, under the guards (without the sag guard if it refuses too many); split the
@@ -212,6 +316,33 @@ class Stopwatch:
         seconds = self.log if self.within is None else self.log.setdefault(self.within, {})
         seconds[key] = seconds.get(key, 0.0) + now - self.tick
         self.tick = now
+
+
+def _at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Which rows of ``X`` (n bool) are exactly one of the points ``P``."""
+    if len(P) == 0:
+        return np.zeros(len(X), bool)
+    key = {p.tobytes() for p in np.ascontiguousarray(P)}
+    return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
+
+
+def degenerate_faces(S: RemeshState) -> np.ndarray:
+    """The faces (indices) of ``S`` that are degenerate on the surface (a repeated or
+    coincident corner, or zero area: :func:`..remesh_quality.degenerate_faces`) or not
+    counter-clockwise on the disk."""
+    from ..remesh_quality import degenerate_faces as degenerate_3d
+    from .halfedge import double_areas
+
+    bad = np.zeros(len(S.F), bool)
+    bad[degenerate_3d(S.X, S.F)] = True
+    bad |= ~(double_areas(S.uv, S.F) > 0)
+    return np.flatnonzero(bad)
+
+
+def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
+    """The faces (indices) with a 3D angle below ``min_angle_deg``."""
+    from ..metrics import corner_angles
+    return np.flatnonzero(corner_angles(X, F).min(axis=1) < np.radians(min_angle_deg))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:

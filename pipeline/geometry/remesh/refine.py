@@ -11,7 +11,8 @@
   squeezed into a strip much thinner than the edge on the disk is seldom under the midpoint.
 
 Both split on the disk and lift the new vertex by eq. (1). A split boundary edge gets its
-vertex on the image polygon. They run in rounds of independent splits (no two in one face);
+vertex on the image polygon. Both leave an edge unsplit when a new face would be thinner on
+the disk than ``DISK_SHAPE_MIN`` (:func:`split_keeps_shape`). They run in rounds of independent splits (no two in one face);
 after the first round only the edges at new vertices and the candidates that waited for a free
 face are looked at again. :func:`split_edges` keeps the state's half-edge twins up to date
 instead of recomputing them.
@@ -23,7 +24,7 @@ import numpy as np
 
 from ..locate import _closest_on_segments
 from ..rows import dots, norms
-from .halfedge import edge_table, independent_edges, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
 from .sag import SAG_WALK, edge_sag_along
 from .state import RemeshState
 
@@ -58,10 +59,7 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     f, c = h // 3, h % 3
     a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
     on_b = twin < 0
-    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
-         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
-    if on_b.any():                               # a boundary edge's vertex goes on the polygon
-        _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
+    M = _split_points(S, a, b, on_b, t)
     near_a = np.ones(k, bool) if t is None else t <= 0.5
     mf, mb, _ = S.locator.relocate(M, np.where(near_a, S.face[a], S.face[b]), walk=SAG_WALK)
     w = S.append_vertices(M, mf, mb, on_b)
@@ -79,6 +77,40 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     S.set_faces(np.vstack([F] + new),
                 None if tw_old is None else _split_twins(tw_old, m, f, c, inner, g, d))
     return k
+
+
+def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray,
+                  t: np.ndarray | None) -> np.ndarray:
+    """The disk points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
+    ``t`` along the edge (default the midpoint), on the image polygon for a boundary edge."""
+    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
+         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
+    if on_b.any():                               # a boundary edge's vertex goes on the polygon
+        _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
+    return M
+
+
+def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
+                      t: np.ndarray | None = None) -> np.ndarray:
+    """Which splits of :func:`split_edges` (same arguments; a bool mask) make only faces with a
+    disk shape (:func:`.halfedge.disk_shape`) of at least ``DISK_SHAPE_MIN``. Halving the
+    short disk edge of a face the map squeezes thin halves its shape; without this test,
+    repeated splits drive it to rounding level, where the next split lands on a corner."""
+    if len(h) == 0:
+        return np.zeros(0, bool)
+    F = S.F
+    f, c = h // 3, h % 3
+    a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
+    on_b = twin < 0
+    M = _split_points(S, a, b, on_b, t)
+    g, d = np.maximum(twin, 0) // 3, np.maximum(twin, 0) % 3
+    q = np.where(on_b, p, F[g, (d + 2) % 3])
+    w = S.n + np.arange(len(h))
+    uv = np.vstack([S.uv, M])
+    new = np.column_stack([a, w, p, w, b, p, b, w, q, w, a, q]).reshape(-1, 3)
+    shape = disk_shape(uv, new).reshape(-1, 4)
+    shape[on_b, 2:] = np.inf                     # a boundary edge has no face across
+    return shape.min(axis=1) >= DISK_SHAPE_MIN
 
 
 def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:
@@ -187,6 +219,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             # only the longest few can be among the longest independent ones
             k = 4 * (budget - done) + 1000
             cand = cand[np.argpartition(-ln[cand], k)[:k]]
+        cand = cand[split_keeps_shape(S, h[cand], twin[cand])]
         if len(cand) == 0:
             break
         sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -ln[cand])]
@@ -253,6 +286,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
                                       end_normals=(na[probe], nb[probe]))
         cand = np.flatnonzero(sag > threshold)
+        cand = cand[split_keeps_shape(S, h[cand], twin[cand], t_split[cand])]
         if len(cand) == 0:
             break
         sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -sag[cand])]

@@ -6,8 +6,9 @@ onto the tangent plane (the area-weighted normal of its faces). The move is made
 disk**: the 3D displacement ``d`` is pulled back through the Jacobian ``J`` (3×2) of the input
 face under the vertex, ``Δu = J⁺ d`` (:func:`.state.pullback_matrices`), and the vertex is
 re-located and lifted by eq. (1), so it stays on the input surface. Moves that would flip a
-face on the disk (or shrink it below 10⁻⁶ of its area) are halved, up to 6 times, then
-dropped; moves that would leave the image polygon are dropped.
+face on the disk (or shrink it below 10⁻⁶ of its area, or make it thinner than
+``DISK_SHAPE_MIN``, :func:`.halfedge.disk_shape`) are halved, up to 6 times, then dropped;
+moves that would leave the image polygon are dropped.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..locate import PointLocator, lift
 from ..rows import cross, norms
-from .halfedge import double_areas, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, touching
 from .state import pullback_matrices
 
 
@@ -81,7 +82,7 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
         for _halving in range(7):
             new = uv + du
-            bad = double_areas(new, F) <= area_floor
+            bad = _too_thin(new, F, area_floor)
             if not bad.any():
                 break
             verts = np.unique(F[bad].ravel())
@@ -90,7 +91,7 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
         while True:                              # dropping moves can flip a face: drop more
-            bad = double_areas(uv + du, F) <= area_floor
+            bad = _too_thin(uv + du, F, area_floor)
             bad &= touching(F, np.any(du != 0, axis=1))
             if not bad.any():
                 break
@@ -102,3 +103,9 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         X[go] = lift(V_in, F_in, f2, b2)
         moved_counts.append(int(len(go)))
     return uv, face, bary, X, moved_counts
+
+
+def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray) -> np.ndarray:
+    """The faces (m bool) at most ``area_floor`` in twice their disk area, or thinner than
+    ``DISK_SHAPE_MIN`` on the disk."""
+    return (double_areas(uv, F) <= area_floor) | (disk_shape(uv, F) < DISK_SHAPE_MIN)

@@ -24,7 +24,7 @@ from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
 from .corners import boundary_corners, interior_corners
-from .improve import Stopwatch, improve_remesh
+from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
 from .state import RemeshState
@@ -78,10 +78,12 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    vertices: int | None = None, spacing: float | None = None,
                    pattern: str = "hexagonal", rim_relax: int = 3, seed: int = 0,
                    improve: bool = True, flips: bool = True, relax_iterations: int = 2,
-                   relax_step: float = 0.5, max_dihedral_deg: float = 20.0,
+                   relax_step: float = 1.0, max_dihedral_deg: float = 20.0,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
-                   corner_angle_deg: float = 30.0, landmarks: dict | None = None
-                   ) -> RemeshResult:
+                   corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
+                   final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
+                   min_angle_deg: float = 20.0,
+                   landmarks: dict | None = None) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -104,8 +106,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     seed : int
         For ``blue_noise``.
     improve : bool
-        Run the improvement pass; the other keywords up to ``refine_budget`` are its
-        parameters (:func:`.improve.improve_remesh`).
+        Run the improvement pass; ``flips`` … ``refine_budget`` and ``isotropic_iterations``
+        … ``min_angle_deg`` are its parameters (:func:`.improve.improve_remesh`).
     corner_angle_deg : float
         Input corners sharper than this keep a vertex (0: none).
     landmarks : dict, optional
@@ -141,12 +143,17 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         improve_remesh(S, L, relax_iterations=relax_iterations, flips=flips,
                        max_dihedral_deg=max_dihedral_deg, relax_step=relax_step,
                        refine_sag=refine_sag, refine_budget=refine_budget,
-                       target_vertices=vertices,
+                       target_vertices=vertices, isotropic_iterations=isotropic_iterations,
+                       final_relax_iterations=final_relax_iterations,
+                       pinned_relax_iterations=pinned_relax_iterations,
+                       min_angle_deg=min_angle_deg,
                        corners_uv=uv[interior_corners(V, F, corner_angle_deg)])
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         imp.update({"enabled": True, "target_edge_length": float(L), **S.log})
+        imp["below_min_angle"] = below_min_angle(S, V, min_angle_deg)
         imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     lap("improve")
+    check_remesh(X, F_out, uv_out)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -160,6 +167,39 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "improve": imp,
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+
+
+class RemeshFailed(RuntimeError):
+    """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
+    the disk); it is never written."""
+
+
+def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
+    """Raise :class:`RemeshFailed` if a face of the remesh is degenerate on the surface
+    (:func:`..remesh_quality.degenerate_faces`) or not counter-clockwise on the disk."""
+    from ..remesh_quality import degenerate_faces
+
+    flat = degenerate_faces(X, F)
+    clockwise = np.flatnonzero(~(signed_double_areas(uv, F) > 0))
+    if len(flat) or len(clockwise):
+        raise RemeshFailed(f"remesh: {len(flat)} degenerate faces and {len(clockwise)} faces "
+                           f"not counter-clockwise on the disk are left (first: "
+                           f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
+
+
+def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
+    """The faces the minimum-angle pass left below ``min_angle_deg``: how many, how many of
+    them have a corner on a sharp input corner (a locked vertex) and which input vertices those
+    corners are (the nearest input vertex of each)."""
+    from scipy.spatial import cKDTree
+
+    bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
+    at_corner = S.locked[S.F[bad]].any(axis=1) if len(bad) else np.zeros(0, bool)
+    corners = np.unique(S.F[bad[at_corner]][S.locked[S.F[bad[at_corner]]]])
+    names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
+    return {"threshold_deg": float(min_angle_deg), "faces": int(len(bad)),
+            "at_input_corners": int(at_corner.sum()),
+            "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)})}
 
 
 def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) -> RemeshState:
