@@ -77,13 +77,13 @@ def _unwrap(annotation):
     return annotation
 
 
-def _add_field(parser, section: str, key: str, field) -> None:
+def _add_field(parser, section: str, key: str, field, default=None) -> None:
     from pydantic import BaseModel
 
     ann = _unwrap(field.annotation)
     extra = field.json_schema_extra or {}
     dest = f"{section}.{key}"
-    default = field.get_default(call_default_factory=True)
+    default = field.get_default(call_default_factory=True) if default is None else default
     flag = extra.get("flag") or "--" + key.replace("_", "-")
     help_text = field.description or ""
     if isinstance(ann, type) and issubclass(ann, BaseModel):
@@ -121,17 +121,19 @@ def add_stage_parser(sub, stage) -> None:
     for section, model, positional in _sections(stage):
         for key, field in model.model_fields.items():
             if key not in positional:
-                _add_field(p, section, key, field)
+                _add_field(p, section, key, field,
+                           stage.command_defaults.get(f"{section}.{key}"))
     p.set_defaults(func=cmd_stage, stage=stage.name)
 
 
 def stage_config(stage_name: str, args) -> dict:
-    """The config data a subcommand's arguments stand for (only what was given)."""
+    """The config data a subcommand's arguments stand for: what was given, and the stage's
+    ``command_defaults`` for what was not."""
     from .stages.registry import stage as find
 
     stage = find(stage_name)
     data: dict = {}
-    given = vars(args)
+    given = {**stage.command_defaults, **vars(args)}
     for section, model, positional in _sections(stage):
         node = data.setdefault(section, {})
         for key in positional:
@@ -296,8 +298,7 @@ def main(argv=None) -> int:
     import signal
     import threading
 
-    from .stages.parameterize import ParameterizationFailed
-    from .stages.register import RegistrationFailed
+    from .runner import METHOD_FAILURES
 
     main_thread = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGTERM, _on_sigterm) if main_thread else None
@@ -307,7 +308,7 @@ def main(argv=None) -> int:
     except UserError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return UserError.exit_code
-    except (ParameterizationFailed, RegistrationFailed) as exc:
+    except METHOD_FAILURES as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
     except OSError as exc:

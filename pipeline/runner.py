@@ -21,13 +21,14 @@ from typing import Callable
 from . import __version__
 from .io.artifacts import write_json
 from .io.outputs import output_folder
+from .geometry.remesh import RemeshFailed
 from .stages.parameterize import ParameterizationFailed
 from .stages.register import RegistrationFailed
 from .stages.registry import plan
 from .stages.stage import Context, _log_stderr
 
 # A method that failed on valid input writes its diagnosis: the run's complete result.
-METHOD_FAILURES = (ParameterizationFailed, RegistrationFailed)
+METHOD_FAILURES = (ParameterizationFailed, RemeshFailed, RegistrationFailed)
 
 
 def versions() -> dict:

@@ -135,6 +135,9 @@ class Stage:
     command : bool
         Whether the stage has a subcommand of its own (``input`` has none: every subcommand
         that needs a mesh reads one).
+    command_defaults : dict
+        Defaults of the subcommand that differ from the sections' (``{"parameterize.mode":
+        "paper"}``: the remesh subcommand maps with Algorithm 1's ten steps unless asked).
     help : str
         The subcommand's one-line help.
     """
@@ -155,6 +158,7 @@ class Stage:
     check: Optional[Callable[[Context], None]] = None
     check_needs: tuple[str, ...] = ()
     command: bool = True
+    command_defaults: dict = field(default_factory=dict)
     help: str = ""
 
     def needs_for(self, section) -> tuple[str, ...]:

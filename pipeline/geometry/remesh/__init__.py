@@ -17,7 +17,7 @@ Modules, one topic each: :mod:`.sampling` (disk samples and their triangulation)
 from .improve import improve_remesh
 from .sampling import PATTERNS, DiskSamples
 from .state import RemeshState
-from .uniform import RemeshResult, uniform_remesh
+from .uniform import RemeshFailed, RemeshResult, uniform_remesh
 
-__all__ = ["uniform_remesh", "improve_remesh", "RemeshResult", "RemeshState", "DiskSamples",
+__all__ = ["uniform_remesh", "improve_remesh", "RemeshFailed", "RemeshResult", "RemeshState", "DiskSamples",
            "PATTERNS"]
