@@ -47,6 +47,7 @@ from typing import Literal, Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from .gauss_newton import GaussNewton
 from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
                         stretch_weight_map)
@@ -73,6 +74,8 @@ class SEMOptions(BaseModel):
     min_step: float = Field(1.0 / 64, gt=0.0, le=1.0)   # smallest damping factor tried
     max_step: float = Field(8.0, ge=1.0)   # converged: largest extrapolation of a full step
     refactor_every: int = Field(8, ge=1)   # converged: preconditioner factor reused this often
+    # converged: phase B's first step; gauss_newton wants tol 1e-5, patience 3 (see below)
+    descent: Literal["gradient", "gauss_newton"] = "gradient"
 
     def iterations(self) -> int:
         if self.max_iter is not None:
@@ -97,8 +100,9 @@ class SEMResult:
 
 def step_counts(history: list) -> dict:
     """Accepted steps by kind: ``sem`` (the full SEM step, or longer), ``sem_damped`` (α < 1),
-    ``gradient`` (preconditioned gradient steps), from the history entries after the start."""
-    counts = {"sem": 0, "sem_damped": 0, "gradient": 0}
+    ``gradient`` (preconditioned gradient steps), ``gauss_newton`` (:mod:`.gauss_newton`), from
+    the history entries after the start."""
+    counts = {"sem": 0, "sem_damped": 0, "gradient": 0, "gauss_newton": 0}
     for h in history[1:]:
         kind = h["phase"]
         if kind == "sem" and h["step"] < 1.0:
@@ -131,6 +135,7 @@ class _Problem:
         self.solver_I = make_solver(solver_kind, refactored=True)
         self.solver_P = make_solver(solver_kind, refactored=True)
         self.solver_B = make_solver(solver_kind, refactored=True)
+        self.gn_factorizations = None     # Gauss–Newton factorizations, once phase B ran them
 
     def evaluate(self, f, a2=None):
         """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15);
@@ -311,6 +316,8 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     solver_stats = {name: getattr(sv, "stats", {}) for name, sv in
                     (("interior", problem.solver_I), ("preconditioner", problem.solver_P),
                      ("boundary", problem.solver_B))}
+    if problem.gn_factorizations is not None:
+        solver_stats["gauss_newton"] = {"factorizations": problem.gn_factorizations}
     problem.release()
     return SEMResult(uv=_as_uv(f).copy(), status=status, iterations=it, flipped_faces=value[2],
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
@@ -416,18 +423,38 @@ def _paper_iterations(problem, f, value, opt, record):
     return f, value, it, "max_iter", f"reached max_iter = {max_iter}"
 
 
+#: Phase A's end: a flip-free SEM step that removes less than this fraction of the excess energy
+#: ratio ``E_S/bound − 1`` of the best map counts as no progress, and phase A ends after
+#: ``patience`` such steps (gradient descent) or the first one (Gauss–Newton, whose steps gain
+#: more than a slowing SEM step from there).
+PHASE_A_GAIN = {"gradient": 0.01, "gauss_newton": 0.02}
+#: Levenberg–Marquardt damping: the first μ, its factor after a full or a damped step, and how
+#: often μ is raised tenfold before phase B falls back to the SEM and gradient steps.
+GN_MU, GN_MU_DOWN, GN_MU_UP, GN_RETRIES = 1e-3, 1.0 / 3.0, 2.0, 2
+
+
 def _converged_iterations(problem, f, value, opt, record):
-    """Phase A (plain SEM, best flip-free iterate) then phase B (monotone descent)."""
+    """Phase A (plain SEM, best flip-free iterate) then phase B (monotone descent).
+
+    Phase B's first try is, with ``descent="gauss_newton"``, the Levenberg–Marquardt step of
+    :mod:`.gauss_newton` (μ lowered after a full step, raised after a damped one, raised tenfold
+    and retried when no damped step lowers the energy); with ``descent="gradient"``, the
+    preconditioned gradient step on the last preconditioner factor. Then the SEM and gradient
+    steps, first whichever of them worked last. Gauss–Newton moves only the interior: when its
+    steps go quiet (``tol``, ``patience``), the next step is a SEM or gradient step, and
+    Gauss–Newton resumes only if that step makes progress; otherwise the iteration ends."""
     max_iter = opt.iterations()
+    gain = PHASE_A_GAIN[opt.descent]
+    patience_a = opt.patience if opt.descent == "gradient" else 1
     best = (f, value) if value[2] == 0 else None
     it, since_best, g, prev = 0, 0, f, value
-    while it < max_iter and since_best < opt.patience:            # phase A
+    while it < max_iter and since_best < patience_a:               # phase A
         g = sem_step(problem, g, problem.weights(g), opt.inversion)
         it += 1
         v = problem.evaluate(g)
-        # A gain of less than 1 % of the excess energy E_S/bound − 1 counts as no progress:
-        # phase B's descent with extrapolated steps is faster from there.
-        fast = lambda old: (old[1] - v[1]) >= 0.01 * (old[1] - 1.0)  # noqa: E731
+        # A gain of less than `gain` of the excess energy E_S/bound − 1 counts as no progress:
+        # phase B's descent is faster from there.
+        fast = lambda old: (old[1] - v[1]) >= gain * (old[1] - 1.0)  # noqa: E731
         if v[2] == 0 and (best is None or v[1] < best[1][1]):
             best, since_best = (g, v), (0 if best is None or fast(best[1]) else since_best + 1)
             record(it, g, v, 1.0, "sem")
@@ -440,42 +467,68 @@ def _converged_iterations(problem, f, value, opt, record):
     reason = f"reached max_iter = {max_iter}"
     order = ["gradient", "sem"]
     age = None                      # iterations since the preconditioner was factored
-    while it < max_iter:                                            # phase B
-        w = problem.weights(f)
-        blocks = laplacian_blocks(problem.pattern, w)
-        step = None
-        tries = [(k, False) for k in order]
-        if age is not None and age < opt.refactor_every:
-            tries.insert(0, ("gradient", True))      # first: the stale preconditioner
-        for kind, stale in tries:
-            try:
-                if kind == "gradient":
-                    g = gradient_step(problem, f, w, blocks, refactor=not stale)
-                    age = age + 1 if stale else 0
-                else:
-                    g = sem_step(problem, f, w, opt.inversion)
-            except NotPositiveDefinite:
-                continue
-            step = line_search(problem, f, g, value, lambda v: v[1] < value[1], opt.min_step,
-                               hold=True, max_step=opt.max_step)
-            if step is not None and not (stale and step[2] < 1.0):
+    newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver) \
+        if opt.descent == "gauss_newton" and it < max_iter else None
+    mu = GN_MU
+    boundary_turn = False           # Gauss–Newton went quiet: a SEM/gradient step's turn
+    try:
+        while it < max_iter:                                        # phase B
+            w = problem.weights(f)
+            blocks = laplacian_blocks(problem.pattern, w)
+            step = None
+            tries = [(k, False) for k in order]
+            if age is not None and age < opt.refactor_every:
+                tries.insert(0, ("gradient", True))  # first: the stale preconditioner
+            if newton is not None and not boundary_turn:
+                tries[:0] = [("gauss_newton", False)] * (GN_RETRIES + 1)
+            for kind, stale in tries:
+                try:
+                    if kind == "gauss_newton":
+                        g = newton.step(f, value[3], mu)
+                    elif kind == "gradient":
+                        g = gradient_step(problem, f, w, blocks, refactor=not stale)
+                        age = age + 1 if stale else 0
+                    else:
+                        g = sem_step(problem, f, w, opt.inversion)
+                except NotPositiveDefinite:
+                    if kind == "gauss_newton":
+                        mu *= 10.0
+                    continue
+                step = line_search(problem, f, g, value, lambda v: v[1] < value[1],
+                                   opt.min_step, hold=True,
+                                   max_step=1.0 if kind == "gauss_newton" else opt.max_step)
+                if kind == "gauss_newton":
+                    if step is not None:
+                        mu *= GN_MU_DOWN if step[2] == 1.0 else GN_MU_UP
+                        break
+                    mu *= 10.0
+                    continue
+                if step is not None and not (stale and step[2] < 1.0):
+                    break
+                step = None                 # a damped stale step: refactor and try again
+            if step is None:
+                status = "stalled" if quiet < opt.patience else "converged"
+                reason = (f"no Gauss–Newton, SEM or gradient step down to α = {opt.min_step:g} "
+                          "lowers the energy ratio without flipping a face")
                 break
-            step = None                     # a damped stale step: refactor and try again
-        if step is None:
-            status = "stalled" if quiet < opt.patience else "converged"
-            reason = (f"no SEM or gradient step down to α = {opt.min_step:g} lowers the energy "
-                      "ratio without flipping a face")
-            break
-        it += 1
-        if kind != order[0]:
-            order.reverse()                 # try first what worked last
-        g, new, alpha = step
-        quiet = quiet + 1 if (value[1] - new[1]) < opt.tol * value[1] else 0
-        f, value = g, new
-        record(it, f, value, alpha, kind)
-        if quiet >= opt.patience:
-            status = "converged"
-            reason = (f"the energy ratio fell by less than tol = {opt.tol:g} (relative) in "
-                      f"{opt.patience} steps in a row")
-            break
+            it += 1
+            if kind in order and kind != order[0]:
+                order.reverse()             # try first what worked last
+            g, new, alpha = step
+            quiet = quiet + 1 if (value[1] - new[1]) < opt.tol * value[1] else 0
+            f, value = g, new
+            record(it, f, value, alpha, kind)
+            if boundary_turn and quiet == 0:
+                boundary_turn = False       # the boundary moved: Gauss–Newton again
+            elif quiet >= opt.patience and kind == "gauss_newton":
+                boundary_turn = True        # Gauss–Newton holds the boundary: try SEM first
+            elif quiet >= opt.patience:
+                status = "converged"
+                reason = (f"the energy ratio fell by less than tol = {opt.tol:g} (relative) in "
+                          f"{opt.patience} steps in a row")
+                break
+    finally:
+        if newton is not None:
+            problem.gn_factorizations = newton.factorizations
+            newton.release()
     return f, value, it, status, reason
