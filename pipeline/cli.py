@@ -34,14 +34,13 @@ class _OneLineParser(argparse.ArgumentParser):
 def _chain(stage) -> list:
     """The stages a subcommand runs: ``stage`` after the makers of what it needs. A stage
     whose needs depend on its section (``morph``) reads its positional inputs instead."""
-    from .stages.registry import STAGES
+    from .stages.registry import maker
 
     if stage.needs_when is not None:
         return [stage]
     out = []
     for need in stage.needs:
-        maker = next(s for s in STAGES if need in s.makes)
-        out += [s for s in _chain(maker) if s not in out]
+        out += [s for s in _chain(maker(need)) if s not in out]
     return out + [stage]
 
 

@@ -27,7 +27,8 @@ def _a(name: str) -> str:
     return f"an '{name}'" if name[0] in "aeiou" else f"a '{name}'"
 
 
-def _maker(artifact: str, stages) -> Stage:
+def maker(artifact: str, stages: tuple[Stage, ...] = STAGES) -> Stage:
+    """The stage that makes ``artifact``."""
     return next(s for s in stages if artifact in s.makes)
 
 
@@ -65,9 +66,9 @@ def plan(config, stages: tuple[Stage, ...] = STAGES) -> list[Stage]:
 
 def _root_section(config, artifact: str, stages) -> str:
     """The section to add so that ``artifact`` gets made (through default-on stages)."""
-    maker = _maker(artifact, stages)
-    section = getattr(config, maker.name)
-    if section is not None and maker.default_on:
-        for need in maker.needs_for(section):
+    made_by = maker(artifact, stages)
+    section = getattr(config, made_by.name)
+    if section is not None and made_by.default_on:
+        for need in made_by.needs_for(section):
             return _root_section(config, need, stages)
-    return maker.name
+    return made_by.name
