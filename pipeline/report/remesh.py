@@ -404,8 +404,7 @@ decimation); the input and our plain lift are shown for reference. Angles are me
 3D faces. Valence counts edges at interior vertices. Distances: samples on each surface — all
 vertices, edge midpoints and face centroids plus {dist.get('random_samples_per_side', 0)}
 points uniform by area (seed 0) — and the exact Euclidean distance of each sample to the other
-surface's triangles (point–triangle closest points with a nearest-centroid search and an exact
-bound); Hausdorff = the larger one-sided maximum (a sampled lower bound of the continuous
+surface's triangles (libigl's AABB tree, exact point–triangle distances); Hausdorff = the larger one-sided maximum (a sampled lower bound of the continuous
 value), RMS = root mean square over the area-uniform samples of both sides. Relative to the
 input's bounding-box diagonal. Times on this machine, wall clock; {e(notes['sem'])}.
 pymeshlab: {e(notes['pymeshlab_isotropic'])}. Decimation: {e(notes['fast_simplification'])}.</p>
@@ -416,9 +415,10 @@ disk position lifted by eq. (1)), hits the vertex count exactly or within 2 %, c
 own disk parameterization (the <code>vt</code> of <code>remeshed.obj</code>), and carries
 colours and landmarks. Its limits: the equiareal map distorts angles, so uniform samples are
 skewed on the surface where the distortion is large (long protrusions, deep folds); the
-improvement step (Delaunay flips and tangential relaxation on the surface, splits of edges that
-leave the surface, {imp.get('sag_splits', 0)} here, balanced by as many collapses of the
-shortest edges) removes most but not all of it, and sharp features are kept only at corner
+improvement step (rounds of splits, collapses, flips and relaxation judged by 3D lengths,
+splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, balanced by collapses
+of the shortest edges, and a pass on faces below 20°) removes most but not all of it, and
+sharp features are kept only at corner
 vertices ({imp.get('corners_snapped', 0)} interior, {imp.get('rim_corners_snapped', 0)} on
 the boundary), not along creases.</p>
 {fig_html}"""
