@@ -621,3 +621,57 @@ def opposite_cots(const double[:, ::1] X, const int64_t[:, ::1] F):
         out[t, 1] = -_dot3(e[2], e[0]) * inv
         out[t, 2] = -_dot3(e[0], e[1]) * inv
     return out_arr
+
+
+cdef inline double _max_nan(double a, double b) noexcept nogil:
+    """``np.maximum(a, b)``: NaN if either is."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a >= b else b
+
+
+cdef inline double _disk_shape(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c,
+                               double d2) noexcept nogil:
+    """``d2`` (the face's twice signed disk area) over its longest disk edge squared, as
+    :func:`pipeline.geometry.remesh.halfedge.disk_shape` computes it."""
+    cdef double x, y, l0, l1, l2
+    x, y = uv[b, 0] - uv[a, 0], uv[b, 1] - uv[a, 1]
+    l0 = x * x + y * y
+    x, y = uv[c, 0] - uv[b, 0], uv[c, 1] - uv[b, 1]
+    l1 = x * x + y * y
+    x, y = uv[a, 0] - uv[c, 0], uv[a, 1] - uv[c, 1]
+    l2 = x * x + y * y
+    return d2 / _max_nan(_max_nan(_max_nan(l0, l1), l2), 1e-300)
+
+
+def disk_shapes(const double[:, ::1] uv, const int64_t[:, ::1] F):
+    """Per face, twice its signed disk area over its longest disk edge squared (called by
+    ``remesh.halfedge.disk_shape``)."""
+    cdef Py_ssize_t t
+    out_arr = np.empty(F.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(F.shape[0]):
+        out[t] = _disk_shape(uv, F[t, 0], F[t, 1], F[t, 2],
+                             _signed2(uv, F[t, 0], F[t, 1], F[t, 2]))
+    return out_arr
+
+
+def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] faces,
+               const double[::1] area_floor, double shape_min):
+    """The entries of ``faces`` (increasing, as given) whose twice signed disk area is at most
+    ``area_floor[t]`` or whose disk shape is below ``shape_min`` (called by
+    ``remesh.relax._too_thin``)."""
+    cdef Py_ssize_t i, out = 0
+    cdef int64_t t
+    cdef double d2
+    res_arr = np.empty(faces.shape[0], dtype=np.int64)
+    cdef int64_t[::1] res = res_arr
+    for i in range(faces.shape[0]):
+        t = faces[i]
+        d2 = _signed2(uv, F[t, 0], F[t, 1], F[t, 2])
+        if d2 <= area_floor[t] or _disk_shape(uv, F[t, 0], F[t, 1], F[t, 2], d2) < shape_min:
+            res[out] = t
+            out += 1
+    return res_arr[:out]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import faces_touching, group_by_key
+from .._kernels import disk_shapes, faces_touching, group_by_key
 
 DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
 
@@ -57,12 +57,12 @@ def disk_shape(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     ``DISK_SHAPE_MIN`` for every face they make: a face thinner than that on the disk is
     counter-clockwise only up to rounding, and a later split of its long edge can land on its
     third corner (two vertices at one point, a zero-length edge on the surface). Arguments as
-    for :func:`double_areas`; (m,) float.
+    for :func:`double_areas`; (m,) float. Compiled: ``double_areas(uv, F) /
+    np.maximum(longest, 1e-300)``, the longest of the squared edges ``((b − a)**2).sum(axis=1)``
+    (…) taken as ``np.maximum.reduce`` takes it, operation for operation.
     """
-    a, b, c = uv[F[:, 0]], uv[F[:, 1]], uv[F[:, 2]]
-    longest = np.maximum.reduce([((b - a) ** 2).sum(axis=1), ((c - b) ** 2).sum(axis=1),
-                                 ((a - c) ** 2).sum(axis=1)])
-    return double_areas(uv, F) / np.maximum(longest, 1e-300)
+    return disk_shapes(np.ascontiguousarray(uv, dtype=np.float64),
+                       np.ascontiguousarray(F, dtype=np.int64))
 
 
 def edge_table(F: np.ndarray, with_twins: bool = False, twin: np.ndarray | None = None):

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import thin_faces
 from ..locate import PointLocator, lift
 from ..rows import cross, norms
-from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, touching
+from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
 
 
@@ -80,10 +81,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         du = np.zeros_like(uv)
         du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
         # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
+        # (only faces with a moving corner are tested: a face none of whose corners moves
+        # keeps its shape, and halving or dropping its corners' zero moves changes nothing)
         for _halving in range(7):
             new = uv + du
-            bad = _too_thin(new, F, area_floor)
-            if not bad.any():
+            bad = _too_thin(new, F, area_floor, np.any(du != 0, axis=1))
+            if len(bad) == 0:
                 break
             verts = np.unique(F[bad].ravel())
             du[verts] *= 0.0 if _halving == 6 else 0.5
@@ -91,9 +94,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
         while True:                              # dropping moves can flip a face: drop more
-            bad = _too_thin(uv + du, F, area_floor)
-            bad &= touching(F, np.any(du != 0, axis=1))
-            if not bad.any():
+            bad = _too_thin(uv + du, F, area_floor, np.any(du != 0, axis=1))
+            if len(bad) == 0:
                 break
             du[F[bad].ravel()] = 0.0
         keep = np.any(du[go] != 0, axis=1)
@@ -105,7 +107,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     return uv, face, bary, X, moved_counts
 
 
-def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray) -> np.ndarray:
-    """The faces (m bool) at most ``area_floor`` in twice their disk area, or thinner than
-    ``DISK_SHAPE_MIN`` on the disk."""
-    return (double_areas(uv, F) <= area_floor) | (disk_shape(uv, F) < DISK_SHAPE_MIN)
+def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray, moving: np.ndarray
+              ) -> np.ndarray:
+    """The faces (indices, increasing) with a corner where ``moving`` (n bool) is set that are
+    at most ``area_floor`` in twice their disk area, or thinner than ``DISK_SHAPE_MIN`` on the
+    disk (compiled: :func:`.._kernels.thin_faces`, the arithmetic of :func:`.halfedge.double_areas`
+    and :func:`.halfedge.disk_shape`)."""
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    return thin_faces(np.ascontiguousarray(uv, dtype=np.float64), F,
+                      np.flatnonzero(touching(F, moving)), area_floor, DISK_SHAPE_MIN)
