@@ -675,3 +675,38 @@ def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[:
             res[out] = t
             out += 1
     return res_arr[:out]
+
+
+def ring_sums(const double[:, ::1] X, const int64_t[:, ::1] F, int64_t n):
+    """Per vertex, over its faces in face order: ``W`` = Σ 2·area, ``G`` = Σ 2·area · centroid
+    and ``N`` = Σ 2·area · unit normal (the cross product ``(P1 − P0) × (P2 − P0)``), as
+    ``np.bincount`` sums them (called by ``remesh.relax.tangential_smoothing``): the face's
+    ``A = |N_f|`` (squares summed x, z, then y), centroid ``((P0 + P1) + P2) / 3``."""
+    cdef Py_ssize_t t, c, j
+    cdef int64_t v
+    cdef double e1[3]
+    cdef double e2[3]
+    cdef double nf[3]
+    cdef double cen[3]
+    cdef double A
+    W_arr = np.zeros(n, dtype=np.float64)
+    G_arr = np.zeros((n, 3), dtype=np.float64)
+    N_arr = np.zeros((n, 3), dtype=np.float64)
+    cdef double[::1] W = W_arr
+    cdef double[:, ::1] G = G_arr, N = N_arr
+    for t in range(F.shape[0]):
+        for j in range(3):
+            e1[j] = X[F[t, 1], j] - X[F[t, 0], j]
+            e2[j] = X[F[t, 2], j] - X[F[t, 0], j]
+            cen[j] = ((X[F[t, 0], j] + X[F[t, 1], j]) + X[F[t, 2], j]) / 3.0
+        nf[0] = e1[1] * e2[2] - e1[2] * e2[1]
+        nf[1] = e1[2] * e2[0] - e1[0] * e2[2]
+        nf[2] = e1[0] * e2[1] - e1[1] * e2[0]
+        A = sqrt(_dot3(nf, nf))
+        for c in range(3):
+            v = F[t, c]
+            W[v] += A
+            for j in range(3):
+                G[v, j] += A * cen[j]
+                N[v, j] += nf[j]
+    return W_arr, G_arr, N_arr

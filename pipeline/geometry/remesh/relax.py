@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._kernels import thin_faces
+from .._kernels import ring_sums, thin_faces
 from ..locate import PointLocator, lift
-from ..rows import cross, norms
+from ..rows import norms
 from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
 
@@ -64,17 +64,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     J = pullback_matrices(V_in, F_in, uv_in) if pullback is None else pullback
     n = len(uv)
     moved_counts = []
-    Fr = F.ravel()
+    F64 = np.ascontiguousarray(F, dtype=np.int64)
     mov = np.flatnonzero(movable)
     area_floor = 1e-6 * double_areas(uv, F)          # per face
     for _ in range(iterations):
-        P0, P1, P2 = X[F[:, 0]], X[F[:, 1]], X[F[:, 2]]
-        Nf = cross(P1 - P0, P2 - P0)                                      # 2·area·normal
-        A = norms(Nf)
-        C = (P0 + P1 + P2) / 3.0
-        W = np.bincount(Fr, np.repeat(A, 3), n)
-        G = np.column_stack([np.bincount(Fr, np.repeat(A * C[:, j], 3), n) for j in range(3)])
-        N = np.column_stack([np.bincount(Fr, np.repeat(Nf[:, j], 3), n) for j in range(3)])
+        # per vertex, over its faces: Σ 2·area, Σ 2·area · centroid, Σ 2·area · normal
+        W, G, N = ring_sums(np.ascontiguousarray(X, dtype=np.float64), F64, n)
         N /= np.maximum(norms(N)[:, None], 1e-300)
         D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
         D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
