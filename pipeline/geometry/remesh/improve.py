@@ -118,7 +118,10 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     Returns
     -------
     RemeshState
-        ``S``, with counts and seconds per step in ``S.log``.
+        ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
+        and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
+        ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``guarantee`` (9) and ``repair``
+        (10).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag)
     lap = Stopwatch(S.log, "seconds")
@@ -142,14 +145,13 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     lap("count")
     for _ in range(final_relax_iterations if relax_iterations > 0 else 0):
         ops.relax()
-        lap("relax")
         ops.flip()
-        lap("flips")
+        lap("smoothing")
     if refine_sag > 0:
         ops.refine_pinned(target, int(refine_budget * S.n), pinned_relax_iterations)
-        lap("refine")
+        lap("pinned")
     ops.remove_slivers(target)
-    lap("count")
+    lap("slivers")
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
