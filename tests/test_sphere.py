@@ -146,3 +146,16 @@ def test_bumpy_cube_reaches_the_issue_target():
     V, F = load_closed("igl_bumpy_cube")
     r = sphere.spherical_sem(V, F, time_limit=10.0)
     assert r.measures["folded_faces"] == 0 and r.measures["face_area_distortion"] <= 0.02
+
+
+def test_fold_test_is_exact_for_tiny_triangles():
+    """A tiny positive triangle far from the pole: the edge-vector form of the determinant keeps
+    its sign where ``s0 · (s1 × s2)`` cancels to noise."""
+    p = np.array([0.6, 0.0, 0.8])
+    e1, e2 = np.array([0.0, 1.0, 0.0]), np.cross(p, [0.0, 1.0, 0.0])
+    S = np.array([p, p + 1e-9 * e1, p + 1e-9 * e2])
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    F = np.array([[0, 1, 2], [0, 2, 1]])
+    d = sphere.triple_products(S, F)
+    assert d[0] > 0 and d[1] < 0
+    assert d[0] == pytest.approx(-d[1]) and d[0] == pytest.approx(1e-18, rel=1e-3)

@@ -137,12 +137,18 @@ def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
 # measures
 
 def triple_products(S: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """``det[s0, s1, s2]`` per face, shape (m,); positive = outward CCW on the sphere."""
+    """``det[s0, s1, s2]`` per face, shape (m,); positive = outward CCW on the sphere.
+
+    Computed as ``s0 · ((s1 − s0) × (s2 − s0))`` (the same determinant): for tiny triangles
+    the edge vectors keep their relative precision, where ``s0 · (s1 × s2)`` of three nearly
+    equal unit vectors would cancel to rounding noise and report false folds (the armadillo's
+    Tutte start: 2013 such faces, 0 true folds)."""
     x, y, z = (np.ascontiguousarray(S[:, k]) for k in range(3))
     i, j, k = F[:, 0], F[:, 1], F[:, 2]
-    yj, zj, yk, zk = y[j], z[j], y[k], z[k]
-    return x[i] * (yj * zk - zj * yk) + y[i] * (zj * x[k] - x[j] * zk) \
-        + z[i] * (x[j] * yk - yj * x[k])
+    x0, y0, z0 = x[i], y[i], z[i]
+    ux, uy, uz = x[j] - x0, y[j] - y0, z[j] - z0
+    vx, vy, vz = x[k] - x0, y[k] - y0, z[k] - z0
+    return x0 * (uy * vz - uz * vy) + y0 * (uz * vx - ux * vz) + z0 * (ux * vy - uy * vx)
 
 
 def folded_faces(S: np.ndarray, F: np.ndarray) -> int:
