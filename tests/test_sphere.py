@@ -159,3 +159,17 @@ def test_fold_test_is_exact_for_tiny_triangles():
     d = sphere.triple_products(S, F)
     assert d[0] > 0 and d[1] < 0
     assert d[0] == pytest.approx(-d[1]) and d[0] == pytest.approx(1e-18, rel=1e-3)
+
+
+def test_unfold_removes_a_pushed_vertex_fold():
+    """An icosphere vertex pushed across its neighbours folds faces; smoothing the vertices of
+    folded faces removes every fold and moves only vertices near the fold."""
+    V, F = icosphere(2)
+    S = V.copy()
+    S[0] = -0.2 * V[0] + V[1]
+    S[0] /= np.linalg.norm(S[0])
+    assert sphere.folded_faces(S, F) > 0
+    U, left = sphere.unfold(S, F)
+    assert left == 0 == sphere.folded_faces(U, F)
+    far = np.linalg.norm(V - V[0], axis=1) > 1.0
+    np.testing.assert_array_equal(U[far], V[far])

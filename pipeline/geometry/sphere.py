@@ -55,7 +55,7 @@ from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 from .topology import (boundary_edges, boundary_loops, connected_components,
                        euler_characteristic, nonmanifold_edges, nonmanifold_vertices,
-                       orient_faces_consistently)
+                       orient_faces_consistently, vertex_neighbours)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -336,6 +336,28 @@ def shrink_folding_steps(S: np.ndarray, G: np.ndarray, F: np.ndarray, alpha: flo
     return C
 
 
+def unfold(S: np.ndarray, F: np.ndarray, rounds: int = 200) -> tuple[np.ndarray, int]:
+    """Remove folds by local smoothing: each round moves the vertices of every folded face to
+    the normalized mean of their neighbours (a uniform-weight Tutte step on the sphere), until
+    no face is folded or ``rounds`` rounds ran. Returns ``(map (n, 3), folded faces left)``.
+    (Measured on the armadillo after the free phase of :func:`spherical_sem`: 10 folds gone in
+    84 rounds; growing the moved set by a ring of neighbours made it worse.)"""
+    S = S.copy()
+    nbr = vertex_neighbours(F, len(S))
+    nbr = (nbr > 0).astype(np.float64).tocsr()
+    deg = np.asarray(nbr.sum(axis=1)).ravel()
+    det = triple_products(S, F)
+    for _ in range(rounds):
+        bad = det <= 0
+        if not bad.any():
+            break
+        idx = np.unique(F[bad])
+        M = (nbr[idx] @ S) / deg[idx, None]
+        S[idx] = M / np.linalg.norm(M, axis=1, keepdims=True)
+        det = triple_products(S, F)
+    return S, int(np.count_nonzero(det <= 0))
+
+
 def _rotation(axis: int, angle: float) -> np.ndarray:
     c, s = np.cos(angle), np.sin(angle)
     i, j = [k for k in range(3) if k != axis]
@@ -353,10 +375,33 @@ _POLES["xyz"] = _POLES["z"] + [_rotation(1, np.pi / 2), _rotation(1, -np.pi / 2)
                                _rotation(0, np.pi / 2), _rotation(0, -np.pi / 2)]
 
 
+def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
+    """Full half steps, each kept if it lowers the energy ratio, folded or not (as Algorithm 1
+    of the disk paper passes through folded maps), for at most ``iterations`` iterations or
+    until an iteration lowers the ratio by less than ``tol`` (relative). Returns ``(map,
+    iterations, folded faces)``, or None if no step was kept. On the armadillo, whose Tutte start
+    is crowded to area ratios of 1e-12, the guarded iteration alone stalls at face distortion
+    0.92; three free iterations reach 0.067 with 10 folds, which :func:`unfold` removes."""
+    kept, it = False, 0
+    for it in range(1, iterations + 1):
+        before = ratio
+        for R in _POLES[poles]:
+            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver)
+            if G is None:
+                continue
+            G = G @ R
+            g_ratio = energy_ratio(A2, G, F)
+            if g_ratio < ratio:
+                S, ratio, kept = G, g_ratio, True
+        if before - ratio < tol * before:
+            break
+    return (S, it, folded_faces(S, F)) if kept else None
+
+
 def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float = 1e-6,
                   patience: int = 4, radius: float = 1.5, min_step: float = 1.0 / 64,
                   time_limit: float | None = None, solver: str = "auto",
-                  poles: str = "xyz") -> SphereResult:
+                  poles: str = "xyz", free_iter: int = 10) -> SphereResult:
     """Equiareal map of a closed genus-0 mesh onto the unit sphere by alternating-hemisphere SEM.
 
     Parameters
@@ -372,6 +417,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
         Half steps move the vertices with ``|h| < radius`` (1 = exactly one hemisphere).
     min_step : float
         Smallest damping factor tried before a half step is skipped.
+    free_iter : int
+        Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one.
     poles : {"xyz", "z"}
         Half steps per iteration: around −z and +z only (the two poles of the spherical SEM),
         or around all six of ±x, ±y, ±z (default: measured on the bunny at 10 s, face
@@ -400,6 +447,17 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
     ratio = energy_ratio(A2, S, F)
     history = [{"iteration": 0, "energy_ratio": ratio, "folded_faces": folds,
                 "seconds": time.perf_counter() - t_all}]
+    t0 = time.perf_counter()
+    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver)
+    if free is not None:
+        U, left = unfold(free[0], F)
+        u_ratio = energy_ratio(A2, U, F)
+        history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
+                        "folded_faces": left, "free_iterations": free[1],
+                        "free_folded_faces": free[2], "seconds": time.perf_counter() - t_all})
+        if left <= folds and u_ratio < ratio:
+            S, ratio, folds = U, u_ratio, left
+    timings["free"] = time.perf_counter() - t0
     quiet, status, it = 0, "max_iter", 0
     t0 = time.perf_counter()
     while it < max_iter:
