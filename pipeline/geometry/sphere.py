@@ -283,28 +283,50 @@ class SphereResult:
     timings: dict = field(default_factory=dict)
 
 
-def _hemisphere_step(V, F, A2, S, radius, solver):
+class _Split:
+    """A half step's free set with its Laplacian pattern and solver, kept between iterations
+    so that CHOLMOD refactors on the analysed pattern instead of analysing a new one (the
+    analysis was most of a half step's time). Rebuilt after ``max_age`` uses, or once a free
+    vertex has left the disk ``|h| < 2·radius``."""
+
+    def __init__(self, F, h, radius, solver, max_age=8):
+        self.free = np.abs(h) < radius
+        self.pattern = laplacian_pattern(F, len(h), np.flatnonzero(~self.free))
+        self.near = self.free[F].any(axis=1)
+        self.solver = make_solver(solver, refactored=True)
+        self.age, self.max_age = 0, max_age
+
+    def stale(self, h, radius):
+        return self.age >= self.max_age or bool(np.any(np.abs(h[self.free]) >= 2 * radius))
+
+
+def _hemisphere_step(V, F, A2, S, radius, solver, cache=None, key=None):
     """One half step from the north pole: the vertices with ``|h| < radius`` (h by (S1)) solve
     ``L_II(f) h_I = −L_IB(f) h_B`` with the rest fixed (the disk paper's eq. 22), where ``L(f)``
     has the stretch weights of eq. (12) computed from the flat image triangles on the sphere and
-    the surface areas ``|τ|`` (only faces with a free vertex enter). Returns the new (n, 3) map,
-    or None if no vertex or every vertex is free."""
+    the surface areas ``|τ|`` (only faces with a free vertex enter). With a ``cache`` dict, the
+    free set of ``key`` is reused for a few iterations (:class:`_Split`). Returns the new (n, 3)
+    map, or None if no vertex or every vertex is free."""
     h = stereographic(S)
-    free = np.abs(h) < radius
-    if not free.any() or free.all():
+    split = None if cache is None else cache.get(key)
+    if split is None or split.stale(h, radius):
+        split = _Split(F, h, radius, solver)
+        if cache is not None:
+            cache[key] = split
+    split.age += 1
+    if not split.free.any() or split.free.all():
         return None
-    pattern = laplacian_pattern(F, len(S), np.flatnonzero(~free))
-    near = free[F].any(axis=1)
+    pattern, near = split.pattern, split.near
     corner = np.zeros((len(F), 3))
     corner[near] = corner_dot_over_area(S, F[near], A2[near])
     w = edge_weights(pattern, corner)
     hB = h[pattern.boundary]
     try:
         L_II, L_IB, _ = laplacian_blocks(pattern, w)
-        hI = solve_complex(make_solver(solver), L_II, -(L_IB @ hB))
+        hI = solve_complex(split.solver, L_II, -(L_IB @ hB))
     except NotPositiveDefinite:
         L_II, L_IB, _ = laplacian_blocks(pattern, clamp_positive(w))
-        hI = solve_complex(make_solver(solver), L_II, -(L_IB @ hB))
+        hI = solve_complex(split.solver, L_II, -(L_IB @ hB))
     h_new = h.copy()
     h_new[pattern.interior] = hI
     return inverse_stereographic(h_new)
@@ -382,11 +404,11 @@ def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
     iterations, folded faces)``, or None if no step was kept. On the armadillo, whose Tutte start
     is crowded to area ratios of 1e-12, the guarded iteration alone stalls at face distortion
     0.92; three free iterations reach 0.067 with 10 folds, which :func:`unfold` removes."""
-    kept, it = False, 0
+    kept, it, cache = False, 0, {}
     for it in range(1, iterations + 1):
         before = ratio
-        for R in _POLES[poles]:
-            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver)
+        for p, R in enumerate(_POLES[poles]):
+            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
             if G is None:
                 continue
             G = G @ R
@@ -458,7 +480,7 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
         if left <= folds and u_ratio < ratio:
             S, ratio, folds = U, u_ratio, left
     timings["free"] = time.perf_counter() - t0
-    quiet, status, it = 0, "max_iter", 0
+    quiet, status, it, cache = 0, "max_iter", 0, {}
     t0 = time.perf_counter()
     while it < max_iter:
         if time_limit is not None and time.perf_counter() - t_all > time_limit:
@@ -466,8 +488,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
             break
         it += 1
         before = ratio
-        for R in _POLES[poles]:
-            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver)
+        for p, R in enumerate(_POLES[poles]):
+            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
             if G is None:
                 continue
             G = G @ R
