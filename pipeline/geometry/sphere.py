@@ -22,13 +22,20 @@ Pipeline (:func:`spherical_sem`):
 
    (the conjugate keeps outward CCW faces counter-clockwise in the plane), the vertices with
    ``|h| < radius`` (the southern hemisphere and a margin; 1.5 by default: on the bunny within
-   10 s, face distortion 0.031 against 0.098 for 1.0, which stalls, and 0.041 for 2.5) are
-   moved by the stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the rest fixed, where
+   10 s, face distortion 0.031 against 0.098 for 1.0, which stalls, and 0.041 for 2.5, measured
+   before the free phase below existed) are moved by the stretch-Laplacian solve
+   ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the rest fixed, where
    ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
    the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
    rotated so that the north pole goes south), and by default also around ±x and ±y
-   (``poles``). Each half step is accepted only if it lowers the energy ratio
-   and adds no folded face; otherwise it is damped, ``normalize(f + α (f_new − f))`` for
+   (``poles``). Two phases:
+
+   a. free (:func:`_free_phase`): full half steps kept whenever they lower the energy ratio,
+      folded or not, for a few iterations; then :func:`unfold` smooths the vertices of folded
+      faces until none is left, and the result replaces the start if it has no more folds and
+      a lower ratio;
+   b. guarded: each half step is accepted only if it lowers the energy ratio
+      and adds no folded face; otherwise it is damped, ``normalize(f + α (f_new − f))`` for
    ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
    (:func:`shrink_folding_steps`; :mod:`.sem` holds such vertices for its disk steps).
 
@@ -444,7 +451,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
     poles : {"xyz", "z"}
         Half steps per iteration: around −z and +z only (the two poles of the spherical SEM),
         or around all six of ±x, ±y, ±z (default: measured on the bunny at 10 s, face
-        distortion 0.031 against 0.21 for "z", which stalls; elephant 0.045 against 0.34).
+        distortion 0.031 against 0.21 for "z", which stalls; elephant 0.045 against 0.34;
+        both before the free phase existed).
     time_limit : float, optional
         Seconds after which no further iteration starts.
 
@@ -474,10 +482,12 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
     if free is not None:
         U, left = unfold(free[0], F)
         u_ratio = energy_ratio(A2, U, F)
+        accepted = left <= folds and u_ratio < ratio
         history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
                         "folded_faces": left, "free_iterations": free[1],
-                        "free_folded_faces": free[2], "seconds": time.perf_counter() - t_all})
-        if left <= folds and u_ratio < ratio:
+                        "free_folded_faces": free[2], "accepted": accepted,
+                        "seconds": time.perf_counter() - t_all})
+        if accepted:
             S, ratio, folds = U, u_ratio, left
     timings["free"] = time.perf_counter() - t0
     quiet, status, it, cache = 0, "max_iter", 0, {}
