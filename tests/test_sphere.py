@@ -173,3 +173,21 @@ def test_unfold_removes_a_pushed_vertex_fold():
     assert left == 0 == sphere.folded_faces(U, F)
     far = np.linalg.norm(V - V[0], axis=1) > 1.0
     np.testing.assert_array_equal(U[far], V[far])
+
+
+def test_ratio_gradient_matches_finite_differences():
+    """:func:`sphere.ratio_gradient` against central differences of the energy ratio along
+    tangent directions of a perturbed icosphere map."""
+    rng = np.random.default_rng(0)
+    V, F = icosphere(1)
+    S = V + 0.05 * rng.standard_normal(V.shape)
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)   # a non-uniform surface
+    g = sphere.ratio_gradient(A2, S, F)
+    for _ in range(3):
+        D = rng.standard_normal(S.shape)
+        D -= np.sum(D * S, axis=1, keepdims=True) * S
+        eps = 1e-6
+        fd = (sphere.energy_ratio(A2, S + eps * D, F) - sphere.energy_ratio(A2, S - eps * D, F)) \
+            / (2 * eps)
+        assert np.sum(g * D) == pytest.approx(fd, rel=1e-5)

@@ -28,7 +28,7 @@ Pipeline (:func:`spherical_sem`):
    ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
    the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
    rotated so that the north pole goes south), and by default also around ±x and ±y
-   (``poles``). Two phases:
+   (``poles``). Three phases:
 
    a. free (:func:`_free_phase`): full half steps kept whenever they lower the energy ratio,
       folded or not, for a few iterations; then :func:`unfold` smooths the vertices of folded
@@ -36,8 +36,12 @@ Pipeline (:func:`spherical_sem`):
       a lower ratio;
    b. guarded: each half step is accepted only if it lowers the energy ratio
       and adds no folded face; otherwise it is damped, ``normalize(f + α (f_new − f))`` for
-   ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
-   (:func:`shrink_folding_steps`; :mod:`.sem` holds such vertices for its disk steps).
+      ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
+      (:func:`shrink_folding_steps`; :mod:`.sem` holds such vertices for its disk steps);
+   c. gradient (:func:`_gradient_phase`): preconditioned gradient descent of the energy ratio
+      on the sphere with the same fold guard, where the hemisphere iteration has slowed
+      (bunny: 40 guarded iterations then 0.7 s of gradient steps reach 0.021; 200 guarded
+      iterations alone reach 0.029 in 8 s).
 
 The objective is the stretch energy of the flat image triangles, ``E_S(f) = Σ |f(τ)|² / |τ|``
 (eq. 15), through the scale-free ratio ``E_S · |M| / |f(M)|² ≥ 1`` (Cauchy–Schwarz; equality iff
@@ -53,6 +57,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from pipeline.errors import UserError
 
@@ -427,10 +432,77 @@ def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
     return (S, it, folded_faces(S, F)) if kept else None
 
 
-def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float = 1e-6,
+def ratio_gradient(A2: np.ndarray, S: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Gradient of the energy ratio ``R = E_S |M| / A²`` (``A = Σ|f(τ)|`` flat image areas) in
+    the image points, projected onto the sphere's tangent planes; (n, 3).
+
+    With the unit normal ``n̂_τ`` and, at corner ``i`` of ``τ = (i, j, k)``,
+    ``∇_i |f(τ)| = ½ n̂_τ × (s_k − s_j)``: ``∇E_S = Σ_τ 2 (|f(τ)|/|τ|) ∇|f(τ)|`` and
+    ``∇R = |M| / A² (∇E_S − 2 E_S / A ∇A)``."""
+    n = len(S)
+    p0, p1, p2 = S[F[:, 0]], S[F[:, 1]], S[F[:, 2]]
+    N = np.cross(p1 - p0, p2 - p0)
+    a2 = np.linalg.norm(N, axis=1)
+    nh = N / a2[:, None]
+    a, area = a2 / 2, A2 / 2
+    E, A, M = float(np.sum(a * a / area)), float(a.sum()), float(area.sum())
+    coef = 2 * a / area - 2 * E / A               # per face: ∇E_S − 2E/A ∇A
+    g = np.zeros((n, 3))
+    for c, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):
+        v = 0.5 * np.cross(nh, S[F[:, k]] - S[F[:, j]]) * coef[:, None]
+        for d in range(3):
+            g[:, d] += np.bincount(F[:, c], weights=v[:, d], minlength=n)
+    g *= M / A ** 2
+    return g - np.sum(g * S, axis=1, keepdims=True) * S
+
+
+def _gradient_phase(V, F, A2, S, ratio, folds, deadline, iterations, tol, patience, solver):
+    """Preconditioned gradient descent of the energy ratio on the sphere: direction
+    ``d = P⁻¹ ∇R`` (:func:`ratio_gradient`) with ``P`` the stretch Laplacian of the current
+    map (eq. 12 weights, clamped at 1e-8 of their mean from below, plus 1e-3 of the mean weight
+    on the diagonal: SPD), tangential part; step ``normalize(S − t d)`` with per-vertex damping
+    at folding faces (:func:`shrink_folding_steps`), ``t`` halved until the ratio falls without
+    a new fold and doubled while it keeps falling. On the bunny after the hemisphere phases
+    stall at face distortion 0.0296, 180 such steps (2.5 s) reach 0.021. Returns ``(S, ratio,
+    folds, steps)``."""
+    pattern = laplacian_pattern(F, len(S), np.zeros(0, np.int64))
+    P_solver = make_solver(solver, refactored=True)
+    quiet, t, step = 0, 1.0, 0
+    while step < iterations and time.perf_counter() < deadline:
+        w = edge_weights(pattern, corner_dot_over_area(S, F, A2))
+        w = np.maximum(w, 1e-8 * np.abs(w).mean())
+        L = laplacian_blocks(pattern, w)[0]
+        L = L + 1e-3 * w.mean() * sp.identity(L.shape[0], format="csr")
+        P_solver.factorize(L)
+        d = P_solver.solve(ratio_gradient(A2, S, F))
+        d -= np.sum(d * S, axis=1, keepdims=True) * S
+        t, found = min(2 * t, 8.0), None
+        while t >= 1e-6:
+            C = shrink_folding_steps(S, S - d, F, t, folds)
+            c_folds, c_ratio = folded_faces(C, F), energy_ratio(A2, C, F)
+            if c_folds <= folds and c_ratio < ratio:
+                found = (C, c_ratio, c_folds)
+                break
+            t /= 2
+        if found is None:
+            break
+        step += 1
+        before = ratio
+        S, ratio, folds = found
+        if before - ratio < tol * (before - 1.0):     # relative to the excess over 1
+            quiet += 1
+            if quiet >= patience:
+                break
+        else:
+            quiet = 0
+    return S, ratio, folds, step
+
+
+def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float = 1e-6,
                   patience: int = 4, radius: float = 1.5, min_step: float = 1.0 / 64,
                   time_limit: float | None = None, solver: str = "auto",
-                  poles: str = "xyz", free_iter: int = 10) -> SphereResult:
+                  poles: str = "xyz", free_iter: int = 10,
+                  gradient_iter: int = 2000, gradient_tol: float = 1e-4) -> SphereResult:
     """Equiareal map of a closed genus-0 mesh onto the unit sphere by alternating-hemisphere SEM.
 
     Parameters
@@ -438,7 +510,7 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
     V : (n, 3) float array
     F : (m, 3) int array
     max_iter : int
-        Iterations (each = one half step from each pole).
+        Guarded hemisphere iterations (each = one half step around each pole).
     tol, patience : float, int
         Stop once the relative decrease of the energy ratio per iteration stays below ``tol``
         for ``patience`` iterations.
@@ -446,6 +518,11 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
         Half steps move the vertices with ``|h| < radius`` (1 = exactly one hemisphere).
     min_step : float
         Smallest damping factor tried before a half step is skipped.
+    gradient_iter : int
+        Steps of the final preconditioned gradient phase (:func:`_gradient_phase`; 0: none),
+        which runs after the guarded hemisphere iterations until it stalls, ``patience``
+        steps in a row lower the ratio's excess ``R − 1`` by less than ``gradient_tol``
+        (relative), or ``time_limit``.
     free_iter : int
         Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one.
     poles : {"xyz", "z"}
@@ -522,6 +599,16 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 200, tol: float 
         else:
             quiet = 0
     timings["sem"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    deadline = np.inf if time_limit is None else t_all + time_limit
+    if gradient_iter and status != "time_limit":
+        S, ratio, folds, steps = _gradient_phase(V, F, A2, S, ratio, folds, deadline,
+                                                 gradient_iter, gradient_tol, 3 * patience, solver)
+        history.append({"iteration": it, "phase": "gradient", "steps": steps,
+                        "energy_ratio": ratio, "folded_faces": folds,
+                        "seconds": time.perf_counter() - t_all})
+        status = "time_limit" if time.perf_counter() >= deadline else "converged"
+    timings["gradient"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
                         iterations=it, status=status, history=history, timings=timings)
