@@ -41,7 +41,8 @@ Pipeline (:func:`spherical_sem`):
    c. gradient (:func:`_gradient_phase`): preconditioned gradient descent of the energy ratio
       on the sphere with the same fold guard, where the hemisphere iteration has slowed
       (bunny: 40 guarded iterations then 0.7 s of gradient steps reach 0.021; 200 guarded
-      iterations alone reach 0.029 in 8 s).
+      iterations alone reach 0.029 in 8 s). Phases b and c alternate (``cycles``) while a
+      round still lowers the ratio: each restarts where the other has stalled.
 
 The objective is the stretch energy of the flat image triangles, ``E_S(f) = Σ |f(τ)|² / |τ|``
 (eq. 15), through the scale-free ratio ``E_S · |M| / |f(M)|² ≥ 1`` (Cauchy–Schwarz; equality iff
@@ -502,7 +503,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                   patience: int = 4, radius: float = 1.5, min_step: float = 1.0 / 64,
                   time_limit: float | None = None, solver: str = "auto",
                   poles: str = "xyz", free_iter: int = 10,
-                  gradient_iter: int = 2000, gradient_tol: float = 1e-4) -> SphereResult:
+                  gradient_iter: int = 2000, gradient_tol: float = 1e-4,
+                  cycles: int = 10) -> SphereResult:
     """Equiareal map of a closed genus-0 mesh onto the unit sphere by alternating-hemisphere SEM.
 
     Parameters
@@ -518,6 +520,10 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         Half steps move the vertices with ``|h| < radius`` (1 = exactly one hemisphere).
     min_step : float
         Smallest damping factor tried before a half step is skipped.
+    cycles : int
+        Rounds of (guarded hemisphere iterations, gradient phase); a round that lowers the
+        ratio by less than ``tol`` (relative) ends them. Measured at 10 s: 10 rounds against 1,
+        bunny 0.018 against 0.021, elephant 0.030 against 0.035, armadillo 0.026 against 0.033.
     gradient_iter : int
         Steps of the final preconditioned gradient phase (:func:`_gradient_phase`; 0: none),
         which runs after the guarded hemisphere iterations until it stalls, ``patience``
@@ -567,48 +573,55 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         if accepted:
             S, ratio, folds = U, u_ratio, left
     timings["free"] = time.perf_counter() - t0
-    quiet, status, it, cache = 0, "max_iter", 0, {}
-    t0 = time.perf_counter()
-    while it < max_iter:
-        if time_limit is not None and time.perf_counter() - t_all > time_limit:
-            status = "time_limit"
-            break
-        it += 1
-        before = ratio
-        for p, R in enumerate(_POLES[poles]):
-            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
-            if G is None:
-                continue
-            G = G @ R
-            alpha = 1.0
-            while alpha >= min_step:
-                C = shrink_folding_steps(S, G, F, alpha, folds)
-                c_folds = folded_faces(C, F)
-                c_ratio = energy_ratio(A2, C, F)
-                if c_folds <= folds and c_ratio < ratio:
-                    S, ratio, folds = C, c_ratio, c_folds
-                    break
-                alpha /= 2
-        history.append({"iteration": it, "energy_ratio": ratio, "folded_faces": folds,
-                        "seconds": time.perf_counter() - t_all})
-        if before - ratio < tol * before:
-            quiet += 1
-            if quiet >= patience:
-                status = "converged"
-                break
-        else:
-            quiet = 0
-    timings["sem"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    status, it, cache = "max_iter", 0, {}
+    timings["sem"] = timings["gradient"] = 0.0
     deadline = np.inf if time_limit is None else t_all + time_limit
-    if gradient_iter and status != "time_limit":
-        S, ratio, folds, steps = _gradient_phase(V, F, A2, S, ratio, folds, deadline,
-                                                 gradient_iter, gradient_tol, 3 * patience, solver)
-        history.append({"iteration": it, "phase": "gradient", "steps": steps,
-                        "energy_ratio": ratio, "folded_faces": folds,
-                        "seconds": time.perf_counter() - t_all})
-        status = "time_limit" if time.perf_counter() >= deadline else "converged"
-    timings["gradient"] = time.perf_counter() - t0
+    for cycle in range(cycles):
+        cycle_start, quiet, cycle_it = ratio, 0, 0
+        t0 = time.perf_counter()
+        while cycle_it < max_iter:
+            if time.perf_counter() > deadline:
+                status = "time_limit"
+                break
+            it += 1
+            cycle_it += 1
+            before = ratio
+            for p, R in enumerate(_POLES[poles]):
+                G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
+                if G is None:
+                    continue
+                G = G @ R
+                alpha = 1.0
+                while alpha >= min_step:
+                    C = shrink_folding_steps(S, G, F, alpha, folds)
+                    c_folds = folded_faces(C, F)
+                    c_ratio = energy_ratio(A2, C, F)
+                    if c_folds <= folds and c_ratio < ratio:
+                        S, ratio, folds = C, c_ratio, c_folds
+                        break
+                    alpha /= 2
+            history.append({"iteration": it, "energy_ratio": ratio, "folded_faces": folds,
+                            "seconds": time.perf_counter() - t_all})
+            if before - ratio < tol * before:
+                quiet += 1
+                if quiet >= patience:
+                    status = "converged"
+                    break
+            else:
+                quiet = 0
+        timings["sem"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        if gradient_iter and status != "time_limit":
+            S, ratio, folds, steps = _gradient_phase(V, F, A2, S, ratio, folds, deadline,
+                                                     gradient_iter, gradient_tol, 3 * patience,
+                                                     solver)
+            history.append({"iteration": it, "phase": "gradient", "steps": steps,
+                            "energy_ratio": ratio, "folded_faces": folds,
+                            "seconds": time.perf_counter() - t_all})
+            status = "time_limit" if time.perf_counter() >= deadline else "converged"
+        timings["gradient"] += time.perf_counter() - t0
+        if status == "time_limit" or cycle_start - ratio < tol * cycle_start:
+            break
     timings["total"] = time.perf_counter() - t_all
     return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
                         iterations=it, status=status, history=history, timings=timings)
