@@ -101,6 +101,11 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             at_short = np.zeros(n, bool)
             at_short[ends] = True
             Fs = F[touching(F, at_short)]
+        if at is not None:
+            # only edges between marked vertices are candidates: every face at a marked vertex
+            # of Fs stays, in order, so the candidates, the twins of their ends' edges and
+            # their ends' rows of the adjacency and incidence are those of the whole Fs
+            Fs = Fs[touching(Fs, at)]
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
         if at is not None:
