@@ -342,9 +342,13 @@ def degenerate_faces(S: RemeshState) -> np.ndarray:
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
-    """The faces (indices) with a 3D angle below ``min_angle_deg``."""
-    from ..metrics import corner_angles
-    return np.flatnonzero(corner_angles(X, F).min(axis=1) < np.radians(min_angle_deg))
+    """The faces (indices) with a 3D angle below ``min_angle_deg`` (the angles of
+    :func:`..metrics.corner_angles`, their cosines compiled: the gathers were its cost)."""
+    from .._kernels import corner_cosines
+    cos = corner_cosines(np.ascontiguousarray(X, dtype=np.float64),
+                         np.ascontiguousarray(F, dtype=np.int64))
+    return np.flatnonzero(np.arccos(np.clip(cos, -1.0, 1.0)).min(axis=1)
+                          < np.radians(min_angle_deg))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
