@@ -21,10 +21,9 @@ Pipeline (:func:`spherical_sem`):
        s = (2 Re h, −2 Im h, |h|² − 1) / (1 + |h|²)                                  (S2)
 
    (the conjugate keeps outward CCW faces counter-clockwise in the plane), the vertices with
-   ``|h| < radius`` (the southern hemisphere and a margin; 1.5 by default: on the bunny within
-   10 s, face distortion 0.031 against 0.098 for 1.0, which stalls, and 0.041 for 2.5, measured
-   before the free phase below existed) are moved by the stretch-Laplacian solve
-   ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the rest fixed, where
+   ``|h| < radius`` (the southern hemisphere and a margin, 1.5 by default: with exactly one
+   hemisphere, 1.0, the iteration stalls on the shared meshes) are moved by the
+   stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the rest fixed, where
    ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
    the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
    rotated so that the north pole goes south), and by default also around ±x and ±y
@@ -39,9 +38,9 @@ Pipeline (:func:`spherical_sem`):
       ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
       (:func:`shrink_folding_steps`; :mod:`.sem` holds such vertices for its disk steps);
    c. gradient (:func:`_gradient_phase`): preconditioned gradient descent of the energy ratio
-      on the sphere with the same fold guard, where the hemisphere iteration has slowed
-      (bunny: 40 guarded iterations then 0.7 s of gradient steps reach 0.021; 200 guarded
-      iterations alone reach 0.029 in 8 s). Phases b and c alternate (``cycles``) while a
+      on the sphere with the same fold guard, where the hemisphere iteration has slowed (the
+      half steps stall with the energy still falling along the gradient). Phases b and c
+      alternate (``cycles``) while a
       round still lowers the ratio: each restarts where the other has stalled.
 
 The objective is the stretch energy of the flat image triangles, ``E_S(f) = Σ |f(τ)|² / |τ|``
@@ -154,8 +153,8 @@ def triple_products(S: np.ndarray, F: np.ndarray) -> np.ndarray:
 
     Computed as ``s0 · ((s1 − s0) × (s2 − s0))`` (the same determinant): for tiny triangles
     the edge vectors keep their relative precision, where ``s0 · (s1 × s2)`` of three nearly
-    equal unit vectors would cancel to rounding noise and report false folds (the armadillo's
-    Tutte start: 2013 such faces, 0 true folds)."""
+    equal unit vectors would cancel to rounding noise and report false folds (a Tutte start
+    crowds whole limbs into such triangles)."""
     x, y, z = (np.ascontiguousarray(S[:, k]) for k in range(3))
     i, j, k = F[:, 0], F[:, 1], F[:, 2]
     x0, y0, z0 = x[i], y[i], z[i]
@@ -375,8 +374,7 @@ def unfold(S: np.ndarray, F: np.ndarray, rounds: int = 200) -> tuple[np.ndarray,
     """Remove folds by local smoothing: each round moves the vertices of every folded face to
     the normalized mean of their neighbours (a uniform-weight Tutte step on the sphere), until
     no face is folded or ``rounds`` rounds ran. Returns ``(map (n, 3), folded faces left)``.
-    (Measured on the armadillo after the free phase of :func:`spherical_sem`: 10 folds gone in
-    84 rounds; growing the moved set by a ring of neighbours made it worse.)"""
+    Only the folded faces' own vertices move, so the rest of the map keeps its areas."""
     S = S.copy()
     nbr = vertex_neighbours(F, len(S))
     nbr = (nbr > 0).astype(np.float64).tocsr()
@@ -410,21 +408,28 @@ _POLES["xyz"] = _POLES["z"] + [_rotation(1, np.pi / 2), _rotation(1, -np.pi / 2)
                                _rotation(0, np.pi / 2), _rotation(0, -np.pi / 2)]
 
 
+def _rotated_step(V, F, A2, S, R, radius, solver, cache, key):
+    """:func:`_hemisphere_step` around the pole that the rotation ``R`` (3, 3) takes to the
+    north: the map rotated by ``R``, stepped, rotated back. None where the step is."""
+    G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, key)
+    return None if G is None else G @ R
+
+
 def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
     """Full half steps, each kept if it lowers the energy ratio, folded or not (as Algorithm 1
     of the disk paper passes through folded maps), for at most ``iterations`` iterations or
     until an iteration lowers the ratio by less than ``tol`` (relative). Returns ``(map,
-    iterations, folded faces)``, or None if no step was kept. On the armadillo, whose Tutte start
-    is crowded to area ratios of 1e-12, the guarded iteration alone stalls at face distortion
-    0.92; three free iterations reach 0.067 with 10 folds, which :func:`unfold` removes."""
+    iterations, folded faces)``, or None if no step was kept. It exists for starts crowded to
+    tiny area ratios (a Tutte map of a mesh with long limbs), from which the guarded iteration
+    stalls: a few free iterations spread the map, and :func:`unfold` removes the folds they
+    leave."""
     kept, it, cache = False, 0, {}
     for it in range(1, iterations + 1):
         before = ratio
         for p, R in enumerate(_POLES[poles]):
-            G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
+            G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
             if G is None:
                 continue
-            G = G @ R
             g_ratio = energy_ratio(A2, G, F)
             if g_ratio < ratio:
                 S, ratio, kept = G, g_ratio, True
@@ -463,9 +468,7 @@ def _gradient_phase(V, F, A2, S, ratio, folds, deadline, iterations, tol, patien
     map (eq. 12 weights, clamped at 1e-8 of their mean from below, plus 1e-3 of the mean weight
     on the diagonal: SPD), tangential part; step ``normalize(S − t d)`` with per-vertex damping
     at folding faces (:func:`shrink_folding_steps`), ``t`` halved until the ratio falls without
-    a new fold and doubled while it keeps falling. On the bunny after the hemisphere phases
-    stall at face distortion 0.0296, 180 such steps (2.5 s) reach 0.021. Returns ``(S, ratio,
-    folds, steps)``."""
+    a new fold and doubled while it keeps falling. Returns ``(S, ratio, folds, steps)``."""
     pattern = laplacian_pattern(F, len(S), np.zeros(0, np.int64))
     P_solver = make_solver(solver, refactored=True)
     quiet, t, step = 0, 1.0, 0
@@ -522,8 +525,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         Smallest damping factor tried before a half step is skipped.
     cycles : int
         Rounds of (guarded hemisphere iterations, gradient phase); a round that lowers the
-        ratio by less than ``tol`` (relative) ends them. Measured at 10 s: 10 rounds against 1,
-        bunny 0.018 against 0.021, elephant 0.030 against 0.035, armadillo 0.026 against 0.033.
+        ratio by less than ``tol`` (relative) ends them: each phase restarts where the other
+        has stalled.
     gradient_iter : int
         Steps of the final preconditioned gradient phase (:func:`_gradient_phase`; 0: none),
         which runs after the guarded hemisphere iterations until it stalls, ``patience``
@@ -533,9 +536,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one.
     poles : {"xyz", "z"}
         Half steps per iteration: around −z and +z only (the two poles of the spherical SEM),
-        or around all six of ±x, ±y, ±z (default: measured on the bunny at 10 s, face
-        distortion 0.031 against 0.21 for "z", which stalls; elephant 0.045 against 0.34;
-        both before the free phase existed).
+        or around all six of ±x, ±y, ±z (default: with the two poles only, the iteration
+        stalls far above the six-pole result on the shared meshes).
     time_limit : float, optional
         Seconds after which no further iteration starts.
 
@@ -587,10 +589,9 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
             cycle_it += 1
             before = ratio
             for p, R in enumerate(_POLES[poles]):
-                G = _hemisphere_step(V, F, A2, S @ R.T, radius, solver, cache, p)
+                G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
                 if G is None:
                     continue
-                G = G @ R
                 alpha = 1.0
                 while alpha >= min_step:
                     C = shrink_folding_steps(S, G, F, alpha, folds)
