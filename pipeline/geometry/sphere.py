@@ -23,8 +23,8 @@ Pipeline (:func:`spherical_sem`):
    (the conjugate keeps outward CCW faces counter-clockwise in the plane), the vertices with
    ``|h| < radius`` (the southern hemisphere and a margin, 1.5 by default: with exactly one
    hemisphere, 1.0, the iteration stalls on the shared meshes) are moved by the
-   stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the rest fixed, where
-   ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
+   stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the
+   rest fixed, where ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
    the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
    rotated so that the north pole goes south), and by default also around ±x and ±y
    (``poles``). Three phases:
