@@ -112,7 +112,8 @@ class RepairOptions(BaseModel):
 
 @dataclass
 class RepairedMesh:
-    """A clean disk and how it relates to the input mesh."""
+    """A clean disk (or, with ``boundary`` empty, a closed genus-0 surface) and how it relates
+    to the input mesh."""
 
     V: np.ndarray
     F: np.ndarray
@@ -123,6 +124,11 @@ class RepairedMesh:
     closed_holes: list = field(default_factory=list)   # {"centre_vertex", "loop"} per hole
     report: dict = field(default_factory=dict)
     messages: list = field(default_factory=list)
+
+    @property
+    def closed(self) -> bool:
+        """True for a closed genus-0 surface (no boundary loop): its domain is the sphere."""
+        return len(self.boundary) == 0
 
 
 # --------------------------------------------------------------------------------------------

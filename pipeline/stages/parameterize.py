@@ -40,11 +40,19 @@ class ParameterizationFailed(RuntimeError):
 
 @dataclass
 class Parameterization:
+    """A map of ``mesh`` onto its domain: the unit disk (``uv`` (n, 2), ``sphere`` None) or,
+    for a closed genus-0 mesh, the unit sphere (``sphere`` (n, 3) unit vectors, ``uv`` None)."""
+
     mesh: RepairedMesh
-    uv: np.ndarray
+    uv: np.ndarray | None
     sem: SEMResult
     options: SEMOptions
     metrics: dict = field(default_factory=dict)
+    sphere: np.ndarray | None = None
+
+    @property
+    def domain(self) -> str:
+        return "disk" if self.sphere is None else "sphere"
 
     @property
     def ok(self) -> bool:
