@@ -219,6 +219,20 @@ def test_sample_experiment_runs_writes_summary_and_logs(pool_run):
     assert "function sortBy" in page and "<script src" not in page and "http" not in page
     assert f"href='{SAMPLE_IDS[0]}/parameterize/metrics.json'" in page.replace("%3D", "=")
     assert leftovers(run_dir) == []
+    # A measure equal in every item is listed once below the table, not as a column.
+    head = page.split("<tbody>")[0]
+    assert "<th onclick='sortBy(this)'>parameterize.distortion.face_area_distortion</th>" in head
+    assert "parameterize.options.inversion" not in head
+    assert "<th>parameterize.parameterization.options.inversion</th><td>false</td>" in page
+
+
+def test_constant_columns_are_those_with_one_value_in_every_row():
+    from pipeline.experiments.summary import constant_columns
+
+    rows = [{"a": 1, "b": 2.0, "c": None, "d": "x"}, {"a": 1, "b": 3.0, "d": "x"}]
+    assert constant_columns(["a", "b", "c", "d"], rows) == ["a", "c", "d"]
+    assert constant_columns(["a", "b", "c", "d"], rows, keep={"a"}) == ["c", "d"]
+    assert constant_columns(["a"], rows[:1]) == []
 
 
 def test_second_run_skips_everything_and_deleted_item_reruns(pool_run):

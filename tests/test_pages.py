@@ -141,7 +141,7 @@ def test_experiment_summary_sorts_by_a_clicked_header(chrome, experiment_dir):
 
     def seconds():
         return [float(tr.find_elements(By.TAG_NAME, "td")[column].get_attribute("data-v"))
-                for tr in chrome.find_elements(By.CSS_SELECTOR, "tbody tr")]
+                for tr in chrome.find_elements(By.CSS_SELECTOR, "#items tbody tr")]
 
     th.click()
     assert seconds() == sorted(seconds())

@@ -7,7 +7,9 @@ one column per swept key), then the metrics of every stage: each stage's ``metri
 ``parameterize.distortion.face_area_distortion`` or ``parameterize.seconds.sem``. Lists (the
 iteration history) and landmark tables are left out. The HTML sorts on a header click (inline
 script, no network) and links each item's folder, log, ``item.json``, metrics and reports; it
-is built on the shared page writer (:mod:`pipeline.report.html`).
+is built on the shared page writer (:mod:`pipeline.report.html`). A measure with the same value
+in every item (options, counts of the shared input, versions) is listed once below the table
+instead of filling a column; ``summary.csv`` keeps every column.
 """
 
 from __future__ import annotations
@@ -163,12 +165,25 @@ td.error { white-space: normal; max-width: 40em; }
 """
 
 
+def constant_columns(columns: list[str], rows: list[dict], keep=()) -> list[str]:
+    """Columns (other than ``keep``) whose value is the same in each of two or more rows."""
+    if len(rows) < 2:
+        return []
+    return [c for c in columns if c not in keep
+            and len({_cell(r.get(c)) for r in rows}) == 1]
+
+
 def _html(columns: list[str], rows: list[dict], title: str) -> str:
     e = h.esc
     n_ok = sum(r["status"] == "ok" for r in rows)
+    same = constant_columns(columns, rows, keep=set(FIXED))
+    columns = [c for c in columns if c not in same]
+    note = (f" {len(same)} measures with one value in every item are listed "
+            f"<a href='#same'>below the table</a>." if same else "")
     out = [f"<p>{len(rows)} items: {n_ok} ok, {len(rows) - n_ok} failed or "
-           f"missing. Click a header to sort. Also: <a href='summary.csv'>summary.csv</a>.</p>",
-           "<table><thead><tr><th onclick='sortBy(this)'>files</th>"]
+           f"missing. Click a header to sort.{note} Also: "
+           f"<a href='summary.csv'>summary.csv</a> (every column).</p>",
+           "<table id='items'><thead><tr><th onclick='sortBy(this)'>files</th>"]
     out += [f"<th onclick='sortBy(this)'>{e(c)}</th>" for c in columns]
     out.append("</tr></thead><tbody>")
     for row in rows:
@@ -189,4 +204,9 @@ def _html(columns: list[str], rows: list[dict], title: str) -> str:
             out.append(f"<td{cls} data-v='{e(key)}'>{text_html}</td>")
         out.append("</tr>")
     out.append("</tbody></table>")
+    if same:
+        out.append("<h2 id='same'>Same for every item</h2><table><tbody>")
+        out += [f"<tr><th>{e(c)}</th><td>{e(_display(rows[0].get(c))[0])}</td></tr>"
+                for c in same]
+        out.append("</tbody></table>")
     return h.page(title, "\n".join(out), style=_STYLE, script=_SCRIPT)
