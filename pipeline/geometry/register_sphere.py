@@ -200,8 +200,8 @@ class SphereDeformResult:
 
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
                                targets: np.ndarray, support: float = 1.0,
-                               min_step: float = 1.0 / 1024, max_substeps: int = 400
-                               ) -> SphereDeformResult:
+                               min_step: float = 1.0 / 1024, max_substeps: int = 400,
+                               hold_rounds: int = 8) -> SphereDeformResult:
     """Move ``landmarks`` of the spherical map ``S`` exactly onto ``targets`` without folding a
     face (module docstring, step 2).
 
@@ -216,6 +216,10 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     min_step, max_substeps
         As :class:`~pipeline.geometry.register.DeformOptions`: the continuation gives up (method
         ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries.
+    hold_rounds : int
+        Calls of :func:`~pipeline.geometry.sphere.shrink_folding_steps` per step (each pulls the
+        vertices of the faces still folded further back toward the current map, on which no
+        face is folded).
 
     Returns
     -------
@@ -242,9 +246,11 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         if direct is None:
             direct = full
         raw = folded_faces(full, F)
-        if raw:                                      # hold back vertices of would-be folds
-            cand = shrink_folding_steps(z, full, F_free, 1.0, 0)
+        for _ in range(hold_rounds if raw else 0):   # hold back vertices of would-be folds
+            cand = shrink_folding_steps(z, cand, F_free, 1.0, 0)
             cand[landmarks] = goal
+            if folded_faces(cand, F_free) == 0:
+                break
         folds = folded_faces(cand, F)
         history.append({"tau": new_tau, "step": step, "flipped_faces": raw,
                         "flipped_after_hold_back": folds, "accepted": folds == 0})
