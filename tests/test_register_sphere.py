@@ -189,3 +189,20 @@ def test_bunny_pair_registration_is_exact_and_fold_free(bunny_pair, tmp_path):
     from PIL import Image
     with Image.open(out["gif"]) as gif:
         assert gif.n_frames == 5
+
+
+def test_a_closed_and_an_open_mesh_are_refused_in_one_line():
+    from pipeline.errors import UserError
+    from pipeline.stages.register import check_same_domain
+
+    V, F = icosphere(1)
+    src, ps = closed_side(V, F, V.copy(), np.arange(3), "sphere")
+    disk = RepairedMesh(V=V, F=F, colors=None, source_index=np.arange(len(V)),
+                        boundary=np.arange(5), added_vertices=np.empty(0, np.int64))
+    tgt = Face(Intake(disk, {"source": "disk", "input_vertices": len(V)}), np.arange(3), "t")
+    with pytest.raises(UserError) as exc:
+        check_same_domain(Pair(src, tgt, None))
+    assert "closed (sphere)" in str(exc.value) and "\n" not in str(exc.value)
+    disk_map = Parameterization(disk, uv=np.zeros((len(V), 2)), sem=None, options=SEMOptions())
+    with pytest.raises(UserError, match="two closed meshes"):
+        register_maps(Pair(src, tgt, None), ps, disk_map)

@@ -4,6 +4,9 @@
   disk with its landmarks, (c) before the deformation: a line from every aligned source landmark
   to its target landmark, (d) the deformed source disk (landmarks on their targets; flipped
   faces, if any, filled red).
+* ``spheres.png`` (two closed meshes) — the same four panels for the spherical maps, drawn by
+  Lambert's azimuthal equal-area projection about the target landmarks (:func:`equal_area_view`;
+  the cap around the antipode is left out); folded faces are counted on the sphere.
 * ``surfaces.png`` — source, registered (ours), target (and nricp_amberg's result with
   ``--baseline``), shaded, one camera for the target side.
 * ``error_on_face.png`` (with a ground truth) — the dense error per vertex on the truth surface,
@@ -60,6 +63,7 @@ class RegistrationView:
     baseline_points: np.ndarray | None = None   # n×3 nricp_amberg result (NaN: dropped)
     baseline_error: np.ndarray | None = None    # n
     domain: str = "disk"                   # disk | sphere (the *_uv are equal-area views)
+    folded: np.ndarray | None = None       # per source_faces row: folded on the sphere
 
 
 def equal_area_view(S: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -125,7 +129,8 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
     axs[1, 0].plot(ps[:, 0], ps[:, 1], "o", color=SRC_COLOR, ms=3.5, label="source (aligned)")
     axs[1, 0].plot(pt[:, 0], pt[:, 1], "o", color=TGT_COLOR, ms=3.5, label="target")
     axs[1, 0].legend(loc="lower left", fontsize=8, frameon=False)
-    flips = signed_double_areas(ud, reg.source_faces) <= 0
+    flips = (signed_double_areas(ud, reg.source_faces) <= 0 if reg.folded is None
+             else np.asarray(reg.folded, bool))       # a view's thin faces are not folds
     if reg.deform_ok:
         title = (f"(d) deformed source {where} ({reg.deform_method}; {reg.energy} "
                  f"{'energy' if where == 'disk' else 'kernel'})\n"

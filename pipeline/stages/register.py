@@ -1,4 +1,5 @@
-"""Stage — landmark registration of a source face onto a target face through their SEM disks.
+"""Stage — landmark registration of a source face onto a target face through their SEM disks,
+or of two closed genus-0 meshes through their spherical maps.
 
 Steps (kernels in :mod:`pipeline.geometry.register`): read and repair both meshes (holes closed
 by ``close_holes`` are tracked), read and pair the landmarks (:mod:`pipeline.io.landmarks`),
@@ -8,6 +9,12 @@ its partner without flipping a face, and lift every source vertex onto the targe
 through the target's inverse map (eq. 1). Optionally the dense error against a ground truth with
 the source's connectivity, and trimesh's ``nricp_amberg`` on the same pair as a baseline.
 
+Two closed meshes (``Parameterization.domain == "sphere"``) go through
+:func:`register_spheres` instead (kernels in :mod:`pipeline.geometry.register_sphere`): a
+rotation in SO(3), a landmark-exact deformation of the sphere with no folded face, and the lift
+through the target's inverse spherical map; a closed and an open mesh are refused (one line,
+exit 2). The files are the same, with the sphere's arrays in place of the disk's (below).
+
 Files (contract in ``shared/docs/DESIGN.md``):
 
 * ``registration.npz`` — ``mapped_points`` n×3 (image of every source vertex on the target
@@ -15,13 +22,16 @@ Files (contract in ``shared/docs/DESIGN.md``):
   target_barycentric[i, c] · target_vertices[target_faces[target_face[i], c]]``); and for
   re-use: ``source_vertices``, ``source_faces`` (the source connectivity as written in
   ``registered.obj``), ``source_index``, ``source_landmarks``, ``target_landmarks``,
-  ``source_uv``, ``target_uv``, ``aligned_uv``, ``deformed_uv``, ``target_vertices``,
-  ``target_faces``. Vertex ``i`` is vertex ``i`` of the *repaired* source mesh;
-  ``source_index[i]`` is its index in the input file (−1 for a vertex the repair added).
+  ``source_uv``, ``target_uv``, ``aligned_uv``, ``deformed_uv`` (on the sphere:
+  ``source_sphere``, ``target_sphere``, ``aligned_sphere``, ``deformed_sphere`` n×3 and
+  ``rotation`` 3×3; :func:`map_arrays`), ``target_vertices``, ``target_faces``. Vertex ``i``
+  is vertex ``i`` of the *repaired* source mesh; ``source_index[i]`` is its index in the input
+  file (−1 for a vertex the repair added).
 * ``registered.obj`` — the source connectivity on the target geometry. Faces of holes the
   repair closed (fans to a centre vertex) are left out, so the holes stay open as in the input.
-* ``metrics.json``, ``report.html`` and figures (``disks.png``, ``surfaces.png``,
-  ``error_on_face.png`` with a ground truth), built by :mod:`pipeline.report.register`.
+* ``metrics.json``, ``report.html`` and figures (``disks.png`` — ``spheres.png`` on the sphere,
+  ``surfaces.png``, ``error_on_face.png`` with a ground truth), built by
+  :mod:`pipeline.report.register`.
 
 A registration that leaves flipped faces is a failure: ``metrics.json``, the report and its
 figures are written for diagnosis, the map files are not, and :class:`RegistrationFailed` is
@@ -290,6 +300,9 @@ def register_stage(pair: Pair, options: RegisterConfig, sem: SEMOptions | None =
     t2 = time.perf_counter()
     say(f"SEM: source {ps.sem.iterations} iterations ({ps.sem.status}), target "
         f"{pt.sem.iterations} iterations ({pt.sem.status})")
+    if ps.domain == "sphere" and (opt.mobius or opt.energy != "biharmonic"):
+        say("on the sphere the alignment is a rotation and the deformation a smooth kernel "
+            "continuation: 'mobius' and 'energy' do not apply")
     return register_maps(pair, ps, pt, mobius=opt.mobius, energy=opt.energy,
                          baseline=opt.baseline, log=log,
                          seconds={"parameterize_source": t1 - t0, "parameterize_target": t2 - t1})
@@ -635,8 +648,10 @@ def _domain_views(reg: Registration) -> dict:
 
     c = reg.uv_target[reg.pair.target.landmarks].mean(axis=0)
     c = c if np.linalg.norm(c) > 1e-9 else reg.uv_target[reg.pair.target.landmarks[0]]
-    Fs = sphere_faces(reg.uv_source, S.F)
-    return {"source_faces": sphere_view_faces(reg.deform.S, Fs, c),
+    from ..geometry.sphere import triple_products
+
+    Fs = sphere_view_faces(reg.deform.S, sphere_faces(reg.uv_source, S.F), c)
+    return {"source_faces": Fs, "folded": triple_products(reg.deform.S, Fs) <= 0,
             "target_faces": sphere_view_faces(reg.uv_target, sphere_faces(reg.uv_target, T.F),
                                               c),
             "aligned_uv": equal_area_view(reg.alignment.S, c),
