@@ -206,3 +206,30 @@ def test_a_closed_and_an_open_mesh_are_refused_in_one_line():
     disk_map = Parameterization(disk, uv=np.zeros((len(V), 2)), sem=None, options=SEMOptions())
     with pytest.raises(UserError, match="two closed meshes"):
         register_maps(Pair(src, tgt, None), ps, disk_map)
+
+
+def test_cli_register_and_morph_closed_meshes(bunny_pair, tmp_path):
+    """The command line end to end on two closed OBJs (skipped while the intake refuses closed
+    meshes, which the sphere branch of ``input``/``parameterize`` lifts)."""
+    from conftest import run_cli
+    from pipeline.io.meshio import write_obj
+
+    pair, _, _ = bunny_pair
+    S, T = pair.source, pair.target
+    write_obj(tmp_path / "s.obj", S.mesh.V, S.mesh.F)
+    write_obj(tmp_path / "t.obj", T.mesh.V, T.mesh.F)
+    (tmp_path / "ls.txt").write_text("\n".join(map(str, S.landmarks)) + "\n")
+    (tmp_path / "lt.txt").write_text("\n".join(map(str, T.landmarks)) + "\n")
+    code, out, err = run_cli("register", tmp_path / "s.obj", tmp_path / "t.obj",
+                             "--source-landmarks", tmp_path / "ls.txt", "--target-landmarks",
+                             tmp_path / "lt.txt", "-o", tmp_path / "r")
+    if code == 2 and "closed" in err:
+        pytest.skip(f"the intake does not take closed meshes yet: {err.strip()}")
+    assert code == 0, err
+    m = __import__("json").loads((tmp_path / "r" / "metrics.json").read_text())
+    assert m["domain"] == "sphere" and m["flipped_faces"] == 0
+    assert m["landmark_residual"]["after"]["max"] <= 1e-6
+    code, out, err = run_cli("morph", tmp_path / "r", "-o", tmp_path / "m", "--frames", "4",
+                             "--size", "96")
+    assert code == 0, err
+    assert (tmp_path / "m" / "morph.gif").is_file()
