@@ -22,6 +22,12 @@ registration is
    shrink_folding_steps`). Below ``min_step`` the run is ``stalled``: the one-step map is
    returned and its folds reported as a failure, never hidden.
 
+   *Bijectivity.* Every accepted step leaves ``det[s0, s1, s2] > 0`` on every face (counted,
+   not assumed), so the deformed map is again a fold-free triangulation of the sphere of degree
+   one, whose flat triangles' central projections tile the sphere once: a bijection of the
+   sphere onto itself (and, through ``f_s`` and ``f_t⁻¹``, of the surfaces). Folds at a face
+   with a landmark cannot be held back (the landmark must arrive); they make the step shorter.
+
    *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
    of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
    disk's mesh-based deformation (:func:`pipeline.geometry.register.deform_to_landmarks`)
