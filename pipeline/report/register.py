@@ -64,6 +64,8 @@ class RegistrationView:
     baseline_error: np.ndarray | None = None    # n
     domain: str = "disk"                   # disk | sphere (the *_uv are equal-area views)
     folded: np.ndarray | None = None       # per source_faces row: folded on the sphere
+    landmark_paths: np.ndarray | None = None   # k×p×2: source → target landmark paths (the
+    #                                            great-circle arcs in the view; None: segments)
 
 
 def equal_area_view(S: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -124,8 +126,10 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
                           f"residual on the surface mean {lr['mean']:.2e}, max {lr['max']:.2e} "
                           f"× diagonal")
     _mesh(axs[1, 0], ut, reg.target_faces, alpha=0.12)
-    for a, b in zip(ps, pt):
-        axs[1, 0].plot([a[0], b[0]], [a[1], b[1]], "-", color="k", lw=0.8)
+    paths = (np.stack([ps, pt], axis=1) if reg.landmark_paths is None
+             else reg.landmark_paths)
+    for line in paths:
+        axs[1, 0].plot(line[:, 0], line[:, 1], "-", color="k", lw=0.8)
     axs[1, 0].plot(ps[:, 0], ps[:, 1], "o", color=SRC_COLOR, ms=3.5, label="source (aligned)")
     axs[1, 0].plot(pt[:, 0], pt[:, 1], "o", color=TGT_COLOR, ms=3.5, label="target")
     axs[1, 0].legend(loc="lower left", fontsize=8, frameon=False)
@@ -134,7 +138,8 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
     if reg.deform_ok:
         title = (f"(d) deformed source {where} ({reg.deform_method}; {reg.energy} "
                  f"{'energy' if where == 'disk' else 'kernel'})\n"
-                 f"landmarks on their targets, 0 flipped faces")
+                 f"landmarks on their targets, 0 {'flipped' if where == 'disk' else 'folded'} "
+                 f"faces")
     else:
         title = (f"(d) FAILED: one-step solve, {int(flips.sum())} flipped faces (red)\n"
                  f"continuation stalled at {reg.path_reached:.0%} of the landmark paths")

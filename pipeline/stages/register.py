@@ -648,10 +648,14 @@ def _domain_views(reg: Registration) -> dict:
 
     c = reg.uv_target[reg.pair.target.landmarks].mean(axis=0)
     c = c if np.linalg.norm(c) > 1e-9 else reg.uv_target[reg.pair.target.landmarks[0]]
+    from ..geometry.register_sphere import slerp
     from ..geometry.sphere import triple_products
 
+    a, b = reg.alignment.S[reg.pair.source.landmarks], reg.uv_target[reg.pair.target.landmarks]
+    arcs = np.stack([equal_area_view(slerp(a, b, t), c) for t in np.linspace(0, 1, 33)], axis=1)
     Fs = sphere_view_faces(reg.deform.S, sphere_faces(reg.uv_source, S.F), c)
     return {"source_faces": Fs, "folded": triple_products(reg.deform.S, Fs) <= 0,
+            "landmark_paths": arcs,
             "target_faces": sphere_view_faces(reg.uv_target, sphere_faces(reg.uv_target, T.F),
                                               c),
             "aligned_uv": equal_area_view(reg.alignment.S, c),
