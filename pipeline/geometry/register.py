@@ -52,8 +52,8 @@ ENERGIES = ("biharmonic", "harmonic")
 
 __all__ = ["ENERGIES", "Alignment", "DeformOptions", "DeformResult", "as_complex", "as_uv",
            "fit_rotation", "mobius", "fit_mobius", "align", "smoothness_matrix",
-           "deform_to_landmarks", "InjectiveRelaxation", "compose_with_inverse", "flipped_count",
-           "error_summary"]
+           "deform_to_landmarks", "InjectiveRelaxation", "compose_with_inverse", "snap_landmarks",
+           "flipped_count", "error_summary"]
 
 
 def as_complex(uv) -> np.ndarray:
@@ -385,22 +385,47 @@ def compose_with_inverse(z_source, V_target: np.ndarray, F_target: np.ndarray, u
     uv_t = as_uv(as_complex(uv_target))
     F_target = np.asarray(F_target, dtype=np.int64)
     face, bary = locate_points(uv_t, F_target, as_uv(z), boundary=boundary_target)
-    face = np.asarray(face, dtype=np.int64).copy()
-    bary = np.asarray(bary, dtype=np.float64).copy()
     if landmarks_source is not None and len(landmarks_source):
-        ls = np.asarray(landmarks_source, dtype=np.int64)
-        lt = np.asarray(landmarks_target, dtype=np.int64)
-        first_face = np.full(len(uv_t), -1, dtype=np.int64)
-        corner = np.zeros(len(uv_t), dtype=np.int64)
-        for c in (2, 1, 0):                     # any face containing the vertex
-            first_face[F_target[:, c]] = np.arange(len(F_target))
-        for c in range(3):
-            hit = F_target[first_face[lt], c] == lt
-            corner[lt[hit]] = c
-        face[ls] = first_face[lt]
-        bary[ls] = np.eye(3)[corner[lt]]
+        face, bary = snap_landmarks(F_target, face, bary, landmarks_source, landmarks_target,
+                                    len(uv_t))
     points = lift(np.asarray(V_target, dtype=np.float64), F_target, face, bary)
     return np.asarray(points, dtype=np.float64), face, bary
+
+
+def snap_landmarks(F_target: np.ndarray, face: np.ndarray, bary: np.ndarray,
+                   landmarks_source: np.ndarray, landmarks_target: np.ndarray, n_target: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Located points with each source landmark set exactly on its target landmark vertex.
+
+    Parameters
+    ----------
+    F_target : (m, 3) int array
+    face : (n,) int array, bary : (n, 3) float array
+        Located source points (face of ``F_target`` and barycentrics).
+    landmarks_source, landmarks_target : (k,) int arrays
+        Paired vertex indices (source rows, target vertices).
+    n_target : int
+        Target vertex count.
+
+    Returns
+    -------
+    face, bary : copies where row ``landmarks_source[j]`` is a face containing
+        ``landmarks_target[j]`` and that corner's unit vector.
+    """
+    face = np.asarray(face, dtype=np.int64).copy()
+    bary = np.asarray(bary, dtype=np.float64).copy()
+    ls = np.asarray(landmarks_source, dtype=np.int64)
+    lt = np.asarray(landmarks_target, dtype=np.int64)
+    first_face = np.full(n_target, -1, dtype=np.int64)
+    corner = np.zeros(n_target, dtype=np.int64)
+    for c in (2, 1, 0):                         # any face containing the vertex
+        first_face[F_target[:, c]] = np.arange(len(F_target))
+    for c in range(3):
+        hit = F_target[first_face[lt], c] == lt
+        corner[lt[hit]] = c
+    face[ls] = first_face[lt]
+    bary[ls] = np.eye(3)[corner[lt]]
+    return face, bary
 
 
 def error_summary(err: np.ndarray, scale: float) -> dict:

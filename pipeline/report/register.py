@@ -4,6 +4,9 @@
   disk with its landmarks, (c) before the deformation: a line from every aligned source landmark
   to its target landmark, (d) the deformed source disk (landmarks on their targets; flipped
   faces, if any, filled red).
+* ``spheres.png`` (two closed meshes) — the same four panels for the spherical maps, drawn by
+  Lambert's azimuthal equal-area projection about the target landmarks (:func:`equal_area_view`;
+  the cap around the antipode is left out); folded faces are counted on the sphere.
 * ``surfaces.png`` — source, registered (ours), target (and nricp_amberg's result with
   ``--baseline``), shaded, one camera for the target side.
 * ``error_on_face.png`` (with a ground truth) — the dense error per vertex on the truth surface,
@@ -59,6 +62,34 @@ class RegistrationView:
     truth_label: str = ""
     baseline_points: np.ndarray | None = None   # n×3 nricp_amberg result (NaN: dropped)
     baseline_error: np.ndarray | None = None    # n
+    domain: str = "disk"                   # disk | sphere (the *_uv are equal-area views)
+    folded: np.ndarray | None = None       # per source_faces row: folded on the sphere
+    landmark_paths: np.ndarray | None = None   # k×p×2: source → target landmark paths (the
+    #                                            great-circle arcs in the view; None: segments)
+
+
+def equal_area_view(S: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Lambert's azimuthal equal-area projection of unit vectors ``S`` (n, 3) about ``centre``,
+    halved so that the sphere minus the antipode fills the unit disk: a point at the angle ``α``
+    from ``centre`` lands at radius ``sin(α/2)``. It keeps area ratios, so an equiareal sphere
+    map looks as even as a disk map. (n, 3) → (n, 2)."""
+    c = np.asarray(centre, dtype=np.float64) / np.linalg.norm(centre)
+    e1 = np.cross(c, [1.0, 0.0, 0.0] if abs(c[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(c, e1)
+    x, y, z = S @ e1, S @ e2, np.clip(S @ c, -1.0, 1.0)
+    t = np.hypot(x, y)
+    scale = np.sqrt((1.0 - z) / 2.0) / np.where(t > 0, t, 1.0)
+    return np.column_stack([x * scale, y * scale])
+
+
+def sphere_view_faces(S: np.ndarray, F: np.ndarray, centre: np.ndarray,
+                      max_angle_deg: float = 150.0) -> np.ndarray:
+    """The faces of ``F`` whose corners are all within ``max_angle_deg`` of ``centre`` (near the
+    antipode the equal-area view tears faces apart)."""
+    c = np.asarray(centre, dtype=np.float64) / np.linalg.norm(centre)
+    near = S @ c > np.cos(np.radians(max_angle_deg))
+    return F[near[F].all(axis=1)]
 
 
 SRC_COLOR = "tab:blue"
@@ -82,11 +113,12 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
     axs = fig.subplots(2, 2)
     fig.subplots_adjust(left=0.02, right=0.98, top=0.9, bottom=0.02, wspace=0.06, hspace=0.16)
     kind = reg.alignment_kind
-    _disk_axes(axs[0, 0], f"(a) source disk after the {kind} alignment\n"
+    where = "disk" if reg.domain == "disk" else "sphere"
+    _disk_axes(axs[0, 0], f"(a) source {where} after the {kind} alignment\n"
                           f"{len(reg.source_landmarks)} source landmarks (blue)")
     _mesh(axs[0, 0], ua, reg.source_faces)
     axs[0, 0].plot(ps[:, 0], ps[:, 1], "o", color=SRC_COLOR, ms=4)
-    _disk_axes(axs[0, 1], "(b) target disk\ntarget landmarks (red)")
+    _disk_axes(axs[0, 1], f"(b) target {where}\ntarget landmarks (red)")
     _mesh(axs[0, 1], ut, reg.target_faces)
     axs[0, 1].plot(pt[:, 0], pt[:, 1], "o", color=TGT_COLOR, ms=4)
     lr = reg.metrics["landmark_residual"]["before"]
@@ -94,15 +126,20 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
                           f"residual on the surface mean {lr['mean']:.2e}, max {lr['max']:.2e} "
                           f"× diagonal")
     _mesh(axs[1, 0], ut, reg.target_faces, alpha=0.12)
-    for a, b in zip(ps, pt):
-        axs[1, 0].plot([a[0], b[0]], [a[1], b[1]], "-", color="k", lw=0.8)
+    paths = (np.stack([ps, pt], axis=1) if reg.landmark_paths is None
+             else reg.landmark_paths)
+    for line in paths:
+        axs[1, 0].plot(line[:, 0], line[:, 1], "-", color="k", lw=0.8)
     axs[1, 0].plot(ps[:, 0], ps[:, 1], "o", color=SRC_COLOR, ms=3.5, label="source (aligned)")
     axs[1, 0].plot(pt[:, 0], pt[:, 1], "o", color=TGT_COLOR, ms=3.5, label="target")
     axs[1, 0].legend(loc="lower left", fontsize=8, frameon=False)
-    flips = signed_double_areas(ud, reg.source_faces) <= 0
+    flips = (signed_double_areas(ud, reg.source_faces) <= 0 if reg.folded is None
+             else np.asarray(reg.folded, bool))       # a view's thin faces are not folds
     if reg.deform_ok:
-        title = (f"(d) deformed source disk ({reg.deform_method}; {reg.energy} energy)\n"
-                 f"landmarks on their targets, 0 flipped faces")
+        title = (f"(d) deformed source {where} ({reg.deform_method}; {reg.energy} "
+                 f"{'energy' if where == 'disk' else 'kernel'})\n"
+                 f"landmarks on their targets, 0 {'flipped' if where == 'disk' else 'folded'} "
+                 f"faces")
     else:
         title = (f"(d) FAILED: one-step solve, {int(flips.sum())} flipped faces (red)\n"
                  f"continuation stalled at {reg.path_reached:.0%} of the landmark paths")
@@ -116,7 +153,9 @@ def plot_disks(reg: RegistrationView, path: Path) -> Path:
     pd = ud[reg.source_landmarks]
     axs[1, 1].plot(pt[:, 0], pt[:, 1], "o", color=TGT_COLOR, ms=5, mfc="none")
     axs[1, 1].plot(pd[:, 0], pd[:, 1], ".", color=SRC_COLOR, ms=4)
-    fig.suptitle("Registration on the equiareal (SEM) disks", fontsize=11)
+    fig.suptitle("Registration on the equiareal (SEM) disks" if where == "disk" else
+                 "Registration on the equiareal spheres (equal-area view about the target "
+                 "landmarks; the far cap is left out)", fontsize=11)
     return save_png(fig, path)
 
 
@@ -192,12 +231,33 @@ def write_figures(folder: Path, reg: RegistrationView) -> list[Path]:
     """The figures that apply (``surfaces.png`` needs the mapped points, ``error_on_face.png``
     also a ground truth) into ``folder``."""
     folder = Path(folder)
-    out = [plot_disks(reg, folder / "disks.png")]
+    out = [plot_disks(reg, folder / ("disks.png" if reg.domain == "disk" else "spheres.png"))]
     if reg.mapped is not None:
         out.append(plot_surfaces(reg, folder / "surfaces.png"))
         if reg.error is not None:
             out.append(plot_error(reg, folder / "error_on_face.png"))
     return out
+
+
+def _map_rows(m: dict) -> list[tuple[str, str]]:
+    """The rows on the two maps and the alignment: disk (SEM, rotation or Möbius) or sphere
+    (spherical SEM, rotation in SO(3))."""
+    s, t = m["source"], m["target"]
+    if m.get("domain") == "sphere":
+        a = m["alignment"]
+        return [("spherical SEM (source / target)",
+                 f"face area distortion {s['sphere']['face_area_distortion']:.4f} / "
+                 f"{t['sphere']['face_area_distortion']:.4f}, folded faces "
+                 f"{s['sphere']['folded_faces']} / {t['sphere']['folded_faces']}"),
+                ("alignment", f"rotation by {a['angle_deg']:.2f}° about "
+                              f"({', '.join(f'{v:.3f}' for v in a['axis'])}), "
+                              f"det = {a['det']:.12f}")]
+    return [("SEM (source / target)",
+             f"{s['sem']['iterations']} / {t['sem']['iterations']} iterations, "
+             f"D(f) eq. 28 = {s['sem']['total_area_distortion_eq28']:.4f} / "
+             f"{t['sem']['total_area_distortion_eq28']:.4f}"),
+            ("alignment", f"{m['alignment']['kind']}, θ = {m['alignment']['theta_deg']:.2f}°, "
+                          f"a = {m['alignment']['a'][0]:.4f} + {m['alignment']['a'][1]:.4f}i")]
 
 
 def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
@@ -213,16 +273,14 @@ def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
         ("target", f"{m['target']['file']} — {m['target']['vertices']} vertices, "
                    f"{m['target']['faces']} faces, {m['target']['holes_closed']} holes closed"),
         ("landmarks", f"{m['landmarks']['count']} paired by {m['landmarks']['paired_by']}"),
-        ("SEM (source / target)",
-         f"{m['source']['sem']['iterations']} / {m['target']['sem']['iterations']} iterations, "
-         f"D(f) eq. 28 = {m['source']['sem']['total_area_distortion_eq28']:.4f} / "
-         f"{m['target']['sem']['total_area_distortion_eq28']:.4f}"),
-        ("alignment", f"{m['alignment']['kind']}, θ = {m['alignment']['theta_deg']:.2f}°, "
-                      f"a = {m['alignment']['a'][0]:.4f} + {m['alignment']['a'][1]:.4f}i"),
-        ("deformation", f"{m['deformation']['energy']} energy, {m['deformation']['method']}, "
+        *_map_rows(m),
+        ("deformation", f"{m['deformation']['energy']} "
+                        f"{'kernel' if m.get('domain') == 'sphere' else 'energy'}, "
+                        f"{m['deformation']['method']}, "
                         f"{m['deformation']['accepted_substeps']} sub-steps accepted, "
                         f"{m['deformation']['rejected_substeps']} rejected"),
-        ("flipped faces", m["flipped_faces"]),
+        ("flipped faces" if m.get("domain") != "sphere" else "folded faces on the sphere",
+         m["flipped_faces"]),
         ("landmark residual before deformation (mean / max, ÷ diagonal)",
          f"{fmt(lr['before']['mean'])} / {fmt(lr['before']['max'])}"),
         ("landmark residual after (max, ÷ diagonal)",
@@ -254,4 +312,5 @@ def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
     body.append('<p class="foot">Written by sem-pipeline register; numbers from '
                 "metrics.json.</p>")
     return h.write_page(Path(folder) / "report.html", "sem-pipeline registration report",
-                        "\n".join(body), h1="Landmark registration on the equiareal disk")
+                        "\n".join(body), h1="Landmark registration on the equiareal "
+                        + ("sphere" if m.get("domain") == "sphere" else "disk"))

@@ -1,4 +1,5 @@
-"""Stage — landmark registration of a source face onto a target face through their SEM disks.
+"""Stage — landmark registration of a source face onto a target face through their SEM disks,
+or of two closed genus-0 meshes through their spherical maps.
 
 Steps (kernels in :mod:`pipeline.geometry.register`): read and repair both meshes (holes closed
 by ``close_holes`` are tracked), read and pair the landmarks (:mod:`pipeline.io.landmarks`),
@@ -8,6 +9,12 @@ its partner without flipping a face, and lift every source vertex onto the targe
 through the target's inverse map (eq. 1). Optionally the dense error against a ground truth with
 the source's connectivity, and trimesh's ``nricp_amberg`` on the same pair as a baseline.
 
+Two closed meshes (``Parameterization.domain == "sphere"``) go through
+:func:`register_spheres` instead (kernels in :mod:`pipeline.geometry.register_sphere`): a
+rotation in SO(3), a landmark-exact deformation of the sphere with no folded face, and the lift
+through the target's inverse spherical map; a closed and an open mesh are refused (one line,
+exit 2). The files are the same, with the sphere's arrays in place of the disk's (below).
+
 Files (contract in ``shared/docs/DESIGN.md``):
 
 * ``registration.npz`` — ``mapped_points`` n×3 (image of every source vertex on the target
@@ -15,13 +22,16 @@ Files (contract in ``shared/docs/DESIGN.md``):
   target_barycentric[i, c] · target_vertices[target_faces[target_face[i], c]]``); and for
   re-use: ``source_vertices``, ``source_faces`` (the source connectivity as written in
   ``registered.obj``), ``source_index``, ``source_landmarks``, ``target_landmarks``,
-  ``source_uv``, ``target_uv``, ``aligned_uv``, ``deformed_uv``, ``target_vertices``,
-  ``target_faces``. Vertex ``i`` is vertex ``i`` of the *repaired* source mesh;
-  ``source_index[i]`` is its index in the input file (−1 for a vertex the repair added).
+  ``source_uv``, ``target_uv``, ``aligned_uv``, ``deformed_uv`` (on the sphere:
+  ``source_sphere``, ``target_sphere``, ``aligned_sphere``, ``deformed_sphere`` n×3 and
+  ``rotation`` 3×3; :func:`map_arrays`), ``target_vertices``, ``target_faces``. Vertex ``i``
+  is vertex ``i`` of the *repaired* source mesh; ``source_index[i]`` is its index in the input
+  file (−1 for a vertex the repair added).
 * ``registered.obj`` — the source connectivity on the target geometry. Faces of holes the
   repair closed (fans to a centre vertex) are left out, so the holes stay open as in the input.
-* ``metrics.json``, ``report.html`` and figures (``disks.png``, ``surfaces.png``,
-  ``error_on_face.png`` with a ground truth), built by :mod:`pipeline.report.register`.
+* ``metrics.json``, ``report.html`` and figures (``disks.png`` — ``spheres.png`` on the sphere,
+  ``surfaces.png``, ``error_on_face.png`` with a ground truth), built by
+  :mod:`pipeline.report.register`.
 
 A registration that leaves flipped faces is a failure: ``metrics.json``, the report and its
 figures are written for diagnosis, the map files are not, and :class:`RegistrationFailed` is
@@ -47,6 +57,7 @@ from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, read_landmarks,
                             resolve_landmarks)
 from ..io.meshio import read_mesh, write_obj
+from ..geometry.register_sphere import sphere_faces
 from .load import Intake, load_stage, sample_stage
 from .parameterize import ParameterizationFailed, parameterize_stage
 from .stage import Context, Section, Stage
@@ -203,10 +214,11 @@ def display_faces(mesh) -> np.ndarray:
 class Registration:
     pair: Pair
     energy: str                               # the deformation's smoothness
-    uv_source: np.ndarray
-    uv_target: np.ndarray
-    alignment: object
-    deform: object
+    uv_source: np.ndarray                     # source map: disk n×2, or sphere n×3
+    uv_target: np.ndarray                     # target map: disk n_t×2, or sphere n_t×3
+    alignment: object                         # Alignment (disk) | SphereAlignment
+    deform: object                            # DeformResult (disk) | SphereDeformResult
+    domain: str = "disk"
     mapped: np.ndarray | None = None
     face: np.ndarray | None = None
     bary: np.ndarray | None = None
@@ -221,11 +233,30 @@ class Registration:
 
 def _parameterize(face: Face, opts: SEMOptions, progress):
     p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
-    if not p.ok:
+    folds = map_folds(p)
+    if folds:
         raise ParameterizationFailed(
-            f"{face.label} parameterization failed: {p.sem.flipped_faces} flipped faces remain "
-            f"(status {p.sem.status}); the registration needs fold-free disk maps")
+            f"{face.label} parameterization failed: {folds} flipped faces remain "
+            f"(status {p.sem.status}); the registration needs fold-free {p.domain} maps")
     return p
+
+
+def map_folds(p) -> int:
+    """Flipped (disk) or folded (sphere, ``det[s0, s1, s2] ≤ 0``) faces of a parameterization."""
+    if p.domain == "sphere":
+        from ..geometry.sphere import folded_faces
+
+        return folded_faces(p.sphere, sphere_faces(p.sphere, p.mesh.F))
+    return int(p.sem.flipped_faces)
+
+
+def check_same_domain(pair: Pair) -> None:
+    """Both meshes closed (sphere) or both with a boundary (disk); else a one-line UserError."""
+    kinds = ["closed (sphere)" if f.mesh.closed else "open (disk)" for f in (pair.source,
+                                                                             pair.target)]
+    if kinds[0] != kinds[1]:
+        raise UserError(f"source is {kinds[0]} but target is {kinds[1]}; register needs two "
+                        f"closed meshes or two meshes with a boundary")
 
 
 def _truth_at_source(pair: Pair) -> tuple[np.ndarray, np.ndarray]:
@@ -261,6 +292,7 @@ def register_stage(pair: Pair, options: RegisterConfig, sem: SEMOptions | None =
     flipped faces of the deformation — check :attr:`Registration.ok`."""
     opt, sem = options, sem or SEMOptions()
     say = log or (lambda s: None)
+    check_same_domain(pair)
     t0 = time.perf_counter()
     ps = _parameterize(pair.source, sem, progress)
     t1 = time.perf_counter()
@@ -268,6 +300,9 @@ def register_stage(pair: Pair, options: RegisterConfig, sem: SEMOptions | None =
     t2 = time.perf_counter()
     say(f"SEM: source {ps.sem.iterations} iterations ({ps.sem.status}), target "
         f"{pt.sem.iterations} iterations ({pt.sem.status})")
+    if ps.domain == "sphere" and (opt.mobius or opt.energy != "biharmonic"):
+        say("on the sphere the alignment is a rotation and the deformation a smooth kernel "
+            "continuation: 'mobius' and 'energy' do not apply")
     return register_maps(pair, ps, pt, mobius=opt.mobius, energy=opt.energy,
                          baseline=opt.baseline, log=log,
                          seconds={"parameterize_source": t1 - t0, "parameterize_target": t2 - t1})
@@ -284,6 +319,11 @@ def register_maps(pair: Pair, ps, pt, *, mobius: bool = False, energy: str = "bi
     """
     say = log or (lambda s: None)
     S, T = pair.source, pair.target
+    if ps.domain != pt.domain:
+        raise UserError(f"source map is a {ps.domain} but target map a {pt.domain}; register "
+                        f"needs two closed meshes or two meshes with a boundary")
+    if ps.domain == "sphere":
+        return register_spheres(pair, ps, pt, baseline=baseline, log=log, seconds=seconds)
     if len(ps.uv) != len(S.mesh.V) or len(pt.uv) != len(T.mesh.V):
         raise ValueError("the parameterizations do not belong to the pair's meshes")
     seconds = dict(seconds or {})
@@ -348,9 +388,15 @@ def register_maps(pair: Pair, ps, pt, *, mobius: bool = False, energy: str = "bi
         metrics["dense_error"] = None if reg.error is None else {
             "truth": pair.truth_label, "relative_to": "target bounding-box diagonal",
             "ours": _finite_summary(reg.error)}
+    return _finish(reg, metrics, seconds, diag, baseline, say)
+
+
+def _finish(reg: Registration, metrics: dict, seconds: dict, diag: float, baseline: bool,
+            say) -> Registration:
+    """The optional nricp baseline, the times, and ``reg.metrics`` (both domains)."""
     if baseline:
         say("baseline: trimesh.registration.nricp_amberg …")
-        reg.baseline = nricp_baseline(pair, diag)
+        reg.baseline = nricp_baseline(reg.pair, diag)
         seconds["baseline_nricp_amberg"] = reg.baseline["seconds"]
         metrics["baseline"] = {k: v for k, v in reg.baseline.items() if k not in ("points",
                                                                                   "error")}
@@ -362,6 +408,93 @@ def register_maps(pair: Pair, ps, pt, *, mobius: bool = False, energy: str = "bi
     metrics["seconds"] = seconds
     reg.metrics = metrics
     return reg
+
+
+def register_spheres(pair: Pair, ps, pt, *, baseline: bool = False, log=None,
+                     seconds: dict | None = None) -> Registration:
+    """:func:`register_maps` for two closed meshes with spherical maps (``p.sphere``):
+    rotation, landmark-exact deformation of the sphere, lift through the target's inverse map
+    (:mod:`pipeline.geometry.register_sphere`). Residuals: ``before`` after the rotation only,
+    ``after`` with the landmarks set on their target vertices, ``after_located_max`` without."""
+    from ..geometry.register_sphere import (align_sphere, compose_with_inverse_sphere,
+                                            deform_sphere_to_landmarks, sphere_faces)
+
+    say = log or (lambda s: None)
+    S, T = pair.source, pair.target
+    if len(ps.sphere) != len(S.mesh.V) or len(pt.sphere) != len(T.mesh.V):
+        raise ValueError("the parameterizations do not belong to the pair's meshes")
+    seconds = dict(seconds or {})
+    Fs = sphere_faces(ps.sphere, S.mesh.F)
+    VT, FT = T.mesh.V, sphere_faces(pt.sphere, T.mesh.F)
+    targets = pt.sphere[T.landmarks]
+    t0 = time.perf_counter()
+    al = align_sphere(ps.sphere, S.landmarks, targets)
+    seconds["align"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    de = deform_sphere_to_landmarks(Fs, al.S, S.landmarks, targets)
+    seconds["deform"] = time.perf_counter() - t0
+    say(f"deformation: {de.method}, {de.substeps} sub-steps accepted, {de.rejected_substeps} "
+        f"rejected, {de.flipped_faces} folded faces")
+    reg = Registration(pair, "wendland", ps.sphere, pt.sphere, al, de, domain="sphere")
+    diag = float(np.linalg.norm(VT.max(axis=0) - VT.min(axis=0)))
+    t0 = time.perf_counter()
+    before, _, _ = compose_with_inverse_sphere(al.S[S.landmarks], VT, FT, pt.sphere)
+    located, _, _ = compose_with_inverse_sphere(de.S[S.landmarks], VT, FT, pt.sphere)
+    res_before = np.linalg.norm(before - VT[T.landmarks], axis=1) / diag
+    res_located = np.linalg.norm(located - VT[T.landmarks], axis=1) / diag
+    seconds["landmark_residuals"] = time.perf_counter() - t0
+    metrics = {
+        "status": "ok" if reg.ok else "failed", "domain": "sphere",
+        "method": ("spherical SEM maps + rotation (Kabsch) + landmark-exact smooth deformation "
+                   "of the sphere (Wendland kernel, continuation) + inverse map (eq. 1)"),
+        "source": _sphere_side_metrics(S, ps, Fs), "target": _sphere_side_metrics(T, pt, FT),
+        "landmarks": {"count": int(len(S.landmarks)),
+                      "paired_by": "name" if pair.names else "order",
+                      "names": pair.names, "messages": pair.messages},
+        "target_bbox_diagonal": diag,
+        "alignment": al.as_dict(),
+        "deformation": {"energy": "wendland", **de.as_dict()},
+        "flipped_faces": int(de.flipped_faces),
+        "landmark_residual": {
+            "relative_to": "target bounding-box diagonal",
+            "before": {"mean": float(res_before.mean()), "max": float(res_before.max()),
+                       "per_landmark": res_before.tolist(),
+                       "sphere_max": float(np.linalg.norm(al.S[S.landmarks] - targets,
+                                                          axis=1).max())},
+            "after": None,
+            "after_located_max": float(res_located.max()),
+        },
+    }
+    if reg.ok:
+        t0 = time.perf_counter()
+        mapped, face, bary = compose_with_inverse_sphere(de.S, VT, FT, pt.sphere, S.landmarks,
+                                                         T.landmarks)
+        seconds["lift"] = time.perf_counter() - t0
+        reg.mapped, reg.face, reg.bary = mapped, face, bary
+        res_after = np.linalg.norm(mapped[S.landmarks] - VT[T.landmarks], axis=1) / diag
+        metrics["landmark_residual"]["after"] = {
+            "mean": float(res_after.mean()), "max": float(res_after.max()),
+            "sphere_max": float(np.linalg.norm(de.S[S.landmarks] - targets, axis=1).max())}
+        reg.error = _dense_error(mapped, pair, diag)
+        metrics["dense_error"] = None if reg.error is None else {
+            "truth": pair.truth_label, "relative_to": "target bounding-box diagonal",
+            "ours": _finite_summary(reg.error)}
+    return _finish(reg, metrics, seconds, diag, baseline, say)
+
+
+def _sphere_side_metrics(face: Face, p, F_sphere: np.ndarray) -> dict:
+    """One side's mesh and spherical map measures (:func:`pipeline.geometry.sphere.
+    sphere_measures`)."""
+    from ..geometry.sphere import sphere_measures
+
+    m = face.mesh
+    return {"file": face.intake.info.get("source"), "vertices": int(len(m.V)),
+            "faces": int(len(m.F)), "input_vertices": face.intake.info["input_vertices"],
+            "holes_closed": 0, "added_vertices": int(len(m.added_vertices)),
+            "repair_messages": m.messages,
+            "sphere": {"iterations": getattr(p.sem, "iterations", None),
+                       "status": getattr(p.sem, "status", None),
+                       **sphere_measures(m.V, F_sphere, p.sphere)}}
 
 
 def _side_metrics(face: Face, p) -> dict:
@@ -446,9 +579,8 @@ def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict
                 tmp / "registration.npz", mapped_points=reg.mapped, target_face=reg.face,
                 target_barycentric=reg.bary, source_vertices=S.V, source_faces=Fd,
                 source_index=S.source_index, source_landmarks=reg.pair.source.landmarks,
-                target_landmarks=reg.pair.target.landmarks, source_uv=reg.uv_source,
-                target_uv=reg.uv_target, aligned_uv=as_uv(reg.alignment.z),
-                deformed_uv=as_uv(reg.deform.z), target_vertices=T.V, target_faces=T.F)
+                target_landmarks=reg.pair.target.landmarks, target_vertices=T.V,
+                target_faces=T.F, **map_arrays(reg))
             write_obj(tmp / "registered.obj", reg.mapped, Fd,
                       header=["sem-pipeline register: source connectivity on the target "
                               "surface", f"source: {reg.pair.source.intake.info.get('source')}",
@@ -469,6 +601,18 @@ def write_registration(reg: Registration, out_dir, figures: bool = True) -> dict
     return written
 
 
+def map_arrays(reg: Registration) -> dict[str, np.ndarray]:
+    """The domain arrays of ``registration.npz``: ``source_uv``, ``target_uv``, ``aligned_uv``,
+    ``deformed_uv`` (disk, n×2), or ``source_sphere``, ``target_sphere``, ``aligned_sphere``,
+    ``deformed_sphere`` (n×3 unit vectors) and ``rotation`` (3×3) on the sphere."""
+    if reg.domain == "sphere":
+        return {"source_sphere": reg.uv_source, "target_sphere": reg.uv_target,
+                "aligned_sphere": reg.alignment.S, "deformed_sphere": reg.deform.S,
+                "rotation": reg.alignment.R}
+    return {"source_uv": reg.uv_source, "target_uv": reg.uv_target,
+            "aligned_uv": as_uv(reg.alignment.z), "deformed_uv": as_uv(reg.deform.z)}
+
+
 def report_view(reg: Registration):
     """The plain arrays and metrics the report shows
     (:class:`pipeline.report.register.RegistrationView`)."""
@@ -481,18 +625,42 @@ def report_view(reg: Registration):
         idx, known = _truth_at_source(reg.pair)
         truth[idx] = known
     base = reg.baseline or {}
+    views = _domain_views(reg)
     return RegistrationView(
-        source_vertices=S.mesh.V, source_faces=S.mesh.F,
-        source_display_faces=display_faces(S.mesh),
-        source_landmarks=S.landmarks, target_vertices=T.mesh.V, target_faces=T.mesh.F,
+        source_vertices=S.mesh.V, source_display_faces=display_faces(S.mesh),
+        source_landmarks=S.landmarks, target_vertices=T.mesh.V,
         target_display_faces=display_faces(T.mesh), target_landmarks=T.landmarks,
-        aligned_uv=as_uv(reg.alignment.z), target_uv=np.asarray(reg.uv_target),
-        deformed_uv=as_uv(reg.deform.z), alignment_kind=reg.alignment.kind,
-        energy=reg.energy, deform_ok=bool(reg.deform.ok),
+        alignment_kind=reg.alignment.kind, energy=reg.energy, deform_ok=bool(reg.deform.ok),
         deform_method=reg.deform.method, path_reached=float(reg.deform.path_reached),
         metrics=reg.metrics, mapped=reg.mapped, error=reg.error, truth_points=truth,
         truth_label=reg.pair.truth_label, baseline_points=base.get("points"),
-        baseline_error=base.get("error"))
+        baseline_error=base.get("error"), domain=reg.domain, **views)
+
+
+def _domain_views(reg: Registration) -> dict:
+    """The report's planar views of the maps: the disks themselves, or the spheres by the
+    equal-area view about the target landmarks (far cap left out)."""
+    S, T = reg.pair.source.mesh, reg.pair.target.mesh
+    if reg.domain == "disk":
+        return {"source_faces": S.F, "target_faces": T.F, "aligned_uv": as_uv(reg.alignment.z),
+                "target_uv": np.asarray(reg.uv_target), "deformed_uv": as_uv(reg.deform.z)}
+    from ..report.register import equal_area_view, sphere_view_faces
+
+    c = reg.uv_target[reg.pair.target.landmarks].mean(axis=0)
+    c = c if np.linalg.norm(c) > 1e-9 else reg.uv_target[reg.pair.target.landmarks[0]]
+    from ..geometry.register_sphere import slerp
+    from ..geometry.sphere import triple_products
+
+    a, b = reg.alignment.S[reg.pair.source.landmarks], reg.uv_target[reg.pair.target.landmarks]
+    arcs = np.stack([equal_area_view(slerp(a, b, t), c) for t in np.linspace(0, 1, 33)], axis=1)
+    Fs = sphere_view_faces(reg.deform.S, sphere_faces(reg.uv_source, S.F), c)
+    return {"source_faces": Fs, "folded": triple_products(reg.deform.S, Fs) <= 0,
+            "landmark_paths": arcs,
+            "target_faces": sphere_view_faces(reg.uv_target, sphere_faces(reg.uv_target, T.F),
+                                              c),
+            "aligned_uv": equal_area_view(reg.alignment.S, c),
+            "target_uv": equal_area_view(reg.uv_target, c),
+            "deformed_uv": equal_area_view(reg.deform.S, c)}
 
 
 # ----------------------------------------------------------------------------- the stage
