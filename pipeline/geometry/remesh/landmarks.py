@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..locate import PointLocator
+from .domain import locator
 
 
 def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.ndarray,
@@ -32,7 +32,7 @@ def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.
         return {}
     names = list(landmarks)
     idx = np.array([landmarks[k] for k in names], np.int64)
-    face, _ = PointLocator(uv, F).locate(uv_in[idx])
+    face, _ = locator(uv, F).locate(uv_in[idx])
     corners = F[face]                                                # (k, 3)
     d = np.linalg.norm(X[corners] - V_in[idx][:, None, :], axis=2)
     j = np.argmin(d, axis=1)

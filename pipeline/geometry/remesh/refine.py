@@ -24,6 +24,7 @@ import numpy as np
 
 from ..locate import _closest_on_segments
 from ..rows import dots, norms
+from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
 from .sag import SAG_WALK, edge_sag_along
 from .state import RemeshState
@@ -81,10 +82,11 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
 
 def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray,
                   t: np.ndarray | None) -> np.ndarray:
-    """The disk points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
-    ``t`` along the edge (default the midpoint), on the image polygon for a boundary edge."""
-    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
-         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
+    """The domain points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
+    ``t`` along the edge (default the midpoint; on the sphere then normalised,
+    :func:`.domain.project`), on the image polygon for a boundary edge."""
+    M = project(0.5 * (S.uv[a] + S.uv[b]) if t is None
+                else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
     return M
