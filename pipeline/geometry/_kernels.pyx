@@ -417,13 +417,15 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
 cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c
                             ) noexcept nogil:
     """Twice the signed area of face ``a, b, c`` in the domain: on the plane (two columns) the
-    2D cross product; on the unit sphere (three columns) the triple product ``a · (b × c)``,
-    which is the same determinant with the plane's points read as ``(u, v, 1)``
-    (``remesh.halfedge.double_areas``)."""
+    2D cross product; on the unit sphere (three columns) the triple product ``det[a, b, c]``,
+    which is the same determinant with the plane's points read as ``(u, v, 1)``, computed as
+    ``pipeline.geometry.sphere.triple_products`` does (``remesh.halfedge.double_areas``)."""
+    cdef double x0, y0, z0, ux, uy, uz, vx, vy, vz
     if uv.shape[1] == 3:
-        return (uv[a, 0] * (uv[b, 1] * uv[c, 2] - uv[b, 2] * uv[c, 1])
-                + uv[a, 1] * (uv[b, 2] * uv[c, 0] - uv[b, 0] * uv[c, 2])
-                + uv[a, 2] * (uv[b, 0] * uv[c, 1] - uv[b, 1] * uv[c, 0]))
+        x0, y0, z0 = uv[a, 0], uv[a, 1], uv[a, 2]
+        ux, uy, uz = uv[b, 0] - x0, uv[b, 1] - y0, uv[b, 2] - z0
+        vx, vy, vz = uv[c, 0] - x0, uv[c, 1] - y0, uv[c, 2] - z0
+        return x0 * (uy * vz - uz * vy) + y0 * (uz * vx - ux * vz) + z0 * (ux * vy - uy * vx)
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 

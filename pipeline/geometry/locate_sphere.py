@@ -49,9 +49,13 @@ def sphere_barycentrics(P: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarr
     -------
     (k, 3) float
     """
-    lam = np.column_stack([np.einsum("ij,ij->i", P, np.cross(B, C)),
-                           np.einsum("ij,ij->i", P, np.cross(C, A)),
-                           np.einsum("ij,ij->i", P, np.cross(A, B))])
+    # det[p, b, c] = p · ((b − p) × (c − p)) and cyclically: differences to the query keep
+    # their precision in the tiny triangles a sphere map crowds limbs into, and a query at a
+    # corner gets exactly 0 for the other two
+    Ap, Bp, Cp = A - P, B - P, C - P
+    lam = np.column_stack([np.einsum("ij,ij->i", P, np.cross(Bp, Cp)),
+                           np.einsum("ij,ij->i", P, np.cross(Cp, Ap)),
+                           np.einsum("ij,ij->i", P, np.cross(Ap, Bp))])
     s = lam.sum(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = lam / s[:, None]

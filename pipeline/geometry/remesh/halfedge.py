@@ -36,10 +36,11 @@ def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
 def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the signed area of each face in the domain, positive when counter-clockwise: on
     the disk ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``; on the unit sphere (``uv`` with
-    three columns, unit vectors) the triple product ``p0 · (p1 × p2)``, the same determinant
-    with the disk's points read as ``(u, v, 1)``: positive when the face turns
-    counter-clockwise seen from outside (twice its chordal area times the distance of its
-    plane from the centre; unchanged in sign by any radial scaling of its corners).
+    three columns, unit vectors) the triple product ``det[p0, p1, p2]``
+    (:func:`..sphere.triple_products`), the same determinant with the disk's points read as
+    ``(u, v, 1)``: positive when the face turns counter-clockwise seen from outside (twice its
+    chordal area times the distance of its plane from the centre; unchanged in sign by any
+    radial scaling of its corners).
 
     Parameters
     ----------
@@ -52,7 +53,8 @@ def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
     if uv.shape[1] == 3:
-        return np.einsum("ij,ij->i", uv[a], np.cross(uv[b], uv[c]))
+        from ..sphere import triple_products
+        return triple_products(uv, F)
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 

@@ -97,12 +97,10 @@ def target_length(V: np.ndarray, F: np.ndarray, n: int) -> float:
 def check_closed(X: np.ndarray, F: np.ndarray) -> None:
     """Raise :class:`.uniform.RemeshFailed` unless ``(X, F)`` is one closed, manifold,
     consistently oriented component with Euler characteristic 2 (a sphere)."""
-    from ..remesh_quality import mesh_facts
+    from ..remesh_quality import is_sphere, mesh_facts
 
     f = mesh_facts(X, F)
-    if not (f["components"] == 1 and f["boundary_vertices"] == 0 and f["nonmanifold_edges"] == 0
-            and f["nonmanifold_vertices"] == 0 and f["consistently_oriented"]
-            and f["euler_characteristic"] == 2 and f["unreferenced_vertices"] == 0):
+    if not is_sphere(f):
         raise RemeshFailed(f"remesh: the sphere remesh is not a closed genus-0 manifold ({f}); "
                            f"nothing is written")
 
