@@ -107,13 +107,9 @@ def check_closed(X: np.ndarray, F: np.ndarray) -> None:
 
 def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
                   vertices: int | None = None, spacing: float | None = None,
-                  improve: bool = True, flips: bool = True, relax_iterations: int = 2,
-                  relax_step: float = 1.0, max_dihedral_deg: float = 20.0,
-                  refine_sag: float = 0.2, refine_budget: float = 0.3,
-                  corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
-                  final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
+                  improve: bool = True, corner_angle_deg: float = 30.0,
                   min_angle_deg: float = 20.0, landmarks: dict | None = None,
-                  **_disk_only) -> RemeshResult:
+                  **params) -> RemeshResult:
     """Remesh a closed genus-0 mesh uniformly through its bijective equiareal sphere map
     (module docstring).
 
@@ -130,14 +126,17 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     spacing : float, optional
         … the target edge length in the mesh's units.
     improve : bool
-        Run the improvement pass; ``flips`` … ``min_angle_deg`` are its parameters, as for
-        :func:`.uniform.uniform_remesh` (there are no rim corners on a closed surface).
+        Run the improvement pass (:func:`.improve.improve_remesh`).
     corner_angle_deg : float
         Input vertices sharper than this keep a vertex (0: none).
+    min_angle_deg : float
+        The improvement's minimum-angle pass threshold (0: no pass).
     landmarks : dict, optional
         ``{name: input vertex index}``.
-    **_disk_only
-        The disk's sampling options (``pattern``, ``rim_relax``, ``seed``), unused here.
+    **params
+        The improvement's other keywords (``flips``, ``relax_iterations``, ``relax_step``, …;
+        :func:`.improve.improve_remesh`, its defaults when left out); the stage passes the
+        same ``ImproveConfig`` as on the disk.
 
     Returns
     -------
@@ -168,13 +167,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     if improve:
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
                         np.zeros((0, 3)))
-        imp.update(improve_state(
-            S, L, vertices, S_in[interior_corners(V, F, corner_angle_deg)],
-            relax_iterations=relax_iterations, flips=flips, max_dihedral_deg=max_dihedral_deg,
-            relax_step=relax_step, refine_sag=refine_sag, refine_budget=refine_budget,
-            isotropic_iterations=isotropic_iterations,
-            final_relax_iterations=final_relax_iterations,
-            pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg))
+        imp.update(improve_state(S, L, vertices, S_in[interior_corners(V, F, corner_angle_deg)],
+                                 min_angle_deg=min_angle_deg, **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
