@@ -33,6 +33,7 @@ from .state import RemeshState
 from .uniform import RemeshFailed, RemeshResult, check_remesh, improve_state
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+SAG_FLOOR = 1.0       # the sag tolerance is at least refine_sag × this × the input's mean edge
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:
@@ -94,6 +95,13 @@ def target_length(V: np.ndarray, F: np.ndarray, n: int) -> float:
     return float(np.sqrt(4.0 * area / (np.sqrt(3) * (2 * n - 4))))
 
 
+def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
+    """The mean length of the edges of ``(V, F)`` (each edge once), in the mesh's units."""
+    from ..remesh_quality import _unique_edge_lengths
+
+    return float(_unique_edge_lengths(V, F).mean())
+
+
 def check_closed(X: np.ndarray, F: np.ndarray) -> None:
     """Raise :class:`.uniform.RemeshFailed` unless ``(X, F)`` is one closed, manifold,
     consistently oriented component with Euler characteristic 2 (a sphere)."""
@@ -108,8 +116,8 @@ def check_closed(X: np.ndarray, F: np.ndarray) -> None:
 def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
                   vertices: int | None = None, spacing: float | None = None,
                   improve: bool = True, corner_angle_deg: float = 30.0,
-                  min_angle_deg: float = 20.0, landmarks: dict | None = None,
-                  **params) -> RemeshResult:
+                  refine_sag: float = 0.2, min_angle_deg: float = 20.0,
+                  landmarks: dict | None = None, **params) -> RemeshResult:
     """Remesh a closed genus-0 mesh uniformly through its bijective equiareal sphere map
     (module docstring).
 
@@ -129,6 +137,11 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         Run the improvement pass (:func:`.improve.improve_remesh`).
     corner_angle_deg : float
         Input vertices sharper than this keep a vertex (0: none).
+    refine_sag : float
+        The improvement's sag tolerance, × the target length ``L`` and at least × the input's
+        mean edge length (:func:`.improve.improve_remesh`'s ``sag_floor``): where the remesh
+        is finer than the input, its edges sag across the input's creases, which splits cannot
+        remove (0: no sag refinement).
     min_angle_deg : float
         The improvement's minimum-angle pass threshold (0: no pass).
     landmarks : dict, optional
@@ -168,7 +181,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
                         np.zeros((0, 3)))
         imp.update(improve_state(S, L, vertices, S_in[interior_corners(V, F, corner_angle_deg)],
-                                 min_angle_deg=min_angle_deg, **params))
+                                 min_angle_deg=min_angle_deg, refine_sag=refine_sag,
+                                 sag_floor=refine_sag * SAG_FLOOR * mean_edge_length(V, F), **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
