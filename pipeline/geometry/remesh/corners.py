@@ -114,7 +114,8 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
     """
     from scipy.spatial import cKDTree
 
-    T = _apart_on_surface(S, np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1]), min_gap)
+    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
+    T = _apart_on_surface(S, T, min_gap)
     free = np.flatnonzero(~S.is_rim & ~S.locked)
     if len(T) == 0 or len(free) == 0:
         return np.zeros(0, np.int64)

@@ -16,10 +16,10 @@ def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.
     ----------
     landmarks : dict
         ``{name: input vertex index}``.
-    V_in, uv_in : (N, 3) float, (N, 2) float
-        The input vertices and their disk positions.
-    X, uv : (n, 3) float, (n, 2) float
-        The remesh's vertices and their disk positions.
+    V_in, uv_in : (N, 3) float, (N, 2) or (N, 3) float
+        The input vertices and their domain positions (disk, or sphere: :mod:`.domain`).
+    X, uv : (n, 3) float, (n, 2) or (n, 3) float
+        The remesh's vertices and their domain positions.
     F : (m, 3) int
         The remesh's faces.
 
