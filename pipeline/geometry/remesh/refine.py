@@ -1,7 +1,12 @@
 """Refinement: edge splits where the remesh is too coarse or leaves the surface.
 
 * :func:`split_long_edges` — the split step of isotropic remeshing (Botsch & Kobbelt 2004) with
-  3D lengths, longest first; with a budget it gives back vertices the collapses removed.
+  3D lengths, longest first; with a budget it gives back vertices the collapses removed. At
+  the domain midpoint, or with ``S.surface_middles`` at the point of ``t = 1/8 … 7/8`` whose
+  lift is nearest to the middle of the edge in 3D (:func:`.sag.surface_middles`): where the
+  map stretches the surface unevenly along an edge, the domain midpoint can lift next to an end
+  and leave a needle; an edge none of whose points lifts at least ``MIN_BALANCE`` × its length
+  from both ends is then left unsplit.
 * :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
   sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
   lifted edges bridge over the surface. An edge whose straight line is farther than a
@@ -26,10 +31,13 @@ from ..locate import _closest_on_segments
 from ..rows import dots, norms
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
-from .sag import SAG_WALK, edge_sag_along
+from .sag import SAG_WALK, edge_sag_along, surface_middles
 from .state import RemeshState
 
 SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
+_MIDDLE_TS = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)   # where a surface middle may be
+MIN_BALANCE = 0.25    # with surface middles, an edge whose every split point lifts nearer than
+                      # this × its length to an end is not split (it would leave a needle)
 
 
 def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
@@ -221,7 +229,12 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             # only the longest few can be among the longest independent ones
             k = 4 * (budget - done) + 1000
             cand = cand[np.argpartition(-ln[cand], k)[:k]]
-        cand = cand[split_keeps_shape(S, h[cand], twin[cand])]
+        t = np.full(len(S.F) * 3, 0.5)                   # per half-edge; used when middles
+        if S.surface_middles and len(cand):
+            t[h[cand]], balance = surface_middles(S, a[cand], b[cand], _MIDDLE_TS)
+            cand = cand[balance >= MIN_BALANCE]          # no split point away from both ends
+        cand = cand[split_keeps_shape(S, h[cand], twin[cand],
+                                      t[h[cand]] if S.surface_middles else None)]
         if len(cand) == 0:
             break
         sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -ln[cand])]
@@ -230,7 +243,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
         if len(sel) == 0:
             break
         n0 = S.n
-        done += split_edges(S, h[sel], twin[sel])
+        done += split_edges(S, h[sel], twin[sel], t[h[sel]] if S.surface_middles else None)
         if budget is not None and done >= budget:
             break
         active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))

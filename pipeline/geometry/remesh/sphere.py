@@ -179,7 +179,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     L = target_length(V, F, n)
     if improve:
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
-                        np.zeros((0, 3)))
+                        np.zeros((0, 3)), surface_middles=True)
         imp.update(improve_state(S, L, vertices, S_in[interior_corners(V, F, corner_angle_deg)],
                                  min_angle_deg=min_angle_deg, refine_sag=refine_sag,
                                  sag_floor=refine_sag * SAG_FLOOR * mean_edge_length(V, F), **params))

@@ -86,6 +86,10 @@ class RemeshState:
         Vertices never moved or removed (snapped corners); none by default.
     log : dict
         Operation counts (:meth:`tally`) and, from the improvement pass, seconds per step.
+    surface_middles : bool
+        Long edges are split at their middle on the surface rather than in the domain
+        (:func:`.refine.split_long_edges`); the sphere remesher sets it, the disk's default
+        keeps its output.
     """
 
     X: np.ndarray
@@ -101,6 +105,7 @@ class RemeshState:
     polygon: np.ndarray
     locked: np.ndarray | None = None
     log: dict = field(default_factory=dict)
+    surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
     _pullback: np.ndarray | None = field(default=None, repr=False)
     _normals_in: np.ndarray | None = field(default=None, repr=False)
