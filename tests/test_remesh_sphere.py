@@ -135,6 +135,21 @@ def test_icosphere_mapped_by_itself_remeshes_to_a_closed_sphere():
     assert remesh_quality(S, F, r.V, r.F, 5000)["triangles"]["mean_min_angle_deg"] > 50
 
 
+def test_surface_middles_balance_the_split_on_the_surface():
+    """Through the identity map of a sphere the lift of the domain midpoint is the middle of
+    the edge on the surface: the split stays there, a quarter … half the edge from each end."""
+    from pipeline.geometry.remesh.sag import surface_middles
+    from pipeline.geometry.remesh.state import RemeshState
+
+    S, F = icosphere(4)
+    r = sphere_remesh(S, F, S, vertices=500, improve=False)
+    st = RemeshState(r.V, r.F, r.uv, np.zeros(len(r.V), bool), r.face, r.bary, S, F, S,
+                     SphereLocator(S, F), np.zeros((0, 3)))
+    a, b = r.F[:50, 0], r.F[:50, 1]
+    t, balance = surface_middles(st, a, b, np.arange(1, 8) / 8)
+    assert np.all(t == 0.5) and np.allclose(balance, 0.5, atol=1e-3)
+
+
 def test_stage_refuses_a_folded_sphere_map():
     S, F = icosphere(1)
     bad = S.copy()
