@@ -33,7 +33,6 @@ from .state import RemeshState
 from .uniform import RemeshFailed, RemeshResult, check_remesh, improve_state
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
-SAG_FLOOR = 1.0       # the sag tolerance is at least refine_sag × this × the input's mean edge
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:
@@ -180,9 +179,10 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     if improve:
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
                         np.zeros((0, 3)), surface_middles=True)
-        imp.update(improve_state(S, L, vertices, S_in[interior_corners(V, F, corner_angle_deg)],
-                                 min_angle_deg=min_angle_deg, refine_sag=refine_sag,
-                                 sag_floor=refine_sag * SAG_FLOOR * mean_edge_length(V, F), **params))
+        corners = S_in[interior_corners(V, F, corner_angle_deg)]
+        imp.update(improve_state(S, L, vertices, corners, min_angle_deg=min_angle_deg,
+                                 refine_sag=refine_sag,
+                                 sag_floor=refine_sag * mean_edge_length(V, F), **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)

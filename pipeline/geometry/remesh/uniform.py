@@ -207,7 +207,8 @@ class RemeshFailed(RuntimeError):
 def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
     """Raise :class:`RemeshFailed` if a face of the remesh is degenerate on the surface
     (:func:`..remesh_quality.degenerate_faces`) or not counter-clockwise in its domain: on the
-    disk ``uv`` (n×2), or on the sphere (``uv`` n×3 unit vectors, :func:`.halfedge.double_areas`)."""
+    disk ``uv`` (n×2), or on the sphere (``uv`` n×3 unit vectors,
+    :func:`.halfedge.double_areas`)."""
     from ..remesh_quality import degenerate_faces
 
     flat = degenerate_faces(X, F)
