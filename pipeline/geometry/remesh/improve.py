@@ -120,7 +120,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         own facets: its edges sag across every input crease by about their length times the
         crease angle, which no split removes and which the refinement would chase at the cost
         of the triangles' shape; the sphere remesher floors the tolerance at ``refine_sag`` ×
-        the input's mean edge length (:func:`.sphere.sphere_remesh`).
+        the input's own spacing (:func:`.sphere.sphere_remesh`).
 
     Returns
     -------

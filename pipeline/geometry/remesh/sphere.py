@@ -94,13 +94,6 @@ def target_length(V: np.ndarray, F: np.ndarray, n: int) -> float:
     return float(np.sqrt(4.0 * area / (np.sqrt(3) * (2 * n - 4))))
 
 
-def mean_edge_length(V: np.ndarray, F: np.ndarray) -> float:
-    """The mean length of the edges of ``(V, F)`` (each edge once), in the mesh's units."""
-    from ..remesh_quality import _unique_edge_lengths
-
-    return float(_unique_edge_lengths(V, F).mean())
-
-
 def check_closed(X: np.ndarray, F: np.ndarray) -> None:
     """Raise :class:`.uniform.RemeshFailed` unless ``(X, F)`` is one closed, manifold,
     consistently oriented component with Euler characteristic 2 (a sphere)."""
@@ -138,9 +131,10 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         Input vertices sharper than this keep a vertex (0: none).
     refine_sag : float
         The improvement's sag tolerance, × the target length ``L`` and at least × the input's
-        mean edge length (:func:`.improve.improve_remesh`'s ``sag_floor``): where the remesh
-        is finer than the input, its edges sag across the input's creases, which splits cannot
-        remove (0: no sag refinement).
+        own spacing, the length its vertex count would have evenly spread
+        (:func:`target_length` of ``N``; :func:`.improve.improve_remesh`'s ``sag_floor``):
+        a remesh denser than its input sees the input's facets, its edges sag across the
+        input's creases, which splits cannot remove (0: no sag refinement).
     min_angle_deg : float
         The improvement's minimum-angle pass threshold (0: no pass).
     landmarks : dict, optional
@@ -182,7 +176,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         corners = S_in[interior_corners(V, F, corner_angle_deg)]
         imp.update(improve_state(S, L, vertices, corners, min_angle_deg=min_angle_deg,
                                  refine_sag=refine_sag,
-                                 sag_floor=refine_sag * mean_edge_length(V, F), **params))
+                                 sag_floor=refine_sag * target_length(V, F, len(V)),
+                                 **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
