@@ -6,7 +6,9 @@
   lift is nearest to the middle of the edge in 3D (:func:`.sag.surface_middles`): where the
   map stretches the surface unevenly along an edge, the domain midpoint can lift next to an end
   and leave a needle; an edge none of whose points lifts at least ``MIN_BALANCE`` × its length
-  from both ends is then left unsplit.
+  from both ends is then left unsplit, and so is a sagging edge whose worst point lifts that
+  near an end (:func:`split_balance`; split there, then again near the new vertex, the sag
+  refinement packs vertices into one input face).
 * :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
   sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
   lifted edges bridge over the surface. An edge whose straight line is farther than a
@@ -31,7 +33,7 @@ from ..locate import _closest_on_segments
 from ..rows import dots, norms
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
-from .sag import SAG_WALK, edge_sag_along, surface_middles
+from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
 from .state import RemeshState
 
 SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
@@ -98,6 +100,14 @@ def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
     return M
+
+
+def split_balance(S: RemeshState, a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The lift (eq. 1) of the split point ``t`` of each edge ``a–b``: its distance to the
+    nearer end over the edge's length (k float; ½ at the middle of a straight edge)."""
+    P, _ = lift_samples(S, a, b, t[:, None])
+    near = np.minimum(norms(P - S.X[a]), norms(P - S.X[b]))
+    return near / np.maximum(norms(S.X[a] - S.X[b]), 1e-300)
 
 
 def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
@@ -301,6 +311,8 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
                                       end_normals=(na[probe], nb[probe]))
         cand = np.flatnonzero(sag > threshold)
+        if S.surface_middles and len(cand):
+            cand = cand[split_balance(S, a[cand], b[cand], t_split[cand]) >= MIN_BALANCE]
         cand = cand[split_keeps_shape(S, h[cand], twin[cand], t_split[cand])]
         if len(cand) == 0:
             break

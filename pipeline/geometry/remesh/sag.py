@@ -44,7 +44,7 @@ def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
     k, s = len(a), len(ts)
     T = np.repeat(ts, k)[:, None]
     ea, eb = np.tile(a, s), np.tile(b, s)
-    P, _ = _lift_samples(S, ea, eb, T)
+    P, _ = lift_samples(S, ea, eb, T)
     da = np.linalg.norm(P - S.X[ea], axis=1).reshape(s, k)
     db = np.linalg.norm(P - S.X[eb], axis=1).reshape(s, k)
     j = np.argmin(np.abs(da - db), axis=0)
@@ -53,7 +53,7 @@ def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
     return ts[j], np.minimum(da[j, r], db[j, r]) / length
 
 
-def _lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) -> np.ndarray:
+def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The lifts (eq. 1; k×3) of the domain points ``(1 − T)·uv[ea] + T·uv[eb]`` (``T`` k×1),
     each located from the face under the nearer end; also the faces they are in."""
     M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
@@ -113,7 +113,7 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
         e = np.arange(lo, min(lo + step, k))
         T = np.repeat(ts, len(e))[:, None]
         ea, eb = np.tile(a[e], s), np.tile(b[e], s)
-        P, mf = _lift_samples(S, ea, eb, T)
+        P, mf = lift_samples(S, ea, eb, T)
         D = P - ((1.0 - T) * S.X[ea] + T * S.X[eb])
         sag = np.abs(dots(D, S.normals_in()[mf]))
         for n_end in ends:

@@ -87,9 +87,10 @@ class RemeshState:
     log : dict
         Operation counts (:meth:`tally`) and, from the improvement pass, seconds per step.
     surface_middles : bool
-        Long edges are split at their middle on the surface rather than in the domain
-        (:func:`.refine.split_long_edges`); the sphere remesher sets it, the disk's default
-        keeps its output.
+        Long edges are split at their middle on the surface rather than in the domain, and no
+        split (long or sagging edge) is made whose point lifts next to an end
+        (:func:`.refine.split_long_edges`, :func:`.refine.refine_by_sag`); the sphere remesher
+        sets it, the disk's default keeps its output.
     """
 
     X: np.ndarray
