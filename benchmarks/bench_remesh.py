@@ -5,13 +5,20 @@ location at 10^6 faces.
                                       [--repeat 3] [--locate] [--no-remesh]
     python benchmarks/bench_remesh.py --compare [--maps converged paper 30] --vertices 5000 20000
                                       --meshes choi_human_face ict_A_neutral_disk ...
+    python benchmarks/bench_remesh.py --compare --closed [--vertices 5000 20000] [--meshes ...]
 
 ``--compare``: per mesh and count, pymeshlab's isotropic explicit remeshing (10 iterations,
 target length solved for the count) and our remesh on each map of ``--maps``, in the same run
 and by the same evaluator: mean smallest angle, share of faces with an angle under 30°,
 smallest angle, area CV, Hausdorff and RMS distance (% of the bounding-box diagonal), one
-disk, and seconds (ours: the map + the remesh stage; pymeshlab: its call). ``*`` marks where
-ours is at least as good (area CV: at most 0.6 × pymeshlab's).
+disk (``topo``: ``disk``, or ``χ=2`` for a closed genus-0 manifold), and seconds (ours: the
+map + the remesh stage; pymeshlab: its call). ``*`` marks where ours is at least as good (area
+CV: at most 0.6 × pymeshlab's).
+
+``--closed``: the closed genus-0 meshes of ``../shared/data/closed`` (default: all of them but
+the higher-genus ones), each mapped onto the sphere by ``spherical_sem`` (``--maps N``: at most
+N hemisphere iterations; ``paper``/``converged``: its defaults; at most ``--map-seconds``) and
+remeshed through the sphere.
 
 Remesh table: for each mesh (parameterized once with ``SEMOptions(mode="paper")``, not timed
 in the total) and each vertex count, the median over ``--repeat`` runs of every step of
@@ -52,10 +59,53 @@ def data_dir() -> Path:
     return Path(os.environ.get("SEM_DATA", REPO.parent / "shared" / "data"))
 
 
+CLOSED_GENUS0 = ("igl_bunny", "igl_arm", "igl_bumpy_cube", "igl_decimated_max", "igl_elephant")
+
+
+def load_closed(name: str):
+    """A closed mesh of ``../shared/data/closed`` as a closed :class:`RepairedMesh` (empty
+    boundary), read as it is."""
+    from pipeline.geometry.repair import RepairedMesh
+    from pipeline.io.meshio import read_mesh
+
+    raw = read_mesh(data_dir() / "closed" / f"{name}.obj")
+    V, F = np.asarray(raw.V, np.float64), np.asarray(raw.faces, np.int64)
+    return RepairedMesh(V=V, F=F, colors=None, source_index=np.arange(len(V)),
+                        boundary=np.empty(0, np.int64), added_vertices=np.empty(0, np.int64))
+
+
+def sphere_parameterize(mesh, how: str, seconds: float | None = None):
+    """The sphere map of a closed mesh (``spherical_sem``; ``how`` an integer: at most that many
+    hemisphere iterations; ``seconds``: its time limit) as a :class:`Parameterization` with
+    ``sphere`` set, and its seconds."""
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.geometry.sphere import spherical_sem
+    from pipeline.stages.parameterize import Parameterization
+
+    t = time.perf_counter()
+    res = spherical_sem(mesh.V, mesh.F, time_limit=seconds,
+                        **({} if how in ("paper", "converged") else {"max_iter": int(how)}))
+    seconds = time.perf_counter() - t
+    mesh.F = res.F                                  # the map's (outward) orientation
+    return Parameterization(mesh, None, res, SEMOptions(), sphere=res.S), seconds
+
+
+def domain_map(p):
+    """The map ``remesh_stage`` takes, and the number of its folded faces."""
+    from pipeline.geometry.sphere import folded_faces
+
+    if p.domain == "sphere":
+        return p.sphere, folded_faces(p.sphere, p.mesh.F)
+    return p.uv, p.sem.flipped_faces
+
+
 def load(name: str):
     """The repaired mesh of a benchmark name."""
     from pipeline.geometry.repair import repair_mesh
     from pipeline.stages.load import load_stage
+
+    if (data_dir() / "closed" / f"{name}.obj").exists():
+        return load_closed(name)
 
     if name.endswith("_x4"):                       # midpoint subdivision (1 → 4), cached
         import trimesh
@@ -102,7 +152,7 @@ COLS = (("mean min°", "mean_min_angle_deg", "high", 2), ("<30° %", "fraction_m
         ("Haus %", "hausdorff_rel", "low", 3), ("RMS %", "rms_rel", "low", 4))
 
 
-def bench_compare(names, counts, maps, repeat, n_random=100_000):
+def bench_compare(names, counts, maps, repeat, n_random=100_000, map_seconds=None):
     """Side by side at each vertex count: our remesh (per map of ``maps``) and pymeshlab's
     isotropic explicit remeshing (10 iterations, target length solved for the count), measured
     by the same evaluator (:func:`pipeline.geometry.remesh_quality.remesh_quality`). Seconds:
@@ -114,7 +164,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     head = (f"{'mesh':26s} {'n':>6s} {'method':>14s} {'verts':>6s} "
-            + " ".join(f"{c[0]:>9s}" for c in COLS) + f" {'disk':>4s} {'s map':>6s} {'s mesh':>6s}"
+            + " ".join(f"{c[0]:>9s}" for c in COLS) + f" {'topo':>4s} {'s map':>6s} {'s mesh':>6s}"
             f" {'s total':>7s}")
     print(head)
 
@@ -124,7 +174,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
         vals["fraction_min_angle_below_30"] *= 100
         vals["hausdorff_rel"] *= 100
         vals["rms_rel"] *= 100
-        return vals, r["is_disk"]
+        return vals, "disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else "NO"
 
     def line(name, n, method, nv, vals, disk, t_map, t_mesh, ref=None):
         cells = []
@@ -137,25 +187,27 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
                 mark = "*" if ok else " "
             cells.append(f"{vals[key]:8.{dig}f}{mark}")
         print(f"{name:26s} {n:6d} {method:>14s} {nv:6d} " + " ".join(cells)
-              + f" {'yes' if disk else 'NO':>4s} {t_map:6.2f} {t_mesh:6.2f} {t_map + t_mesh:7.2f}",
+              + f" {disk:>4s} {t_map:6.2f} {t_mesh:6.2f} {t_map + t_mesh:7.2f}",
               flush=True)
 
     for name in names:
         mesh = load(name)
-        ms = {how: parameterize_with(mesh, how) for how in maps}
+        ms = {how: (sphere_parameterize(mesh, how, map_seconds) if mesh.closed
+                    else parameterize_with(mesh, how)) for how in maps}
         for n in counts:
             b = baselines.isotropic_remesh(mesh.V, mesh.F, n)
             ref, disk = measure(mesh, b.V, b.F)
             line(name, n, "pymeshlab", len(b.V), ref, disk, 0.0, b.seconds)
             for how, (p, t_map) in ms.items():
-                if not p.ok:
+                dmap, flipped = domain_map(p)
+                if flipped:
                     print(f"{name:26s} {n:6d} {'ours/' + how:>14s} the map has "
-                          f"{p.sem.flipped_faces} flipped faces: no remesh", flush=True)
+                          f"{flipped} flipped faces: no remesh", flush=True)
                     continue
                 secs = []
                 for _ in range(repeat):
                     t = time.perf_counter()
-                    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=n))
+                    r = remesh_stage(mesh, dmap, RemeshConfig(vertices=n))
                     secs.append(time.perf_counter() - t)
                 vals, disk = measure(mesh, r.V, r.F)
                 line(name, n, f"ours/{how}", len(r.V), vals, disk, t_map, float(np.median(secs)),
@@ -261,12 +313,23 @@ def main(argv=None):
                     help="the side-by-side quality table against pymeshlab instead of the steps")
     ap.add_argument("--maps", nargs="+", default=["converged"],
                     help="with --compare: paper | converged | N (converged, at most N steps)")
+    ap.add_argument("--closed", action="store_true",
+                    help="with --compare: the closed genus-0 meshes through the sphere map "
+                         "(default meshes: all of them; default counts 5000 20000)")
+    ap.add_argument("--map-seconds", type=float, default=None,
+                    help="with --closed: the sphere map's time limit (spherical_sem)")
     args = ap.parse_args(argv)
+    if args.closed:
+        if args.meshes == ap.get_default("meshes"):
+            args.meshes = list(CLOSED_GENUS0)
+        if args.vertices == ap.get_default("vertices"):
+            args.vertices = [5000, 20000]
     if args.compare:
         print("side by side, same evaluator; * = ours at least as good as pymeshlab "
               "(area CV: ≤ 0.6 ×); seconds: ours = SEM map + remesh_stage (median of "
               f"{args.repeat}), pymeshlab = its call\n")
-        bench_compare(args.meshes, args.vertices, args.maps, args.repeat)
+        bench_compare(args.meshes, args.vertices, args.maps, args.repeat,
+                      map_seconds=args.map_seconds)
         return
     if not args.no_remesh:
         print("remesh_stage, seconds per step (median of "

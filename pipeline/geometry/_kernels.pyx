@@ -416,8 +416,27 @@ def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
 
 cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c
                             ) noexcept nogil:
+    """Twice the signed area of face ``a, b, c`` in the domain: on the plane (two columns) the
+    2D cross product; on the unit sphere (three columns) the triple product ``det[a, b, c]``,
+    which is the same determinant with the plane's points read as ``(u, v, 1)``, computed as
+    ``pipeline.geometry.sphere.triple_products`` does (``remesh.halfedge.double_areas``)."""
+    cdef double x0, y0, z0, ux, uy, uz, vx, vy, vz
+    if uv.shape[1] == 3:
+        x0, y0, z0 = uv[a, 0], uv[a, 1], uv[a, 2]
+        ux, uy, uz = uv[b, 0] - x0, uv[b, 1] - y0, uv[b, 2] - z0
+        vx, vy, vz = uv[c, 0] - x0, uv[c, 1] - y0, uv[c, 2] - z0
+        return x0 * (uy * vz - uz * vy) + y0 * (uz * vx - ux * vz) + z0 * (ux * vy - uy * vx)
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+cdef inline double _squared(const double[:, ::1] uv, int64_t a, int64_t b) noexcept nogil:
+    """``|uv[b] − uv[a]|²`` over the domain's two or three columns."""
+    cdef double x = uv[b, 0] - uv[a, 0], y = uv[b, 1] - uv[a, 1], z
+    if uv.shape[1] == 3:
+        z = uv[b, 2] - uv[a, 2]
+        return x * x + y * y + z * z
+    return x * x + y * y
 
 
 cdef inline void _normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c, double* out
@@ -637,13 +656,7 @@ cdef inline double _disk_shape(const double[:, ::1] uv, int64_t a, int64_t b, in
                                double d2) noexcept nogil:
     """``d2`` (the face's twice signed disk area) over its longest disk edge squared, as
     :func:`pipeline.geometry.remesh.halfedge.disk_shape` computes it."""
-    cdef double x, y, l0, l1, l2
-    x, y = uv[b, 0] - uv[a, 0], uv[b, 1] - uv[a, 1]
-    l0 = x * x + y * y
-    x, y = uv[c, 0] - uv[b, 0], uv[c, 1] - uv[b, 1]
-    l1 = x * x + y * y
-    x, y = uv[a, 0] - uv[c, 0], uv[a, 1] - uv[c, 1]
-    l2 = x * x + y * y
+    cdef double l0 = _squared(uv, a, b), l1 = _squared(uv, b, c), l2 = _squared(uv, c, a)
     return d2 / _max_nan(_max_nan(_max_nan(l0, l1), l2), 1e-300)
 
 

@@ -1,112 +1,188 @@
-"""Point location in a spherical triangulation (a spherical map's image), for eq. (1) on the sphere.
+"""Point location in a spherical triangulation (a sphere map's image) for lifting by eq. (1).
 
-A fold-free spherical map ``S`` (n, 3) of a closed genus-0 mesh with faces ``F`` (m, 3)
-(``det[s0, s1, s2] > 0`` for every face) has flat image triangles whose central projections
-tile the unit sphere exactly once. A query point ``q`` (unit vector) therefore lies on the ray
-through exactly one flat image triangle ``[s_i, s_j, s_k]`` (two on a shared edge), and its
-coordinates on that triangle are the *central* (gnomonic) barycentrics
+A bijective sphere map ``S`` (n×3 unit vectors) of a closed genus-0 mesh with faces ``F`` (m×3,
+every spherical triangle positively oriented: ``det[s_i, s_j, s_k] > 0``) tiles the unit sphere.
+For a query direction ``p`` the face ``[s_i, s_j, s_k]`` whose cone contains it has
 
-    μ_i = det[q, s_j, s_k] / det[s_i, s_j, s_k],  μ_j = det[s_i, q, s_k] / …,
-    μ_k = det[s_i, s_j, q] / …,        λ = μ / (μ_i + μ_j + μ_k)                       (L1)
+    λ_i ∝ det[p, s_j, s_k],  λ_j ∝ det[s_i, p, s_k],  λ_k ∝ det[s_i, s_j, p],
 
-(``q = Σ μ_c s_c`` by Cramer's rule; ``λ`` is the point where the ray meets the flat triangle).
-``q`` is in the face iff every ``μ_c ≥ 0`` (and then ``Σ μ_c > 0``: the ray meets the front of
-the triangle, not its antipode). The lift to the surface is then the disk's eq. (1),
-``Σ_c λ_c v_c`` (:func:`pipeline.geometry.locate.lift`): the flat image triangle is mapped
-affinely onto its surface triangle, exactly as on the disk, and great-circle arcs inside a
-face go to straight segments. (Spherical barycentrics by geodesic areas would make the lift
-non-affine on the flat image triangle, i.e. a different inverse of the same piecewise-linear
-map.)
+normalised to sum 1: the barycentric coordinates of the point where the ray through ``p``
+crosses the plane of the chordal triangle (central, gnomonic projection; the plane analogue of
+the signed-area ratios of eq. 1). All three are ≥ 0 exactly when ``p`` is in the cone, they do
+not change when ``p`` is scaled, and :func:`.locate.lift` then evaluates eq. (1): the point on
+the surface is ``Σ_c λ_c v_{F[face, c]}``.
 
-Search: the candidates of a query are the faces with the nearest (normalized) centroids (a
-KD-tree), ``k = 8`` first, then 64 and 512 for the few queries not settled (thin image
-triangles, which an equiareal map has where the surface is strongly curved), then every face.
-The face with the largest smallest ``μ`` wins; it is accepted when that is ``≥ −tol`` and its
-negative coordinates are clamped to 0. Every query gets a face.
-
-This is a small pure kernel written for the sphere registration; the sphere remesher's point
-location (built in parallel) should be merged with it into one module.
+How a batch is located (:class:`SphereLocator`): from a start face (a face at the nearest map
+vertex, a KD-tree, or a face the caller knows), each query walks across the edge of its most
+negative coordinate (vectorised over the batch); a query still unsettled after the walk tests the
+faces whose centroid lies within the largest face radius of it (a KD-tree on the face
+centroids), which always contains its face. A point on an edge or at a vertex has coordinates of
+±1e-17 there and is accepted with ``min λ ≥ −tol`` (then clamped to 0 and renormalised); a query
+exactly at a map vertex gets exactly ``(1, 0, 0)`` on that corner. The sphere has no outside:
+every query is located.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["central_barycentric", "locate_on_sphere"]
+from . import topology as topo
+from .locate import TOL
 
-TOL = 1e-10              # smallest coordinate still counted as inside (then clamped to 0)
-_ROUNDS = (8, 64, 512)   # candidate faces per query, round by round (then all faces)
+__all__ = ["SphereLocator", "locate_on_sphere", "sphere_barycentrics"]
+
+_WALK = 8                # walk steps of a large batch from its nearest vertex's face
+_CHUNK = 65536           # queries per brute-force block
 
 
-def central_barycentric(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
+def sphere_barycentrics(P: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
                         ) -> np.ndarray:
-    """Unnormalized central coordinates ``μ`` of eq. (L1), shape (k, 3), for points (k, 3) and
-    triangle corners ``A, B, C`` (k, 3) row by row (``q = μ_0 A + μ_1 B + μ_2 C``)."""
-    det = np.einsum("ij,ij->i", A, np.cross(B, C))
-    mu = np.column_stack([np.einsum("ij,ij->i", points, np.cross(B, C)),
-                          np.einsum("ij,ij->i", A, np.cross(points, C)),
-                          np.einsum("ij,ij->i", A, np.cross(B, points))])
-    return mu / det[:, None]
+    """Central-projection barycentrics (k×3) of the directions ``P`` in the spherical
+    triangles ``(A, B, C)`` (all k×3; module docstring). Rows whose chordal plane does not face
+    ``P`` (the ray misses it) are ``-inf``.
+
+    Parameters
+    ----------
+    P, A, B, C : (k, 3) float
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    # det[p, b, c] = p · ((b − p) × (c − p)) and cyclically: differences to the query keep
+    # their precision in the tiny triangles a sphere map crowds limbs into, and a query at a
+    # corner gets exactly 0 for the other two
+    Ap, Bp, Cp = A - P, B - P, C - P
+    lam = np.column_stack([np.einsum("ij,ij->i", P, np.cross(Bp, Cp)),
+                           np.einsum("ij,ij->i", P, np.cross(Cp, Ap)),
+                           np.einsum("ij,ij->i", P, np.cross(Ap, Bp))])
+    s = lam.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = lam / s[:, None]
+    out[~(s > 0)] = -np.inf
+    return out
 
 
-def _best_of(S, F, points, candidates):
-    """Among ``candidates`` (k, c) face indices per query, the face with the largest smallest
-    coordinate μ, and that coordinate (rows with ``Σ μ ≤ 0``, the antipodal side, lose)."""
-    k, c = candidates.shape
-    Fc = F[candidates.ravel()]
-    q = np.repeat(points, c, axis=0)
-    mu = central_barycentric(q, S[Fc[:, 0]], S[Fc[:, 1]], S[Fc[:, 2]])
-    score = np.where(mu.sum(axis=1) > 0, mu.min(axis=1), -np.inf).reshape(k, c)
-    j = np.argmax(score, axis=1)
-    return candidates[np.arange(k), j], score[np.arange(k), j]
+def _clean_rows(bary: np.ndarray) -> np.ndarray:
+    """Clamp tiny negatives to 0 and renormalise every row to sum 1."""
+    bary = np.clip(bary, 0.0, None)
+    return bary / bary.sum(axis=1, keepdims=True)
+
+
+class SphereLocator:
+    """Build once for a spherical triangulation ``(S, F)``, then locate any directions.
+
+    The same calls as :class:`.locate.PointLocator` (``locate``, ``locate_with_inside``,
+    ``relocate``), so the remesher's operations run on the sphere unchanged; ``inside`` is
+    always True.
+
+    Parameters
+    ----------
+    S : (n, 3) float
+        Unit vectors.
+    F : (m, 3) int
+        Faces, positively oriented on the sphere, a closed manifold.
+    """
+
+    def __init__(self, S: np.ndarray, F: np.ndarray):
+        from scipy.spatial import cKDTree
+
+        self.S = np.ascontiguousarray(S, dtype=np.float64)
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        if len(self.F) == 0:
+            raise ValueError("cannot locate points in an empty triangulation")
+        self.twin = topo.interior_edge_twins(self.F)
+        vface = np.full(len(self.S), -1, np.int64)
+        vface[self.F.ravel()] = np.repeat(np.arange(len(self.F)), 3)
+        self._used = np.flatnonzero(vface >= 0)
+        self._vface = vface
+        self._vtree = cKDTree(self.S[self._used])
+        T = self.S[self.F]
+        c = T.mean(axis=1)
+        c /= np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
+        self._ftree = cKDTree(c)
+        self._radius = float(np.linalg.norm(T - c[:, None, :], axis=2).max()) * (1 + 1e-9) + 1e-12
+
+    def bary(self, P: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """:func:`sphere_barycentrics` of ``P`` (k×3) in the faces ``face`` (k)."""
+        T = self.F[face]
+        return sphere_barycentrics(P, self.S[T[:, 0]], self.S[T[:, 1]], self.S[T[:, 2]])
+
+    def locate(self, points: np.ndarray, tol: float = TOL) -> tuple[np.ndarray, np.ndarray]:
+        """``(face int64 k, bary float64 k×3)`` for every direction (k×3)."""
+        face, bary, _ = self.locate_with_inside(points, tol)
+        return face, bary
+
+    def locate_with_inside(self, points: np.ndarray, tol: float = TOL
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Locate from a face at the nearest map vertex; a query exactly at a vertex gets
+        exactly that corner. Returns ``(face, bary, inside)``, ``inside`` all True."""
+        P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        unit = P / np.maximum(np.linalg.norm(P, axis=1), 1e-300)[:, None]
+        dist, j = self._vtree.query(unit)
+        v = self._used[np.asarray(j, np.int64).reshape(-1)]
+        face, bary, inside = self.relocate(P, self._vface[v], tol, walk=_WALK)
+        at = np.flatnonzero(np.all(P == self.S[v], axis=1))          # exactly at a vertex
+        if len(at):
+            face[at] = self._vface[v[at]]
+            bary[at] = (self.F[face[at]] == v[at, None]).astype(np.float64)
+        return face, bary, inside
+
+    def relocate(self, points: np.ndarray, face: np.ndarray, tol: float = TOL,
+                 face2: np.ndarray | None = None, walk: int = 2
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Locate directions near known faces: ``face`` (then ``face2``, if given) is tested
+        first and a query outside it walks up to ``walk`` steps across the edge of its most
+        negative coordinate; the queries still unsettled are found among the faces near them
+        (module docstring). Returns ``(face, bary, inside)``, ``inside`` all True."""
+        P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        out_face = np.array(face, dtype=np.int64, copy=True).reshape(-1)
+        bary = np.empty((len(P), 3))
+        todo = np.arange(len(P))
+        for hint in [out_face.copy()] + ([] if face2 is None else [np.asarray(face2)]):
+            cur = np.asarray(hint, np.int64)[todo]
+            for step in range(walk + 1):
+                if len(todo) == 0:
+                    break
+                lam = self.bary(P[todo], cur)
+                low = lam.min(axis=1)
+                ok = low >= -tol
+                out_face[todo[ok]] = cur[ok]
+                bary[todo[ok]] = _clean_rows(lam[ok])
+                todo, cur, lam = todo[~ok], cur[~ok], lam[~ok]
+                if step == walk or len(todo) == 0:
+                    break
+                c = np.argmin(np.where(np.isfinite(lam), lam, -np.inf), axis=1)
+                cur = self.twin[3 * cur + (c + 1) % 3] // 3       # across the edge opposite c
+        if len(todo):
+            out_face[todo], bary[todo] = self._near(P[todo], tol)
+        return out_face, bary, np.ones(len(P), bool)
+
+    def _near(self, P: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+        """Every face whose centroid is within the largest face radius of a query is tested;
+        the one with the largest smallest coordinate wins (the face containing the query is
+        among them)."""
+        k = len(P)
+        face = np.empty(k, np.int64)
+        bary = np.empty((k, 3))
+        unit = P / np.maximum(np.linalg.norm(P, axis=1), 1e-300)[:, None]
+        for lo in range(0, k, _CHUNK):
+            hi = min(lo + _CHUNK, k)
+            lists = self._ftree.query_ball_point(unit[lo:hi], self._radius)
+            cnt = np.fromiter((len(x) for x in lists), np.int64, hi - lo)
+            cand = np.fromiter((f for x in lists for f in x), np.int64, int(cnt.sum()))
+            pt = np.repeat(np.arange(hi - lo), cnt)
+            lam = self.bary(P[lo:hi][pt], cand)
+            score = lam.min(axis=1)
+            order = np.lexsort((-score, pt))                 # per point, best first
+            first = order[np.r_[True, pt[order][1:] != pt[order][:-1]]]
+            face[lo + pt[first]] = cand[first]
+            bary[lo + pt[first]] = _clean_rows(lam[first])
+        return face, bary
 
 
 def locate_on_sphere(S: np.ndarray, F: np.ndarray, points: np.ndarray, tol: float = TOL
                      ) -> tuple[np.ndarray, np.ndarray]:
-    """The face of the spherical map ``(S, F)`` whose central projection contains each point.
-
-    Parameters
-    ----------
-    S : (n, 3) float array
-        Fold-free spherical map (unit vectors, ``det[s0, s1, s2] > 0`` per face).
-    F : (m, 3) int array
-    points : (k, 3) float array
-        Query points (any non-zero vectors; only their direction matters).
-    tol : float
-        Smallest coordinate still counted as inside.
-
-    Returns
-    -------
-    face : (k,) int64 array
-    bary : (k, 3) float64 array
-        Normalized coordinates ``λ`` of eq. (L1), rows ≥ 0 summing to 1, ordered like
-        ``F[face]``; ``lift(V, F, face, bary)`` is eq. (1).
-    """
-    from scipy.spatial import cKDTree
-
-    S = np.asarray(S, dtype=np.float64)
-    F = np.asarray(F, dtype=np.int64)
-    P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    P = P / np.linalg.norm(P, axis=1, keepdims=True)
-    centres = S[F].sum(axis=1)
-    centres /= np.linalg.norm(centres, axis=1, keepdims=True)
-    tree = cKDTree(centres)
-    face = np.zeros(len(P), dtype=np.int64)
-    score = np.full(len(P), -np.inf)
-    todo = np.arange(len(P))
-    for c in _ROUNDS:
-        if not len(todo):
-            break
-        c = min(c, len(F))
-        _, cand = tree.query(P[todo], k=c)
-        f, s = _best_of(S, F, P[todo], np.asarray(cand).reshape(len(todo), c))
-        better = s > score[todo]
-        face[todo[better]], score[todo[better]] = f[better], s[better]
-        todo = todo[score[todo] < -tol]
-    for q in todo:                                  # not settled by the nearest faces: all
-        f, s = _best_of(S, F, P[q:q + 1], np.arange(len(F))[None, :])
-        face[q], score[q] = f[0], s[0]
-    Fq = F[face]
-    mu = np.maximum(central_barycentric(P, S[Fq[:, 0]], S[Fq[:, 1]], S[Fq[:, 2]]), 0.0)
-    bary = mu / mu.sum(axis=1, keepdims=True)
-    return face, bary
+    """One-off location of ``points`` (k, 3) in the spherical map ``(S, F)``: ``(face (k,),
+    bary (k, 3))`` with ``lift(V, F, face, bary)`` = eq. (1) (:class:`SphereLocator`)."""
+    return SphereLocator(S, F).locate(points, tol)

@@ -31,7 +31,7 @@ from .metrics import corner_angles
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
            "point_mesh_distance", "surface_samples", "surface_distance", "remesh_quality",
-           "degenerate_faces", "bounding_box_diagonal"]
+           "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
 
@@ -85,6 +85,15 @@ def is_disk(facts: dict) -> bool:
     """One manifold, consistently oriented component with one boundary loop and χ = 1."""
     return (facts["components"] == 1 and facts["boundary_loops"] == 1
             and facts["euler_characteristic"] == 1 and facts["nonmanifold_edges"] == 0
+            and facts["nonmanifold_vertices"] == 0 and facts["consistently_oriented"]
+            and facts["unreferenced_vertices"] == 0)
+
+
+def is_sphere(facts: dict) -> bool:
+    """One closed (no boundary), manifold, consistently oriented component with χ = 2: a
+    genus-0 closed surface."""
+    return (facts["components"] == 1 and facts["boundary_vertices"] == 0
+            and facts["euler_characteristic"] == 2 and facts["nonmanifold_edges"] == 0
             and facts["nonmanifold_vertices"] == 0 and facts["consistently_oriented"]
             and facts["unreferenced_vertices"] == 0)
 
@@ -255,13 +264,14 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
                    n_random: int = 200_000, seed: int = 0, distance: bool = True) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict.
 
-    Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``triangles``
+    Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
     (:func:`valence_stats`), ``distance`` (:func:`surface_distance`; ``*_rel`` = fraction of
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
     facts = mesh_facts(V, F)
-    out = {"facts": facts, "is_disk": is_disk(facts), "triangles": triangle_quality(V, F),
+    out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
+           "triangles": triangle_quality(V, F),
            "valence": valence_stats(F, len(V))}
     if distance:
         out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed)

@@ -12,7 +12,9 @@ everything was measured and where each method wins:
 * ``remesh_min_angle.png`` — distribution of the smallest angle of every face;
 * ``remesh_valence.png`` — valence of interior vertices;
 * ``remesh_disk.png`` — our remesh on the disk, faces coloured by their smallest angle on the
-  surface (where the map's angle distortion is, and what improvement did).
+  surface (where the map's angle distortion is, and what improvement did); for a closed mesh
+  ``remesh_sphere.png`` instead: the remesh on the sphere, both hemispheres seen from outside,
+  coloured the same way.
 
 :func:`comparison_table`, :func:`verdicts` and :func:`remesh_warnings` also feed
 ``remesh_metrics.json``.
@@ -201,6 +203,33 @@ def plot_disk(path: Path, uv: np.ndarray, F: np.ndarray, methods: dict[str, Meth
     return save_png(fig, path, DPI)
 
 
+def plot_sphere(path: Path, P: np.ndarray, F: np.ndarray, methods: dict[str, Method]) -> Path:
+    """Our remesh on the sphere (positions ``P`` n×3 unit vectors, faces ``F`` m×3), faces
+    coloured by their smallest angle on the surface: the hemispheres z ≥ 0 and z ≤ 0, each seen
+    from outside along the z axis (orthographic), only the faces turned towards the viewer."""
+    fig = _figure(11.0, 5.2)
+    axs = fig.subplots(1, 2)
+    mn = methods["sem"].quality["triangles"]["_per_face_min_angle"]
+    for ax, side in zip(axs, (1.0, -1.0)):
+        T = P[F]                                                      # (m, 3, 3)
+        facing = side * T[:, :, 2].mean(axis=1) > 0
+        xy = T[facing][:, :, :2] * np.array([side, 1.0])             # seen from outside
+        pc = PolyCollection(xy, array=mn[facing], cmap="RdYlGn", clim=(0, 60),
+                            edgecolors="k", linewidths=0.1, rasterized=True)
+        ax.add_collection(pc)
+        ax.set_aspect("equal")
+        ax.set_xlim(-1.02, 1.02)
+        ax.set_ylim(-1.02, 1.02)
+        ax.set_axis_off()
+        ax.set_title(f"the {'northern' if side > 0 else 'southern'} hemisphere "
+                     f"(z {'≥' if side > 0 else '≤'} 0), seen from outside", fontsize=9)
+    cb = fig.colorbar(pc, ax=list(axs), shrink=0.85)
+    cb.set_label("smallest angle of the face on the surface (°)")
+    fig.suptitle("Our remesh on the sphere: faces coloured by their smallest angle on the "
+                 "surface (red: skewed by the map's angle distortion)", fontsize=9)
+    return save_png(fig, path, DPI)
+
+
 # ------------------------------------------------------------------------------- HTML
 
 
@@ -218,9 +247,9 @@ ROWS = [
     # (label, unit, getter, better: 'low'|'high'|None, digits, pct)
     ("vertices", "count", lambda q, m: q["facts"]["vertices"], None, 0, False),
     ("faces", "count", lambda q, m: q["facts"]["faces"], None, 0, False),
-    ("one disk (χ = 1, one boundary loop, manifold, oriented)", "",
-     lambda q, m: "yes" if q["is_disk"] else
-     f"no (χ = {q['facts']['euler_characteristic']}, {q['facts']['boundary_loops']} loops, "
+    ("one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented", "",
+     lambda q, m: "yes, a disk" if q["is_disk"] else "yes, closed genus 0" if q.get("is_sphere")
+     else f"no (χ = {q['facts']['euler_characteristic']}, {q['facts']['boundary_loops']} loops, "
      f"{q['facts']['components']} components)", None, 0, False),
     ("degenerate faces", "count", lambda q, m: q["facts"]["degenerate_faces"], "low", 0, False),
     ("smallest angle", "°", lambda q, m: q["triangles"]["min_angle_deg"], "high", 2, False),
@@ -305,8 +334,9 @@ def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np
     """``report.html`` and its figures into ``folder``; returns the paths written.
 
     ``methods``: every measured mesh by key (``input``, ``sem_lifted``, ``sem``, baselines);
-    ``uv`` (n×2), ``F`` (m×3): our remesh on the disk; ``meta``: what the page says about the
-    input, the request, the map and the warnings."""
+    ``uv`` (n×2), ``F`` (m×3): our remesh on the disk, or with ``uv`` n×3 (unit vectors) on
+    the sphere; ``meta``: what the page says about the input, the request, the map and the
+    warnings."""
     folder = Path(folder)
     V_in, F_in = methods["input"].V, methods["input"].F
     paths = []
@@ -314,7 +344,10 @@ def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np
         paths.append(plot_renders(folder / "remesh_renders.png", methods, V_in, F_in))
         paths.append(plot_min_angles(folder / "remesh_min_angle.png", methods))
         paths.append(plot_valence(folder / "remesh_valence.png", methods))
-        paths.append(plot_disk(folder / "remesh_disk.png", uv, F, methods))
+        if uv.shape[1] == 3:
+            paths.append(plot_sphere(folder / "remesh_sphere.png", uv, F, methods))
+        else:
+            paths.append(plot_disk(folder / "remesh_disk.png", uv, F, methods))
     rows = comparison_table(methods)
     paths.append(_write_html(folder / "report.html", rows, methods, meta,
                              verdicts(rows, methods), [p.name for p in paths]))
@@ -371,6 +404,11 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
                            "on the surface: the disk triangulation is nearly equilateral, so "
                            "red shows the map's angle distortion that improvement could not "
                            "remove.",
+        "remesh_sphere.png": "Our remesh on the sphere (the closed mesh's domain), both "
+                             "hemispheres seen from outside, coloured by the smallest angle of "
+                             "each face on the surface: the spherical triangulation is nearly "
+                             "equilateral, so red shows the map's angle distortion that "
+                             "improvement could not remove.",
     }
     fig_html = "".join(
         f'<figure><img src="{e(name)}" alt="{e(name)}"><figcaption>{e(imgs.get(name, ""))}'
@@ -389,6 +427,15 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
     warn = "".join(f'<p class="warn"><b>Warning:</b> {e(w)}.</p>\n'
                    for w in meta.get("warnings", []))
     n_in = len(methods["input"].V)
+    sphere = meta.get("domain") == "sphere"
+    domain = "sphere" if sphere else "disk"
+    own_map = ("its own map onto the sphere (not written: a texture coordinate is 2D, so "
+               "<code>remeshed.obj</code> has no <code>vt</code>)" if sphere else
+               "its own disk parameterization (the <code>vt</code> of <code>remeshed.obj</code>)")
+    corners = (f"({imp.get('corners_snapped', 0)} snapped, "
+               f"{imp.get('corners_inserted', 0)} inserted)" if sphere else
+               f"({imp.get('corners_snapped', 0)} interior, {imp.get('rim_corners_snapped', 0)} "
+               f"on the boundary)")
     text = f"""<p>Input: <code>{e(str(meta.get('source', '')))}</code> — {n_in} vertices,
 {len(methods['input'].F)} faces after repair; bounding-box diagonal
 {dist.get('scale_bbox_diagonal', float('nan')):.4g} (the input's units). Requested:
@@ -411,19 +458,19 @@ pymeshlab: {e(notes['pymeshlab_isotropic'])}. Decimation: {e(notes['fast_simplif
 
 {versus}
 <p class="caption">Our remesh keeps every vertex exactly on the input surface (each vertex is a
-disk position lifted by eq. (1)), hits the vertex count exactly or within 2 %, comes with its
-own disk parameterization (the <code>vt</code> of <code>remeshed.obj</code>), and carries
+{domain} position lifted by eq. (1)), hits the vertex count exactly or within 2 %, comes with
+{own_map}, and carries
 colours and landmarks. Its limits: the equiareal map distorts angles, so uniform samples are
 skewed on the surface where the distortion is large (long protrusions, deep folds); the
 improvement step (rounds of splits, collapses, flips and relaxation judged by 3D lengths,
 splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, balanced by collapses
 of the shortest edges, and a pass on faces below 20°) removes most but not all of it, and
 sharp features are kept only at corner
-vertices ({imp.get('corners_snapped', 0)} interior, {imp.get('rim_corners_snapped', 0)} on
-the boundary), not along creases.</p>
+vertices {corners}, not along creases.</p>
 {fig_html}"""
     return h.write_page(path, f"Remesh report: {meta.get('name', '')}", text, style=STYLE,
-                        h1=f"Uniform remeshing through the SEM disk map: {meta.get('name', '')}")
+                        h1=f"Uniform remeshing through the SEM {domain} map: "
+                           f"{meta.get('name', '')}")
 
 
 HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
@@ -447,8 +494,8 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None) 
     share = distortion.get("anisotropy_area_above_10", 0.0)
     if share > ANISOTROPY_SHARE:
         out.append(f"the SEM map stretches {100 * share:.0f} % of the surface more than 10:1 "
-                   f"(median σ₁/σ₂ = {distortion['anisotropy_median']:.1f}): uniform disk "
-                   f"samples are that much farther apart along one direction there, so the "
+                   f"(median σ₁/σ₂ = {distortion['anisotropy_median']:.1f}): uniform samples "
+                   f"of the map are that much farther apart along one direction there, so the "
                    f"lifted triangles are skewed before the improvement step")
     ours = methods.get("sem", {}).get("distance", {}).get("hausdorff_rel")
     theirs = methods.get("pymeshlab_isotropic", {}).get("distance", {}).get("hausdorff_rel")

@@ -1,11 +1,15 @@
 """Stage 3 — uniform remeshing through the SEM map (paper §8): the repaired mesh and its
-bijective disk map in, a remesh of the requested size out.
+bijective disk map (or, for a closed genus-0 mesh, sphere map) in, a remesh of the requested
+size out.
 
 The algorithm — sample → triangulate → locate → lift → improve, landmarks to the nearest new
-vertex — is :func:`pipeline.geometry.remesh.uniform_remesh`. This stage checks the options and
-the map, lifts the per-vertex attributes (colours and any given), and writes
-``remeshed.obj`` (``v`` with colours if the input had them, ``vt`` = the new vertices' disk
-positions, so the output is parameterized too), ``remesh_metrics.json``,
+vertex — is :func:`pipeline.geometry.remesh.uniform_remesh` on the disk and
+:func:`pipeline.geometry.remesh.sphere.sphere_remesh` on the sphere (the stage dispatches on the
+map's domain). This stage checks the options and the map, lifts the per-vertex attributes
+(colours and any given), and writes ``remeshed.obj`` (``v`` with colours if the input had
+them; on the disk ``vt`` = the new vertices' disk positions, so the output is parameterized
+too; on the sphere no ``vt``, a texture coordinate being 2D — the remesh is closed, genus 0),
+``remesh_metrics.json``,
 ``remeshed_landmarks.json`` when there are landmarks, and ``report.html`` with its figures
 (:mod:`pipeline.report.remesh`), all-or-nothing (:func:`remesh_outputs`).
 
@@ -28,7 +32,9 @@ from pydantic import Field, field_validator, model_validator
 from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import signed_double_areas
+from ..geometry.sphere import folded_faces
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
+from ..geometry.remesh.sphere import sphere_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
@@ -101,8 +107,8 @@ class Remesh:
     """The remeshed disk and what is needed to report on it."""
 
     V: np.ndarray                      # n×3 lifted positions (after improvement if on)
-    F: np.ndarray                      # m×3, CCW on the disk, consistently oriented
-    uv: np.ndarray                     # n×2 disk positions of the new vertices
+    F: np.ndarray                      # m×3, CCW in the domain, consistently oriented
+    uv: np.ndarray                     # n×2 disk (or n×3 sphere) positions of the new vertices
     face: np.ndarray                   # n: input face under each new vertex
     bary: np.ndarray                   # n×3: its barycentrics (eq. 1)
     colors: np.ndarray | None
@@ -115,17 +121,31 @@ class Remesh:
 
 
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
-    if uv.shape != (len(mesh.V), 2):
-        raise UserError(f"remesh: the map has shape {uv.shape}, expected {len(mesh.V)}×2")
-    flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0))
+    if uv.ndim != 2 or uv.shape[0] != len(mesh.V) or uv.shape[1] not in (2, 3):
+        raise UserError(f"remesh: the map has shape {uv.shape}, expected {len(mesh.V)}×2 (a "
+                        f"disk) or {len(mesh.V)}×3 (a sphere)")
+    flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0)) if uv.shape[1] == 2 \
+        else folded_faces(uv, _outward(mesh.F, uv))
     if flipped:
-        raise UserError(f"remesh: the disk map has {flipped} flipped faces; remeshing needs a "
-                        f"bijective map (parameterize with mode 'converged')")
+        raise UserError(f"remesh: the {'disk' if uv.shape[1] == 2 else 'sphere'} map has "
+                        f"{flipped} flipped faces; remeshing needs a bijective map "
+                        f"(parameterize with mode 'converged')")
+
+
+def _outward(F: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """The faces ``F`` ordered so that the sphere map ``S`` (n×3) turns them outward
+    (``det[s0, s1, s2] > 0``): reversed when most of them are inward (a mesh oriented
+    inward)."""
+    from ..geometry.sphere import triple_products
+
+    inward = np.count_nonzero(triple_products(S, F) < 0) > len(F) / 2
+    return np.ascontiguousarray(F[:, ::-1]) if inward else F
 
 
 def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
                  landmarks: dict | None = None, attributes: dict | None = None) -> Remesh:
-    """Remesh a repaired disk through its bijective disk map ``uv`` (see the module docstring).
+    """Remesh a repaired disk through its bijective disk map ``uv`` (n×2), or a closed genus-0
+    mesh through its bijective sphere map (``uv`` n×3 unit vectors; see the module docstring).
 
     ``landmarks``: ``{name: vertex index of the repaired mesh}``. ``attributes``: extra
     per-vertex arrays to lift (colours are taken from the mesh); their lifted values are in
@@ -138,14 +158,21 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     _check_map(mesh, uv)
     # improve: null is the paper's plain lift: no improvement and no corner snapping
     imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
-    r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
-                       spacing=options.spacing, pattern=options.pattern,
-                       rim_relax=options.rim_relax, seed=options.seed,
-                       improve=options.improve is not None, landmarks=landmarks,
-                       **imp.model_dump())
+    F = mesh.F
+    if uv.shape[1] == 3:
+        F = _outward(mesh.F, uv)
+        r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
+                          improve=options.improve is not None, landmarks=landmarks,
+                          **imp.model_dump())
+    else:
+        r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
+                           spacing=options.spacing, pattern=options.pattern,
+                           rim_relax=options.rim_relax, seed=options.seed,
+                           improve=options.improve is not None, landmarks=landmarks,
+                           **imp.model_dump())
     t = time.perf_counter()
-    colors = lift(mesh.colors, mesh.F, r.face, r.bary) if mesh.colors is not None else None
-    lifted_attrs = {k: lift(v, mesh.F, r.face, r.bary) for k, v in (attributes or {}).items()}
+    colors = lift(mesh.colors, F, r.face, r.bary) if mesh.colors is not None else None
+    lifted_attrs = {k: lift(v, F, r.face, r.bary) for k, v in (attributes or {}).items()}
     sec = dict(r.seconds, attributes=time.perf_counter() - t)
     sec["total"] = sum(sec.values())
     info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
@@ -204,10 +231,13 @@ def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> 
     written = {}
     with staged_output(out_dir) as tmp:
         facts = metrics.get("methods", {}).get("sem", {}).get("facts", {})
-        write_obj(tmp / "remeshed.obj", r.V, r.F, uv=r.uv, colors=r.colors,
+        sphere = r.uv.shape[1] == 3
+        write_obj(tmp / "remeshed.obj", r.V, r.F, uv=None if sphere else r.uv, colors=r.colors,
                   header=[f"SEM uniform remesh (sem-pipeline): {len(r.V)} vertices, "
                           f"{len(r.F)} faces, pattern {r.info['pattern']}",
-                          "vt = the vertex's position on the disk (its parameterization)"
+                          ("closed genus-0 remesh through the sphere map; no vt (a texture "
+                           "coordinate is 2D)" if sphere else
+                           "vt = the vertex's position on the disk (its parameterization)")
                           + (f"; Euler characteristic {facts['euler_characteristic']}"
                              if facts else "")])
         written["obj"] = out_dir / "remeshed.obj"
@@ -302,11 +332,12 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
     metrics = {
         "input": dict(input_info or {}, vertices=int(len(mesh.V)), faces=int(len(mesh.F)),
                       bbox_diagonal=bounding_box_diagonal(mesh.V)),
-        "parameterization": {"mode": pm["parameterization"]["mode"],
-                             "iterations": pm["parameterization"]["iterations"],
-                             "status": pm["parameterization"]["status"],
-                             "distortion": pm["distortion"],
-                             "seconds": float(sum(pm["seconds"].values()))},
+        "parameterization": {"domain": "sphere" if remesh.uv.shape[1] == 3 else "disk",
+                             "mode": pm["parameterization"].get("mode"),
+                             "iterations": pm["parameterization"].get("iterations"),
+                             "status": pm["parameterization"].get("status"),
+                             "distortion": pm.get("distortion", {}),
+                             "seconds": float(sum(pm.get("seconds", {}).values()))},
         "remesh": {k: v for k, v in remesh.info.items() if k != "attributes"},
         "landmarks": remesh.landmarks,
         "methods": {k: {"label": LABELS[k], "available": m.ok, "note": m.note,
@@ -316,7 +347,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
         "seconds": dict(remesh.seconds, measure=t_measure),
     }
-    metrics["warnings"] = remesh_warnings(pm["distortion"], metrics["methods"],
+    metrics["warnings"] = remesh_warnings(pm.get("distortion", {}), metrics["methods"],
                                           remesh.info.get("improve", {}).get("below_min_angle"))
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
@@ -324,8 +355,10 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
             "source": (input_info or {}).get("source", ""), "target": target,
             "parameterization": metrics["parameterization"],
             "parameterization_seconds": metrics["parameterization"]["seconds"],
-            "angular_distortion_deg": pm["distortion"]["angular_distortion_mean_deg"],
-            "distortion": pm["distortion"], "warnings": metrics["warnings"],
+            "angular_distortion_deg": pm.get("distortion", {}).get(
+                "angular_distortion_mean_deg", float("nan")),
+            "domain": metrics["parameterization"]["domain"],
+            "distortion": pm.get("distortion", {}), "warnings": metrics["warnings"],
             "remesh": metrics["remesh"]}
     writer = ((lambda tmp: write_report(tmp, methods, remesh.uv, remesh.F, meta, figures))
               if report else None)
@@ -351,7 +384,8 @@ def _run(ctx: Context) -> dict:
         landmarks = map_landmarks(intake.info["landmarks"], mesh, "sample landmarks")
     else:
         landmarks = {}
-    return {"remesh": remesh_stage(mesh, p.uv, rc, landmarks)}
+    return {"remesh": remesh_stage(mesh, p.uv if p.domain == "disk" else p.sphere, rc,
+                                   landmarks)}
 
 
 # Peak memory per remeshed vertex (lattice, triangulation, lift, improvement, measures and
@@ -409,8 +443,9 @@ def _summary(ctx: Context, files: dict) -> str:
     sem = r.metrics["methods"]["sem"]
     t = sem["triangles"]
     d = sem.get("distance", {})
-    return (f"{len(r.V)} vertices, {len(r.F)} faces, "
-            f"{'one disk' if sem['is_disk'] else 'NOT a disk'}, "
+    shape = (("closed genus 0" if sem.get("is_sphere") else "NOT closed genus 0")
+             if r.uv.shape[1] == 3 else ("one disk" if sem["is_disk"] else "NOT a disk"))
+    return (f"{len(r.V)} vertices, {len(r.F)} faces, {shape}, "
             f"min angle {t['min_angle_deg']:.1f}°, mean smallest angle "
             f"{t['mean_min_angle_deg']:.1f}°, Hausdorff {100 * d.get('hausdorff_rel', 0):.3f} % "
             f"of the diagonal, {r.seconds['total']:.2f} s")

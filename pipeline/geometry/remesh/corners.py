@@ -15,8 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from ..locate import PointLocator, lift
+from ..locate import lift
 from ..metrics import corner_angles
+from .domain import locator
 from .halfedge import double_areas, independent_by_faces, vertex_faces
 from .refine import split_edges, split_faces
 from .state import RemeshState
@@ -113,7 +114,8 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
     """
     from scipy.spatial import cKDTree
 
-    T = _apart_on_surface(S, np.asarray(targets_uv, dtype=np.float64).reshape(-1, 2), min_gap)
+    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
+    T = _apart_on_surface(S, T, min_gap)
     free = np.flatnonzero(~S.is_rim & ~S.locked)
     if len(T) == 0 or len(free) == 0:
         return np.zeros(0, np.int64)
@@ -162,12 +164,12 @@ def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6)
     A target beyond the remesh's rim — between a rim chord and the image polygon, where a
     spike squeezed against the boundary ends up — first splits that rim edge at the polygon
     point nearest to it, which brings the target inside. Returns the inserted vertices."""
-    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, 2)
+    T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
     done = []
     for _ in range(max_rounds):
         if len(T) == 0:
             break
-        f, bary, inside = PointLocator(S.uv, S.F).locate_with_inside(T)
+        f, bary, inside = locator(S.uv, S.F).locate_with_inside(T)
         c = np.argmin(bary, axis=1)                        # the corner opposite the nearest edge
         h = 3 * f + (c + 1) % 3                            # half-edge F[f, c+1] → F[f, c+2]
         twin = S.twins()[h]

@@ -34,12 +34,17 @@ def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
 
 
 def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Twice the signed area of each face on the disk, positive when counter-clockwise:
-    ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``.
+    """Twice the signed area of each face in the domain, positive when counter-clockwise: on
+    the disk ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)``; on the unit sphere (``uv`` with
+    three columns, unit vectors) the triple product ``det[p0, p1, p2]``
+    (:func:`..sphere.triple_products`), the same determinant with the disk's points read as
+    ``(u, v, 1)``: positive when the face turns counter-clockwise seen from outside (twice its
+    chordal area times the distance of its plane from the centre; unchanged in sign by any
+    radial scaling of its corners).
 
     Parameters
     ----------
-    uv : (n, 2) float
+    uv : (n, 2) or (n, 3) float
     F : (m, 3) int
 
     Returns
@@ -47,13 +52,17 @@ def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     (m,) float
     """
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    if uv.shape[1] == 3:
+        from ..sphere import triple_products
+        return triple_products(uv, F)
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
 
 
 def disk_shape(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Twice the signed disk area of each face over its longest disk edge squared (√3/2 for an
-    equilateral face, 0 for a degenerate one). The operations keep it at least
+    equilateral face, 0 for a degenerate one; on the sphere :func:`double_areas`' triple
+    product over the longest chord squared). The operations keep it at least
     ``DISK_SHAPE_MIN`` for every face they make: a face thinner than that on the disk is
     counter-clockwise only up to rounding, and a later split of its long edge can land on its
     third corner (two vertices at one point, a zero-length edge on the surface). Arguments as

@@ -79,7 +79,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6,
                    pinned_relax_iterations: int = 2,
-                   min_angle_deg: float = 20.0) -> RemeshState:
+                   min_angle_deg: float = 20.0, sag_floor: float = 0.0) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -114,6 +114,13 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         Smoothing steps after the second sag refinement (step 7).
     min_angle_deg : float
         The minimum-angle pass's threshold (step 9; 0: no pass).
+    sag_floor : float
+        The sag tolerance (refinement and guards) is at least this, in the mesh's units
+        (default 0: ``refine_sag × L`` alone). A remesh finer than its input sees the input's
+        own facets: its edges sag across every input crease by about their length times the
+        crease angle, which no split removes and which the refinement would chase at the cost
+        of the triangles' shape; the sphere remesher floors the tolerance at ``refine_sag`` ×
+        the input's own spacing (:func:`.sphere.sphere_remesh`).
 
     Returns
     -------
@@ -123,7 +130,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``guarantee`` (9) and ``repair``
         (10).
     """
-    ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag)
+    ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=SLIVER * L)
@@ -170,11 +177,13 @@ class _Operations:
     max_dihedral_deg: float
     relax_step: float
     refine_sag: float
+    sag_floor: float = 0.0
 
     @property
     def tol(self) -> float | None:
-        """The collapse guards' tolerance (mesh units), None without refinement."""
-        return self.refine_sag * self.L if self.refine_sag > 0 else None
+        """The sag tolerance of the refinement and the collapse guards (mesh units):
+        ``refine_sag × L``, at least ``sag_floor``; None without refinement."""
+        return max(self.refine_sag * self.L, self.sag_floor) if self.refine_sag > 0 else None
 
     def flip(self, since: np.ndarray | None = None) -> None:
         """Flips everywhere, or — given the faces before a run of splits — only from the
@@ -202,14 +211,14 @@ class _Operations:
         what the first rounds left, flips; at most ``budget`` sag splits in all."""
         S, L = self.S, self.L
         F_pre = S.F.copy()
-        done, pending = refine_by_sag(S, self.refine_sag * L, budget)
+        done, pending = refine_by_sag(S, self.tol, budget)
         F0 = S.F.copy()
         split_long_edges(S, LONG_EDGE * L, budget=budget)
         self.flip(since=F_pre)
         active = _corners_changed_since(S, F0)
         active[:len(pending)] |= pending
         F1 = S.F.copy()
-        refine_by_sag(S, self.refine_sag * L, budget - done, active=active)
+        refine_by_sag(S, self.tol, budget - done, active=active)
         self.flip(since=F1)
 
     def isotropic_step(self) -> None:

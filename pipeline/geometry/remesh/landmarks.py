@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..locate import PointLocator
+from .domain import locator
 
 
 def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.ndarray,
@@ -16,10 +16,10 @@ def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.
     ----------
     landmarks : dict
         ``{name: input vertex index}``.
-    V_in, uv_in : (N, 3) float, (N, 2) float
-        The input vertices and their disk positions.
-    X, uv : (n, 3) float, (n, 2) float
-        The remesh's vertices and their disk positions.
+    V_in, uv_in : (N, 3) float, (N, 2) or (N, 3) float
+        The input vertices and their domain positions (disk, or sphere: :mod:`.domain`).
+    X, uv : (n, 3) float, (n, 2) or (n, 3) float
+        The remesh's vertices and their domain positions.
     F : (m, 3) int
         The remesh's faces.
 
@@ -32,7 +32,7 @@ def carry_landmarks(landmarks: dict, V_in: np.ndarray, uv_in: np.ndarray, X: np.
         return {}
     names = list(landmarks)
     idx = np.array([landmarks[k] for k in names], np.int64)
-    face, _ = PointLocator(uv, F).locate(uv_in[idx])
+    face, _ = locator(uv, F).locate(uv_in[idx])
     corners = F[face]                                                # (k, 3)
     d = np.linalg.norm(X[corners] - V_in[idx][:, None, :], axis=2)
     j = np.argmin(d, axis=1)

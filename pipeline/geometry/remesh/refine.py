@@ -1,7 +1,14 @@
 """Refinement: edge splits where the remesh is too coarse or leaves the surface.
 
 * :func:`split_long_edges` — the split step of isotropic remeshing (Botsch & Kobbelt 2004) with
-  3D lengths, longest first; with a budget it gives back vertices the collapses removed.
+  3D lengths, longest first; with a budget it gives back vertices the collapses removed. At
+  the domain midpoint, or with ``S.surface_middles`` at the point of ``t = 1/8 … 7/8`` whose
+  lift is nearest to the middle of the edge in 3D (:func:`.sag.surface_middles`): where the
+  map stretches the surface unevenly along an edge, the domain midpoint can lift next to an end
+  and leave a needle; an edge none of whose points lifts at least ``MIN_BALANCE`` × its length
+  from both ends is then left unsplit, and so is a sagging edge whose worst point lifts that
+  near an end (:func:`split_balance`; split there, then again near the new vertex, the sag
+  refinement packs vertices into one input face).
 * :func:`refine_by_sag` — where the map squeezes a region into a thin sliver of the disk (the
   sides of fingers, deep folds, a closed mouth), uniform samples are too sparse across it and
   lifted edges bridge over the surface. An edge whose straight line is farther than a
@@ -24,11 +31,15 @@ import numpy as np
 
 from ..locate import _closest_on_segments
 from ..rows import dots, norms
+from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
-from .sag import SAG_WALK, edge_sag_along
+from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
 from .state import RemeshState
 
 SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
+_MIDDLE_TS = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)   # where a surface middle may be
+MIN_BALANCE = 0.25    # with surface middles, an edge whose every split point lifts nearer than
+                      # this × its length to an end is not split (it would leave a needle)
 
 
 def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
@@ -81,13 +92,22 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
 
 def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray,
                   t: np.ndarray | None) -> np.ndarray:
-    """The disk points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
-    ``t`` along the edge (default the midpoint), on the image polygon for a boundary edge."""
-    M = (0.5 * (S.uv[a] + S.uv[b]) if t is None
-         else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
+    """The domain points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
+    ``t`` along the edge (default the midpoint; on the sphere then normalised,
+    :func:`.domain.project`), on the image polygon for a boundary edge."""
+    M = project(0.5 * (S.uv[a] + S.uv[b]) if t is None
+                else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
     return M
+
+
+def split_balance(S: RemeshState, a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The lift (eq. 1) of the split point ``t`` of each edge ``a–b``: its distance to the
+    nearer end over the edge's length (k float; ½ at the middle of a straight edge)."""
+    P, _ = lift_samples(S, a, b, t[:, None])
+    near = np.minimum(norms(P - S.X[a]), norms(P - S.X[b]))
+    return near / np.maximum(norms(S.X[a] - S.X[b]), 1e-300)
 
 
 def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
@@ -219,7 +239,12 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             # only the longest few can be among the longest independent ones
             k = 4 * (budget - done) + 1000
             cand = cand[np.argpartition(-ln[cand], k)[:k]]
-        cand = cand[split_keeps_shape(S, h[cand], twin[cand])]
+        t = np.full(len(S.F) * 3, 0.5)                   # per half-edge; used when middles
+        if S.surface_middles and len(cand):
+            t[h[cand]], balance = surface_middles(S, a[cand], b[cand], _MIDDLE_TS)
+            cand = cand[balance >= MIN_BALANCE]          # no split point away from both ends
+        cand = cand[split_keeps_shape(S, h[cand], twin[cand],
+                                      t[h[cand]] if S.surface_middles else None)]
         if len(cand) == 0:
             break
         sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -ln[cand])]
@@ -228,7 +253,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
         if len(sel) == 0:
             break
         n0 = S.n
-        done += split_edges(S, h[sel], twin[sel])
+        done += split_edges(S, h[sel], twin[sel], t[h[sel]] if S.surface_middles else None)
         if budget is not None and done >= budget:
             break
         active = _after_splits(S, n0, a, b, np.setdiff1d(cand, sel))
@@ -286,6 +311,8 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
                                       end_normals=(na[probe], nb[probe]))
         cand = np.flatnonzero(sag > threshold)
+        if S.surface_middles and len(cand):
+            cand = cand[split_balance(S, a[cand], b[cand], t_split[cand]) >= MIN_BALANCE]
         cand = cand[split_keeps_shape(S, h[cand], twin[cand], t_split[cand])]
         if len(cand) == 0:
             break

@@ -8,7 +8,9 @@ face under the vertex, ``Δu = J⁺ d`` (:func:`.state.pullback_matrices`), and 
 re-located and lifted by eq. (1), so it stays on the input surface. Moves that would flip a
 face on the disk (or shrink it below 10⁻⁶ of its area, or make it thinner than
 ``DISK_SHAPE_MIN``, :func:`.halfedge.disk_shape`) are halved, up to 6 times, then dropped;
-moves that would leave the image polygon are dropped.
+moves that would leave the image polygon are dropped. On the sphere (:mod:`.domain`) the same
+step is taken in the chordal plane of the input face's spherical image (``J⁺`` then maps to
+3D) and normalised back onto the sphere; the face tests are the sphere's orientation tests.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 from .._kernels import ring_sums, thin_faces
 from ..locate import PointLocator, lift
 from ..rows import norms
+from .domain import project
 from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
 
@@ -95,7 +98,7 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
             du[F[bad].ravel()] = 0.0
         keep = np.any(du[go] != 0, axis=1)
         go, f2, b2 = go[keep], f2[keep], b2[keep]
-        uv[go] += du[go]
+        uv[go] = project(uv[go] + du[go])
         face[go], bary[go] = f2, b2
         X[go] = lift(V_in, F_in, f2, b2)
         moved_counts.append(int(len(go)))

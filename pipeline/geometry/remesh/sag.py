@@ -19,6 +19,49 @@ SAG_BLOCK = 262144    # sample points per point-location query
 SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
 
 
+def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """For each edge ``a–b``, the ``t`` of ``ts`` whose lifted domain point
+    ``(1 − t)·uv[a] + t·uv[b]`` (eq. 1) is nearest to the middle of the edge in 3D: its
+    distances to the two ends differ least. Where the map stretches the surface unevenly
+    along an edge, the domain midpoint can lift next to one end.
+
+    Parameters
+    ----------
+    S : RemeshState
+    a, b : (k,) int
+    ts : (s,) float
+        Candidate points along the edges, in ``(0, 1)``.
+
+    Returns
+    -------
+    t : (k,) float
+    balance : (k,) float
+        The lifted point's distance to the nearer end over the edge's length (½ at the exact
+        middle of a straight edge, 0 at an end).
+    """
+    ts = np.asarray(ts, dtype=np.float64)
+    k, s = len(a), len(ts)
+    T = np.repeat(ts, k)[:, None]
+    ea, eb = np.tile(a, s), np.tile(b, s)
+    P, _ = lift_samples(S, ea, eb, T)
+    da = np.linalg.norm(P - S.X[ea], axis=1).reshape(s, k)
+    db = np.linalg.norm(P - S.X[eb], axis=1).reshape(s, k)
+    j = np.argmin(np.abs(da - db), axis=0)
+    r = np.arange(k)
+    length = np.maximum(np.linalg.norm(S.X[a] - S.X[b], axis=1), 1e-300)
+    return ts[j], np.minimum(da[j, r], db[j, r]) / length
+
+
+def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The lifts (eq. 1; k×3) of the domain points ``(1 − T)·uv[ea] + T·uv[eb]`` (``T`` k×1),
+    each located from the face under the nearer end; also the faces they are in."""
+    M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
+    hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
+    mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
+    return lift(S.V_in, S.F_in, mf, mb), mf
+
+
 def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """How far the straight 3D edge ``a–b`` is from the surface at its middle
     (:func:`edge_sag_along` at ``t = 1/2``)."""
@@ -70,10 +113,8 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
         e = np.arange(lo, min(lo + step, k))
         T = np.repeat(ts, len(e))[:, None]
         ea, eb = np.tile(a[e], s), np.tile(b[e], s)
-        M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
-        hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
-        mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
-        D = lift(S.V_in, S.F_in, mf, mb) - ((1.0 - T) * S.X[ea] + T * S.X[eb])
+        P, mf = lift_samples(S, ea, eb, T)
+        D = P - ((1.0 - T) * S.X[ea] + T * S.X[eb])
         sag = np.abs(dots(D, S.normals_in()[mf]))
         for n_end in ends:
             sag = np.maximum(sag, np.abs(dots(D, np.tile(n_end[e], (s, 1)))))

@@ -3,7 +3,9 @@
 Every vertex is a disk position ``uv`` located in the input map (input face and barycentrics)
 and lifted by eq. (1): ``X = Σ bary_i · V_in[F_in[face, i]]``, so it lies exactly on the input
 surface. The operations keep two invariants: every face is counter-clockwise on the disk (the
-output stays a parameterized disk) and ``X`` is always the lift of ``uv``.
+output stays a parameterized disk) and ``X`` is always the lift of ``uv``. For a closed mesh
+the domain is the unit sphere instead (``uv`` and ``uv_in`` n×3 unit vectors, ``locator`` a
+:class:`..locate_sphere.SphereLocator`, no rim; :mod:`.domain`), with the same invariants.
 """
 
 from __future__ import annotations
@@ -31,15 +33,18 @@ def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> 
     ``J⁺ = E₂ G⁻¹ E₃ᵀ`` with ``E₃`` / ``E₂`` the face's two edge vectors in 3D / on the disk
     and ``G = E₃ᵀE₃``.
 
+    On the sphere (``uv_in`` n×3) ``E₂`` are the edges of the chordal triangle and ``J⁺`` takes
+    ``d`` to a 3D step in its plane (m×3×3).
+
     Parameters
     ----------
     V_in : (n, 3) float
     F_in : (m, 3) int
-    uv_in : (n, 2) float
+    uv_in : (n, 2) or (n, 3) float
 
     Returns
     -------
-    (m, 2, 3) float
+    (m, 2, 3) or (m, 3, 3) float
         Zero for a degenerate face.
     """
     E3a, E3b = V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]
@@ -81,6 +86,11 @@ class RemeshState:
         Vertices never moved or removed (snapped corners); none by default.
     log : dict
         Operation counts (:meth:`tally`) and, from the improvement pass, seconds per step.
+    surface_middles : bool
+        Long edges are split at their middle on the surface rather than in the domain, and no
+        split (long or sagging edge) is made whose point lifts next to an end
+        (:func:`.refine.split_long_edges`, :func:`.refine.refine_by_sag`); the sphere remesher
+        sets it, the disk's default keeps its output.
     """
 
     X: np.ndarray
@@ -96,6 +106,7 @@ class RemeshState:
     polygon: np.ndarray
     locked: np.ndarray | None = None
     log: dict = field(default_factory=dict)
+    surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
     _pullback: np.ndarray | None = field(default=None, repr=False)
     _normals_in: np.ndarray | None = field(default=None, repr=False)

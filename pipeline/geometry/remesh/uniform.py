@@ -24,6 +24,8 @@ from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
 from .corners import boundary_corners, interior_corners
+from .domain import on_sphere
+from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
@@ -140,18 +142,14 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     if improve:
         S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped)
         L = samples.spacing / np.sqrt(ratio)                             # target length in 3D
-        improve_remesh(S, L, relax_iterations=relax_iterations, flips=flips,
-                       max_dihedral_deg=max_dihedral_deg, relax_step=relax_step,
-                       refine_sag=refine_sag, refine_budget=refine_budget,
-                       target_vertices=vertices, isotropic_iterations=isotropic_iterations,
-                       final_relax_iterations=final_relax_iterations,
-                       pinned_relax_iterations=pinned_relax_iterations,
-                       min_angle_deg=min_angle_deg,
-                       corners_uv=uv[interior_corners(V, F, corner_angle_deg)])
+        imp.update(improve_state(
+            S, L, vertices, uv[interior_corners(V, F, corner_angle_deg)],
+            relax_iterations=relax_iterations, flips=flips, max_dihedral_deg=max_dihedral_deg,
+            relax_step=relax_step, refine_sag=refine_sag, refine_budget=refine_budget,
+            isotropic_iterations=isotropic_iterations,
+            final_relax_iterations=final_relax_iterations,
+            pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
-        imp.update({"enabled": True, "target_edge_length": float(L), **S.log})
-        imp["below_min_angle"] = below_min_angle(S, V, min_angle_deg)
-        imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     lap("improve")
     check_remesh(X, F_out, uv_out)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
@@ -169,6 +167,38 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
 
 
+def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndarray, *,
+                  min_angle_deg: float, **params) -> dict:
+    """Run :func:`.improve.improve_remesh` on ``S`` (either domain) and return what the
+    remesh's ``info["improve"]`` says of it: the operation counts and seconds per step, the
+    target length and the faces left below ``min_angle_deg`` (:func:`below_min_angle`).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    L : float
+        Target edge length on the surface, in the mesh's units.
+    target : int, optional
+        The vertex count to restore.
+    corners : (k, 2) or (k, 3) float
+        Domain positions of the sharp interior input vertices, sharpest first.
+    min_angle_deg : float
+    **params
+        The other keywords of :func:`.improve.improve_remesh`.
+
+    Returns
+    -------
+    dict
+    """
+    improve_remesh(S, L, target_vertices=target, corners_uv=corners,
+                   min_angle_deg=min_angle_deg, **params)
+    imp = {"enabled": True, "target_edge_length": float(L), **S.log}
+    imp["below_min_angle"] = below_min_angle(S, S.V_in, min_angle_deg)
+    imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
+    return imp
+
+
 class RemeshFailed(RuntimeError):
     """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
     the disk); it is never written."""
@@ -176,14 +206,18 @@ class RemeshFailed(RuntimeError):
 
 def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
     """Raise :class:`RemeshFailed` if a face of the remesh is degenerate on the surface
-    (:func:`..remesh_quality.degenerate_faces`) or not counter-clockwise on the disk."""
+    (:func:`..remesh_quality.degenerate_faces`) or not counter-clockwise in its domain: on the
+    disk ``uv`` (n×2), or on the sphere (``uv`` n×3 unit vectors,
+    :func:`.halfedge.double_areas`)."""
     from ..remesh_quality import degenerate_faces
 
     flat = degenerate_faces(X, F)
-    clockwise = np.flatnonzero(~(signed_double_areas(uv, F) > 0))
+    areas = double_areas(uv, F) if on_sphere(uv) else signed_double_areas(uv, F)
+    clockwise = np.flatnonzero(~(areas > 0))
     if len(flat) or len(clockwise):
+        where = "on the sphere" if on_sphere(uv) else "on the disk"
         raise RemeshFailed(f"remesh: {len(flat)} degenerate faces and {len(clockwise)} faces "
-                           f"not counter-clockwise on the disk are left (first: "
+                           f"not counter-clockwise {where} are left (first: "
                            f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
 
 
