@@ -126,7 +126,7 @@ def _meshes():
         ("single triangle", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
         ("degenerate triangle", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n"),
         ("two triangles", two, (0, 2)), ("four-triangle fan", fan, (0, 2)),
-        ("closed tetrahedron", obj_text(tet_V, tet_F)),
+        ("closed tetrahedron", obj_text(tet_V, tet_F), ".obj", False, (0,)),   # → the sphere
         ("nan vertex", obj_text(Vn, F)), ("inf vertex", obj_text(Vi, F)),
         ("coordinates 1e300", obj_text(V * 1e300, F)),
         ("coordinates 1e200", obj_text(V * 1e200, F)),

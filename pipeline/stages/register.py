@@ -48,7 +48,7 @@ from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, re
                             resolve_landmarks)
 from ..io.meshio import read_mesh, write_obj
 from .load import Intake, load_stage, sample_stage
-from .parameterize import ParameterizationFailed, parameterize_stage
+from .parameterize import ParameterizationFailed, parameterize_stage, require_disk
 from .stage import Context, Section, Stage
 
 
@@ -220,6 +220,7 @@ class Registration:
 
 
 def _parameterize(face: Face, opts: SEMOptions, progress):
+    require_disk(face.mesh, "register")
     p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
     if not p.ok:
         raise ParameterizationFailed(
