@@ -98,6 +98,18 @@ def test_identity_map_of_the_unit_icosphere_measures():
     assert sphere_distortion_summary(V, F, V * [1, 1, -1])["flipped_faces"] == len(F)
 
 
+def test_closed_mesh_decimates_into_a_closed_outward_genus_zero_mesh():
+    from pipeline.geometry.repair import RepairOptions
+    from pipeline.geometry.topology import boundary_edges, euler_characteristic
+
+    V, F = ellipsoid(4)
+    r = repair_mesh(V, F, options=RepairOptions(decimate_to_faces=1000))
+    assert r.closed and r.report["decimated_from_faces"] == len(F)
+    assert 900 <= r.report["decimated_to_faces"] == len(r.F) <= 1100
+    assert len(boundary_edges(r.F)) == 0 and euler_characteristic(r.F, len(r.V)) == 2
+    assert sphere.signed_volume(r.V, r.F) > 0
+
+
 def test_domain_resolution_and_its_messages():
     assert resolve_domain("auto", True) == "sphere" and resolve_domain("auto", False) == "disk"
     assert resolve_domain("sphere", True) == "sphere" and resolve_domain("disk", False) == "disk"
