@@ -87,10 +87,17 @@ def test_repo_configs_are_valid():
 
 # ---- bad input: exit code 2 and one line -------------------------------------------------
 
-def _closed_tetrahedron(path):
-    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    F = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
-    return write_obj(path, V, F)
+def _closed_torus(path, k=6):
+    """A closed genus-1 mesh: only genus-0 closed meshes have a (spherical) map."""
+    u, v = np.meshgrid(np.arange(k), np.arange(k), indexing="ij")
+    a, b = 2 * np.pi * u.ravel() / k, 2 * np.pi * v.ravel() / k
+    V = np.stack([(3 + np.cos(b)) * np.cos(a), (3 + np.cos(b)) * np.sin(a), np.sin(b)], axis=1)
+    idx = np.arange(k * k).reshape(k, k)
+    F = [[idx[i, j], idx[(i + 1) % k, j], idx[(i + 1) % k, (j + 1) % k]] for i in range(k)
+         for j in range(k)]
+    F += [[idx[i, j], idx[(i + 1) % k, (j + 1) % k], idx[i, (j + 1) % k]] for i in range(k)
+          for j in range(k)]
+    return write_obj(path, V, np.array(F))
 
 
 def _grid(k=4):
@@ -126,7 +133,7 @@ def _nan(path):
 
 
 @pytest.mark.parametrize("make, words", [
-    (_closed_tetrahedron, ["closed"]),
+    (_closed_torus, ["closed", "genus 1"]),
     (_holed_grid, ["boundary loops", "close"]),
     (_nonmanifold, ["non-manifold"]),
     (_nan, ["nan"]),

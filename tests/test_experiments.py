@@ -258,9 +258,15 @@ def test_second_run_skips_everything_and_deleted_item_reruns(pool_run):
 def test_failing_items_are_recorded_and_the_others_finish(tmp_path, capsys, synthetic_face):
     face = synthetic_face(400)
     write_obj(tmp_path / "good.obj", face.V, face.F)
-    V = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
-    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5],
-                  [0, 3, 5]])
+    k = 5                                        # a closed torus: genus 1 has no map
+    a, b = np.meshgrid(2 * np.pi * np.arange(k) / k, 2 * np.pi * np.arange(k) / k, indexing="ij")
+    V = np.stack([((3 + np.cos(b)) * np.cos(a)).ravel(), ((3 + np.cos(b)) * np.sin(a)).ravel(),
+                  np.sin(b).ravel()], axis=1)
+    idx = np.arange(k * k).reshape(k, k)
+    F = np.array([[idx[i, j], idx[(i + 1) % k, j], idx[(i + 1) % k, (j + 1) % k]]
+                  for i in range(k) for j in range(k)]
+                 + [[idx[i, j], idx[(i + 1) % k, (j + 1) % k], idx[i, (j + 1) % k]]
+                    for i in range(k) for j in range(k)])
     write_obj(tmp_path / "closed.obj", V, F)
     cfg = tmp_path / "exp.yaml"
     cfg.write_text(yaml.safe_dump({
@@ -278,7 +284,8 @@ def test_failing_items_are_recorded_and_the_others_finish(tmp_path, capsys, synt
     assert rows["good"]["status"] == "ok"
     assert rows["missing"]["status"] == "failed"
     assert "input.mesh" in rows["missing"]["error"] and "not found" in rows["missing"]["error"]
-    assert rows["closed"]["status"] == "failed" and "is closed" in rows["closed"]["error"]
+    assert rows["closed"]["status"] == "failed" and "is closed with genus 1" in \
+        rows["closed"]["error"]
     log = (run_dir / "closed" / "log.txt").read_text()
     assert "Traceback" in log and "UserError" in log
     assert json.loads((run_dir / "closed" / "item.json").read_text())["error_type"] == \

@@ -55,6 +55,23 @@ def register_run(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
+def sphere_run(tmp_path_factory):
+    """A run of a closed genus-0 mesh (an ellipsoid icosphere, 642 vertices) with only input
+    and parameterize: the spherical map's report and the run's index.html."""
+    from pipeline.io.meshio import write_obj
+    from test_parameterize_sphere import ellipsoid
+
+    root = tmp_path_factory.mktemp("sphere")
+    write_obj(root / "ellipsoid.obj", *ellipsoid(3))
+    config = root / "sphere_small.yaml"
+    config.write_text("run: {name: sphere_small}\n"
+                      "input: {mesh: ellipsoid.obj}\n"
+                      "parameterize: {mode: paper}\n")
+    _ok(run_cli("run", config, "--out", root / "out"), "pipeline run (sphere)")
+    return root / "out" / "sphere_small"
+
+
+@pytest.fixture(scope="module")
 def experiment_dir(tmp_path_factory):
     root = tmp_path_factory.mktemp("experiment")
     _ok(run_cli("experiment", REPO / "configs" / "experiment_sample.yaml", "--out", root,
@@ -95,6 +112,24 @@ def test_stage_reports_of_a_run_show_every_figure(chrome, register_run, stage):
     assert set(figures) <= set(seen["image_paths"]), (
         f"{stage}/report.html: figures written but not shown: "
         f"{sorted(f.name for f in set(figures) - set(seen['image_paths']))}")
+
+
+def test_sphere_report_and_run_index_show_every_figure_and_file(chrome, sphere_run):
+    import json
+
+    folder = sphere_run / "parameterize"
+    seen = check_page(chrome, folder / "report.html", root=sphere_run)
+    figures = sorted(p.resolve() for p in folder.glob("*.png"))
+    assert {p.name for p in figures} == {"sphere_area_ratio.png", "surface_and_sphere.png",
+                                         "area_ratio_histogram.png", "convergence.png"}
+    assert set(figures) <= set(seen["image_paths"])
+    seen = check_page(chrome, sphere_run / "index.html")
+    manifest = json.loads((sphere_run / "manifest.json").read_text())
+    assert list(manifest["stages"]) == ["parameterize"]
+    linked = {p.resolve() for p in seen["link_paths"]}
+    for key, path in manifest["stages"]["parameterize"].items():
+        assert Path(path).resolve() in linked, f"index.html: no link to parameterize {key}"
+    assert {"npz", "obj", "sphere", "report"} <= set(manifest["stages"]["parameterize"])
 
 
 def test_run_index_links_every_stage_report_and_file(chrome, register_run):

@@ -265,9 +265,74 @@ def test_two_components_need_keep_largest():
     assert np.array_equal(r.source_index, np.arange(len(V1)) + len(V2))
 
 
-def test_closed_mesh_is_rejected():
-    with pytest.raises(UserError, match="closed"):
-        repair_mesh(*tetrahedron())
+def cube(inward: bool = False):
+    """The unit cube as 6 quads (fan-triangulated by the repair: 12 triangles), outward CCW
+    unless ``inward``."""
+    V = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    Q = np.array([[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4],
+                  [1, 5, 7, 3]])
+    return V, (Q[:, ::-1] if inward else Q)
+
+
+def signed_volume(V, F):
+    return float(np.einsum("ij,ij->i", V[F[:, 0]], np.cross(V[F[:, 1]], V[F[:, 2]])).sum() / 6)
+
+
+def is_closed_genus_zero(r) -> bool:
+    return (r.closed and r.boundary.dtype == np.int64 and r.boundary.shape == (0,)
+            and len(topo.boundary_edges(r.F)) == 0
+            and topo.euler_characteristic(r.F, len(r.V)) == 2
+            and topo.connected_components(r.F, len(r.V))[0] == 1
+            and signed_volume(r.V, r.F) > 0)
+
+
+@pytest.mark.parametrize("make", [tetrahedron, octahedron])
+def test_closed_genus_zero_mesh_is_kept_closed_and_outward(make):
+    V, F = make()
+    r = repair_mesh(V, F)
+    assert is_closed_genus_zero(r)
+    assert r.report["closed"] is True and r.report["genus"] == 0
+    assert r.report["boundary_loops_found"] == 0 and r.report["boundary_vertices"] == 0
+    assert r.report["holes_closed"] == 0 and r.report["leaf_faces_split"] == 0
+    assert np.array_equal(r.source_index, np.arange(len(V)))
+    assert len(r.V) == len(V) and len(r.F) == len(F)
+    outward = signed_volume(V, np.asarray(F)) > 0
+    assert r.report["faces_flipped_outward"] == (0 if outward else len(F))
+
+
+def test_inward_cube_is_turned_outward_and_reported():
+    V, Q = cube(inward=True)
+    r = repair_mesh(V, Q)
+    assert is_closed_genus_zero(r) and len(r.F) == 12
+    assert r.report["non_triangle_faces_triangulated"] == 6
+    assert r.report["faces_flipped_outward"] == 12 and r.report["faces_reoriented"] == 0
+    assert any("outward" in m and "12 faces" in m for m in r.messages)
+    assert signed_volume(r.V, r.F) == pytest.approx(1.0)
+    out = repair_mesh(*cube())
+    assert out.report["faces_flipped_outward"] == 0 and not any("outward" in m
+                                                                  for m in out.messages)
+    P = r.V[r.F]                              # every face normal points away from the centre
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normal, P.mean(axis=1) - 0.5) > 0)
+
+
+def test_closed_mesh_with_a_few_inward_faces_gets_them_back_then_outward():
+    V, F = octahedron()
+    Fm = F[:, ::-1].copy()                   # all inward ...
+    Fm[:2] = F[:2]                           # ... but two: the majority (inward) is kept first
+    r = repair_mesh(V, Fm)
+    assert r.report["faces_reoriented"] == 2 and r.report["faces_flipped_outward"] == 8
+    cyclic = [tuple(np.roll(f, -int(np.argmin(f)))) for f in r.F]   # same faces, same turn
+    assert cyclic == [tuple(np.roll(f, -int(np.argmin(f)))) for f in F]
+
+
+def test_closed_genus_one_is_rejected_naming_the_genus_and_the_fix():
+    with pytest.raises(UserError) as err:
+        repair_mesh(*torus(), name="ring.obj")
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert "'ring.obj' is closed with genus 1 (Euler characteristic 0)" in msg
+    assert "only genus-0 closed meshes map to the sphere" in msg and "cut its handles" in msg
 
 
 def test_genus_one_with_boundary_is_rejected():
@@ -371,7 +436,7 @@ def test_near_duplicate_within_tolerance_is_welded_and_outside_is_not():
         repair_mesh(far, Fd)
 
 
-def test_cut_seam_is_not_welded():
+def test_seam_that_welds_into_a_closed_genus_zero_surface_is_welded():
     V, F = octahedron()
     # cut along +x → +z → -x: faces on the -y side get a copy of +z
     Vc = np.r_[V, V[4:5]]
@@ -379,13 +444,15 @@ def test_cut_seam_is_not_welded():
     for f in range(len(F)):
         if 3 in F[f] and 4 in F[f]:
             Fc[f] = np.where(F[f] == 4, 6, F[f])
+    # welding gives a fine closed genus-0 surface (the octahedron): welded, mapped to the sphere
     r = repair_mesh(Vc, Fc)
-    assert r.report["weld_skipped_vertices"] == 1 and r.report["vertices_welded"] == 0
-    assert "cut seam" in r.messages[0]
+    assert r.report["vertices_welded"] == 1 and r.report["weld_skipped_vertices"] == 0
+    assert is_closed_genus_zero(r) and len(r.V) == 6
+    np.testing.assert_array_equal(r.F, F)
+    # weld: false keeps the cut disk
+    r = repair_mesh(Vc, Fc, options=RepairOptions(weld=False))
     assert len(r.V) == 7 and is_disk(r)
     assert np.array_equal(r.F, Fc)
-    with pytest.raises(UserError, match="closed"):        # the uncut octahedron
-        repair_mesh(V, F)
 
 
 def test_nan_and_empty_are_rejected():

@@ -1,4 +1,5 @@
-"""Mesh intake repair: turn what the user gave into one clean topological disk.
+"""Mesh intake repair: turn what the user gave into one clean topological disk, or into one
+clean closed genus-0 surface (whose domain is the sphere: :mod:`.sphere`).
 
 :func:`repair_mesh` runs these steps in this order (each step that changes something adds one
 line to ``messages`` and counts to ``report``; problems that cannot be repaired automatically, or
@@ -14,9 +15,11 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     merged transitively); the lowest input index of a group is kept with its position and colour
     (``vertices_welded``). Faces that became degenerate are removed (counted in
     ``degenerate_faces_removed``). Exception — *cut seams*: when the unwelded mesh is already
-    fine (one component, manifold, with a boundary, genus 0) but the welded one is not (e.g.
+    fine (one component, manifold, genus 0, open or closed) but the welded one is not (e.g.
     ``igl_camel_b``: welding its 243 seam vertices closes the surface and pinches a vertex), the
     coincident vertices are an intentional cut and are left apart (``weld_skipped_vertices``).
+    A seam whose welding gives a fine *closed* genus-0 surface is welded (the mesh then maps to
+    the sphere; ``weld: false`` keeps the cut disk).
 5.  **duplicate faces** (same vertex set, any order or orientation): the first is kept
     (``duplicate_faces_removed``).
 6.  **unreferenced vertices** are removed; the remaining vertices keep their relative order
@@ -44,7 +47,11 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     input vertex, among those the collapse history (``replay_simplification``) merged into it,
     that lies nearest to its new position (nearest input vertex by ``cKDTree`` if the replay
     does not reproduce the triangles).
-12. **boundary**: closed surface → error; genus > 0 (from the Euler characteristic) → error;
+12. **boundary**: genus ``g = (2 − loops − χ) / 2`` from the Euler characteristic ``χ``;
+    ``g > 0`` → error naming the genus (closed or not). A **closed** genus-0 surface (no boundary
+    loop, ``χ = 2``) is kept as it is: steps 12's hole closing and 13 do not apply; its faces are
+    turned outward (positive enclosed signed volume, :func:`.sphere.signed_volume`), all of them
+    reversed if needed (``faces_flipped_outward``). Otherwise
     more than one boundary loop → error unless ``close_holes``: every loop but the longest (3D
     length) gets a fan to one appended vertex at the mean of the loop's vertices (colour = mean
     colour). Holes are closed in the order of their smallest vertex index, each fan starting at
@@ -56,9 +63,10 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     is left (``leaf_faces_split`` = leaves found, ``leaf_split_vertices_added``). With
     ``split_leaf_faces: false`` leaves are an error. No leaves also means every boundary vertex
     has an interior neighbour (paper Def. 1(ii)).
-14. **final invariants** (one component, manifold, consistently oriented, one boundary loop,
-    Euler characteristic 1, no leaves, every boundary vertex next to an interior one) are
-    checked; a failure there is a bug in this module (``RuntimeError``), not a user error.
+14. **final invariants** (one component, manifold, consistently oriented; for a disk: one
+    boundary loop, Euler characteristic 1, no leaves, every boundary vertex next to an interior
+    one; for a closed surface: Euler characteristic 2 and outward faces) are checked; a failure
+    there is a bug in this module (``RuntimeError``), not a user error.
 
 A hole fan is exact topology but only as good geometrically as the hole is star-shaped around its
 centroid (true for eye/mouth openings).
@@ -69,11 +77,13 @@ centroid (true for eye/mouth openings).
 ``unreferenced_vertices_removed``, ``components_found``, ``components_dropped``,
 ``component_faces_dropped``, ``faces_reoriented``, ``zero_area_faces_flipped``,
 ``zero_area_faces_removed``, ``decimated_from_faces`` / ``decimated_to_faces`` (``None`` when not
-decimated), ``boundary_loops_found``, ``holes_closed``, ``leaf_faces_split``,
+decimated), ``boundary_loops_found``, ``closed`` (bool: no boundary, the sphere is the
+domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``leaf_faces_split``,
 ``leaf_split_vertices_added``, ``output_vertices``, ``output_faces``, ``boundary_vertices``.
 
-If the input is already a clean disk, ``V``/``F`` are returned unchanged (copies, same order) and
-``source_index = arange(n)``.
+A closed result has ``boundary`` = an empty int64 array (:attr:`RepairedMesh.closed`).
+If the input is already a clean disk or an outward closed genus-0 surface, ``V``/``F`` are
+returned unchanged (copies, same order) and ``source_index = arange(n)``.
 """
 
 from __future__ import annotations
@@ -88,9 +98,10 @@ from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
+from pipeline.geometry.sphere import signed_volume
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
-           "weld_map", "zero_area_mask", "disk_blockers", "count_boundary_loops"]
+           "weld_map", "zero_area_mask", "disk_blockers", "count_boundary_loops", "genus_of"]
 
 ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts as zero area
 
@@ -241,9 +252,10 @@ def count_boundary_loops(F: np.ndarray) -> int:
 
 
 def disk_blockers(F: np.ndarray, n: int | None = None) -> list[str]:
-    """What keeps ``F`` (degenerate/duplicate faces already removed) from being repairable into
-    a disk without options: several components, non-manifold edges or vertices, no boundary,
-    genus > 0. Empty list = fine. Used to decide whether welding helps or hurts."""
+    """What keeps ``F`` (degenerate/duplicate faces already removed) from being repairable
+    without options into a disk or a closed genus-0 surface: several components, non-manifold
+    edges or vertices, genus > 0. Empty list = fine. Used to decide whether welding helps or
+    hurts, and whether a decimation kept the topology."""
     out = []
     ncomp, _ = topo.connected_components(F, n)
     if ncomp > 1:
@@ -254,16 +266,17 @@ def disk_blockers(F: np.ndarray, n: int | None = None) -> list[str]:
     if len(topo.nonmanifold_vertices(F, n)):
         out.append("non-manifold vertices")
         return out
-    be = topo.boundary_edges(F)
-    if len(be) == 0:
-        out.append("no boundary")
-        return out
     if ncomp == 1:
-        loops = count_boundary_loops(F)
-        chi = topo.euler_characteristic(F)
-        if (2 - loops - chi) // 2 > 0:
-            out.append(f"genus {(2 - loops - chi) // 2}")
+        g = genus_of(F, count_boundary_loops(F))
+        if g > 0:
+            out.append(f"genus {g}")
     return out
+
+
+def genus_of(F: np.ndarray, loops: int, n: int | None = None) -> int:
+    """Genus ``(2 − loops − χ) / 2`` of a connected orientable manifold with ``loops`` boundary
+    loops and Euler characteristic ``χ = V − E + F`` (``n`` vertices; default: those in ``F``)."""
+    return (2 - loops - topo.euler_characteristic(F, n)) // 2
 
 
 def _double_areas_and_lmax(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -651,13 +664,45 @@ def _split_leaves(M: _Mesh, name: str) -> tuple[int, int]:
     return found, added
 
 
+def _check_genus(M: _Mesh, loops: int, name: str) -> None:
+    """A one-line :class:`UserError` naming the genus when the (connected, manifold, oriented)
+    mesh has handles: a closed one maps to the sphere only at genus 0, an open one to the disk."""
+    g = genus_of(M.F, loops, M.n)
+    if g <= 0:
+        return
+    chi = topo.euler_characteristic(M.F, M.n)
+    if loops == 0:
+        raise UserError(
+            f"mesh '{name}' is closed with genus {g} (Euler characteristic {chi}); only genus-0 "
+            f"closed meshes map to the sphere: cut its handles open or pass a genus-0 mesh"
+        )
+    raise UserError(
+        f"mesh '{name}' has genus {g} (Euler characteristic {chi} with "
+        f"{_plural(loops, 'boundary loop')}); cut its handles open to get a disk"
+    )
+
+
+def _orient_outward(M: _Mesh, report: dict, messages: list) -> None:
+    """Reverse every face of a consistently oriented closed surface whose enclosed signed volume
+    ``Σ det[v0, v1, v2] / 6`` is negative (faces pointing inward), so that its spherical map is
+    positively oriented (:mod:`.sphere`)."""
+    vol = signed_volume(M.V, M.F)
+    if vol >= 0:
+        return
+    M.F = np.ascontiguousarray(M.F[:, [0, 2, 1]])
+    report["faces_flipped_outward"] = int(len(M.F))
+    messages.append(f"reversed all {_plural(len(M.F), 'face')} of the closed surface so that "
+                    f"they face outward (its enclosed signed volume was {vol:.4g})")
+
+
 def _ensure(ok, what: str) -> None:
     if not ok:  # pragma: no cover - a bug in this module, not the user's input
         raise RuntimeError(f"mesh repair bug: {what}")
 
 
-def _final_checks(M: _Mesh, changed_topology: bool) -> np.ndarray:
-    """Check the disk invariants (a failure is a bug here); returns the boundary loop.
+def _final_checks(M: _Mesh, changed_topology: bool, closed: bool) -> np.ndarray:
+    """Check the invariants of a disk, or of a closed genus-0 surface (a failure is a bug
+    here); returns the boundary loop (empty for a closed surface).
 
     Bowtie vertices were ruled out by the cleaning step and neither hole fans nor edge splits can
     create one, so that (costlier) test is repeated only when vertices were added.
@@ -671,6 +716,12 @@ def _final_checks(M: _Mesh, changed_topology: bool) -> np.ndarray:
     twin = topo.interior_edge_twins(F)
     inner = twin >= 0
     _ensure(np.array_equal(a[inner], b[twin[inner]]), "inconsistent orientation left")
+    _ensure(np.all(np.bincount(F.ravel(), minlength=n) > 0), "unreferenced vertices left")
+    if closed:
+        _ensure(inner.all(), "boundary edges left on a closed surface")
+        _ensure(topo.euler_characteristic(F, n) == 2, "Euler characteristic is not 2")
+        _ensure(signed_volume(M.V, F) > 0, "faces not outward")
+        return np.zeros(0, np.int64)
     loops = topo.boundary_loops(F, M.V)
     _ensure(len(loops) == 1, f"{len(loops)} boundary loops left")
     _ensure(topo.euler_characteristic(F, n) == 1, "Euler characteristic is not 1")
@@ -680,7 +731,6 @@ def _final_checks(M: _Mesh, changed_topology: bool) -> np.ndarray:
     A = topo.vertex_neighbours(F, n).astype(np.int64)
     inner_nb = np.asarray(A[loops[0]] @ (~is_b).astype(np.int64)).ravel()
     _ensure(np.all(inner_nb > 0), "a boundary vertex has no interior neighbour")
-    _ensure(np.all(np.bincount(F.ravel(), minlength=n) > 0), "unreferenced vertices left")
     return loops[0]
 
 
@@ -689,7 +739,8 @@ def _final_checks(M: _Mesh, changed_topology: bool) -> np.ndarray:
 
 def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
                 name: str = "mesh") -> RepairedMesh:
-    """Repair ``(V, faces)`` into one consistently oriented disk without leaf faces.
+    """Repair ``(V, faces)`` into one consistently oriented disk without leaf faces, or one
+    outward closed genus-0 surface.
 
     ``faces`` is an m×3 (or m×k) int array or a list of polygons. See the module docstring for
     the steps, their order and the ``report`` keys. Raises :class:`UserError` for everything that
@@ -704,7 +755,8 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
         "unreferenced_vertices_removed": 0, "components_found": 0, "components_dropped": 0,
         "component_faces_dropped": 0, "faces_reoriented": 0, "zero_area_faces_flipped": 0,
         "zero_area_faces_removed": 0, "decimated_from_faces": None, "decimated_to_faces": None,
-        "boundary_loops_found": 0, "holes_closed": 0, "leaf_faces_split": 0,
+        "boundary_loops_found": 0, "closed": False, "genus": 0, "faces_flipped_outward": 0,
+        "holes_closed": 0, "leaf_faces_split": 0,
         "leaf_split_vertices_added": 0, "output_vertices": 0, "output_faces": 0,
         "boundary_vertices": 0,
     }
@@ -797,21 +849,14 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
             _clean(M, opts, report, messages, name, when=" after decimation")
 
     # 12. boundary, genus, holes --------------------------------------------------------------
-    if len(topo.boundary_edges(M.F)) == 0:
-        raise UserError(
-            f"mesh '{name}' is closed (no boundary loop); cut it open or pass a disk-like patch"
-        )
     loops = topo.boundary_loops(M.F, M.V)
     report["boundary_loops_found"] = len(loops)
-    chi = topo.euler_characteristic(M.F, M.n)
-    genus = (2 - len(loops) - chi) // 2
-    if genus > 0:
-        raise UserError(
-            f"mesh '{name}' has genus {genus} (Euler characteristic {chi} with "
-            f"{_plural(len(loops), 'boundary loop')}); cut its handles open to get a disk"
-        )
+    _check_genus(M, len(loops), name)
+    report["closed"] = not loops
     closed_holes: list = []
-    if len(loops) > 1:
+    if not loops:
+        _orient_outward(M, report, messages)
+    elif len(loops) > 1:
         if not opts.close_holes:
             raise UserError(
                 f"mesh '{name}' has {len(loops)} boundary loops; set repair.close_holes: true "
@@ -819,9 +864,9 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
             )
         closed_holes = _close_holes(M, loops, report, messages)
 
-    # 13. leaf faces --------------------------------------------------------------------------
+    # 13. leaf faces (none on a closed surface) -----------------------------------------------
     is_b = topo.boundary_vertices_mask(M.F, M.n)
-    n_leaves = len(topo.leaf_faces(M.F, is_b))
+    n_leaves = len(topo.leaf_faces(M.F, is_b)) if loops else 0
     if n_leaves:
         if not opts.split_leaf_faces:
             raise UserError(
@@ -839,7 +884,7 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
     # 14. final invariants --------------------------------------------------------------------
     edited = bool(np.any(M.src < 0)) or bool(report["zero_area_faces_flipped"]) \
         or bool(report["zero_area_faces_removed"])
-    boundary = _final_checks(M, changed_topology=edited)
+    boundary = _final_checks(M, changed_topology=edited, closed=not loops)
     report["output_vertices"] = M.n
     report["output_faces"] = int(len(M.F))
     report["boundary_vertices"] = int(len(boundary))

@@ -65,6 +65,8 @@ class SEMOptions(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     mode: Literal["paper", "converged"] = "converged"
+    # auto: the sphere for a closed genus-0 mesh, the disk otherwise (stages.parameterize)
+    domain: Literal["auto", "disk", "sphere"] = "auto"
     max_iter: Optional[int] = Field(None, ge=0)
     tol: float = Field(1e-7, gt=0.0)   # converged: relative energy decrease counted as none
     patience: int = Field(20, ge=1)    # converged: steps without progress that end a phase

@@ -1,5 +1,7 @@
 """The parameterize stage's report: the paper's figures of a disk map (Figs. 3, 4, 5 and 7, plus
-a surface/disk view) and ``report.html`` with the metrics table and the figures.
+a surface/disk view), their counterparts for a spherical map (the sphere from two sides and the
+surface beside it, coloured by the local area ratio; the ratio histogram; the convergence of the
+energy ratio), and ``report.html`` with the metrics table and the figures.
 
 Every ``plot_*`` function is pure: arrays in, one PNG file out, the :class:`~pathlib.Path`
 returned; parent folders are created and the file is written atomically
@@ -32,9 +34,12 @@ from matplotlib.patches import Patch
 from matplotlib.ticker import FixedLocator, MaxNLocator
 from matplotlib.tri import Triangulation
 
+from dataclasses import replace
+
 from ..geometry.metrics import angular_distortion, local_area_ratios
+from ..geometry.sphere_metrics import sphere_local_area_ratios
 from . import html as h
-from .figure import camera_for, draw_surface, new_figure, save_png, unit_disk_axes
+from .figure import Camera, camera_for, draw_surface, new_figure, save_png, unit_disk_axes
 
 __all__ = [
     "DPI",
@@ -46,6 +51,11 @@ __all__ = [
     "plot_angle_histogram",
     "log2_ratio_limit",
     "write_figures",
+    "plot_sphere_area_ratio",
+    "plot_surface_and_sphere",
+    "plot_sphere_convergence",
+    "sphere_display_rotation",
+    "write_sphere_figures",
     "write_report",
 ]
 
@@ -56,6 +66,9 @@ FIGURE_SIZES = {                       # inches; pixels = inches × DPI
     "convergence": (7.2, 6.0),
     "surface_and_disk": (11.0, 5.4),
     "angle_histogram": (6.4, 4.4),
+    "sphere_area_ratio": (11.0, 5.6),
+    "surface_and_sphere": (11.0, 5.6),
+    "sphere_convergence": (7.2, 5.0),
 }
 
 EDGE_FACE_LIMIT = 5000                 # draw mesh edges only up to this many faces
@@ -66,6 +79,12 @@ PHASE_STYLE = {                        # history 'phase' -> (colour, marker, leg
     "harmonic": ("black", "s", "harmonic start"),
     "sem": ("tab:blue", "o", "SEM step (eq. 19–22)"),
     "gradient": ("tab:orange", "^", "preconditioned gradient step"),
+}
+SPHERE_PHASE_STYLE = {                 # spherical SEM history kind -> (colour, marker, legend)
+    "start": ("black", "s", "Tutte + stereographic start"),
+    "free+unfold": ("tab:purple", "D", "free half steps + unfolding"),
+    "hemisphere": ("tab:blue", "o", "hemisphere iteration (eq. 22 per pole)"),
+    "gradient": ("tab:orange", "^", "gradient phase (its last step)"),
 }
 
 
@@ -478,6 +497,156 @@ def write_figures(folder: Path, V, F, uv, history) -> list[Path]:
     ]
 
 
+# ------------------------------------------------------------------------- spherical maps
+
+
+def sphere_display_rotation(V: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """Rotation ``R`` (3, 3, det +1) that best turns the map ``S`` (n, 3) towards the surface's
+    directions from its centroid, ``min Σ |R s_i − p_i|²`` with ``p_i`` the unit vectors of
+    ``V − mean(V)`` (Kabsch), so that ``S @ R.T`` seen by the surface's camera shows the same
+    regions where the surface shows them. Display only: the colours are per vertex."""
+    P = np.asarray(V, np.float64) - np.mean(V, axis=0)
+    P /= np.maximum(np.linalg.norm(P, axis=1, keepdims=True), 1e-300)
+    U, _, Wt = np.linalg.svd(P.T @ np.asarray(S, np.float64))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Wt)) or 1.0])
+    return U @ D @ Wt
+
+
+def _sphere_cameras(V, F, S_view) -> tuple[Camera, Camera, Camera]:
+    """The surface's camera (:func:`.figure.camera_for`), the same view of the unit sphere
+    ``S_view`` (front) and the view from the opposite side (back; ``rotated`` by the identity
+    recomputes the head light for the turned frame)."""
+    cam = camera_for(V, F)
+    front = replace(cam, centre=np.zeros(3)).fitted([S_view], 0.03)
+    back = replace(front, right=-front.right, toward=-front.toward).rotated(np.eye(2))
+    return cam, front, back
+
+
+def _ratio_panels(name, panels, R, title):
+    """A figure of ``panels`` (``(V (n, 3), F, camera, subtitle)``) all coloured by the local
+    area ratio ``R`` (n,) as ``log2 R`` on the diverging scale of :func:`plot_disk_area_ratio`,
+    with one colorbar, the title and the saturation note."""
+    R = np.asarray(R, dtype=np.float64)
+    limit = log2_ratio_limit(R)
+    draw, norm = _finite_log2(R, limit), Normalize(-limit, limit)
+    fig = _new_figure(name)
+    axes = fig.subplots(1, len(panels))
+    for ax, (P, F, cam, sub) in zip(axes, panels):
+        m = draw_surface(ax, P, F, cam, vertex_values=draw, norm=norm, cmap=RATIO_CMAP)
+        ax.set_title(sub, fontsize=9)
+    _ratio_colorbar(fig, m, list(axes), limit,
+                    "local area ratio R(v), eq. (29), log₂ colour scale\n"
+                    "red: compressed on the sphere, blue: stretched",
+                    shrink=0.85, pad=0.02)
+    finite = R[np.isfinite(R)]
+    stats = (f"mean {finite.mean():.5f}, SD {finite.std():.2e}" if len(finite) else "no finite R")
+    F0 = panels[0][1]
+    fig.suptitle(f"{title}\n{_mesh_label(len(R), len(F0))}; R: {stats}", fontsize=10)
+    fig.text(0.01, 0.005, _outside_note(R, limit), fontsize=6.5, color="0.3", ha="left",
+             va="bottom")
+    fig.get_layout_engine().set(rect=(0, 0.03, 1, 0.97))
+    return fig
+
+
+def plot_sphere_area_ratio(V, F, S, ratio_per_vertex, path, title=None) -> Path:
+    """The spherical image ``S`` (n, 3) of the surface ``V`` (n, 3), ``F`` (m, 3) from two
+    opposite sides, coloured by the local area ratio ``R(v)`` of eq. (29) (the colours and
+    limits of :func:`plot_disk_area_ratio`). The sphere is turned by
+    :func:`sphere_display_rotation` and seen along the surface camera's axis (front) and
+    against it (back)."""
+    V, S = np.asarray(V, np.float64), np.asarray(S, np.float64)
+    F = np.asarray(F, np.int64)
+    Sv = S @ sphere_display_rotation(V, S).T
+    _, front, back = _sphere_cameras(V, F, Sv)
+    fig = _ratio_panels("sphere_area_ratio",
+                        [(Sv, F, front, "unit sphere f(M), front\n(the surface camera's side)"),
+                         (Sv, F, back, "unit sphere f(M), back")],
+                        ratio_per_vertex, title or "Spherical image: local area ratio")
+    return save_png(fig, path, DPI)
+
+
+def plot_surface_and_sphere(V, F, S, ratio_per_vertex, path, title=None) -> Path:
+    """The surface (left, the report camera of :func:`.figure.camera_for`) and its spherical
+    image (right, turned by :func:`sphere_display_rotation` and seen from the same direction)
+    coloured by the same local area ratio ``R(v)``, so corresponding regions match."""
+    V, S = np.asarray(V, np.float64), np.asarray(S, np.float64)
+    F = np.asarray(F, np.int64)
+    Sv = S @ sphere_display_rotation(V, S).T
+    cam, front, _ = _sphere_cameras(V, F, Sv)
+    fig = _ratio_panels("surface_and_sphere",
+                        [(V, F, cam, "surface M (orthographic view on its best-fit plane;\n"
+                                     "shaded)"),
+                         (Sv, F, front, "spherical image f(M), same view direction\n"
+                                        "(sphere turned to match the surface)")],
+                        ratio_per_vertex, title or "Surface and its spherical parameterization")
+    return save_png(fig, path, DPI)
+
+
+def _sphere_phase(entry: dict) -> str:
+    """The kind of a spherical SEM history entry (keys of :data:`SPHERE_PHASE_STYLE`)."""
+    phase = entry.get("phase")
+    if phase is not None:
+        return str(phase)
+    return "start" if entry.get("iteration", 0) == 0 else "hemisphere"
+
+
+def plot_sphere_convergence(history, path, title=None) -> Path:
+    """Convergence of the spherical SEM: the excess energy ratio ``E_S·|M|/|f(M)|² − 1`` of the
+    flat image triangles (the kernel's objective, eq. 15) of every recorded iterate against the
+    elapsed seconds (log scale), markers by kind (:data:`SPHERE_PHASE_STYLE`; a gradient phase
+    is one entry); folded faces in a second panel when there are any."""
+    hist = list(history)
+    t = np.array([h.get("seconds", np.nan) for h in hist], dtype=np.float64)
+    excess = _positive(np.array([h.get("energy_ratio", np.nan) for h in hist], float) - 1.0)
+    folds = np.array([h.get("folded_faces", 0) or 0 for h in hist], dtype=np.float64)
+    kinds = np.array([_sphere_phase(h) for h in hist], dtype=object)
+    any_folds = bool(np.any(folds > 0))
+    fig = _new_figure("sphere_convergence")
+    heights = [3, 1.2] if any_folds else [1]
+    axes = np.atleast_1d(fig.subplots(len(heights), 1, sharex=True,
+                                      gridspec_kw={"height_ratios": heights}))
+    ax = axes[0]
+    if len(hist):
+        ax.plot(t, excess, color="0.5", lw=0.8, zorder=1)
+        for kind in dict.fromkeys(kinds):
+            sel = kinds == kind
+            colour, marker, label = SPHERE_PHASE_STYLE.get(kind, ("tab:gray", "o", kind))
+            ax.plot(t[sel], excess[sel], ls="none", marker=marker, ms=4, color=colour,
+                    label=label, zorder=2)
+        ax.set_yscale("log")
+        ax.legend(fontsize=7, loc="upper right")
+        ax.set_title(f"final: energy ratio − 1 = {excess[-1]:.3e}", fontsize=8, loc="left")
+        if any_folds:
+            axes[1].step(t, folds, where="post", color="tab:red")
+            axes[1].set_ylabel("folded\nfaces", fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "empty history", ha="center", va="center", transform=ax.transAxes)
+    ax.set_ylabel("E_S / (|f(M)|²/|M|) − 1  (flat image triangles)")
+    for a in axes:
+        a.grid(alpha=0.3)
+    axes[-1].set_xlabel("seconds")
+    sub = f"{len(hist)} recorded iterates"
+    if len(hist):
+        sub += (f", {np.nanmax(t):.2f} s, folded faces at the end: {int(folds[-1])}"
+                if np.isfinite(t).any() else "")
+    fig.suptitle(f"{title or 'Spherical SEM convergence'}\n{sub}", fontsize=10)
+    return save_png(fig, path, DPI)
+
+
+def write_sphere_figures(folder: Path, V, F, S, history) -> list[Path]:
+    """The figures of the spherical map ``S`` (n×3 unit vectors) of ``V`` (n×3), ``F`` (m×3)
+    with its spherical SEM ``history`` into ``folder``."""
+    folder = Path(folder)
+    R = sphere_local_area_ratios(V, F, S)
+    return [
+        plot_sphere_area_ratio(V, F, S, R, folder / "sphere_area_ratio.png"),
+        plot_area_ratio_histogram(R, folder / "area_ratio_histogram.png",
+                                  title="Local area ratios on the sphere (geodesic areas)"),
+        plot_sphere_convergence(history, folder / "convergence.png"),
+        plot_surface_and_sphere(V, F, S, R, folder / "surface_and_sphere.png"),
+    ]
+
+
 CAPTIONS = {
     "disk_area_ratio.png": "The disk image coloured by the local area ratio R(v) of eq. (29) "
                            "(paper Fig. 3): 1 everywhere for an equiareal map.",
@@ -487,6 +656,17 @@ CAPTIONS = {
                        "(paper Fig. 7).",
     "surface_and_disk.png": "The surface and its disk image, coloured by the same per-vertex "
                             "values.",
+    "sphere_area_ratio.png": "The spherical image from two opposite sides, coloured by the "
+                             "local area ratio R(v) of eq. (29) with geodesic triangle areas: "
+                             "1 everywhere for an equiareal map.",
+    "surface_and_sphere.png": "The surface and its spherical image seen from the same "
+                              "direction, coloured by the same local area ratio.",
+}
+SPHERE_CAPTIONS = {
+    "area_ratio_histogram.png": "Histogram of the local area ratios on the sphere (geodesic "
+                                "triangle areas).",
+    "convergence.png": "Convergence of the spherical SEM: excess energy ratio of every "
+                       "recorded iterate against time.",
 }
 
 
@@ -496,10 +676,13 @@ def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
     mesh = metrics.get("mesh", {})
     par = metrics.get("parameterization", {})
     dist = metrics.get("distortion", {})
+    sphere = metrics.get("domain") == "sphere"
+    rim = ("closed (no boundary)" if sphere
+           else f"{mesh.get('boundary_vertices')} on the boundary")
     rows = [
         ("status", metrics.get("status")),
-        ("mesh", f"{mesh.get('vertices')} vertices, {mesh.get('faces')} faces, "
-                 f"{mesh.get('boundary_vertices')} on the boundary, "
+        ("domain", metrics.get("domain", "disk")),
+        ("mesh", f"{mesh.get('vertices')} vertices, {mesh.get('faces')} faces, {rim}, "
                  f"{mesh.get('added_vertices')} added by the repair"),
         ("method", par.get("method")),
         ("mode", par.get("mode")),
@@ -508,11 +691,18 @@ def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
         ("linear solver", par.get("solver")),
     ]
     rows += [(k.replace("_", " "), v) for k, v in dist.items()]
+    if sphere:
+        kernel = par.get("sphere_measures", {})
+        rows += [("face area distortion, flat chord triangles (the kernel's objective)",
+                  kernel.get("face_area_distortion")),
+                 ("energy ratio, flat chord triangles", kernel.get("energy_ratio"))]
+    captions = dict(CAPTIONS, **SPHERE_CAPTIONS) if sphere else CAPTIONS
     seconds = metrics.get("seconds", {})
     rows += [(f"time: {k} (s)", float(v)) for k, v in seconds.items()
              if isinstance(v, (int, float))]
     body = (h.kv_table(rows, ".6g")
-            + ("<h2>Figures</h2>\n" + h.figures(figure_names, CAPTIONS) if figure_names else "")
+            + ("<h2>Figures</h2>\n" + h.figures(figure_names, captions) if figure_names else "")
             + '\n<p class="foot">Written by sem-pipeline parameterize; numbers from '
               "metrics.json.</p>")
-    return h.write_page(Path(folder) / "report.html", "SEM disk parameterization", body)
+    title = "Spherical SEM parameterization" if sphere else "SEM disk parameterization"
+    return h.write_page(Path(folder) / "report.html", title, body)

@@ -1,4 +1,5 @@
-"""Stage ``input`` — load and repair: a mesh file (or the embedded sample) to a clean disk mesh.
+"""Stage ``input`` — load and repair: a mesh file (or the embedded sample) to a clean disk mesh,
+or to a clean closed genus-0 mesh (``RepairedMesh.closed``; parameterized onto the sphere).
 
 Config: the ``input`` section (a mesh file, or the embedded synthetic face) and the ``repair``
 section (:class:`~pipeline.geometry.repair.RepairOptions`). Makes the ``intake`` artifact.
@@ -48,7 +49,8 @@ class Intake:
 
 
 def load_stage(path: str | Path, options: RepairOptions | None = None) -> Intake:
-    """Read any supported mesh file and repair it into one disk (see geometry.repair)."""
+    """Read any supported mesh file and repair it into one disk or one closed genus-0 surface
+    (see geometry.repair)."""
     t0 = time.perf_counter()
     raw = read_mesh(path)
     t1 = time.perf_counter()

@@ -1,6 +1,10 @@
-"""Stage 2 — SEM disk parameterization of a repaired disk mesh, and its files.
+"""Stage 2 — SEM parameterization of a repaired mesh onto its domain, and its files.
 
-Files (contract in ``shared/docs/DESIGN.md``):
+The domain (``parameterize.domain``, :func:`resolve_domain`): the unit disk for a disk mesh
+(SEM, :mod:`pipeline.geometry.sem`), the unit sphere for a closed genus-0 mesh (spherical SEM,
+:mod:`pipeline.geometry.sphere`); ``auto`` picks it from the repaired mesh's topology.
+
+Files of a disk map (contract in ``shared/docs/DESIGN.md``):
 
 * ``parameterization.npz`` — ``vertices`` n×3, ``faces`` m×3, ``uv`` n×2, ``boundary`` k,
   ``source_index`` n (input vertex of each vertex, −1 for vertices the repair added);
@@ -11,9 +15,31 @@ Files (contract in ``shared/docs/DESIGN.md``):
   ``angle_histogram.png``, ``convergence.png``, ``surface_and_disk.png``;
 * ``report.html`` — the metrics table and the figures (:mod:`pipeline.report.parameterize`).
 
-A map with flipped faces is a failure: its ``metrics.json`` (status ``failed``), report and
-figures are written for diagnosis, the map files are not, and :class:`ParameterizationFailed`
-is raised.
+Files of a spherical map:
+
+* ``parameterization.npz`` — ``vertices`` n×3, ``faces`` m×3 (outward), ``sphere`` n×3 (unit
+  vectors, every spherical triangle positively oriented) and ``source_index`` n; no ``uv``, no
+  ``boundary``;
+* ``parameterized.obj`` — the repaired surface (the vertex order and faces the map belongs to),
+  and ``sphere.obj`` — the same faces on the unit sphere (vertex ``i`` at ``sphere[i]``), so a
+  mesh viewer shows the map;
+* ``metrics.json`` — as for the disk, with the measures against the geodesic triangle areas
+  (:func:`pipeline.geometry.sphere_metrics.sphere_distortion_summary`), ``domain: "sphere"``
+  and the kernel's own measures and start;
+* figures: ``sphere_area_ratio.png``, ``area_ratio_histogram.png``, ``convergence.png``,
+  ``surface_and_sphere.png``; ``report.html``.
+
+Modes on the sphere (:func:`sphere_options`): ``converged`` runs :func:`spherical_sem` with its
+defaults (hemisphere iterations alternating with its gradient phase until the energy ratio
+stops falling); ``paper`` runs only the alternating-hemisphere iterations of the published
+spherical SEM, ``max_iter`` (default 10) of them, without the gradient phase: a quick map, as
+Algorithm 1 is on the disk. ``max_iter``, ``tol``, ``patience``, ``min_step`` and ``solver``
+are passed on when given (the section's defaults are the disk's, so ``tol``, ``patience`` and
+``min_step`` only when set explicitly).
+
+A map with flipped (folded) faces is a failure: its ``metrics.json`` (status ``failed``),
+report and figures are written for diagnosis, the map files are not, and
+:class:`ParameterizationFailed` is raised.
 """
 
 from __future__ import annotations
@@ -28,6 +54,8 @@ from ..geometry.metrics import distortion_summary
 from ..geometry.repair import RepairedMesh
 from ..errors import UserError
 from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
+from ..geometry.sphere import SphereResult, spherical_sem
+from ..geometry.sphere_metrics import sphere_distortion_summary
 from ..geometry.solvers import NotPositiveDefinite
 from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import write_obj
@@ -45,7 +73,7 @@ class Parameterization:
 
     mesh: RepairedMesh
     uv: np.ndarray | None
-    sem: SEMResult
+    sem: SEMResult | SphereResult
     options: SEMOptions
     metrics: dict = field(default_factory=dict)
     sphere: np.ndarray | None = None
@@ -55,15 +83,52 @@ class Parameterization:
         return "disk" if self.sphere is None else "sphere"
 
     @property
+    def flipped_faces(self) -> int:
+        """Faces flipped on the disk, or folded on the sphere (``det[s0, s1, s2] ≤ 0``)."""
+        if self.sphere is None:
+            return self.sem.flipped_faces
+        return self.sem.measures["folded_faces"]
+
+    @property
     def ok(self) -> bool:
-        return self.sem.flipped_faces == 0
+        return self.flipped_faces == 0
+
+
+def resolve_domain(domain: str, closed: bool, welded: int = 0) -> str:
+    """The map's domain: ``"sphere"`` or ``"disk"`` (``domain`` is ``parameterize.domain``,
+    ``closed`` whether the repaired mesh has no boundary, ``welded`` how many vertices the
+    repair welded). ``auto`` follows the topology; a domain that does not fit the mesh is a
+    one-line :class:`UserError` naming the fix."""
+    if domain == "auto":
+        return "sphere" if closed else "disk"
+    if domain == "disk" and closed:
+        seam = (f", or set repair.weld: false (--no-weld) to keep the seam that welding "
+                f"{welded} vertices closed" if welded else "")
+        raise UserError(f"parameterize.domain is 'disk' but the mesh is closed (no boundary); "
+                        f"set --domain sphere (or auto) or cut the mesh open{seam}")
+    if domain == "sphere" and not closed:
+        raise UserError("parameterize.domain is 'sphere' but the mesh has a boundary (not "
+                        "closed); set --domain disk (or auto) or pass a closed genus-0 mesh")
+    return domain
+
+
+def require_disk(mesh: RepairedMesh, stage: str) -> None:
+    """Refuse a closed mesh in a stage that works on disk maps only (``remesh``, ``register``):
+    a one-line :class:`UserError` (exit 2) instead of a crash on the missing ``uv``."""
+    if mesh.closed:
+        raise UserError(f"{stage} of closed meshes is not supported yet (this mesh has no "
+                        f"boundary and maps to the sphere); run 'parameterize' on it, or pass a "
+                        f"mesh with a boundary")
 
 
 def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                        progress=None) -> Parameterization:
-    """Run SEM on the repaired mesh and measure the result (§7.1); a singular system (a mesh of
-    a few faces) is a one-line :class:`UserError`."""
+    """Map the repaired mesh onto its domain (:func:`resolve_domain`) and measure the result
+    (§7.1); a singular system (a mesh of a few faces) is a one-line :class:`UserError`."""
     options = options or SEMOptions()
+    welded = int(mesh.report.get("vertices_welded") or 0)
+    if resolve_domain(options.domain, mesh.closed, welded) == "sphere":
+        return sphere_parameterization(mesh, options)
     try:
         result = stretch_energy_minimization(mesh.V, mesh.F, mesh.boundary, options, progress)
     except NotPositiveDefinite as exc:
@@ -76,9 +141,8 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
     timings = dict(result.timings, metrics=time.perf_counter() - t0)
     metrics = {
         "status": "ok" if result.flipped_faces == 0 else "failed",
-        "mesh": {"vertices": int(len(mesh.V)), "faces": int(len(mesh.F)),
-                 "boundary_vertices": int(len(mesh.boundary)),
-                 "added_vertices": int(len(mesh.added_vertices))},
+        "domain": "disk",
+        "mesh": _mesh_counts(mesh),
         "parameterization": {"method": "SEM (Yueh et al. 2019, Algorithm 1)",
                              "mode": options.mode, "status": result.status,
                              "stop_reason": result.stop_reason, "steps": result.steps,
@@ -92,11 +156,86 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
     return Parameterization(mesh, result.uv, result, options, metrics)
 
 
+def _mesh_counts(mesh: RepairedMesh) -> dict:
+    return {"vertices": int(len(mesh.V)), "faces": int(len(mesh.F)),
+            "boundary_vertices": int(len(mesh.boundary)),
+            "added_vertices": int(len(mesh.added_vertices)), "closed": mesh.closed}
+
+
+def sphere_options(options: SEMOptions) -> dict:
+    """Keyword arguments of :func:`spherical_sem` for the ``parameterize`` section (see the
+    module docstring: ``paper`` = hemisphere iterations only, ``max_iter`` default 10;
+    ``converged`` = the kernel's defaults; explicit ``tol``/``patience``/``min_step`` passed)."""
+    kw: dict = {"solver": options.solver}
+    if options.mode == "paper":
+        kw.update(max_iter=options.iterations(), gradient_iter=0, cycles=1)
+    elif options.max_iter is not None:
+        kw["max_iter"] = options.max_iter
+    kw.update({k: getattr(options, k) for k in ("tol", "patience", "min_step")
+               if k in options.model_fields_set})
+    return kw
+
+
+def sphere_parameterization(mesh: RepairedMesh, options: SEMOptions) -> Parameterization:
+    """The spherical SEM map of a closed genus-0 repaired mesh (outward faces) and its
+    measures against the geodesic triangle areas."""
+    kw = sphere_options(options)
+    result = spherical_sem(mesh.V, mesh.F, **kw)
+    if not np.array_equal(result.F, mesh.F):  # pragma: no cover - the repair orients outward
+        raise RuntimeError("spherical SEM re-oriented the faces of a repaired mesh")
+    t0 = time.perf_counter()
+    distortion = sphere_distortion_summary(mesh.V, mesh.F, result.S)
+    timings = dict(result.timings)
+    total = timings.pop("total", sum(timings.values()))
+    timings["setup"] = max(total - sum(timings.values()), 0.0)   # phases only: they add up
+    timings["metrics"] = time.perf_counter() - t0
+    metrics = {
+        "status": "ok" if distortion["flipped_faces"] == 0 else "failed",
+        "domain": "sphere",
+        "mesh": _mesh_counts(mesh),
+        "parameterization": {"method": "spherical SEM (alternating hemispheres, Yueh et al.)",
+                             "mode": options.mode, "status": result.status,
+                             "iterations": result.iterations, "solver": options.solver,
+                             "options": options.model_dump(), "kernel_options": kw,
+                             "start": result.start, "sphere_measures": result.measures},
+        "distortion": distortion,
+        "history": result.history,
+        "seconds": timings,
+    }
+    return Parameterization(mesh, None, result, options, metrics, sphere=result.S)
+
+
 def write_figures(p: Parameterization, folder: Path) -> list[Path]:
-    """The paper's figures for this map (Figs. 3, 4, 5, 7) into ``folder``."""
+    """The figures of this map into ``folder``: the paper's (Figs. 3, 4, 5, 7) for a disk, their
+    spherical counterparts for a sphere."""
     from ..report import parameterize as report
 
+    if p.domain == "sphere":
+        return report.write_sphere_figures(folder, p.mesh.V, p.mesh.F, p.sphere, p.sem.history)
     return report.write_figures(folder, p.mesh.V, p.mesh.F, p.uv, p.sem.history)
+
+
+def _write_map(p: Parameterization, tmp: Path, out_dir: Path) -> dict[str, Path]:
+    """The map files (npz, OBJ) of either domain into ``tmp``; their final paths by key."""
+    m = p.mesh
+    if p.domain == "sphere":
+        save_npz(tmp / "parameterization.npz", vertices=m.V, faces=m.F, sphere=p.sphere,
+                 source_index=m.source_index)
+        write_obj(tmp / "parameterized.obj", m.V, m.F, colors=m.colors,
+                  header="closed genus-0 surface mapped to the unit sphere (sem-pipeline); "
+                         "the map: sphere.obj, same vertex order")
+        write_obj(tmp / "sphere.obj", p.sphere, m.F, colors=m.colors,
+                  header="spherical SEM equiareal map (sem-pipeline): vertex i of "
+                         "parameterized.obj on the unit sphere")
+        names = {"npz": "parameterization.npz", "obj": "parameterized.obj",
+                 "sphere": "sphere.obj"}
+    else:
+        save_npz(tmp / "parameterization.npz", vertices=m.V, faces=m.F, uv=p.uv,
+                 boundary=m.boundary, source_index=m.source_index)
+        write_obj(tmp / "parameterized.obj", m.V, m.F, uv=p.uv, colors=m.colors,
+                  header="SEM equiareal disk parameterization (sem-pipeline); vt = uv")
+        names = {"npz": "parameterization.npz", "obj": "parameterized.obj"}
+    return {key: out_dir / name for key, name in names.items()}
 
 
 def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metrics: dict | None
@@ -110,13 +249,7 @@ def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metri
     t0 = time.perf_counter()
     with staged_output(out_dir) as tmp:
         if p.ok:
-            m = p.mesh
-            save_npz(tmp / "parameterization.npz", vertices=m.V, faces=m.F, uv=p.uv,
-                     boundary=m.boundary, source_index=m.source_index)
-            write_obj(tmp / "parameterized.obj", m.V, m.F, uv=p.uv, colors=m.colors,
-                      header="SEM equiareal disk parameterization (sem-pipeline); vt = uv")
-            written["npz"] = out_dir / "parameterization.npz"
-            written["obj"] = out_dir / "parameterized.obj"
+            written.update(_write_map(p, tmp, out_dir))
         figs = write_figures(p, tmp) if figures else []
         for path in figs:
             written[path.stem] = out_dir / path.name
@@ -126,8 +259,9 @@ def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metri
         report.write_report(tmp, metrics, [f.name for f in figs])
         written["report"] = out_dir / "report.html"
     if not p.ok:
+        what = "folded" if p.domain == "sphere" else "flipped"
         raise ParameterizationFailed(
-            f"parameterization failed: {p.sem.flipped_faces} flipped faces remain after "
+            f"parameterization failed: {p.flipped_faces} {what} faces remain after "
             f"{p.sem.iterations} iterations (status {p.sem.status}); see {out_dir / 'metrics.json'}")
     return written
 
@@ -146,13 +280,15 @@ def _write(ctx: Context, folder: Path) -> dict[str, Path]:
 def _summary(ctx: Context, files: dict) -> str:
     p = ctx.artifacts["parameterization"]
     d = p.metrics["distortion"]
-    return (f"{p.metrics['mesh']['vertices']} vertices, {p.sem.iterations} iterations "
-            f"({p.sem.status}), D(f) eq.28 = {d['total_area_distortion_eq28']:.5f}, "
+    return (f"{p.metrics['mesh']['vertices']} vertices on the {p.domain}, "
+            f"{p.sem.iterations} iterations ({p.sem.status}), "
+            f"D(f) eq.28 = {d['total_area_distortion_eq28']:.5f}, "
             f"face area distortion = {d['face_area_distortion']:.5f}, "
-            f"flipped faces = {d['flipped_faces']}, "
+            f"{'folded' if p.domain == 'sphere' else 'flipped'} faces = {d['flipped_faces']}, "
             f"{sum(p.metrics['seconds'].values()):.2f} s")
 
 
 STAGE = Stage(name="parameterize", section=SEMOptions, run=_run, write=_write,
               needs=("intake",), makes=("parameterization",), uses=("report",),
-              default_on=True, summary=_summary, help="SEM disk map of one mesh")
+              default_on=True, summary=_summary,
+              help="SEM equiareal map of one mesh onto the disk (open) or the sphere (closed)")
