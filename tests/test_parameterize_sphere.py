@@ -29,7 +29,7 @@ from pipeline.geometry.sphere_metrics import (sphere_angular_distortion,
                                               sphere_distortion_summary,
                                               sphere_local_area_ratios,
                                               spherical_corner_angles)
-from pipeline.io.meshio import write_obj
+from pipeline.io.meshio import read_mesh, write_obj
 from pipeline.stages.parameterize import (Parameterization, ParameterizationFailed,
                                           resolve_domain, sphere_options,
                                           write_parameterization)
@@ -192,15 +192,22 @@ def test_domain_mismatch_is_one_line(tmp_path, ellipsoid_file, small_face):
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
-def test_stages_that_need_a_disk_refuse_closed_meshes(tmp_path, ellipsoid_file):
-    code, _, err = cli("remesh", ellipsoid_file, "-o", tmp_path / "r", "--vertices", "500")
-    assert code == 2 and "remesh of closed meshes is not supported yet" in error_line(err)
-    lm = tmp_path / "lm.txt"
+def test_closed_mesh_remeshes_through_the_cli_and_pairs_only_with_closed(tmp_path,
+                                                                       ellipsoid_file,
+                                                                       small_face):
+    code, _, err = cli("remesh", ellipsoid_file, "-o", tmp_path / "r", "--vertices", "300",
+                       "--no-compare", "--no-report")
+    assert code == 0, err
+    out = read_mesh(tmp_path / "r" / "remeshed.obj")
+    n, m = len(out.V), out.n_faces
+    assert abs(n - 300) <= 6 and n - m // 2 == 2            # closed: E = 3m/2, χ = n − m/2
+    lm, face_lm = tmp_path / "lm.txt", tmp_path / "face_lm.txt"
     lm.write_text("1\n2\n3\n")
-    code, _, err = cli("register", ellipsoid_file, ellipsoid_file, "--source-landmarks", lm,
-                       "-o", tmp_path / "g")
+    face_lm.write_text("\n".join(str(int(i)) for i in list(small_face[1].landmarks.values())[:3]) + "\n")
+    code, _, err = cli("register", ellipsoid_file, small_face[0], "--source-landmarks", lm,
+                       "--target-landmarks", face_lm, "-o", tmp_path / "g")
     assert code == 2
-    assert "register of closed meshes is not supported yet" in error_line(err, "landmarks:")
+    assert "source is closed (sphere) but target is open (disk)" in error_line(err, "landmarks:")
 
 
 def test_genus_one_is_refused_naming_the_genus(tmp_path):

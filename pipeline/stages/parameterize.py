@@ -112,15 +112,6 @@ def resolve_domain(domain: str, closed: bool, welded: int = 0) -> str:
     return domain
 
 
-def require_disk(mesh: RepairedMesh, stage: str) -> None:
-    """Refuse a closed mesh in a stage that works on disk maps only (``remesh``, ``register``):
-    a one-line :class:`UserError` (exit 2) instead of a crash on the missing ``uv``."""
-    if mesh.closed:
-        raise UserError(f"{stage} of closed meshes is not supported yet (this mesh has no "
-                        f"boundary and maps to the sphere); run 'parameterize' on it, or pass a "
-                        f"mesh with a boundary")
-
-
 def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                        progress=None) -> Parameterization:
     """Map the repaired mesh onto its domain (:func:`resolve_domain`) and measure the result

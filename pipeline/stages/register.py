@@ -59,7 +59,7 @@ from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, re
 from ..io.meshio import read_mesh, write_obj
 from ..geometry.register_sphere import sphere_faces
 from .load import Intake, load_stage, sample_stage
-from .parameterize import ParameterizationFailed, parameterize_stage, require_disk
+from .parameterize import ParameterizationFailed, parameterize_stage
 from .stage import Context, Section, Stage
 
 
@@ -232,7 +232,6 @@ class Registration:
 
 
 def _parameterize(face: Face, opts: SEMOptions, progress):
-    require_disk(face.mesh, "register")
     p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
     folds = map_folds(p)
     if folds:

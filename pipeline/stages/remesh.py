@@ -402,15 +402,12 @@ def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
 
 
 def _check(ctx: Context) -> None:
-    """Refuse a closed mesh, a spacing that gives too few vertices, and a request that needs
-    more memory than the limit (:mod:`pipeline.limits`), before the map is computed."""
+    """Refuse a spacing that gives too few vertices, and a request that needs more memory
+    than the limit (:mod:`pipeline.limits`), before the map is computed."""
     from ..geometry.laplacian import face_double_areas
     from ..limits import check_memory
 
-    from .parameterize import require_disk
-
     rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
-    require_disk(mesh, "remesh")
     area = float(face_double_areas(mesh.V, mesh.F).sum() / 2)
     n = expected_vertices(rc, area)
     if rc.spacing is not None:
