@@ -61,6 +61,7 @@ import scipy.sparse as sp
 
 from pipeline.errors import UserError
 
+from . import sphere_newton
 from .harmonic import clamp_positive
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
@@ -507,18 +508,34 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                   time_limit: float | None = None, solver: str = "auto",
                   poles: str = "xyz", free_iter: int = 10,
                   gradient_iter: int = 2000, gradient_tol: float = 1e-4,
-                  cycles: int = 10) -> SphereResult:
-    """Equiareal map of a closed genus-0 mesh onto the unit sphere by alternating-hemisphere SEM.
+                  cycles: int = 10, method: str = "newton",
+                  barriers: tuple = (2.0, 0.2, 0.02), newton_iter: int = 500,
+                  newton_tol: float = 1e-2, newton_patience: int = 3,
+                  newton_floor: float = 1e-5) -> SphereResult:
+    """Equiareal map of a closed genus-0 mesh onto the unit sphere by stretch-energy
+    minimization.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
+    method : {"newton", "hemisphere"}
+        ``"newton"`` (default): the free phase from the Tutte start, :func:`unfold`, then
+        Gauss–Newton steps on the energy ratio with a fold barrier (:mod:`.sphere_newton`);
+        if a folded face is left, the hemisphere method runs instead. ``"hemisphere"``: the
+        alternating-hemisphere SEM with its free, guarded and gradient phases.
+    barriers : tuple of float
+        The barrier weights ``κ`` of the Newton stages (decreasing).
+    newton_iter, newton_tol, newton_patience, newton_floor : int, float, int, float
+        Newton iterations at most; a stage ends after ``newton_patience`` iterations in a
+        row that lower its objective by less than ``newton_tol`` (relative), or once the
+        energy ratio is within ``newton_floor`` of its bound 1; the last one's end is
+        convergence (:func:`.sphere_newton.minimize`).
     max_iter : int
         Guarded hemisphere iterations (each = one half step around each pole).
     tol, patience : float, int
         Stop once the relative decrease of the energy ratio per iteration stays below ``tol``
-        for ``patience`` iterations.
+        for ``patience`` iterations (hemisphere method; Newton: ``patience`` only).
     radius : float
         Half steps move the vertices with ``|h| < radius`` (1 = exactly one hemisphere).
     min_step : float
@@ -545,8 +562,11 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     -------
     SphereResult
         The map never has more folded faces than the start (0 when the start has none): every
-        accepted step adds none.
+        accepted step adds none. ``timings`` has ``start``, ``newton`` or ``free``/``sem``/
+        ``gradient``, and ``total``.
     """
+    if method not in ("newton", "hemisphere"):
+        raise UserError(f"unknown spherical method '{method}'; use newton or hemisphere")
     t_all = time.perf_counter()
     V = np.asarray(V, dtype=np.float64)
     F = check_genus_zero(V, F)
@@ -562,22 +582,61 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     ratio = energy_ratio(A2, S, F)
     history = [{"iteration": 0, "energy_ratio": ratio, "folded_faces": folds,
                 "seconds": time.perf_counter() - t_all}]
+    deadline = np.inf if time_limit is None else t_all + time_limit
+    if method == "newton":
+        t0 = time.perf_counter()
+        S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
+                                  solver, history, t_all)
+        timings["free"] = time.perf_counter() - t0
+        if folds == 0:
+            t0 = time.perf_counter()
+            S, status, it = sphere_newton.minimize(
+                F, A2, S, kappas=barriers, deadline=deadline, max_iter=newton_iter,
+                tol=newton_tol, patience=newton_patience, floor=newton_floor, solver=solver,
+                history=history, clock_start=t_all)
+            timings["newton"] = time.perf_counter() - t0
+            timings["total"] = time.perf_counter() - t_all
+            return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
+                                iterations=it, status=status, history=history,
+                                timings=timings)
+        free_iter = 0                              # the hemisphere method goes on from here
+    return _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all,
+                           deadline, max_iter, tol, patience, radius, min_step, solver,
+                           poles, free_iter, gradient_iter, gradient_tol, cycles)
+
+
+def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, history, t_all):
+    """The free phase (:func:`_free_phase`) and :func:`unfold`; the result replaces ``S`` if
+    it has no more folded faces and a lower energy ratio (always tried, also from a start
+    with folds, which :func:`unfold` alone then tries to remove). Returns ``(S, ratio,
+    folds)``."""
+    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver) \
+        if free_iter else None
+    if free is None and folds == 0:
+        return S, ratio, folds
+    U, left = unfold(S if free is None else free[0], F)
+    u_ratio = energy_ratio(A2, U, F)
+    accepted = left < folds or (left <= folds and u_ratio < ratio)
+    history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
+                    "folded_faces": left, "free_iterations": 0 if free is None else free[1],
+                    "free_folded_faces": left if free is None else free[2],
+                    "accepted": accepted, "seconds": time.perf_counter() - t_all})
+    if accepted:
+        S, ratio, folds = U, u_ratio, left
+    return S, ratio, folds
+
+
+def _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all, deadline,
+                    max_iter, tol, patience, radius, min_step, solver, poles, free_iter,
+                    gradient_iter, gradient_tol, cycles) -> SphereResult:
+    """The alternating-hemisphere method of :func:`spherical_sem` (phases a–c of the module
+    docstring) from the start map ``S``."""
     t0 = time.perf_counter()
-    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver)
-    if free is not None:
-        U, left = unfold(free[0], F)
-        u_ratio = energy_ratio(A2, U, F)
-        accepted = left <= folds and u_ratio < ratio
-        history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
-                        "folded_faces": left, "free_iterations": free[1],
-                        "free_folded_faces": free[2], "accepted": accepted,
-                        "seconds": time.perf_counter() - t_all})
-        if accepted:
-            S, ratio, folds = U, u_ratio, left
-    timings["free"] = time.perf_counter() - t0
+    S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
+                              solver, history, t_all)
+    timings["free"] = timings.get("free", 0.0) + time.perf_counter() - t0
     status, it, cache = "max_iter", 0, {}
     timings["sem"] = timings["gradient"] = 0.0
-    deadline = np.inf if time_limit is None else t_all + time_limit
     for cycle in range(cycles):
         cycle_start, quiet, cycle_it = ratio, 0, 0
         t0 = time.perf_counter()
