@@ -511,7 +511,7 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                   cycles: int = 10, method: str = "newton",
                   barriers: tuple = (2.0, 0.2, 0.02), newton_iter: int = 500,
                   newton_tol: float = 1e-2, newton_patience: int = 3,
-                  newton_floor: float = 1e-5) -> SphereResult:
+                  newton_floor: float = 1e-4) -> SphereResult:
     """Equiareal map of a closed genus-0 mesh onto the unit sphere by stretch-energy
     minimization.
 

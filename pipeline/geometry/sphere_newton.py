@@ -59,7 +59,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from .solvers import NotPositiveDefinite, make_solver
+from .solvers import CholmodSolver, NotPositiveDefinite, make_solver
 
 #: the 21 pairs ``a ≤ b`` of a face's local unknowns (x_0, y_0, x_1, y_1, x_2, y_2)
 _PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
@@ -133,9 +133,11 @@ class SphereGaussNewton:
         self.H = full
         self.rows = np.repeat(np.arange(N), np.diff(full.indptr))
         self.diagonal = np.flatnonzero(full.indices == self.rows)
-        # supernodal Cholesky: the 2×2-block pattern is denser than a Laplacian's, where
-        # the simplicial factor of ``refactored=True`` is slower
+        # supernodal Cholesky on nested dissection: on the 2×2-block pattern, denser than a
+        # Laplacian's, the simplicial factor of ``refactored=True`` is slower
         self.solver = make_solver(solver_kind, refactored=False)
+        if isinstance(self.solver, CholmodSolver):
+            self.solver.ordering = "nesdis"
         self.factorizations = 0
         self._system = None
 
