@@ -14,8 +14,24 @@ Pipeline (:func:`spherical_sem`):
    the plane with that face as the outer (equilateral) triangle and positive (clamped cotangent)
    weights — an embedding by Tutte/Floater's theorem — then inverse stereographic projection,
    eq. (S2) below, with the plane scale chosen to minimize the energy ratio among fold-free scales.
-3. Alternating-hemisphere stretch-energy minimization (:func:`spherical_sem`), as in the
-   spherical SEM of Yueh et al.: with the stereographic projection from the north pole
+3. Free phase (:func:`_free_phase`, below) and :func:`unfold`: a few full alternating-
+   hemisphere half steps spread the limbs that the Tutte start crowds into triangles many
+   orders of magnitude below their share of the area (long protrusions under a near-conformal
+   map, where the barrier's Gauss–Newton system is too ill-conditioned to start); the folds
+   they leave are smoothed away, and the result replaces the start if it has no more folded faces
+   (and, with as many, a lower energy ratio).
+4. Gauss–Newton minimization (:mod:`.sphere_newton`, ``method="newton"``, the default): Levenberg–
+   Marquardt steps on all vertices at once, in the tangent planes, on the energy ratio plus a
+   relative-entropy barrier on the orientations ``det[s_i, s_j, s_k]`` whose weight goes down a
+   schedule; every iterate is fold free. It stops when the ratio is within ``newton_floor`` of
+   its bound (``R − 1 ≤ 10⁻⁴`` by default, which bounds the face-based distortion by
+   ``√(R − 1) = 0.01``: ``Σ|q − p| ≤ (Σ (q − p)²/p)^½ (Σ p)^½`` with ``p = |τ|/|M|``,
+   ``q = |f(τ)|/|f(M)|``) or progress stalls. If a folded face is left after step 3 (no
+   barrier can start there), the hemisphere method below runs instead; ``method="hemisphere"``
+   selects it.
+
+The hemisphere method: the alternating-hemisphere stretch-energy minimization of the
+spherical SEM of Yueh et al., with the stereographic projection from the north pole
 
        h = (x − i y) / (1 − z)                                                     (S1)
        s = (2 Re h, −2 Im h, |h|² − 1) / (1 + |h|²)                                  (S2)
@@ -24,15 +40,13 @@ Pipeline (:func:`spherical_sem`):
    ``|h| < radius`` (the southern hemisphere and a margin, 1.5 by default: with exactly one
    hemisphere, 1.0, the iteration stalls on the shared meshes) are moved by the
    stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the
-   rest fixed, where ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
-   the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
-   rotated so that the north pole goes south), and by default also around ±x and ±y
-   (``poles``). Three phases:
+   rest fixed, where ``L(f)`` has the weights of eq. (12) computed from the flat image
+   triangles on the sphere and the surface areas ``|τ|``; then back by (S2); then the same
+   from the south pole (the map rotated so that the north pole goes south), and by default
+   also around ±x and ±y (``poles``). Three phases:
 
    a. free (:func:`_free_phase`): full half steps kept whenever they lower the energy ratio,
-      folded or not, for a few iterations; then :func:`unfold` smooths the vertices of folded
-      faces until none is left, and the result replaces the start if it has no more folds and
-      a lower ratio;
+      folded or not, for a few iterations; then :func:`unfold` (step 3 above);
    b. guarded: each half step is accepted only if it lowers the energy ratio
       and adds no folded face; otherwise it is damped, ``normalize(f + α (f_new − f))`` for
       ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
@@ -40,8 +54,12 @@ Pipeline (:func:`spherical_sem`):
    c. gradient (:func:`_gradient_phase`): preconditioned gradient descent of the energy ratio
       on the sphere with the same fold guard, where the hemisphere iteration has slowed (the
       half steps stall with the energy still falling along the gradient). Phases b and c
-      alternate (``cycles``) while a
-      round still lowers the ratio: each restarts where the other has stalled.
+      alternate (``cycles``) while a round still lowers the ratio: each restarts where the
+      other has stalled.
+
+   Its half steps move one hemisphere with the other held, and its gradient steps are
+   first-order: on meshes with long limbs both slow down with the excess spread over the
+   whole map, which the Gauss–Newton steps remove.
 
 The objective is the stretch energy of the flat image triangles, ``E_S(f) = Σ |f(τ)|² / |τ|``
 (eq. 15), through the scale-free ratio ``E_S · |M| / |f(M)|² ≥ 1`` (Cauchy–Schwarz; equality iff
