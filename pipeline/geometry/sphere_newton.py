@@ -218,13 +218,16 @@ class SphereGaussNewton:
 def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.02, 0.002),
              deadline: float = np.inf, max_iter: int = 500, tol: float = 1e-2,
              patience: int = 3, floor: float = 1e-7, solver: str = "auto", mu: float = 1e-3,
-             min_step: float = 1.0 / 16, history: list | None = None,
+             min_step: float = 1.0 / 16, restarts: int = 2, history: list | None = None,
              clock_start: float | None = None) -> tuple[np.ndarray, str, int]:
     """Minimize ``Φ_κ`` from the fold-free map ``S`` down the barrier schedule ``kappas``.
 
     A stage ends after ``patience`` iterations in a row that lower ``Φ_κ`` by less than
     ``tol`` (relative), when no step lowers it (``μ`` beyond 1e8), or once ``R − 1 ≤ floor``
-    (the energy at its bound to that precision); the last stage's end is convergence.
+    (the energy at its bound to that precision); the last stage's end is convergence, unless
+    it stalled above the floor: then the schedule starts again from its first ``κ`` (at most
+    ``restarts`` times, and only while a pass lowers ``R``), since a strong barrier moves the
+    map off the nearly folded triangles at which the weak one stalls.
 
     Returns
     -------
@@ -241,6 +244,7 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
     if not np.isfinite(value):
         raise ValueError("the start map has folded faces")
     quiet, status, it = 0, "max_iter", 0
+    restart_ratio = np.inf
     t0 = time.perf_counter() if clock_start is None else clock_start
     try:
         while it < max_iter:
@@ -281,8 +285,12 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
             quiet = quiet + 1 if decrease < tol else 0
             if found is None or quiet >= patience or ratio - 1.0 <= floor:
                 if stage == len(kappas) - 1:
-                    status = "converged"
-                    break
+                    if ratio - 1.0 <= floor or restarts == 0 or \
+                            ratio > restart_ratio * (1 - tol):
+                        status = "converged"
+                        break
+                    # stalled above the floor: once more down the schedule (see above)
+                    restarts, restart_ratio, stage = restarts - 1, ratio, -1
                 stage, quiet = stage + 1, 0
                 kappa = kappas[stage]
                 value = objective(A2, S, F, kappa)
