@@ -59,6 +59,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
+from . import _kernels
 from .solvers import CholmodSolver, NotPositiveDefinite, make_solver
 
 #: the 21 pairs ``a ≤ b`` of a face's local unknowns (x_0, y_0, x_1, y_1, x_2, y_2)
@@ -70,6 +71,9 @@ _CORNERS = ((0, 1, 2), (1, 2, 0), (2, 0, 1))
 
 def _pair(a: int, b: int) -> int:
     return _PAIR_INDEX[(min(a, b), max(a, b))]
+
+
+_PAIR_TABLE = np.array([[_pair(a, b) for b in range(6)] for a in range(6)], dtype=np.int64)
 
 
 def tangent_basis(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -116,14 +120,16 @@ class SphereGaussNewton:
 
     def __init__(self, F: np.ndarray, n: int, A2: np.ndarray, solver_kind: str = "auto"):
         self.F, self.n, self.A2 = F, n, A2
-        self.p = A2 / A2.sum()
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        self.A2 = np.ascontiguousarray(A2, dtype=np.float64)
+        self.p = self.A2 / self.A2.sum()
         self.cols = np.empty((len(F), 6), dtype=np.int64)
         self.cols[:, 0::2], self.cols[:, 1::2] = 2 * F, 2 * F + 1
         N = 2 * n
         r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
         keys = (np.minimum(r, s) * N + np.maximum(r, s)).ravel()
         upper_keys, slot = np.unique(keys, return_inverse=True)
-        self.slot = slot.ravel()
+        self.slot = np.ascontiguousarray(slot.ravel(), dtype=np.int64)
         self.n_upper = len(upper_keys)
         U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64),
                            (upper_keys // N, upper_keys % N)), shape=(N, N))
@@ -147,7 +153,20 @@ class SphereGaussNewton:
 
     def linearize(self, S: np.ndarray, kappa: float) -> None:
         """Gradient, Gauss–Newton matrix and damping matrix of ``Φ_κ`` at ``S`` (fold free),
-        kept for :meth:`direction`."""
+        kept for :meth:`direction`: one compiled pass over the faces
+        (:func:`._kernels.sphere_gauss_newton_terms`; :meth:`_linearize_numpy` is its
+        reference)."""
+        S = np.ascontiguousarray(S, dtype=np.float64)
+        e1, e2 = tangent_basis(S)
+        H_upper, D_upper = np.zeros(self.n_upper), np.zeros(self.n_upper)
+        g = np.zeros(2 * self.n)
+        _kernels.sphere_gauss_newton_terms(S, self.F, e1, e2, self.A2, self.p, float(kappa),
+                                           self.slot, _PAIR_TABLE, H_upper, D_upper, g)
+        self._system = (H_upper[self.full_from_upper], g, e1, e2,
+                        D_upper[self.full_from_upper])
+
+    def _linearize_numpy(self, S: np.ndarray, kappa: float) -> None:
+        """:meth:`linearize` in numpy (the formulas of the module docstring)."""
         F = self.F
         P = [S[F[:, c]] for c in range(3)]
         e1, e2 = tangent_basis(S)
