@@ -22,9 +22,14 @@ with ``Φ = ∞`` when some ``b_τ ≤ 0``. The relative entropy is zero exactly
 tends to infinity as a triangle approaches a fold, so it is a barrier that keeps every iterate
 fold free without being a penalty on the equiareal maps themselves: for small triangles both
 terms are minimized by the same maps. Its pull on crushed faces (``∂/∂b_τ = −p_τ / b_τ``)
-also spreads the crowded limbs of a Tutte start, where the stretch energy's pull is bounded
-(``∂R/∂a_τ ∝ a_τ/A_τ − E_S/Σa``). ``κ`` goes down a schedule to 0 (a barrier method): the last
-stage minimizes ``R`` alone, steps still rejected if they fold a face.
+also spreads crowded limbs, where the stretch energy's pull is bounded
+(``∂R/∂a_τ ∝ a_τ/A_τ − E_S/Σa``) — up to a point: with faces crowded to many orders of
+magnitude below their share, the weights ``p_τ/b_τ²`` make the system too ill-conditioned to
+start, which is why :func:`.sphere.spherical_sem` runs its hemisphere free phase first.
+``κ`` goes down a schedule (a barrier method; 2, 0.2, 0.02 by default). Where flat areas and
+orientations differ (large or long thin image triangles), the last ``κ`` shifts the minimizer
+of ``R`` by a little; a schedule may end at 0, where steps are still rejected if they fold a
+face.
 
 Each vertex moves in its tangent plane, ``s_i ↦ normalize(s_i + x_i e¹_i + y_i e²_i)``. With
 ``∇_i a_τ = n̂_τ × (s_k − s_j)`` and ``∇_i b_τ = s_j × (s_k − s_j)`` at corner ``i`` of
@@ -48,8 +53,10 @@ A step ``t δ`` is tried for ``t = 1, ½, …`` (with the vertex-wise damping of
 :func:`.sphere.shrink_folding_steps` at faces it would fold) and kept if ``Φ`` falls; ``μ``
 shrinks after full steps and grows after short or failed ones. The unknowns are interleaved
 (``x_i, y_i`` adjacent); the pattern of ``H`` (2×2 blocks on the vertex adjacency) and where
-each face's 21 products land in its ``data`` are computed once, so a step is a few
-``np.bincount`` calls and a refactorization on a kept analysis.
+each face's 21 products land in its ``data`` are computed once, so a step is one compiled
+pass over the faces (:func:`._kernels.sphere_gauss_newton_terms`) and a refactorization on a
+kept analysis (supernodal, nested dissection; the system Jacobi-scaled first, since the barrier
+weights span many orders of magnitude).
 """
 
 from __future__ import annotations
@@ -234,9 +241,9 @@ class SphereGaussNewton:
         self.solver.release()
 
 
-def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.02, 0.002),
+def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.02),
              deadline: float = np.inf, max_iter: int = 500, tol: float = 1e-2,
-             patience: int = 3, floor: float = 1e-7, solver: str = "auto", mu: float = 1e-3,
+             patience: int = 3, floor: float = 1e-4, solver: str = "auto", mu: float = 1e-3,
              min_step: float = 1.0 / 16, restarts: int = 2, history: list | None = None,
              clock_start: float | None = None) -> tuple[np.ndarray, str, int]:
     """Minimize ``Φ_κ`` from the fold-free map ``S`` down the barrier schedule ``kappas``.
@@ -247,6 +254,21 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
     it stalled above the floor: then the schedule starts again from its first ``κ`` (at most
     ``restarts`` times, and only while a pass lowers ``R``), since a strong barrier moves the
     map off the nearly folded triangles at which the weak one stalls.
+
+    Parameters
+    ----------
+    F : (m, 3) int array, outward faces
+    A2 : (m,) float array
+        Surface double areas ``2|τ|``.
+    S : (n, 3) float array
+        The start: unit vectors, no folded face.
+    deadline : float
+        ``time.perf_counter()`` value after which no iteration starts (status "time_limit").
+    mu, min_step : float
+        Initial Levenberg–Marquardt damping; the shortest step ``t`` tried.
+    history : list, optional
+        Receives one dict per iteration (``kappa``, ``objective``, ``energy_ratio``,
+        ``folded_faces``, ``step``, ``damping``, ``seconds`` since ``clock_start``).
 
     Returns
     -------
