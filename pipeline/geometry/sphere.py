@@ -434,22 +434,28 @@ def _rotated_step(V, F, A2, S, R, radius, solver, cache, key):
     return None if G is None else G @ R
 
 
-def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
+def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver,
+                deadline=np.inf):
     """Full half steps, each kept if it lowers the energy ratio, folded or not (as Algorithm 1
     of the disk paper passes through folded maps), for at most ``iterations`` iterations or
     until an iteration lowers the ratio by less than ``tol`` (relative). Returns ``(map,
     iterations, folded faces)``, or None if no step was kept. It exists for starts crowded to
     tiny area ratios (a Tutte map of a mesh with long limbs), from which the guarded iteration
     stalls: a few free iterations spread the map, and :func:`unfold` removes the folds they
-    leave."""
+    leave. No iteration starts after ``deadline`` (``time.perf_counter()``). A vertex at the
+    projection pole (small meshes) makes its half step's map non-finite; that step is not
+    kept."""
     kept, it, cache = False, 0, {}
     for it in range(1, iterations + 1):
+        if time.perf_counter() > deadline:
+            break
         before = ratio
         for p, R in enumerate(_POLES[poles]):
-            G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
-            if G is None:
-                continue
-            g_ratio = energy_ratio(A2, G, F)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
+                if G is None:
+                    continue
+                g_ratio = energy_ratio(A2, G, F)
             if g_ratio < ratio:
                 S, ratio, kept = G, g_ratio, True
         if before - ratio < tol * before:
@@ -604,7 +610,7 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     if method == "newton":
         t0 = time.perf_counter()
         S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
-                                  solver, history, t_all)
+                                  solver, history, t_all, deadline)
         timings["free"] = time.perf_counter() - t0
         if folds == 0:
             t0 = time.perf_counter()
@@ -623,13 +629,14 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                            poles, free_iter, gradient_iter, gradient_tol, cycles)
 
 
-def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, history, t_all):
+def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, history, t_all,
+            deadline=np.inf):
     """The free phase (:func:`_free_phase`) and :func:`unfold`; the result replaces ``S`` if
     it has no more folded faces and a lower energy ratio (always tried, also from a start
     with folds, which :func:`unfold` alone then tries to remove). Returns ``(S, ratio,
     folds)``."""
-    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver) \
-        if free_iter else None
+    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver,
+                       deadline) if free_iter else None
     if free is None and folds == 0:
         return S, ratio, folds
     U, left = unfold(S if free is None else free[0], F)
@@ -651,7 +658,7 @@ def _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all, d
     docstring) from the start map ``S``."""
     t0 = time.perf_counter()
     S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
-                              solver, history, t_all)
+                              solver, history, t_all, deadline)
     timings["free"] = timings.get("free", 0.0) + time.perf_counter() - t0
     status, it, cache = "max_iter", 0, {}
     timings["sem"] = timings["gradient"] = 0.0
