@@ -50,7 +50,7 @@ space of ``H``, and the Laplacian damping makes the system SPD and large-``μ`` 
 curvature of the area constraints in ``H`` is what the hemisphere iteration and the
 preconditioned gradient lack: they slow down on long limbs, whose image must move as a whole.
 A step ``t δ`` is tried for ``t = 1, ½, …`` (with the vertex-wise damping of
-:func:`.sphere.shrink_folding_steps` at faces it would fold) and kept if ``Φ`` falls; ``μ``
+:func:`.sphere_base.shrink_folding_steps` at faces it would fold) and kept if ``Φ`` falls; ``μ``
 shrinks after full steps and grows after short or failed ones. The unknowns are interleaved
 (``x_i, y_i`` adjacent); the pattern of ``H`` (2×2 blocks on the vertex adjacency) and where
 each face's 21 products land in its ``data`` are computed once, so a step is one compiled
@@ -67,7 +67,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import _kernels
+from .laplacian import face_double_areas
 from .solvers import CholmodSolver, NotPositiveDefinite, make_solver
+from .sphere_base import energy_ratio, shrink_folding_steps, triple_products
 
 #: the 21 pairs ``a ≤ b`` of a face's local unknowns (x_0, y_0, x_1, y_1, x_2, y_2)
 _PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
@@ -96,14 +98,12 @@ def tangent_basis(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def orientations(S: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """``b_τ = det[s_i, s_j, s_k]`` per face (see :func:`.sphere.triple_products`)."""
-    from .sphere import triple_products
+    """``b_τ = det[s_i, s_j, s_k]`` per face (see :func:`.sphere_base.triple_products`)."""
     return triple_products(S, F)
 
 
 def objective(A2: np.ndarray, S: np.ndarray, F: np.ndarray, kappa: float) -> float:
     """``Φ_κ = (R − 1) + κ KL(p ‖ b/Σb)``; ``inf`` if a face is folded (``b_τ ≤ 0``)."""
-    from .laplacian import face_double_areas
     b = orientations(S, F)
     if not np.all(b > 0):
         return np.inf
@@ -114,11 +114,6 @@ def objective(A2: np.ndarray, S: np.ndarray, F: np.ndarray, kappa: float) -> flo
         p = A2 / M
         value += kappa * float(np.sum(p * np.log(p * b.sum() / b)))
     return value
-
-
-def _ratio(A2, S, F):
-    from .sphere import energy_ratio
-    return energy_ratio(A2, S, F)
 
 
 class SphereGaussNewton:
@@ -277,7 +272,6 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
     status : {"converged", "time_limit", "max_iter"}
     iterations : int
     """
-    from .sphere import shrink_folding_steps
     S = np.asarray(S, dtype=np.float64)
     gn = SphereGaussNewton(F, len(S), A2, solver)
     stage, kappa = 0, kappas[0]
@@ -317,7 +311,7 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
                 decrease = (value - c_value) / value
                 S, value = C, c_value
                 mu = max(mu / 3, 1e-10) if t == 1.0 else mu * 2
-            ratio = _ratio(A2, S, F)
+            ratio = energy_ratio(A2, S, F)
             if history is not None:
                 history.append({"iteration": it, "phase": "newton", "kappa": kappa,
                                 "objective": value, "energy_ratio": ratio, "folded_faces": 0,
