@@ -526,7 +526,10 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         steps in a row lower the ratio's excess ``R − 1`` by less than ``gradient_tol``
         (relative), or ``time_limit``.
     free_iter : int
-        Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one.
+        Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one
+        (hemisphere) or the Gauss–Newton minimization (newton). With fewer, the map it hands
+        on can keep long thin image triangles whose vertices lie near a great circle
+        (orientation ``det`` ≪ flat area), at which the Newton steps stall above the floor.
     poles : {"xyz", "z"}
         Half steps per iteration: around −z and +z only (the two poles of the spherical SEM),
         or around all six of ±x, ±y, ±z (default: with the two poles only, the iteration
