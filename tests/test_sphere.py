@@ -1,6 +1,8 @@
-"""Spherical equiareal maps (:mod:`pipeline.geometry.sphere`): exact facts on constructed meshes,
-the genus check on real closed meshes, and the map's guarantees (no fold, lower distortion than
-its start) on the real genus-0 meshes of ``shared/data/closed``."""
+"""Spherical equiareal maps (:mod:`pipeline.geometry.sphere`, :mod:`pipeline.geometry.sphere_newton`):
+exact facts on constructed meshes, the genus check on real closed meshes, and issue #22's
+numbers (0 folds, face-based area distortion ≤ 0.02, converged) on the real genus-0 meshes of
+``shared/data/closed`` and on a constructed mesh with long spikes. The 10 s budget at 40k faces
+is ``benchmarks/bench_sphere.py``'s (seconds on a shared machine scatter too much for a test)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ import pytest
 
 from conftest import require_data
 from pipeline.errors import UserError
-from pipeline.geometry import sphere
+from pipeline.geometry import sphere, sphere_newton
 from pipeline.geometry.repair import triangulate_polygons
 from pipeline.io.meshio import read_mesh
 
@@ -105,6 +107,79 @@ def test_icosphere_start_and_map_have_no_fold():
     assert r.measures["face_area_distortion"] < r.start["face_area_distortion"]
 
 
+@pytest.mark.parametrize("level", [2, 3])
+def test_icosphere_map_to_itself_is_a_rotation(level):
+    """The map of an icosphere (scaled ×2) onto the unit sphere: energy ratio 1 to 1e-6 and,
+    although equiareal maps are not unique, the minimizer reached from the Tutte start is the
+    identity up to a rotation (Procrustes; a proper rotation, no reflection) within 0.03."""
+    V, F = icosphere(level)
+    r = sphere.spherical_sem(V * 2.0, F)
+    assert r.status == "converged" and r.measures["folded_faces"] == 0
+    assert r.measures["energy_ratio"] == pytest.approx(1.0, abs=1e-6)
+    U, _, Wt = np.linalg.svd(r.S.T @ V)
+    R = U @ Wt
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    assert np.linalg.norm(V @ R.T - r.S, axis=1).max() < 0.03
+
+
+def test_newton_leaves_an_equiareal_map_in_place():
+    """From the identity map of an icosphere (``R = 1`` exactly: flat image = surface), the
+    Gauss–Newton minimization stays put with the ratio at 1: it moves only by the last barrier
+    weight's pull towards orientations ∝ areas (1e-5 here)."""
+    V, F = icosphere(2)
+    A2 = sphere.face_double_areas(V, F)
+    S, status, _ = sphere_newton.minimize(F, A2, V.copy())
+    assert status == "converged"
+    assert np.abs(S - V).max() < 1e-5
+    assert sphere.energy_ratio(A2, S, F) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_objective_is_infinite_on_a_fold_and_barrier_free_at_kappa_0():
+    V, F = icosphere(1)
+    A2 = sphere.face_double_areas(V, F)
+    assert sphere_newton.objective(A2, V, F, 0.0) == pytest.approx(0.0, abs=1e-14)
+    # flat areas of the identity are the surface's; the orientations det[...] are not
+    # proportional to them (the planes lie at different depths), so the barrier is > 0
+    assert sphere_newton.objective(A2, V, F, 1.0) > 0
+    S = V.copy()
+    S[0] = -0.2 * V[0] + V[1]
+    S[0] /= np.linalg.norm(S[0])
+    assert sphere.folded_faces(S, F) > 0
+    assert sphere_newton.objective(A2, S, F, 0.0) == np.inf
+
+
+@pytest.mark.parametrize("kappa", [0.0, 0.5])
+def test_gauss_newton_gradient_matches_finite_differences(kappa):
+    """The gradient of ``Φ_κ`` in tangent coordinates against central differences along
+    random tangent steps ``normalize(s + t δ)`` of a perturbed icosphere map; the Gauss–Newton
+    matrix is symmetric positive semidefinite with the rotations in its null space, and the
+    Laplacian damping positive definite."""
+    rng = np.random.default_rng(1)
+    V, F = icosphere(1)
+    S = V + 0.03 * rng.standard_normal(V.shape)
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)
+    gn = sphere_newton.SphereGaussNewton(F, len(S), A2)
+    gn.linearize(S, kappa)
+    data, g, e1, e2, damp = gn._system
+    for _ in range(3):
+        x = rng.standard_normal(2 * len(S))
+        D = x[0::2, None] * e1 + x[1::2, None] * e2
+
+        def phi(t):
+            C = S + t * D
+            return sphere_newton.objective(A2, C / np.linalg.norm(C, axis=1, keepdims=True),
+                                           F, kappa)
+        eps = 1e-6
+        assert g @ x == pytest.approx((phi(eps) - phi(-eps)) / (2 * eps), rel=1e-5)
+    H = gn.H.copy()
+    H.data = data
+    ev = np.linalg.eigvalsh(H.toarray())
+    assert ev[0] > -1e-12 * ev[-1] and np.sum(ev < 1e-10 * ev[-1]) >= 3
+    H.data = damp
+    assert np.linalg.eigvalsh(H.toarray())[0] > 0
+
+
 # -- genus ---------------------------------------------------------------------------------------
 
 def test_constructed_torus_is_refused_naming_genus_1():
@@ -132,20 +207,42 @@ def test_real_higher_genus_meshes_are_refused(name, g, chi):
 
 @pytest.mark.parametrize("name", ["igl_bunny", "igl_arm", "igl_bumpy_cube", "igl_decimated_max",
                                   "igl_elephant"])
-def test_real_genus0_maps_are_fold_free_and_improve_the_start(name):
+def test_real_genus0_maps_meet_the_issue_target(name):
+    """Issue #22: no folded face and face-based area distortion ≤ 0.02, converged (the time
+    limit is generous here: the machine is shared; seconds are the benchmark's)."""
     V, F = load_closed(name)
-    r = sphere.spherical_sem(V, F, time_limit=10.0)
+    r = sphere.spherical_sem(V, F, time_limit=120.0)
+    assert r.status == "converged"
     assert r.measures["folded_faces"] == 0
+    assert r.measures["face_area_distortion"] <= 0.02
+    # the stopping rule R − 1 ≤ 1e-4 bounds the distortion by √(R − 1) (Cauchy–Schwarz)
+    assert r.measures["face_area_distortion"] <= np.sqrt(r.measures["energy_ratio"] - 1) + 1e-12
     assert r.measures["max_radius_error"] < 1e-12
-    assert r.measures["face_area_distortion"] < 0.9 * r.start["face_area_distortion"]
     assert r.history[-1]["energy_ratio"] <= r.history[0]["energy_ratio"]
+    assert all(h["folded_faces"] == 0 for h in r.history if h.get("phase") == "newton")
 
 
-def test_bumpy_cube_reaches_the_issue_target():
-    """40k faces: 0 folds and face-based distortion ≤ 0.02 (measured 0.0107 at the 10 s limit)."""
-    V, F = load_closed("igl_bumpy_cube")
-    r = sphere.spherical_sem(V, F, time_limit=10.0)
-    assert r.measures["folded_faces"] == 0 and r.measures["face_area_distortion"] <= 0.02
+def test_spiky_sphere_with_long_limbs_meets_the_issue_target():
+    """A constructed stand-in for meshes we do not have: an icosphere pushed out into six
+    spikes three radii long, which a near-conformal start crowds into tiny areas."""
+    V, F = icosphere(4)
+    D = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
+    theta = np.arccos(np.clip(V @ D.T, -1, 1))
+    V = V * (1 + 3.0 * np.exp(-(theta / 0.3) ** 2).sum(axis=1))[:, None]
+    r = sphere.spherical_sem(V, F, time_limit=120.0)
+    assert r.status == "converged" and r.measures["folded_faces"] == 0
+    assert r.measures["face_area_distortion"] <= 0.02
+    assert r.start["face_area_distortion"] > 1.0
+
+
+def test_hemisphere_method_is_kept_and_fold_free():
+    V, F = icosphere(3)
+    r = sphere.spherical_sem(V * 2.0, F, method="hemisphere", time_limit=2.0)
+    assert r.measures["folded_faces"] == 0
+    assert r.measures["face_area_distortion"] < r.start["face_area_distortion"]
+    assert "newton" not in r.timings
+    with pytest.raises(UserError, match="unknown spherical method"):
+        sphere.spherical_sem(V, F, method="conformal")
 
 
 def test_fold_test_is_exact_for_tiny_triangles():
@@ -191,3 +288,19 @@ def test_ratio_gradient_matches_finite_differences():
         fd = (sphere.energy_ratio(A2, S + eps * D, F) - sphere.energy_ratio(A2, S - eps * D, F)) \
             / (2 * eps)
         assert np.sum(g * D) == pytest.approx(fd, rel=1e-5)
+
+
+@pytest.mark.parametrize("kappa", [0.0, 0.7])
+def test_compiled_gauss_newton_terms_match_numpy(kappa):
+    """The compiled per-face pass against its numpy reference, to rounding."""
+    rng = np.random.default_rng(2)
+    V, F = icosphere(3)
+    S = V + 0.02 * rng.standard_normal(V.shape)
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)
+    gn = sphere_newton.SphereGaussNewton(F, len(S), A2)
+    gn.linearize(S, kappa)
+    compiled = gn._system
+    gn._linearize_numpy(S, kappa)
+    for a, b in zip(compiled, gn._system):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-13 * np.abs(b).max())

@@ -745,3 +745,123 @@ def corner_cosines(const double[:, ::1] X, const int64_t[:, ::1] F):
             out[t, c] = ((ux * vx + uz * vz) + uy * vy) / (
                 sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
     return out_arr
+
+
+cdef inline void _cross(double ax, double ay, double az, double bx, double by, double bz,
+                        double* out) noexcept nogil:
+    out[0] = ay * bz - az * by
+    out[1] = az * bx - ax * bz
+    out[2] = ax * by - ay * bx
+
+
+def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
+                              const double[:, ::1] e1, const double[:, ::1] e2,
+                              const double[::1] A2, const double[::1] p, double kappa,
+                              const int64_t[::1] slot, const int64_t[:, ::1] pair_index,
+                              double[::1] H_upper, double[::1] D_upper, double[::1] g):
+    """The per-face sums of :meth:`pipeline.geometry.sphere_newton.SphereGaussNewton.linearize`
+    (its numpy form, ``_linearize_numpy``, is the reference; this loop computes the same
+    formulas to rounding, not bit for bit): adds into ``H_upper`` / ``D_upper`` (the
+    Gauss–Newton matrix and the Laplacian damping, on the distinct upper entries ``slot``
+    points at, 21 per face) and ``g`` (2n, interleaved tangent coordinates). Two passes: the
+    sums ``Σa``, ``Σb``, ``Σ a²/A`` and the mean corner term first. Returns ``Σa``."""
+    cdef Py_ssize_t m = F.shape[0], t, c, j, k, q, u, sj, sk
+    cdef double P[3][3]
+    cdef double E[3][2][3]
+    cdef double edge[3][3]
+    cdef double N[3]
+    cdef double ga[3][3]
+    cdef double gb[3][3]
+    cdef double da[6]
+    cdef double db[6]
+    cdef double dl[21]
+    cdef double cot[3]
+    cdef double a, b, sa = 0.0, sb = 0.0, energy = 0.0, cot_abs = 0.0, nx, ny, nz
+    cdef double scale, ca, cb, wa, wb, w, floor_cot, M = 0.0
+    cdef int64_t vi
+    cdef int CJ[3]
+    cdef int CK[3]
+    CJ[0], CJ[1], CJ[2] = 1, 2, 0
+    CK[0], CK[1], CK[2] = 2, 0, 1
+    # pass 1: sums
+    for t in range(m):
+        for c in range(3):
+            vi = F[t, c]
+            for u in range(3):
+                P[c][u] = S[vi, u]
+        for c in range(3):
+            for u in range(3):
+                edge[c][u] = P[CK[c]][u] - P[CJ[c]][u]
+        _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+               P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+        a = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
+        sa += a
+        sb += P[0][0] * N[0] + P[0][1] * N[1] + P[0][2] * N[2]
+        energy += a * a / A2[t]
+        M += A2[t]
+        for c in range(3):
+            cot_abs += fabs(edge[CK[c]][0] * edge[CJ[c]][0] + edge[CK[c]][1] * edge[CJ[c]][1]
+                            + edge[CK[c]][2] * edge[CJ[c]][2]) / A2[t]
+    scale = 2.0 * M / (sa * sa)
+    floor_cot = 1e-3 * cot_abs / (3.0 * m)
+    # pass 2: local terms and scatter
+    for t in range(m):
+        for c in range(3):
+            vi = F[t, c]
+            for u in range(3):
+                P[c][u] = S[vi, u]
+                E[c][0][u] = e1[vi, u]
+                E[c][1][u] = e2[vi, u]
+        for c in range(3):
+            for u in range(3):
+                edge[c][u] = P[CK[c]][u] - P[CJ[c]][u]
+        _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+               P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+        a = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
+        b = P[0][0] * N[0] + P[0][1] * N[1] + P[0][2] * N[2]
+        nx, ny, nz = N[0] / a, N[1] / a, N[2] / a
+        for c in range(3):
+            _cross(nx, ny, nz, edge[c][0], edge[c][1], edge[c][2], ga[c])
+            j = CJ[c]
+            _cross(P[j][0], P[j][1], P[j][2], edge[c][0], edge[c][1], edge[c][2], gb[c])
+            for sj in range(2):
+                da[2 * c + sj] = (ga[c][0] * E[c][sj][0] + ga[c][1] * E[c][sj][1]
+                                  + ga[c][2] * E[c][sj][2])
+                db[2 * c + sj] = (gb[c][0] * E[c][sj][0] + gb[c][1] * E[c][sj][1]
+                                  + gb[c][2] * E[c][sj][2])
+        ca = scale * (a / A2[t] - energy / sa)
+        wa = scale / A2[t]
+        if kappa != 0.0:
+            cb = kappa * (1.0 / sb - p[t] / b)
+            wb = kappa * p[t] / (b * b)
+        else:
+            cb = 0.0
+            wb = 0.0
+        for c in range(3):
+            vi = F[t, c]
+            g[2 * vi] += da[2 * c] * ca + db[2 * c] * cb
+            g[2 * vi + 1] += da[2 * c + 1] * ca + db[2 * c + 1] * cb
+        q = 0
+        for u in range(6):
+            for j in range(u, 6):
+                H_upper[slot[21 * t + q]] += da[u] * da[j] * wa + db[u] * db[j] * wb
+                q += 1
+        # damping: ½ Σ_(j,k) w |δ_j − δ_k|², w = ½ max(corner term, floor)
+        for q in range(21):
+            dl[q] = 0.0
+        for c in range(3):
+            j, k = CJ[c], CK[c]
+            cot[c] = -(edge[k][0] * edge[j][0] + edge[k][1] * edge[j][1]
+                       + edge[k][2] * edge[j][2]) / A2[t]
+            w = 0.5 * (cot[c] if cot[c] > floor_cot else floor_cot)
+            for u in (j, k):
+                dl[pair_index[2 * u, 2 * u]] += w
+                dl[pair_index[2 * u + 1, 2 * u + 1]] += w
+            for sj in range(2):
+                for sk in range(2):
+                    dl[pair_index[2 * j + sj, 2 * k + sk]] -= w * (
+                        E[j][sj][0] * E[k][sk][0] + E[j][sj][1] * E[k][sk][1]
+                        + E[j][sj][2] * E[k][sk][2])
+        for q in range(21):
+            D_upper[slot[21 * t + q]] += dl[q]
+    return sa

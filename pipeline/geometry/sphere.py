@@ -14,8 +14,24 @@ Pipeline (:func:`spherical_sem`):
    the plane with that face as the outer (equilateral) triangle and positive (clamped cotangent)
    weights — an embedding by Tutte/Floater's theorem — then inverse stereographic projection,
    eq. (S2) below, with the plane scale chosen to minimize the energy ratio among fold-free scales.
-3. Alternating-hemisphere stretch-energy minimization (:func:`spherical_sem`), as in the
-   spherical SEM of Yueh et al.: with the stereographic projection from the north pole
+3. Free phase (:func:`_free_phase`, below) and :func:`unfold`: a few full alternating-
+   hemisphere half steps spread the limbs that the Tutte start crowds into triangles many
+   orders of magnitude below their share of the area (long protrusions under a near-conformal
+   map, where the barrier's Gauss–Newton system is too ill-conditioned to start); the folds
+   they leave are smoothed away, and the result replaces the start if it has no more folded faces
+   (and, with as many, a lower energy ratio).
+4. Gauss–Newton minimization (:mod:`.sphere_newton`, ``method="newton"``, the default): Levenberg–
+   Marquardt steps on all vertices at once, in the tangent planes, on the energy ratio plus a
+   relative-entropy barrier on the orientations ``det[s_i, s_j, s_k]`` whose weight goes down a
+   schedule; every iterate is fold free. It stops when the ratio is within ``newton_floor`` of
+   its bound (``R − 1 ≤ 10⁻⁴`` by default, which bounds the face-based distortion by
+   ``√(R − 1) = 0.01``: ``Σ|q − p| ≤ (Σ (q − p)²/p)^½ (Σ p)^½`` with ``p = |τ|/|M|``,
+   ``q = |f(τ)|/|f(M)|``) or progress stalls. If a folded face is left after step 3 (no
+   barrier can start there), the hemisphere method below runs instead; ``method="hemisphere"``
+   selects it.
+
+The hemisphere method: the alternating-hemisphere stretch-energy minimization of the
+spherical SEM of Yueh et al., with the stereographic projection from the north pole
 
        h = (x − i y) / (1 − z)                                                     (S1)
        s = (2 Re h, −2 Im h, |h|² − 1) / (1 + |h|²)                                  (S2)
@@ -24,15 +40,13 @@ Pipeline (:func:`spherical_sem`):
    ``|h| < radius`` (the southern hemisphere and a margin, 1.5 by default: with exactly one
    hemisphere, 1.0, the iteration stalls on the shared meshes) are moved by the
    stretch-Laplacian solve ``L_II(f) h_I = −L_IB(f) h_B`` (the disk paper's eq. 22) with the
-   rest fixed, where ``L(f)`` has the weights of eq. (12) computed from the flat image triangles on the sphere and
-   the surface areas ``|τ|``; then back by (S2); then the same from the south pole (the map
-   rotated so that the north pole goes south), and by default also around ±x and ±y
-   (``poles``). Three phases:
+   rest fixed, where ``L(f)`` has the weights of eq. (12) computed from the flat image
+   triangles on the sphere and the surface areas ``|τ|``; then back by (S2); then the same
+   from the south pole (the map rotated so that the north pole goes south), and by default
+   also around ±x and ±y (``poles``). Three phases:
 
    a. free (:func:`_free_phase`): full half steps kept whenever they lower the energy ratio,
-      folded or not, for a few iterations; then :func:`unfold` smooths the vertices of folded
-      faces until none is left, and the result replaces the start if it has no more folds and
-      a lower ratio;
+      folded or not, for a few iterations; then :func:`unfold` (step 3 above);
    b. guarded: each half step is accepted only if it lowers the energy ratio
       and adds no folded face; otherwise it is damped, ``normalize(f + α (f_new − f))`` for
       ``α = 1/2, 1/4, …``, with the step shrunk further at the vertices of faces it would fold
@@ -40,8 +54,12 @@ Pipeline (:func:`spherical_sem`):
    c. gradient (:func:`_gradient_phase`): preconditioned gradient descent of the energy ratio
       on the sphere with the same fold guard, where the hemisphere iteration has slowed (the
       half steps stall with the energy still falling along the gradient). Phases b and c
-      alternate (``cycles``) while a
-      round still lowers the ratio: each restarts where the other has stalled.
+      alternate (``cycles``) while a round still lowers the ratio: each restarts where the
+      other has stalled.
+
+   Its half steps move one hemisphere with the other held, and its gradient steps are
+   first-order: on meshes with long limbs both slow down with the excess spread over the
+   whole map, which the Gauss–Newton steps remove.
 
 The objective is the stretch energy of the flat image triangles, ``E_S(f) = Σ |f(τ)|² / |τ|``
 (eq. 15), through the scale-free ratio ``E_S · |M| / |f(M)|² ≥ 1`` (Cauchy–Schwarz; equality iff
@@ -61,10 +79,12 @@ import scipy.sparse as sp
 
 from pipeline.errors import UserError
 
+from . import sphere_newton
 from .harmonic import clamp_positive
 from .laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                         laplacian_blocks, laplacian_pattern)
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
+from .sphere_base import energy_ratio, shrink_folding_steps, triple_products  # noqa: F401
 from .topology import (boundary_edges, boundary_loops, connected_components,
                        euler_characteristic, nonmanifold_edges, nonmanifold_vertices,
                        orient_faces_consistently, vertex_neighbours)
@@ -148,21 +168,6 @@ def signed_volume(V: np.ndarray, F: np.ndarray) -> float:
 # ----------------------------------------------------------------------------------------------
 # measures
 
-def triple_products(S: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """``det[s0, s1, s2]`` per face, shape (m,); positive = outward CCW on the sphere.
-
-    Computed as ``s0 · ((s1 − s0) × (s2 − s0))`` (the same determinant): for tiny triangles
-    the edge vectors keep their relative precision, where ``s0 · (s1 × s2)`` of three nearly
-    equal unit vectors would cancel to rounding noise and report false folds (a Tutte start
-    crowds whole limbs into such triangles)."""
-    x, y, z = (np.ascontiguousarray(S[:, k]) for k in range(3))
-    i, j, k = F[:, 0], F[:, 1], F[:, 2]
-    x0, y0, z0 = x[i], y[i], z[i]
-    ux, uy, uz = x[j] - x0, y[j] - y0, z[j] - z0
-    vx, vy, vz = x[k] - x0, y[k] - y0, z[k] - z0
-    return x0 * (uy * vz - uz * vy) + y0 * (uz * vx - ux * vz) + z0 * (ux * vy - uy * vx)
-
-
 def folded_faces(S: np.ndarray, F: np.ndarray) -> int:
     """Number of faces with ``det[s0, s1, s2] ≤ 0`` (folded or degenerate on the sphere)."""
     return int(np.count_nonzero(triple_products(S, F) <= 0))
@@ -183,14 +188,6 @@ def face_distortion(surface_areas: np.ndarray, image_areas: np.ndarray) -> float
     """Face-based area distortion ``Σ_τ | |τ|/Σ|τ| − |f(τ)|/Σ|f(τ)| |`` (shapes (m,))."""
     A, a = surface_areas, np.abs(image_areas)
     return float(np.abs(A / A.sum() - a / a.sum()).sum())
-
-
-def energy_ratio(surface_double_areas: np.ndarray, S: np.ndarray, F: np.ndarray) -> float:
-    """``E_S(f) · |M| / |f(M)|²`` with flat image areas (eq. 15 normalized; ≥ 1, = 1 iff
-    equiareal)."""
-    a2 = face_double_areas(S, F)
-    return float(np.sum(a2 * a2 / surface_double_areas) * surface_double_areas.sum()
-                 / a2.sum() ** 2)
 
 
 def sphere_measures(V: np.ndarray, F: np.ndarray, S: np.ndarray) -> dict:
@@ -344,32 +341,6 @@ def _hemisphere_step(V, F, A2, S, radius, solver, cache=None, key=None):
     return inverse_stereographic(h_new)
 
 
-def shrink_folding_steps(S: np.ndarray, G: np.ndarray, F: np.ndarray, alpha: float,
-                         allowed: int, rounds: int = 12) -> np.ndarray:
-    """The damped candidate ``normalize(S + α_v (G − S))`` with a per-vertex step ``α_v``:
-    all start at ``alpha``; each round halves ``α_v`` at the vertices of every face the
-    candidate folds (after ``rounds`` rounds those vertices stay at ``S``), until at most
-    ``allowed`` faces are folded. A local form of the damping of :mod:`.sem`: a few
-    near-degenerate faces no longer block the step of every other vertex. (n, 3) → (n, 3)."""
-    a = np.full(len(S), float(alpha))
-    C = S + alpha * (G - S)
-    C /= np.linalg.norm(C, axis=1, keepdims=True)
-    det = triple_products(C, F)
-    for k in range(rounds):
-        bad = det <= 0
-        if np.count_nonzero(bad) <= allowed:
-            break
-        idx = np.unique(F[bad])
-        a[idx] = 0.0 if k == rounds - 1 else a[idx] / 2
-        moved = S[idx] + a[idx, None] * (G[idx] - S[idx])
-        C[idx] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
-        mark = np.zeros(len(S), bool)
-        mark[idx] = True
-        touched = np.flatnonzero(mark[F].any(axis=1))     # only these faces changed
-        det[touched] = triple_products(C, F[touched])
-    return C
-
-
 def unfold(S: np.ndarray, F: np.ndarray, rounds: int = 200) -> tuple[np.ndarray, int]:
     """Remove folds by local smoothing: each round moves the vertices of every folded face to
     the normalized mean of their neighbours (a uniform-weight Tutte step on the sphere), until
@@ -415,22 +386,28 @@ def _rotated_step(V, F, A2, S, R, radius, solver, cache, key):
     return None if G is None else G @ R
 
 
-def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver):
+def _free_phase(V, F, A2, S, ratio, iterations, tol, radius, poles, solver,
+                deadline=np.inf):
     """Full half steps, each kept if it lowers the energy ratio, folded or not (as Algorithm 1
     of the disk paper passes through folded maps), for at most ``iterations`` iterations or
     until an iteration lowers the ratio by less than ``tol`` (relative). Returns ``(map,
     iterations, folded faces)``, or None if no step was kept. It exists for starts crowded to
     tiny area ratios (a Tutte map of a mesh with long limbs), from which the guarded iteration
     stalls: a few free iterations spread the map, and :func:`unfold` removes the folds they
-    leave."""
+    leave. No iteration starts after ``deadline`` (``time.perf_counter()``). A vertex at the
+    projection pole (small meshes) makes its half step's map non-finite; that step is not
+    kept."""
     kept, it, cache = False, 0, {}
     for it in range(1, iterations + 1):
+        if time.perf_counter() > deadline:
+            break
         before = ratio
         for p, R in enumerate(_POLES[poles]):
-            G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
-            if G is None:
-                continue
-            g_ratio = energy_ratio(A2, G, F)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                G = _rotated_step(V, F, A2, S, R, radius, solver, cache, p)
+                if G is None:
+                    continue
+                g_ratio = energy_ratio(A2, G, F)
             if g_ratio < ratio:
                 S, ratio, kept = G, g_ratio, True
         if before - ratio < tol * before:
@@ -507,18 +484,34 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                   time_limit: float | None = None, solver: str = "auto",
                   poles: str = "xyz", free_iter: int = 10,
                   gradient_iter: int = 2000, gradient_tol: float = 1e-4,
-                  cycles: int = 10) -> SphereResult:
-    """Equiareal map of a closed genus-0 mesh onto the unit sphere by alternating-hemisphere SEM.
+                  cycles: int = 10, method: str = "newton",
+                  barriers: tuple = (2.0, 0.2, 0.02), newton_iter: int = 500,
+                  newton_tol: float = 1e-2, newton_patience: int = 3,
+                  newton_floor: float = 1e-4) -> SphereResult:
+    """Equiareal map of a closed genus-0 mesh onto the unit sphere by stretch-energy
+    minimization.
 
     Parameters
     ----------
     V : (n, 3) float array
     F : (m, 3) int array
+    method : {"newton", "hemisphere"}
+        ``"newton"`` (default): the free phase from the Tutte start, :func:`unfold`, then
+        Gauss–Newton steps on the energy ratio with a fold barrier (:mod:`.sphere_newton`);
+        if a folded face is left, the hemisphere method runs instead. ``"hemisphere"``: the
+        alternating-hemisphere SEM with its free, guarded and gradient phases.
+    barriers : tuple of float
+        The barrier weights ``κ`` of the Newton stages (decreasing).
+    newton_iter, newton_tol, newton_patience, newton_floor : int, float, int, float
+        Newton iterations at most; a stage ends after ``newton_patience`` iterations in a
+        row that lower its objective by less than ``newton_tol`` (relative), or once the
+        energy ratio is within ``newton_floor`` of its bound 1; the last one's end is
+        convergence (:func:`.sphere_newton.minimize`).
     max_iter : int
         Guarded hemisphere iterations (each = one half step around each pole).
     tol, patience : float, int
         Stop once the relative decrease of the energy ratio per iteration stays below ``tol``
-        for ``patience`` iterations.
+        for ``patience`` iterations (hemisphere method; Newton: ``patience`` only).
     radius : float
         Half steps move the vertices with ``|h| < radius`` (1 = exactly one hemisphere).
     min_step : float
@@ -533,7 +526,10 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         steps in a row lower the ratio's excess ``R − 1`` by less than ``gradient_tol``
         (relative), or ``time_limit``.
     free_iter : int
-        Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one.
+        Iterations of the free phase (:func:`_free_phase`; 0: none) before the guarded one
+        (hemisphere) or the Gauss–Newton minimization (newton). With fewer, the map it hands
+        on can keep long thin image triangles whose vertices lie near a great circle
+        (orientation ``det`` ≪ flat area), at which the Newton steps stall above the floor.
     poles : {"xyz", "z"}
         Half steps per iteration: around −z and +z only (the two poles of the spherical SEM),
         or around all six of ±x, ±y, ±z (default: with the two poles only, the iteration
@@ -545,8 +541,11 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     -------
     SphereResult
         The map never has more folded faces than the start (0 when the start has none): every
-        accepted step adds none.
+        accepted step adds none. ``timings`` has ``start``, ``newton`` or ``free``/``sem``/
+        ``gradient``, and ``total``.
     """
+    if method not in ("newton", "hemisphere"):
+        raise UserError(f"unknown spherical method '{method}'; use newton or hemisphere")
     t_all = time.perf_counter()
     V = np.asarray(V, dtype=np.float64)
     F = check_genus_zero(V, F)
@@ -562,22 +561,62 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     ratio = energy_ratio(A2, S, F)
     history = [{"iteration": 0, "energy_ratio": ratio, "folded_faces": folds,
                 "seconds": time.perf_counter() - t_all}]
+    deadline = np.inf if time_limit is None else t_all + time_limit
+    if method == "newton":
+        t0 = time.perf_counter()
+        S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
+                                  solver, history, t_all, deadline)
+        timings["free"] = time.perf_counter() - t0
+        if folds == 0:
+            t0 = time.perf_counter()
+            S, status, it = sphere_newton.minimize(
+                F, A2, S, kappas=barriers, deadline=deadline, max_iter=newton_iter,
+                tol=newton_tol, patience=newton_patience, floor=newton_floor, solver=solver,
+                history=history, clock_start=t_all)
+            timings["newton"] = time.perf_counter() - t0
+            timings["total"] = time.perf_counter() - t_all
+            return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
+                                iterations=it, status=status, history=history,
+                                timings=timings)
+        free_iter = 0                              # the hemisphere method goes on from here
+    return _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all,
+                           deadline, max_iter, tol, patience, radius, min_step, solver,
+                           poles, free_iter, gradient_iter, gradient_tol, cycles)
+
+
+def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, history, t_all,
+            deadline=np.inf):
+    """The free phase (:func:`_free_phase`) and :func:`unfold`; the result replaces ``S`` if
+    it has no more folded faces and a lower energy ratio (always tried, also from a start
+    with folds, which :func:`unfold` alone then tries to remove). Returns ``(S, ratio,
+    folds)``."""
+    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver,
+                       deadline) if free_iter else None
+    if free is None and folds == 0:
+        return S, ratio, folds
+    U, left = unfold(S if free is None else free[0], F)
+    u_ratio = energy_ratio(A2, U, F)
+    accepted = left < folds or (left <= folds and u_ratio < ratio)
+    history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
+                    "folded_faces": left, "free_iterations": 0 if free is None else free[1],
+                    "free_folded_faces": left if free is None else free[2],
+                    "accepted": accepted, "seconds": time.perf_counter() - t_all})
+    if accepted:
+        S, ratio, folds = U, u_ratio, left
+    return S, ratio, folds
+
+
+def _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all, deadline,
+                    max_iter, tol, patience, radius, min_step, solver, poles, free_iter,
+                    gradient_iter, gradient_tol, cycles) -> SphereResult:
+    """The alternating-hemisphere method of :func:`spherical_sem` (phases a–c of the module
+    docstring) from the start map ``S``."""
     t0 = time.perf_counter()
-    free = _free_phase(V, F, A2, S, ratio, free_iter, tol, radius, poles, solver)
-    if free is not None:
-        U, left = unfold(free[0], F)
-        u_ratio = energy_ratio(A2, U, F)
-        accepted = left <= folds and u_ratio < ratio
-        history.append({"iteration": 0, "phase": "free+unfold", "energy_ratio": u_ratio,
-                        "folded_faces": left, "free_iterations": free[1],
-                        "free_folded_faces": free[2], "accepted": accepted,
-                        "seconds": time.perf_counter() - t_all})
-        if accepted:
-            S, ratio, folds = U, u_ratio, left
-    timings["free"] = time.perf_counter() - t0
+    S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
+                              solver, history, t_all, deadline)
+    timings["free"] = timings.get("free", 0.0) + time.perf_counter() - t0
     status, it, cache = "max_iter", 0, {}
     timings["sem"] = timings["gradient"] = 0.0
-    deadline = np.inf if time_limit is None else t_all + time_limit
     for cycle in range(cycles):
         cycle_start, quiet, cycle_it = ratio, 0, 0
         t0 = time.perf_counter()
