@@ -125,9 +125,10 @@ def test_domain_resolution_and_its_messages():
 def test_sphere_options_map_the_section():
     assert sphere_options(SEMOptions()) == {"solver": "auto"}
     assert sphere_options(SEMOptions(mode="paper")) == \
-        {"solver": "auto", "max_iter": 10, "gradient_iter": 0, "cycles": 1}
+        {"solver": "auto", "method": "hemisphere", "max_iter": 10, "gradient_iter": 0,
+         "cycles": 1}
     assert sphere_options(SEMOptions(max_iter=7, tol=1e-4, solver="scipy")) == \
-        {"solver": "scipy", "max_iter": 7, "tol": 1e-4}
+        {"solver": "scipy", "newton_iter": 7, "tol": 1e-4}
 
 
 def test_folded_map_writes_its_diagnosis_but_no_map(tmp_path):

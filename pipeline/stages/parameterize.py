@@ -30,12 +30,13 @@ Files of a spherical map:
   ``surface_and_sphere.png``; ``report.html``.
 
 Modes on the sphere (:func:`sphere_options`): ``converged`` runs :func:`spherical_sem` with its
-defaults (hemisphere iterations alternating with its gradient phase until the energy ratio
-stops falling); ``paper`` runs only the alternating-hemisphere iterations of the published
-spherical SEM, ``max_iter`` (default 10) of them, without the gradient phase: a quick map, as
-Algorithm 1 is on the disk. ``max_iter``, ``tol``, ``patience``, ``min_step`` and ``solver``
-are passed on when given (the section's defaults are the disk's, so ``tol``, ``patience`` and
-``min_step`` only when set explicitly).
+defaults (Tutte start, free phase, then Gauss–Newton steps with a fold barrier until the energy
+ratio is within 10⁻⁴ of its bound or stops falling; ``max_iter`` caps the Gauss–Newton
+steps); ``paper`` runs only the alternating-hemisphere iterations of the published spherical
+SEM, ``max_iter`` (default 10) of them, without the gradient phase: a quick map, as Algorithm 1
+is on the disk. ``tol``, ``patience``, ``min_step`` and ``solver`` are passed on when given (the
+section's defaults are the disk's, so ``tol``, ``patience`` and ``min_step`` only when set
+explicitly).
 
 A map with flipped (folded) faces is a failure: its ``metrics.json`` (status ``failed``),
 report and figures are written for diagnosis, the map files are not, and
@@ -156,12 +157,14 @@ def _mesh_counts(mesh: RepairedMesh) -> dict:
 def sphere_options(options: SEMOptions) -> dict:
     """Keyword arguments of :func:`spherical_sem` for the ``parameterize`` section (see the
     module docstring: ``paper`` = hemisphere iterations only, ``max_iter`` default 10;
-    ``converged`` = the kernel's defaults; explicit ``tol``/``patience``/``min_step`` passed)."""
+    ``converged`` = the kernel's defaults, ``max_iter`` caps the Gauss–Newton steps; explicit
+    ``tol``/``patience``/``min_step`` passed)."""
     kw: dict = {"solver": options.solver}
     if options.mode == "paper":
-        kw.update(max_iter=options.iterations(), gradient_iter=0, cycles=1)
+        kw.update(method="hemisphere", max_iter=options.iterations(), gradient_iter=0,
+                  cycles=1)
     elif options.max_iter is not None:
-        kw["max_iter"] = options.max_iter
+        kw["newton_iter"] = options.max_iter
     kw.update({k: getattr(options, k) for k in ("tol", "patience", "min_step")
                if k in options.model_fields_set})
     return kw
