@@ -433,10 +433,11 @@ def _paper_iterations(problem, f, value, opt, record):
 #: Phase A's end: a flip-free SEM step that removes less than this fraction of the excess energy
 #: ratio ``E_S/bound − 1`` of the best map counts as no progress, and phase A ends after
 #: ``patience`` such steps (gradient descent) or the first one (Gauss–Newton, whose steps gain
-#: more than a slowing SEM step from there). A folded SEM iterate that lowered the ratio by at
-#: least this fraction of the excess is waited for: starting Gauss–Newton from a map far from
-#: equiareal leaves it crawling with heavily damped steps.
-PHASE_A_GAIN = {"gradient": 0.01, "gauss_newton": 0.01}
+#: more than a slowing SEM step from there). A folded SEM iterate that still removes
+#: ``PHASE_A_UNFOLD_GAIN`` of the previous iterate's excess is waited for (plain SEM often
+#: unfolds within a few steps): Gauss–Newton started on a map far from equiareal crawls with
+#: heavily damped steps (igl_lion).
+PHASE_A_GAIN = {"gradient": 0.01, "gauss_newton": 0.05}
 PHASE_A_UNFOLD_GAIN = 0.01
 #: Levenberg–Marquardt damping: the first μ, its factor after a full or a damped step, and how
 #: often μ is raised tenfold before phase B falls back to the SEM and gradient steps.
