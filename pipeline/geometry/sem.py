@@ -82,7 +82,7 @@ class SEMOptions(BaseModel):
     # converged: phase B's first step (see _converged_iterations)
     descent: Literal["gradient", "gauss_newton"] = "gauss_newton"
     # converged with gauss_newton: its own stopping rule in place of tol and patience
-    gn_tol: float = Field(1e-5, gt=0.0)
+    gn_tol: float = Field(3e-6, gt=0.0)
     gn_patience: int = Field(3, ge=1)
 
     def iterations(self) -> int:
