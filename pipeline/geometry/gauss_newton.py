@@ -19,7 +19,9 @@ area ``|f(M)|`` then changes with the step, and ``E_S`` alone would be lowered b
 so the residuals become ``r_τ = (a_τ − c A_τ) / √A_τ`` with ``c = Σ a / Σ A`` held at the current
 map: the Gauss–Newton form of matching every image area to ``|τ| |f(M)| / |M|``, whose
 minimizer is the equality case of eq. (15)'s Cauchy–Schwarz bound. For the interior alone this
-is the same step (``Σ_τ a_τ`` does not depend on interior points). It uses the
+is the same step (``Σ_τ a_τ`` does not depend on interior points). ``hold_boundary`` takes
+interior-only steps on the same system (the boundary rows decoupled by a huge diagonal), so
+that turning the boundary loose later needs no new analysis. It uses the
 curvature of the area constraints that the Laplacian preconditioner of the gradient step in
 :mod:`.sem` lacks, which is why it needs few steps where preconditioned gradient steps need
 hundreds. The unknowns are ``[u_I; v_I]``; the pattern of ``H`` (the 2×2-block vertex
@@ -35,6 +37,10 @@ import scipy.sparse as sp
 from .solvers import make_solver
 
 #: the 21 pairs ``a ≤ b`` of the local unknowns (u_0, u_1, u_2, v_0, v_1, v_2) of a face
+#: ``hold_boundary``: the boundary angles' diagonal is scaled by this, so their coupling to the
+#: interior step is ~1/HOLD of it (the step is the interior-only one to rounding) while the
+#: system keeps its pattern and PARDISO/CHOLMOD their analysis for when the boundary moves
+HOLD = 1e12
 _PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
 
 
@@ -79,6 +85,7 @@ class GaussNewton:
         self.diagonal = np.flatnonzero(full.indices == rows)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
+        self.hold_boundary = False
 
     def step(self, f: np.ndarray, a2: np.ndarray, mu: float) -> np.ndarray:
         """The damped Gauss–Newton map from ``f`` (complex, one value per vertex) whose signed
@@ -89,9 +96,11 @@ class GaussNewton:
         d = np.concatenate([v[:, [1, 2, 0]] - v[:, [2, 0, 1]],          # ∂a/∂u_i = v_j − v_k
                             u[:, [2, 0, 1]] - u[:, [1, 2, 0]]], axis=1)  # ∂a/∂v_i = u_k − u_j
         residual = a2
+        moving = self.on_boundary is not None and not self.hold_boundary
         if self.on_boundary is not None:
             ob = self.on_boundary
             d[:, :3] = np.where(ob, -v * d[:, :3] + u * d[:, 3:], d[:, :3])   # ∂a/∂θ
+        if moving:
             residual = a2 - (a2.sum() / self.double_area.sum()) * self.double_area
         N = self.H.shape[0]
         g = np.bincount(self.cols[self.valid], weights=(d * (residual * self.inv_area)[:, None]
@@ -102,13 +111,16 @@ class GaussNewton:
         H = self.H
         H.data = upper[self.full_from_upper]
         H.data[self.diagonal] *= 1.0 + mu
+        if self.on_boundary is not None and not moving:
+            g[2 * self.nI:] = 0.0
+            H.data[self.diagonal[2 * self.nI:]] *= HOLD
         self.solver.factorize(H)
         self.factorizations += 1
         x = self.solver.solve(g)
         out = f.copy()
         nI = self.nI
         out[self.interior] = f[self.interior] - (x[:nI] + 1j * x[nI:2 * nI])
-        if self.on_boundary is not None:
+        if moving:
             out[self.boundary] = f[self.boundary] * np.exp(-1j * x[2 * nI:])
         return out
 

@@ -483,17 +483,15 @@ def _converged_iterations(problem, f, value, opt, record):
     reason = f"reached max_iter = {max_iter}"
     order = ["gradient", "sem"]
     age = None                      # iterations since the preconditioner was factored
-    newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver) \
-        if opt.descent == "gauss_newton" and it < max_iter else None
-    held_factorizations = 0         # those of the interior-only Gauss–Newton, once it handed over
+    newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
+                         problem.B) if opt.descent == "gauss_newton" and it < max_iter else None
+    if newton is not None:
+        newton.hold_boundary = True  # interior first (one analysis serves both stages)
 
     def turn_boundary():
         """Interior-only Gauss–Newton went quiet: go on with the boundary angles as unknowns."""
-        nonlocal newton, held_factorizations, mu
-        held_factorizations = newton.factorizations
-        newton.release()
-        newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
-                             problem.B)
+        nonlocal mu
+        newton.hold_boundary = False
         mu = GN_MU
     tol, patience = (opt.gn_tol, opt.gn_patience) if newton is not None else \
         (opt.tol, opt.patience)
@@ -534,7 +532,7 @@ def _converged_iterations(problem, f, value, opt, record):
                 if step is not None and not (stale and step[2] < 1.0):
                     break
                 step = None                 # a damped stale step: refactor and try again
-            if step is None and newton is not None and newton.boundary is None:
+            if step is None and newton is not None and newton.hold_boundary:
                 turn_boundary()
                 continue
             if step is None:
@@ -551,7 +549,7 @@ def _converged_iterations(problem, f, value, opt, record):
             record(it, f, value, alpha, kind)
             if boundary_turn and quiet == 0:
                 boundary_turn = False       # the boundary moved: Gauss–Newton again
-            elif quiet >= patience and kind == "gauss_newton" and newton.boundary is None:
+            elif quiet >= patience and kind == "gauss_newton" and newton.hold_boundary:
                 turn_boundary()             # interior-only went quiet: the boundary moves too
                 quiet = 0
             elif quiet >= patience and kind == "gauss_newton":
@@ -563,6 +561,6 @@ def _converged_iterations(problem, f, value, opt, record):
                 break
     finally:
         if newton is not None:
-            problem.gn_factorizations = held_factorizations + newton.factorizations
+            problem.gn_factorizations = newton.factorizations
             newton.release()
     return f, value, it, status, reason
