@@ -25,10 +25,9 @@ Modes:
   B. from that iterate, a monotone descent: each step first tries a Levenberg–Marquardt
      (Gauss–Newton) step on ``E_S`` written as a sum of squared image areas, on the interior,
      later with the boundary angles too (:mod:`.gauss_newton`; ``descent="gauss_newton"``, the
-     default),
-     then the SEM step and the preconditioned gradient step ``f_I ← f_I − P⁻¹ (L(f) f)_I``. ``L(f) f`` is half the gradient of ``E_S`` (an
-     identity of the paper's Appendix, checked by finite differences in the tests) and ``P`` is
-     ``L_II`` with non-positive weights clamped, so ``P`` is SPD and the step is a descent
+     default), then the SEM step and the preconditioned gradient step
+     ``f_I ← f_I − P⁻¹ (L(f) f)_I``. ``L(f) f`` is half the gradient of ``E_S`` (an identity of
+     the paper's Appendix, checked by finite differences in the tests) and ``P`` is ``L_II`` with non-positive weights clamped, so ``P`` is SPD and the step is a descent
      direction. A step is accepted only if it lowers the energy and flips no face: damped by
      halving, and vertices of faces that would flip keep their previous position.
      Phase B ends when the relative decrease stays below ``tol`` for ``patience`` steps in a
@@ -452,8 +451,9 @@ def _converged_iterations(problem, f, value, opt, record):
     :mod:`.gauss_newton` (μ lowered after a full step, raised after a damped one, raised tenfold
     and retried when no damped step lowers the energy); with ``descent="gradient"``, the
     preconditioned gradient step on the last preconditioner factor. Then the SEM and gradient
-    steps, first whichever of them worked last. Gauss–Newton first moves the interior only (a
-    smaller, better conditioned system that does most of the work); when its steps go quiet
+    steps, first whichever of them worked last. Gauss–Newton first moves the interior only (the
+    boundary rows held, ``GaussNewton.hold_boundary``; this does most of the work); when
+    its steps go quiet
     (``gn_tol``, ``gn_patience``) or fail, it goes on with the boundary angles as unknowns too
     (on a mesh whose boundary limits the energy, gpp_face, the interior alone ends 6–7 % above
     the 1000-step map; moving the boundary from the start crawls on meshes with faces that have
