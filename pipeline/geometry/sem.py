@@ -28,8 +28,9 @@ Modes:
      default), then the SEM step and the preconditioned gradient step
      ``f_I ← f_I − P⁻¹ (L(f) f)_I``. ``L(f) f`` is half the gradient of ``E_S`` (an identity of
      the paper's Appendix, checked by finite differences in the tests) and ``P`` is ``L_II``
-     with non-positive weights clamped, so ``P`` is SPD and the step is a descent direction. A step is accepted only if it lowers the energy and flips no face: damped by
-     halving, and vertices of faces that would flip keep their previous position.
+     with non-positive weights clamped, so ``P`` is SPD and the step is a descent direction.
+     A step is accepted only if it lowers the energy and flips no face: damped by halving,
+     and vertices of faces that would flip keep their previous position.
      Phase B ends when the relative decrease stays below ``tol`` for ``patience`` steps in a
      row (``gn_tol``, ``gn_patience`` with Gauss–Newton), or at ``max_iter`` steps in all.
      ``descent="gradient"`` is the schedule without Gauss–Newton: many cheap steps on a kept
