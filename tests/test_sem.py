@@ -182,8 +182,9 @@ def test_sem_converged_mode_lion(lion_converged):
 
 def test_sem_converged_mode_history_is_monotone(lion_converged):
     """Phase A records only new flip-free bests; phase B (entries "gauss_newton"/"gradient"/
-    "sem" after the phase-A best) accepts only steps that lower the ratio. So the ratio strictly decreases along
-    the whole history, every entry is flip-free, and the result is the best map recorded."""
+    "sem" after the phase-A best) accepts only steps that lower the ratio. So the ratio strictly
+    decreases along the whole history, every entry is flip-free, and the result is the best map
+    recorded."""
     V, F, b, r = lion_converged
     ratio = [h["energy_ratio"] for h in r.history]
     assert r.history[0]["phase"] == "harmonic" and r.history[0]["flipped_faces"] == 0
