@@ -2,6 +2,18 @@
 
     python benchmarks/bench_sem.py [--sizes 10k 100k 1M] [--solvers cholmod scipy]
                                    [--iterations 10] [--scipy-iterations-1M 2]
+    python benchmarks/bench_sem.py --converged [--meshes choi_hand ...] [--solver pardiso]
+
+``--converged`` prints issue #20's done-when table instead: per mesh, the face-based area
+distortion ``Σ_τ | |τ|/|M| − |f(τ)|/|f(M)| |`` of the 1000-iteration gradient schedule
+(``descent="gradient"``, the converged default before Gauss–Newton; cached in
+``benchmarks/outputs/sem_reference.json`` so it is computed once per mesh and solver), that of
+converged mode with its default options, their ratio, flipped faces and SEM seconds (wall
+clock, and the process's CPU time, which a loaded shared machine inflates less; SEM runs on
+one thread), and pass/fail against: ratio ≤ 1.05, 0 flips, SEM wall seconds ≤ 3 below 500k
+faces and ≤ 40 above. Mesh
+names are shared meshes, ``NAME_loopK`` for K Loop subdivisions (``trimesh``'s
+``subdivide_loop``, cached under benchmarks/.cache/). Each converged run is a fresh subprocess.
 
 Meshes are made from shared meshes by midpoint subdivision (every face → 4, original vertices
 kept; the shape does not change): gpp_bunny ×4 ≈ 10k faces, igl_camelhead ×4 ≈ 91k faces,
@@ -37,6 +49,12 @@ REPO = HERE.parent
 sys.path.insert(0, str(REPO))
 
 SIZES = {"10k": ("gpp_bunny", 1), "100k": ("igl_camelhead", 1), "1M": ("igl_lion", 3)}
+#: the done-when meshes of issue #20: two ~100k scans and a 1.07M-face Loop subdivision
+CONVERGED_MESHES = ["choi_hand", "choi_human_brain", "igl_lion_loop3"]
+#: the other shared disk meshes (--converged --meshes all)
+OTHER_MESHES = ["gpp_face", "gpp_bunny", "igl_camel_b", "c3d_alligator", "igl_lion",
+                "igl_camelhead", "choi_human_face", "choi_chinese_lion"]
+REFERENCE_ITERATIONS = 1000
 
 
 def data_dir() -> Path:
@@ -59,6 +77,97 @@ def subdivided_mesh(size: str) -> Path:
     cache.parent.mkdir(exist_ok=True)
     np.savez(cache, V=V, F=F)
     return cache
+
+
+def named_mesh(name: str):
+    """``(V, F)`` of a shared mesh (repaired into a disk), or of ``NAME_loopK``: K Loop
+    subdivisions of it, cached as .npz under benchmarks/.cache/."""
+    from pipeline.stages.load import load_stage
+    import trimesh
+
+    base, _, loops = name.partition("_loop")
+    loops = int(loops or 0)
+    cache = HERE / ".cache" / f"{base}_loop{loops}.npz"
+    if loops and cache.exists():
+        data = np.load(cache)
+        return data["V"], data["F"].astype(np.int64)
+    intake = load_stage(data_dir() / "meshes" / f"{base}.obj")
+    V, F = np.asarray(intake.mesh.V, np.float64), np.asarray(intake.mesh.F, np.int64)
+    for _ in range(loops):
+        V, F = trimesh.remesh.subdivide_loop(V, F)
+    if loops:
+        cache.parent.mkdir(exist_ok=True)
+        np.savez(cache, V=V, F=F)
+    return V, F
+
+
+def converged_run(name: str, solver: str, reference: bool) -> dict:
+    """One converged-mode run in this process: the default options, or (``reference``) the
+    1000-iteration gradient schedule."""
+    from pipeline.geometry.metrics import distortion_summary
+    from pipeline.geometry.sem import SEMOptions, stretch_energy_minimization
+    from pipeline.geometry.topology import boundary_loops
+
+    V, F = named_mesh(name)
+    boundary = boundary_loops(F, V)[0]
+    options = SEMOptions(solver=solver)
+    if reference:
+        options = SEMOptions(solver=solver, descent="gradient", tol=1e-7, patience=20,
+                             max_iter=REFERENCE_ITERATIONS)
+    cpu = []
+
+    def started(entry):                   # the harmonic map's entry: SEM's clock starts
+        if not cpu:
+            cpu.append(time.process_time())
+
+    result = stretch_energy_minimization(V, F, boundary, options, progress=started)
+    cpu_s = time.process_time() - cpu[0]
+    summary = distortion_summary(V, F, result.uv)
+    return {"mesh": name, "faces": len(F), "solver": result.solver,
+            "face_area_distortion": summary["face_area_distortion"],
+            "flipped": summary["flipped_faces"], "sem_s": result.timings["sem"], "sem_cpu_s": cpu_s,
+            "iterations": result.iterations, "status": result.status, "steps": result.steps}
+
+
+def _subprocess_run(name: str, solver: str, reference: bool) -> dict:
+    out = subprocess.run([sys.executable, __file__, "--_converged", name, solver,
+                          "reference" if reference else "default"],
+                         capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def converged_table(meshes: list[str], solver: str, out_dir: Path) -> list[dict]:
+    """Issue #20's done-when table (see the module docstring); prints it and returns the rows."""
+    load = os.getloadavg()
+    cache = out_dir / "sem_reference.json"
+    refs = json.loads(cache.read_text()) if cache.exists() else {}
+    rows = []
+    for name in meshes:
+        key = f"{name}/{solver}"
+        if key not in refs:
+            refs[key] = _subprocess_run(name, solver, reference=True)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            cache.write_text(json.dumps(refs, indent=2))
+        new = _subprocess_run(name, solver, reference=False)
+        ratio = new["face_area_distortion"] / refs[key]["face_area_distortion"]
+        budget = 3.0 if new["faces"] < 500_000 else 40.0
+        ok = ratio <= 1.05 and new["flipped"] == 0 and new["sem_s"] <= budget
+        rows.append(dict(new, reference=refs[key]["face_area_distortion"], ratio=ratio,
+                         budget_s=budget, passed=ok))
+        print(f"  {name}: {new['sem_s']:.2f} s", file=sys.stderr, flush=True)
+    print(f"load average before/after: {load[0]:.1f} / {os.getloadavg()[0]:.1f} "
+          f"({os.cpu_count()} CPUs)")
+    print("| mesh | faces | 1000-iteration face distortion | converged face distortion | ratio "
+          "| flips | SEM s (budget) | SEM CPU s | steps SEM / GN / gradient | pass |")
+    print("|" + "|".join(["---"] * 10) + "|")
+    for r in rows:
+        st = r["steps"]
+        print(f"| {r['mesh']} | {r['faces']:,} | {r['reference']:.5f} | "
+              f"{r['face_area_distortion']:.5f} | {r['ratio']:.3f} | {r['flipped']} | "
+              f"{r['sem_s']:.2f} ({r['budget_s']:.0f}) | {r['sem_cpu_s']:.2f} | "
+              f"{st['sem'] + st['sem_damped']} / {st['gauss_newton']} / {st['gradient']} | "
+              f"{'pass' if r['passed'] else 'FAIL'} |")
+    return rows
 
 
 def _rss(field: str) -> float:
@@ -135,8 +244,26 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=15,
                     help="runs under 5 s: median per-iteration time and floor of this many pairs")
     ap.add_argument("--json", help="also write the rows to this JSON file")
+    ap.add_argument("--converged", action="store_true",
+                    help="issue #20's table: converged mode against the 1000-iteration map")
+    ap.add_argument("--meshes", nargs="+", default=CONVERGED_MESHES,
+                    help="with --converged: mesh names, NAME_loopK, or 'all'")
+    ap.add_argument("--solver", default="pardiso", help="with --converged: the solver")
+    ap.add_argument("--out", default=str(HERE / "outputs"),
+                    help="with --converged: folder of the reference cache")
     ap.add_argument("--_one", nargs=4, help=argparse.SUPPRESS)
+    ap.add_argument("--_converged", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args._converged:
+        name, solver, which = args._converged
+        print(json.dumps(converged_run(name, solver, which == "reference")))
+        return
+    if args.converged:
+        meshes = CONVERGED_MESHES + OTHER_MESHES if args.meshes == ["all"] else args.meshes
+        rows = converged_table(meshes, args.solver, Path(args.out))
+        if args.json:
+            Path(args.json).write_text(json.dumps(rows, indent=2))
+        return
     if args._one:
         print(json.dumps(measure(args._one[0], args._one[1], int(args._one[2]), int(args._one[3]))))
         return

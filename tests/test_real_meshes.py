@@ -119,7 +119,10 @@ def test_paper_mode_runs_its_ten_iterations_without_a_fold(name):
         m = _mesh(f"meshes/{name}.obj")
         V, F, b = m.V, m.F, m.boundary
     paper = stretch_energy_minimization(V, F, b, SEMOptions(mode="paper"))
-    conv = stretch_energy_minimization(V, F, b, SEMOptions(mode="converged", max_iter=10))
+    # converged mode's first 10 steps without Gauss–Newton: plain SEM steps (phase A), the
+    # schedule this bound was set against (with Gauss–Newton from step ~8 it is far lower)
+    conv = stretch_energy_minimization(V, F, b, SEMOptions(mode="converged", max_iter=10,
+                                                           descent="gradient"))
     d = distortion_summary(V, F, paper.uv)
     assert paper.flipped_faces == 0 and d["flipped_faces"] == 0
     assert paper.status == "max_iter" and paper.iterations == 10, paper.stop_reason

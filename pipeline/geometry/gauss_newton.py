@@ -10,7 +10,18 @@ bound), i.e. makes the map equiareal. With ``J = ∂a/∂f_I`` (one row per face
 
     (H + μ diag H) δ = −g,      f_I ← f_I + δ
 
-(Levenberg–Marquardt damping ``μ``; ``H + μ diag H`` is SPD for ``μ > 0``). It uses the
+(Levenberg–Marquardt damping ``μ``; ``H + μ diag H`` is SPD for ``μ > 0``).
+
+With ``boundary`` given, the boundary points move too, along the unit circle: each is
+``f_b = e^{iθ_b}`` with its angle as the unknown (``∂a_τ/∂θ_b = −v_b ∂a_τ/∂u_b + u_b ∂a_τ/∂v_b``),
+and after the step ``f_b ← f_b e^{iδθ_b}`` stays on the circle, as eq. (21) keeps it. The image
+area ``|f(M)|`` then changes with the step, and ``E_S`` alone would be lowered by shrinking it;
+so the residuals become ``r_τ = (a_τ − c A_τ) / √A_τ`` with ``c = Σ a / Σ A`` held at the current
+map: the Gauss–Newton form of matching every image area to ``|τ| |f(M)| / |M|``, whose
+minimizer is the equality case of eq. (15)'s Cauchy–Schwarz bound. For the interior alone this
+is the same step (``Σ_τ a_τ`` does not depend on interior points). ``hold_boundary`` takes
+interior-only steps on the same system (the boundary rows decoupled by a huge diagonal), so
+that turning the boundary loose later needs no new analysis. It uses the
 curvature of the area constraints that the Laplacian preconditioner of the gradient step in
 :mod:`.sem` lacks, which is why it needs few steps where preconditioned gradient steps need
 hundreds. The unknowns are ``[u_I; v_I]``; the pattern of ``H`` (the 2×2-block vertex
@@ -26,6 +37,10 @@ import scipy.sparse as sp
 from .solvers import make_solver
 
 #: the 21 pairs ``a ≤ b`` of the local unknowns (u_0, u_1, u_2, v_0, v_1, v_2) of a face
+#: ``hold_boundary``: the boundary angles' diagonal is scaled by this, so their coupling to the
+#: interior step is ~1/HOLD of it (the step is the interior-only one to rounding) while the
+#: system keeps its pattern and PARDISO/CHOLMOD their analysis for when the boundary moves
+HOLD = 1e12
 _PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
 
 
@@ -33,16 +48,27 @@ class GaussNewton:
     """Levenberg–Marquardt steps on ``E_S`` for the interior of a disk map, boundary held."""
 
     def __init__(self, F: np.ndarray, n: int, interior: np.ndarray, double_area: np.ndarray,
-                 solver_kind: str):
+                 solver_kind: str, boundary: np.ndarray | None = None):
         nI = len(interior)
-        self.F, self.interior, self.nI = F, interior, nI
+        nB = 0 if boundary is None else len(boundary)
+        self.F, self.interior, self.nI, self.boundary = F, interior, nI, boundary
+        self.double_area = double_area
         self.inv_area = 1.0 / double_area
         col = np.full(n, -1, dtype=np.int64)
         col[interior] = np.arange(nI)
         c = col[F]
-        self.cols = np.concatenate([c, np.where(c >= 0, c + nI, -1)], axis=1)   # m×6
+        v_cols = np.where(c >= 0, c + nI, -1)
+        if nB:
+            # a boundary corner: its angle θ_b in the u slot, nothing in the v slot
+            bcol = np.full(n, -1, dtype=np.int64)
+            bcol[boundary] = 2 * nI + np.arange(nB)
+            self.on_boundary = bcol[F] >= 0                                       # m×3
+            c = np.where(self.on_boundary, bcol[F], c)
+        else:
+            self.on_boundary = None
+        self.cols = np.concatenate([c, v_cols], axis=1)   # m×6
         self.valid = self.cols >= 0
-        N = 2 * nI
+        N = 2 * nI + nB
         r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
         self.pair_valid = (r >= 0) & (s >= 0)
         r, s = r[self.pair_valid], s[self.pair_valid]
@@ -59,16 +85,25 @@ class GaussNewton:
         self.diagonal = np.flatnonzero(full.indices == rows)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
+        self.hold_boundary = False
 
     def step(self, f: np.ndarray, a2: np.ndarray, mu: float) -> np.ndarray:
         """The damped Gauss–Newton map from ``f`` (complex, one value per vertex) whose signed
-        double image areas are ``a2``: interior moved by ``δ``, boundary unchanged. Raises
-        :class:`.solvers.NotPositiveDefinite` if the factorization fails."""
+        double image areas are ``a2``: interior moved by ``δ``, boundary unchanged or (with
+        ``boundary``) turned along the circle. Raises :class:`.solvers.NotPositiveDefinite` if
+        the factorization fails."""
         u, v = f.real[self.F], f.imag[self.F]
         d = np.concatenate([v[:, [1, 2, 0]] - v[:, [2, 0, 1]],          # ∂a/∂u_i = v_j − v_k
                             u[:, [2, 0, 1]] - u[:, [1, 2, 0]]], axis=1)  # ∂a/∂v_i = u_k − u_j
-        N = 2 * self.nI
-        g = np.bincount(self.cols[self.valid], weights=(d * (a2 * self.inv_area)[:, None]
+        residual = a2
+        moving = self.on_boundary is not None and not self.hold_boundary
+        if self.on_boundary is not None:
+            ob = self.on_boundary
+            d[:, :3] = np.where(ob, -v * d[:, :3] + u * d[:, 3:], d[:, :3])   # ∂a/∂θ
+        if moving:
+            residual = a2 - (a2.sum() / self.double_area.sum()) * self.double_area
+        N = self.H.shape[0]
+        g = np.bincount(self.cols[self.valid], weights=(d * (residual * self.inv_area)[:, None]
                                                         )[self.valid], minlength=N)
         products = d[:, _PAIRS[:, 0]] * d[:, _PAIRS[:, 1]] * self.inv_area[:, None]
         upper = np.bincount(self.slot, weights=products[self.pair_valid],
@@ -76,11 +111,17 @@ class GaussNewton:
         H = self.H
         H.data = upper[self.full_from_upper]
         H.data[self.diagonal] *= 1.0 + mu
+        if self.on_boundary is not None and not moving:
+            g[2 * self.nI:] = 0.0
+            H.data[self.diagonal[2 * self.nI:]] *= HOLD
         self.solver.factorize(H)
         self.factorizations += 1
         x = self.solver.solve(g)
         out = f.copy()
-        out[self.interior] = f[self.interior] - (x[:self.nI] + 1j * x[self.nI:])
+        nI = self.nI
+        out[self.interior] = f[self.interior] - (x[:nI] + 1j * x[nI:2 * nI])
+        if moving:
+            out[self.boundary] = f[self.boundary] * np.exp(-1j * x[2 * nI:])
         return out
 
     def release(self) -> None:
