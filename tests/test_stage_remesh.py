@@ -211,7 +211,10 @@ def remeshed_20k():
     def get(rel):
         if rel not in cache:
             intake = load_stage(require_data(*rel.split("/")))
-            p = parameterize_stage(intake.mesh, SEMOptions(mode="converged", max_iter=60))
+            # one fixed map (60 steps of the gradient schedule): these tests are about the
+            # remesher, and the remesh's quality depends on the map it is given
+            p = parameterize_stage(intake.mesh, SEMOptions(mode="converged", max_iter=60,
+                                                           descent="gradient"))
             assert p.ok
             r = remesh_stage(intake.mesh, p.uv, RemeshConfig(vertices=20000))
             q = remesh_quality(intake.mesh.V, intake.mesh.F, r.V, r.F, n_random=50_000)
