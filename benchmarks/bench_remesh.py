@@ -16,9 +16,9 @@ map + the remesh stage; pymeshlab: its call). ``*`` marks where ours is at least
 CV: at most 0.6 × pymeshlab's).
 
 ``--closed``: the closed genus-0 meshes of ``../shared/data/closed`` (default: all of them but
-the higher-genus ones), each mapped onto the sphere by ``spherical_sem`` (``--maps N``: at most
-N hemisphere iterations; ``paper``/``converged``: its defaults; at most ``--map-seconds``) and
-remeshed through the sphere.
+the higher-genus ones), read and repaired as the ``input`` stage does, mapped onto the sphere by
+``parameterize_stage`` (``--maps paper``: the alternating-hemisphere iterations; ``converged``:
+Gauss–Newton; ``N``: at most N Gauss–Newton steps) and remeshed through the sphere.
 
 Remesh table: for each mesh (parameterized once with ``SEMOptions(mode="paper")``, not timed
 in the total) and each vertex count, the median over ``--repeat`` runs of every step of
@@ -62,34 +62,6 @@ def data_dir() -> Path:
 CLOSED_GENUS0 = ("igl_bunny", "igl_arm", "igl_bumpy_cube", "igl_decimated_max", "igl_elephant")
 
 
-def load_closed(name: str):
-    """A closed mesh of ``../shared/data/closed`` as a closed :class:`RepairedMesh` (empty
-    boundary), read as it is."""
-    from pipeline.geometry.repair import RepairedMesh
-    from pipeline.io.meshio import read_mesh
-
-    raw = read_mesh(data_dir() / "closed" / f"{name}.obj")
-    V, F = np.asarray(raw.V, np.float64), np.asarray(raw.faces, np.int64)
-    return RepairedMesh(V=V, F=F, colors=None, source_index=np.arange(len(V)),
-                        boundary=np.empty(0, np.int64), added_vertices=np.empty(0, np.int64))
-
-
-def sphere_parameterize(mesh, how: str, seconds: float | None = None):
-    """The sphere map of a closed mesh (``spherical_sem``; ``how`` an integer: at most that many
-    hemisphere iterations; ``seconds``: its time limit) as a :class:`Parameterization` with
-    ``sphere`` set, and its seconds."""
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.geometry.sphere import spherical_sem
-    from pipeline.stages.parameterize import Parameterization
-
-    t = time.perf_counter()
-    res = spherical_sem(mesh.V, mesh.F, time_limit=seconds,
-                        **({} if how in ("paper", "converged") else {"max_iter": int(how)}))
-    seconds = time.perf_counter() - t
-    mesh.F = res.F                                  # the map's (outward) orientation
-    return Parameterization(mesh, None, res, SEMOptions(), sphere=res.S), seconds
-
-
 def domain_map(p):
     """The map ``remesh_stage`` takes, and the number of its folded faces."""
     from pipeline.geometry.sphere import folded_faces
@@ -104,8 +76,8 @@ def load(name: str):
     from pipeline.geometry.repair import repair_mesh
     from pipeline.stages.load import load_stage
 
-    if (data_dir() / "closed" / f"{name}.obj").exists():
-        return load_closed(name)
+    if (data_dir() / "closed" / f"{name}.obj").exists():    # closed: the sphere map's domain
+        return load_stage(data_dir() / "closed" / f"{name}.obj").mesh
 
     if name.endswith("_x4"):                       # midpoint subdivision (1 → 4), cached
         import trimesh
@@ -152,7 +124,7 @@ COLS = (("mean min°", "mean_min_angle_deg", "high", 2), ("<30° %", "fraction_m
         ("Haus %", "hausdorff_rel", "low", 3), ("RMS %", "rms_rel", "low", 4))
 
 
-def bench_compare(names, counts, maps, repeat, n_random=100_000, map_seconds=None):
+def bench_compare(names, counts, maps, repeat, n_random=100_000):
     """Side by side at each vertex count: our remesh (per map of ``maps``) and pymeshlab's
     isotropic explicit remeshing (10 iterations, target length solved for the count), measured
     by the same evaluator (:func:`pipeline.geometry.remesh_quality.remesh_quality`). Seconds:
@@ -192,8 +164,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, map_seconds=Non
 
     for name in names:
         mesh = load(name)
-        ms = {how: (sphere_parameterize(mesh, how, map_seconds) if mesh.closed
-                    else parameterize_with(mesh, how)) for how in maps}
+        ms = {how: parameterize_with(mesh, how) for how in maps}
         for n in counts:
             b = baselines.isotropic_remesh(mesh.V, mesh.F, n)
             ref, disk = measure(mesh, b.V, b.F)
@@ -316,8 +287,6 @@ def main(argv=None):
     ap.add_argument("--closed", action="store_true",
                     help="with --compare: the closed genus-0 meshes through the sphere map "
                          "(default meshes: all of them; default counts 5000 20000)")
-    ap.add_argument("--map-seconds", type=float, default=None,
-                    help="with --closed: the sphere map's time limit (spherical_sem)")
     args = ap.parse_args(argv)
     if args.closed:
         if args.meshes == ap.get_default("meshes"):
@@ -328,8 +297,7 @@ def main(argv=None):
         print("side by side, same evaluator; * = ours at least as good as pymeshlab "
               "(area CV: ≤ 0.6 ×); seconds: ours = SEM map + remesh_stage (median of "
               f"{args.repeat}), pymeshlab = its call\n")
-        bench_compare(args.meshes, args.vertices, args.maps, args.repeat,
-                      map_seconds=args.map_seconds)
+        bench_compare(args.meshes, args.vertices, args.maps, args.repeat)
         return
     if not args.no_remesh:
         print("remesh_stage, seconds per step (median of "

@@ -48,29 +48,12 @@ def load_closed(path: Path):
 
 
 def icosphere(level: int):
-    """Unit icosphere with ``level`` midpoint subdivisions (outward faces)."""
-    t = (1 + 5 ** 0.5) / 2
-    V = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t),
-         (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
-    F = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
-         (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
-         (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
-    V = [np.array(v, float) / np.linalg.norm(v) for v in V]
-    for _ in range(level):
-        mid, F2 = {}, []
+    """Unit icosphere: the icosahedron with ``level`` midpoint subdivisions, outward faces
+    (``trimesh.creation.icosphere``)."""
+    import trimesh
 
-        def m(a, b):
-            key = (min(a, b), max(a, b))
-            if key not in mid:
-                p = V[a] + V[b]
-                V.append(p / np.linalg.norm(p))
-                mid[key] = len(V) - 1
-            return mid[key]
-        for a, b, c in F:
-            ab, bc, ca = m(a, b), m(b, c), m(c, a)
-            F2 += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
-        F = F2
-    return np.array(V), np.array(F, dtype=np.int64)
+    m = trimesh.creation.icosphere(subdivisions=level)
+    return np.array(m.vertices, dtype=np.float64), np.array(m.faces, dtype=np.int64)
 
 
 def spiky(level: int, directions: int, length: float, width: float, seed: int = 0):

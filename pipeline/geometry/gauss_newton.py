@@ -31,6 +31,8 @@ step assembles ``H`` with one ``np.bincount`` and refactors on a kept analysis.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -43,6 +45,38 @@ from .solvers import make_solver
 HOLD = 1e12
 _PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
 
+
+
+class SymmetricPattern(NamedTuple):
+    """Where the entries ``(r, s)`` of a symmetric N×N matrix land (:func:`symmetric_pattern`):
+    ``slot`` (k,) the upper-triangle entry of each, ``n_upper`` their number,
+    ``full_from_upper`` (nnz,) the upper entry of each stored entry of the full matrix ``H``
+    (CSR, sorted indices, values to be written), ``rows`` (nnz,) and ``diagonal`` the row of
+    each stored entry and the positions of the diagonal ones."""
+
+    slot: np.ndarray
+    n_upper: int
+    full_from_upper: np.ndarray
+    H: sp.csr_matrix
+    rows: np.ndarray
+    diagonal: np.ndarray
+
+
+def symmetric_pattern(r: np.ndarray, s: np.ndarray, N: int) -> SymmetricPattern:
+    """The sparsity pattern of a symmetric matrix with entries at ``(r, s)`` and ``(s, r)``
+    (int arrays of one shape, each pair once or many times), built once so that an assembly
+    is ``np.bincount(slot, weights)`` over the upper triangle and a gather into ``H.data``."""
+    keys = (np.minimum(r, s) * N + np.maximum(r, s)).ravel()
+    upper_keys, slot = np.unique(keys, return_inverse=True)
+    n_upper = len(upper_keys)
+    U = sp.csr_matrix((np.arange(1, n_upper + 1, dtype=np.float64),
+                       (upper_keys // N, upper_keys % N)), shape=(N, N))
+    full = (U + sp.triu(U, 1).T).tocsr()
+    full.sort_indices()
+    rows = np.repeat(np.arange(N), np.diff(full.indptr))
+    return SymmetricPattern(np.ascontiguousarray(slot.ravel(), dtype=np.int64), n_upper,
+                            full.data.astype(np.int64) - 1, full, rows,
+                            np.flatnonzero(full.indices == rows))
 
 class GaussNewton:
     """Levenberg–Marquardt steps on ``E_S`` for the interior of a disk map, boundary held."""
@@ -72,17 +106,10 @@ class GaussNewton:
         r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
         self.pair_valid = (r >= 0) & (s >= 0)
         r, s = r[self.pair_valid], s[self.pair_valid]
-        keys = np.minimum(r, s) * N + np.maximum(r, s)
-        upper_keys, self.slot = np.unique(keys, return_inverse=True)
-        self.n_upper = len(upper_keys)
-        U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64),
-                           (upper_keys // N, upper_keys % N)), shape=(N, N))
-        full = (U + sp.triu(U, 1).T).tocsr()
-        full.sort_indices()
-        self.full_from_upper = full.data.astype(np.int64) - 1
-        self.H = full
-        rows = np.repeat(np.arange(N), np.diff(full.indptr))
-        self.diagonal = np.flatnonzero(full.indices == rows)
+        pattern = symmetric_pattern(r, s, N)
+        self.slot, self.n_upper = pattern.slot, pattern.n_upper
+        self.full_from_upper, self.H = pattern.full_from_upper, pattern.H
+        self.diagonal = pattern.diagonal
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
         self.hold_boundary = False

@@ -68,6 +68,7 @@ import scipy.sparse as sp
 
 from . import _kernels
 from .laplacian import face_double_areas
+from .gauss_newton import symmetric_pattern
 from .solvers import CholmodSolver, NotPositiveDefinite, make_solver
 from .sphere_base import energy_ratio, shrink_folding_steps, triple_products
 
@@ -129,18 +130,10 @@ class SphereGaussNewton:
         self.cols[:, 0::2], self.cols[:, 1::2] = 2 * F, 2 * F + 1
         N = 2 * n
         r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
-        keys = (np.minimum(r, s) * N + np.maximum(r, s)).ravel()
-        upper_keys, slot = np.unique(keys, return_inverse=True)
-        self.slot = np.ascontiguousarray(slot.ravel(), dtype=np.int64)
-        self.n_upper = len(upper_keys)
-        U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64),
-                           (upper_keys // N, upper_keys % N)), shape=(N, N))
-        full = (U + sp.triu(U, 1).T).tocsr()
-        full.sort_indices()
-        self.full_from_upper = full.data.astype(np.int64) - 1
-        self.H = full
-        self.rows = np.repeat(np.arange(N), np.diff(full.indptr))
-        self.diagonal = np.flatnonzero(full.indices == self.rows)
+        pattern = symmetric_pattern(r, s, N)
+        self.slot, self.n_upper = pattern.slot, pattern.n_upper
+        self.full_from_upper, self.H = pattern.full_from_upper, pattern.H
+        self.rows, self.diagonal = pattern.rows, pattern.diagonal
         # supernodal Cholesky on nested dissection: on the 2×2-block pattern, denser than a
         # Laplacian's, the simplicial factor of ``refactored=True`` is slower
         self.solver = make_solver(solver_kind, refactored=False)
