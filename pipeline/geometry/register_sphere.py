@@ -183,6 +183,84 @@ def kernel_step(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray, support:
     return out
 
 
+def landmark_linear_maps(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray,
+                         support: float) -> np.ndarray:
+    """Per landmark ``ℓ`` at ``p = S[ℓ]``, the linear map ``M_ℓ`` (3, 3) of R³ that agrees with
+    the kernel step (D1) ``Φ(x) = x + d(x)`` to first order at ``p`` and sends ``p`` to its
+    goal ``g``; shape (k, 3, 3):
+
+        M_ℓ = J + (g − J p) pᵀ,   J = DΦ(p) = I + Σ_k c_k ∇ψ(|x − p_k|/ρ)ᵀ |_{x=p}
+
+    (``M_ℓ p = g`` as ``|p| = 1``; ``Φ(x) − M_ℓ x = O(|x − p|²)`` because ``1 − p·x =
+    |x − p|²/2`` on the sphere). The map ``x ↦ normalize(M_ℓ x)`` multiplies every
+    ``det[s0, s1, s2]`` by ``det M_ℓ / (|M s0| |M s1| |M s2|)``: it keeps the orientation of
+    every face, however thin, when ``det M_ℓ > 0``. The hold-back of
+    :func:`hold_back_folds` moves vertices near a landmark with it by this map."""
+    P = S[landmarks]
+    C = np.linalg.solve(kernel_matrix(P, P, support), goal - P)       # (k, 3) coefficients
+    D = P[:, None, :] - P[None, :, :]                                  # p_ℓ − p_k
+    r = np.linalg.norm(D, axis=2) / support
+    dpsi = np.where(r < 1.0, -20.0 * (1.0 - r) ** 3 / support ** 2, 0.0)   # ∇ψ = dpsi (p − p_k)
+    J = np.eye(3)[None] + np.einsum("lk,ka,lkb->lab", dpsi, C, D)
+    Jp = np.einsum("lab,lb->la", J, P)
+    return J + (goal - Jp)[:, :, None] * P[:, None, :]
+
+
+def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.ndarray,
+                    maps: np.ndarray, rounds: int = 48) -> tuple[np.ndarray, int]:
+    """Remove a step's folds by holding vertices back: the candidate is
+
+        c_v = normalize(b_v + α_v (G_v − b_v))
+
+    with ``G`` the full step, ``α_v ∈ [0, 1]`` (1 at first) and the *fallback* ``b_v`` either
+    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M_ℓ z_v)`` (it moves
+    rigidly-linearly with landmark ``ℓ``, :func:`landmark_linear_maps`). Landmarks have
+    ``b = goal``, ``α = 0``. Each round, at every folded face: vertices without a landmark's
+    fallback join the landmark's of another vertex of the face (so the faces around a landmark,
+    which cannot stay behind, move as one linear map with it and keep their orientation however
+    thin they are), and the non-landmark vertices halve ``α`` (0 below 2⁻¹⁰). A face whose
+    vertices all sit at their fallbacks is unchanged (``z``) or mapped by one ``M_ℓ``, so folds
+    remain only at faces between two fallbacks; the caller counts them. Returns
+    ``(candidate (n, 3), vertices that joined a landmark)``."""
+    n = len(z)
+    region = np.full(n, -1, dtype=np.int64)
+    region[landmarks] = np.arange(len(landmarks))
+    alpha = np.ones(n)
+    alpha[landmarks] = 0.0
+    B = z.copy()
+    C = G.copy()
+    B[landmarks] = C[landmarks] = G[landmarks]
+    det = triple_products(C, F)
+    ok_map = np.linalg.det(maps) > 0
+    is_lm = np.zeros(n, bool)
+    is_lm[landmarks] = True
+    for _ in range(rounds):
+        bad = np.flatnonzero(det <= 0)
+        if not len(bad):
+            break
+        Fb = F[bad]
+        reg = region[Fb]
+        label = reg.max(axis=1)                        # a landmark's region in the face, or −1
+        join = (reg < 0) & (label[:, None] >= 0) & ok_map[np.maximum(label, 0)][:, None]
+        newly = Fb[join]
+        if len(newly):
+            region[newly] = np.broadcast_to(label[:, None], Fb.shape)[join]
+            newly = np.unique(newly)
+            moved = np.einsum("vab,vb->va", maps[region[newly]], z[newly])
+            B[newly] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
+        idx = np.unique(Fb)
+        idx = idx[~is_lm[idx]]
+        alpha[idx] = np.where(alpha[idx] < 2.0 ** -10, 0.0, alpha[idx] / 2.0)
+        touched = np.union1d(idx, newly)
+        c = B[touched] + alpha[touched, None] * (G[touched] - B[touched])
+        C[touched] = c / np.linalg.norm(c, axis=1, keepdims=True)
+        mark = np.zeros(n, bool)
+        mark[touched] = True
+        faces = np.flatnonzero(mark[F].any(axis=1))
+        det[faces] = triple_products(C, F[faces])
+    return C, int(np.count_nonzero(region >= 0) - len(landmarks))
+
+
 @dataclass
 class SphereDeformResult(DeformResult):
     """The deformed map and how it was reached: the disk's
@@ -205,7 +283,7 @@ class SphereDeformResult(DeformResult):
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
                                targets: np.ndarray, support: float = 2.0,
                                min_step: float = 1.0 / 1024, max_substeps: int = 400,
-                               hold_rounds: int = 8) -> SphereDeformResult:
+                               hold_rounds: int = 48) -> SphereDeformResult:
     """Move ``landmarks`` of the spherical map ``S`` exactly onto ``targets`` without folding a
     face (module docstring, step 2).
 
@@ -232,17 +310,14 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         With ``ok``: ``S[landmarks] == targets`` exactly and no folded face. Stalled: the
         one-step map (landmarks exact, its folds counted).
     """
-    from .sphere import shrink_folding_steps
-
     F = np.asarray(F, dtype=np.int64)
     S = np.asarray(S, dtype=np.float64)
     landmarks = np.asarray(landmarks, dtype=np.int64)
     T = np.asarray(targets, dtype=np.float64)
     T = T / np.linalg.norm(T, axis=1, keepdims=True)
-    F_free = F[~np.isin(F, landmarks).any(axis=1)]   # faces the hold-back may act on
     start, z = S[landmarks].copy(), S
     tau, dtau, accepted, rejected = 0.0, 1.0, 0, 0
-    direct, held, history = None, np.zeros(len(S), bool), []
+    direct, held, joined, history = None, np.zeros(len(S), bool), 0, []
     while tau < 1.0 and accepted + rejected < max_substeps:
         step = min(dtau, 1.0 - tau)
         new_tau = 1.0 if tau + step >= 1.0 - 1e-12 else tau + step
@@ -251,16 +326,18 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         if direct is None:
             direct = full
         raw = folded_faces(full, F)
-        for _ in range(hold_rounds if raw else 0):   # hold back vertices of would-be folds
-            cand = shrink_folding_steps(z, cand, F_free, 1.0, 0)
+        ring = 0
+        if raw:                                      # hold back vertices of would-be folds
+            maps = landmark_linear_maps(z, landmarks, goal, support)
+            cand, ring = hold_back_folds(z, full, F, landmarks, maps, hold_rounds)
             cand[landmarks] = goal
-            if folded_faces(cand, F_free) == 0:
-                break
         folds = folded_faces(cand, F)
         history.append({"tau": new_tau, "step": step, "flipped_faces": raw,
-                        "flipped_after_hold_back": folds, "accepted": folds == 0})
+                        "flipped_after_hold_back": folds, "moved_with_landmark": ring,
+                        "accepted": folds == 0})
         if folds == 0:
             held |= np.linalg.norm(cand - full, axis=1) > 1e-12
+            joined = max(joined, ring)
             z, tau, accepted = cand, new_tau, accepted + 1
             dtau = min(1.0, 2.0 * step)
         else:
