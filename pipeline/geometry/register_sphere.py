@@ -42,6 +42,11 @@ registration is
    the landmark, so the vertices that join it barely leave the smooth field and the faces
    between them and the rest of the map seldom fold for it.
 
+   *Limits.* The deformation does not make up for a poor map: a map that crowds most of its
+   surface into a small part of the sphere (area ratios of 10⁻³ and less around most of the
+   landmarks) makes the landmarks' path a strong compression, held-back vertices pile up and
+   the continuation stalls; the run then says ``stalled`` with its folds.
+
    *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
    of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
    disk's mesh-based deformation (:func:`pipeline.geometry.register.deform_to_landmarks`)
@@ -55,11 +60,12 @@ registration is
    the scale of the faces around a landmark. A smooth field moves small faces almost
    affinely, and holding back the few slivers' vertices keeps them unfolded.
 
-   *Support.* Warped, decimated copies registered onto igl_bunny, igl_decimated_max and
-   igl_elephant (10 farthest-point landmarks): with ``ρ = 0.7`` and ``1.0`` (chordal) the
-   elephant's continuation stalls (51–76 folds); with ``1.5`` and ``2`` all three finish with
-   0 folds, and ``ρ = 2`` has the lowest dense error against the warped source (mean 0.042,
-   0.021, 0.038 of the diagonal vs 0.043, 0.025, 0.037 for 1.5): a global, smoother field.
+   *Support.* Warped, decimated copies registered onto igl_bunny, igl_decimated_max,
+   igl_elephant and igl_bumpy_cube (10 farthest-point landmarks, Gauss–Newton maps): with
+   ``ρ = 1`` (chordal) the bumpy cube's continuation stalls (1636 folds); with ``1.5`` and ``2``
+   all four finish with 0 folds, and ``ρ = 2`` has the lowest dense error against the warped
+   source (mean 0.054, 0.029, 0.056, 0.072 of the diagonal vs 0.055, 0.029, 0.058, 0.084 for
+   1.5) and the fewest continuation steps: a global, smoother field.
 3. **Composition** (:func:`compose_with_inverse_sphere`): every deformed source point is located
    in the target's spherical triangulation (:mod:`pipeline.geometry.locate_sphere`) and lifted
    by eq. (1). A source landmark sits exactly on its target landmark's image, so it is mapped to
