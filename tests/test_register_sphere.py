@@ -15,11 +15,12 @@ import pytest
 from conftest import require_data
 from pipeline.geometry.register_sphere import (align_sphere, compose_with_inverse_sphere,
                                                deform_sphere_to_landmarks, fit_sphere_rotation,
+                                               kernel_step, landmark_linear_maps,
                                                rotation_summary)
 from pipeline.geometry.locate_sphere import locate_on_sphere
 from pipeline.geometry.repair import RepairedMesh
 from pipeline.geometry.sem import SEMOptions
-from pipeline.geometry.sphere import folded_faces
+from pipeline.geometry.sphere import folded_faces, triple_products
 from pipeline.stages.load import Intake
 from pipeline.stages.parameterize import Parameterization
 from pipeline.stages.register import Face, Pair, register_maps, write_registration
@@ -107,6 +108,46 @@ def test_deformation_moves_landmarks_exactly_without_folds():
     assert de.ok and folded_faces(de.S, F) == 0
     np.testing.assert_allclose(de.S[lm], T, atol=1e-15, rtol=0)
     np.testing.assert_allclose(np.linalg.norm(de.S, axis=1), 1, atol=1e-12)
+
+
+def test_a_sliver_at_a_landmark_moves_with_it():
+    """A landmark almost on the opposite edge of one of its faces (det ~1e-8 of the median, as
+    equiareal maps leave them): held-back neighbours would fold that face at any step length;
+    moving them with the landmark's linear map keeps it positive, and the landmarks exact."""
+    V, F = icosphere(3)
+    rng = np.random.default_rng(2)
+    lm = rng.choice(len(V), 10, replace=False)
+    faces = np.flatnonzero((F == lm[0]).any(axis=1))
+    v, w = [x for x in F[faces[0]] if x != lm[0]]
+    ring = np.setdiff1d(F[faces], [lm[0]])
+    S = V.copy()
+    p = (1 - 1e-8) * (V[v] + V[w]) / 2 + 1e-8 * V[ring].mean(axis=0)
+    S[lm[0]] = p / np.linalg.norm(p)
+    det = triple_products(S, F)
+    assert det.min() > 0 and det.min() < 1e-7 * np.median(det)
+    T = S[lm] + 0.15 * rng.normal(size=(10, 3))
+    T /= np.linalg.norm(T, axis=1, keepdims=True)
+    de = deform_sphere_to_landmarks(F, S, lm, T)
+    assert de.ok and (triple_products(de.S, F) > 0).all()
+    assert de.carried_vertices > 0
+    np.testing.assert_allclose(de.S[lm], T, atol=1e-15, rtol=0)
+
+
+def test_landmark_linear_map_matches_the_kernel_step_to_first_order():
+    rng = np.random.default_rng(0)
+    S = rng.normal(size=(200, 3))
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    lm = np.arange(8)
+    goal = S[lm] + 0.2 * rng.normal(size=(8, 3))
+    goal /= np.linalg.norm(goal, axis=1, keepdims=True)
+    M = landmark_linear_maps(S, lm, goal, 2.0)
+    np.testing.assert_allclose(np.einsum("lab,lb->la", M, S[lm]), goal, atol=1e-14)
+    for h in (1e-2, 1e-3):                         # the gap shrinks as h², not h
+        x = S[lm] + h * rng.normal(size=(8, 3))
+        x /= np.linalg.norm(x, axis=1, keepdims=True)
+        gaps = [np.linalg.norm(kernel_step(np.vstack([S, x[[k]]]), lm, goal, 2.0)[-1]
+                               - (m := M[k] @ x[k]) / np.linalg.norm(m)) for k in range(8)]
+        assert max(gaps) < 20 * h * h
 
 
 def test_landmark_swap_is_reported_as_failure():

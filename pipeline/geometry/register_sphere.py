@@ -15,18 +15,37 @@ registration is
 2. **Deformation** ``φ`` (:func:`deform_sphere_to_landmarks`): a composition of smooth steps
    of the sphere, each ``x ↦ normalize(x + d(x))`` with ``d`` interpolating the landmarks'
    next moves exactly by Wendland's compactly supported C² kernel (eq. D1,
-   :func:`kernel_step`), the landmarks moving along their great-circle arcs. As on the disk, the
-   whole move is tried first and a step that folds a face is rejected and halved, an accepted
-   one lets the next grow (*continuation*); a step's folds at faces without a landmark are
-   first removed by holding their vertices back (:func:`pipeline.geometry.sphere.
-   shrink_folding_steps`). Below ``min_step`` the run is ``stalled``: the one-step map is
-   returned and its folds reported as a failure, never hidden.
+   :func:`kernel_step`), the landmarks moving along their great-circle arcs. As on the disk,
+   the whole move is tried first and a step that folds a face is rejected and halved, an
+   accepted one lets the next grow (*continuation*). Before a step is rejected, its folds are
+   removed where possible by holding vertices back (:func:`hold_back_folds`): a vertex of a
+   folded face falls back toward a position on which its faces cannot fold, either its place
+   in the current, fold-free map (it stays) or, next to a landmark, its image under the step's
+   linear map at that landmark (:func:`landmark_linear_maps`; it moves with the landmark).
+   Below ``min_step`` the run is ``stalled``: the one-step map is returned and its folds
+   reported as a failure, never hidden.
 
    *Bijectivity.* Every accepted step leaves ``det[s0, s1, s2] > 0`` on every face (counted,
    not assumed), so the deformed map is again a fold-free triangulation of the sphere of degree
    one, whose flat triangles' central projections tile the sphere once: a bijection of the
-   sphere onto itself (and, through ``f_s`` and ``f_t⁻¹``, of the surfaces). Folds at a face
-   with a landmark cannot be held back (the landmark must arrive); they make the step shorter.
+   sphere onto itself (and, through ``f_s`` and ``f_t⁻¹``, of the surfaces).
+
+   *Why the landmarks carry their faces.* A landmark must arrive, so it cannot stay behind; if
+   the other vertices of its faces stay, a face whose landmark moves across the opposite edge
+   folds at any step length. A sliver does so under the tiniest step: an equiareal map may
+   leave one at a landmark (a converged Gauss–Newton map of the decimated bunny of the tests
+   has a face of ~10⁻⁸ of the median ``det`` with a landmark as a corner), and with only the
+   faces without a landmark held back the continuation stalled at every step length. A linear
+   map ``M`` of R³ with ``det M > 0`` followed by central projection multiplies every face's
+   ``det`` by a positive factor, so faces whose vertices all follow one landmark's ``M`` keep
+   their orientation whatever their shape; ``M`` agrees with the kernel step to first order at
+   the landmark, so the vertices that join it barely leave the smooth field and the faces
+   between them and the rest of the map seldom fold for it.
+
+   *Limits.* The deformation does not make up for a poor map: a map that crowds most of its
+   surface into a small part of the sphere (area ratios of 10⁻³ and less around most of the
+   landmarks) makes the landmarks' path a strong compression, held-back vertices pile up and
+   the continuation stalls; the run then says ``stalled`` with its folds.
 
    *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
    of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
@@ -41,11 +60,12 @@ registration is
    the scale of the faces around a landmark. A smooth field moves small faces almost
    affinely, and holding back the few slivers' vertices keeps them unfolded.
 
-   *Support.* Warped, decimated copies registered onto igl_bunny, igl_decimated_max and
-   igl_elephant (10 farthest-point landmarks): with ``ρ = 0.7`` and ``1.0`` (chordal) the
-   elephant's continuation stalls (51–76 folds); with ``1.5`` and ``2`` all three finish with
-   0 folds, and ``ρ = 2`` has the lowest dense error against the warped source (mean 0.042,
-   0.021, 0.038 of the diagonal vs 0.043, 0.025, 0.037 for 1.5): a global, smoother field.
+   *Support.* Warped, decimated copies registered onto igl_bunny, igl_decimated_max,
+   igl_elephant and igl_bumpy_cube (10 farthest-point landmarks, Gauss–Newton maps): with
+   ``ρ = 1`` (chordal) the bumpy cube's continuation stalls (1636 folds); with ``1.5`` and ``2``
+   all four finish with 0 folds, and ``ρ = 2`` has the lowest dense error against the warped
+   source (mean 0.054, 0.029, 0.056, 0.072 of the diagonal vs 0.055, 0.029, 0.058, 0.084 for
+   1.5) and the fewest continuation steps: a global, smoother field.
 3. **Composition** (:func:`compose_with_inverse_sphere`): every deformed source point is located
    in the target's spherical triangulation (:mod:`pipeline.geometry.locate_sphere`) and lifted
    by eq. (1). A source landmark sits exactly on its target landmark's image, so it is mapped to
@@ -66,7 +86,8 @@ from .sphere import folded_faces, triple_products
 
 __all__ = ["SphereAlignment", "SphereDeformResult", "sphere_faces", "chordal_rms",
            "fit_sphere_rotation", "rotation_summary", "align_sphere", "wendland",
-           "kernel_matrix", "slerp", "kernel_step", "deform_sphere_to_landmarks",
+           "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "hold_back_folds",
+           "deform_sphere_to_landmarks",
            "compose_with_inverse_sphere"]
 
 
@@ -183,15 +204,95 @@ def kernel_step(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray, support:
     return out
 
 
+def landmark_linear_maps(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray,
+                         support: float) -> np.ndarray:
+    """Per landmark ``ℓ`` at ``p = S[ℓ]``, the linear map ``M_ℓ`` (3, 3) of R³ that agrees with
+    the kernel step (D1) ``Φ(x) = x + d(x)`` to first order at ``p`` and sends ``p`` to its
+    goal ``g``; shape (k, 3, 3):
+
+        M_ℓ = J + (g − J p) pᵀ,   J = DΦ(p) = I + Σ_k c_k ∇ψ(|x − p_k|/ρ)ᵀ |_{x=p}
+
+    (``M_ℓ p = g`` as ``|p| = 1``; ``Φ(x) − M_ℓ x = O(|x − p|²)`` because ``1 − p·x =
+    |x − p|²/2`` on the sphere). The map ``x ↦ normalize(M_ℓ x)`` multiplies every
+    ``det[s0, s1, s2]`` by ``det M_ℓ / (|M s0| |M s1| |M s2|)``: it keeps the orientation of
+    every face, however thin, when ``det M_ℓ > 0``. The hold-back of
+    :func:`hold_back_folds` moves vertices near a landmark with it by this map."""
+    P = S[landmarks]
+    C = np.linalg.solve(kernel_matrix(P, P, support), goal - P)       # (k, 3) coefficients
+    D = P[:, None, :] - P[None, :, :]                                  # p_ℓ − p_k
+    r = np.linalg.norm(D, axis=2) / support
+    dpsi = np.where(r < 1.0, -20.0 * (1.0 - r) ** 3 / support ** 2, 0.0)   # ∇ψ = dpsi (p − p_k)
+    J = np.eye(3)[None] + np.einsum("lk,ka,lkb->lab", dpsi, C, D)
+    Jp = np.einsum("lab,lb->la", J, P)
+    return J + (goal - Jp)[:, :, None] * P[:, None, :]
+
+
+def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.ndarray,
+                    maps: np.ndarray, rounds: int = 48) -> tuple[np.ndarray, int]:
+    """Remove a step's folds by holding vertices back: the candidate is
+
+        c_v = normalize(b_v + α_v (G_v − b_v))
+
+    with ``G`` the full step, ``α_v ∈ [0, 1]`` (1 at first) and the *fallback* ``b_v`` either
+    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M_ℓ z_v)`` (it moves
+    rigidly-linearly with landmark ``ℓ``, :func:`landmark_linear_maps`). Landmarks have
+    ``b = goal``, ``α = 0``. Each round, at every folded face: vertices without a landmark's
+    fallback join the landmark's of another vertex of the face (so the faces around a landmark,
+    which cannot stay behind, move as one linear map with it and keep their orientation however
+    thin they are), and the non-landmark vertices halve ``α`` (0 below 2⁻¹⁰). A face whose
+    vertices all sit at their fallbacks is unchanged (``z``) or mapped by one ``M_ℓ``, so folds
+    remain only at faces between two fallbacks; the caller counts them. Returns
+    ``(candidate (n, 3), vertices that joined a landmark)``."""
+    n = len(z)
+    region = np.full(n, -1, dtype=np.int64)
+    region[landmarks] = np.arange(len(landmarks))
+    alpha = np.ones(n)
+    alpha[landmarks] = 0.0
+    B = z.copy()
+    C = G.copy()
+    B[landmarks] = C[landmarks] = G[landmarks]
+    det = triple_products(C, F)
+    ok_map = np.linalg.det(maps) > 0
+    is_lm = np.zeros(n, bool)
+    is_lm[landmarks] = True
+    for _ in range(rounds):
+        bad = np.flatnonzero(det <= 0)
+        if not len(bad):
+            break
+        Fb = F[bad]
+        reg = region[Fb]
+        label = reg.max(axis=1)                        # a landmark's region in the face, or −1
+        join = (reg < 0) & (label[:, None] >= 0) & ok_map[np.maximum(label, 0)][:, None]
+        newly = Fb[join]
+        if len(newly):
+            region[newly] = np.broadcast_to(label[:, None], Fb.shape)[join]
+            newly = np.unique(newly)
+            moved = np.einsum("vab,vb->va", maps[region[newly]], z[newly])
+            B[newly] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
+        idx = np.unique(Fb)
+        idx = idx[~is_lm[idx]]
+        alpha[idx] = np.where(alpha[idx] < 2.0 ** -10, 0.0, alpha[idx] / 2.0)
+        touched = np.union1d(idx, newly)
+        c = B[touched] + alpha[touched, None] * (G[touched] - B[touched])
+        C[touched] = c / np.linalg.norm(c, axis=1, keepdims=True)
+        mark = np.zeros(n, bool)
+        mark[touched] = True
+        faces = np.flatnonzero(mark[F].any(axis=1))
+        det[faces] = triple_products(C, F[faces])
+    return C, int(np.count_nonzero(region >= 0) - len(landmarks))
+
+
 @dataclass
 class SphereDeformResult(DeformResult):
     """The deformed map and how it was reached: the disk's
     :class:`~pipeline.geometry.register.DeformResult` with ``z`` = ``S`` the deformed map
     (n, 3) unit vectors and the folds counted on the sphere, plus the kernel's support and the
-    vertices held back at least once (faces that would have folded)."""
+    vertices held back at least once (faces that would have folded) and the most vertices an
+    accepted step moved with a landmark (:func:`hold_back_folds`)."""
 
     support: float = 2.0
     held_vertices: int = 0
+    carried_vertices: int = 0
 
     @property
     def S(self) -> np.ndarray:
@@ -199,13 +300,13 @@ class SphereDeformResult(DeformResult):
 
     def as_dict(self) -> dict:
         return {**super().as_dict(), "kernel": "Wendland C2", "support_chordal": self.support,
-                "held_vertices": self.held_vertices}
+                "held_vertices": self.held_vertices, "carried_vertices": self.carried_vertices}
 
 
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
                                targets: np.ndarray, support: float = 2.0,
                                min_step: float = 1.0 / 1024, max_substeps: int = 400,
-                               hold_rounds: int = 8) -> SphereDeformResult:
+                               hold_rounds: int = 48) -> SphereDeformResult:
     """Move ``landmarks`` of the spherical map ``S`` exactly onto ``targets`` without folding a
     face (module docstring, step 2).
 
@@ -222,9 +323,9 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         As :class:`~pipeline.geometry.register.DeformOptions`: the continuation gives up (method
         ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries.
     hold_rounds : int
-        Calls of :func:`~pipeline.geometry.sphere.shrink_folding_steps` per step (each pulls the
-        vertices of the faces still folded further back toward the current map, on which no
-        face is folded).
+        Rounds of :func:`hold_back_folds` per step (each pulls the vertices of the faces still
+        folded halfway back toward their fallbacks and lets the vertices of folded faces next
+        to a landmark join it).
 
     Returns
     -------
@@ -232,17 +333,14 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         With ``ok``: ``S[landmarks] == targets`` exactly and no folded face. Stalled: the
         one-step map (landmarks exact, its folds counted).
     """
-    from .sphere import shrink_folding_steps
-
     F = np.asarray(F, dtype=np.int64)
     S = np.asarray(S, dtype=np.float64)
     landmarks = np.asarray(landmarks, dtype=np.int64)
     T = np.asarray(targets, dtype=np.float64)
     T = T / np.linalg.norm(T, axis=1, keepdims=True)
-    F_free = F[~np.isin(F, landmarks).any(axis=1)]   # faces the hold-back may act on
     start, z = S[landmarks].copy(), S
     tau, dtau, accepted, rejected = 0.0, 1.0, 0, 0
-    direct, held, history = None, np.zeros(len(S), bool), []
+    direct, held, joined, history = None, np.zeros(len(S), bool), 0, []
     while tau < 1.0 and accepted + rejected < max_substeps:
         step = min(dtau, 1.0 - tau)
         new_tau = 1.0 if tau + step >= 1.0 - 1e-12 else tau + step
@@ -251,16 +349,18 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         if direct is None:
             direct = full
         raw = folded_faces(full, F)
-        for _ in range(hold_rounds if raw else 0):   # hold back vertices of would-be folds
-            cand = shrink_folding_steps(z, cand, F_free, 1.0, 0)
+        ring = 0
+        if raw:                                      # hold back vertices of would-be folds
+            maps = landmark_linear_maps(z, landmarks, goal, support)
+            cand, ring = hold_back_folds(z, full, F, landmarks, maps, hold_rounds)
             cand[landmarks] = goal
-            if folded_faces(cand, F_free) == 0:
-                break
         folds = folded_faces(cand, F)
         history.append({"tau": new_tau, "step": step, "flipped_faces": raw,
-                        "flipped_after_hold_back": folds, "accepted": folds == 0})
+                        "flipped_after_hold_back": folds, "moved_with_landmark": ring,
+                        "accepted": folds == 0})
         if folds == 0:
             held |= np.linalg.norm(cand - full, axis=1) > 1e-12
+            joined = max(joined, ring)
             z, tau, accepted = cand, new_tau, accepted + 1
             dtau = min(1.0, 2.0 * step)
         else:
@@ -272,7 +372,7 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     if tau < 1.0:
         z, method = direct, "stalled"
     return SphereDeformResult(z, folded_faces(z, F), method, accepted, rejected, tau, history,
-                              support, int(held.sum()))
+                              support, int(held.sum()), joined)
 
 
 # -------------------------------------------------------------------------- 3. composition
