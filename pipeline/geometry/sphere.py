@@ -487,7 +487,8 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
                   cycles: int = 10, method: str = "newton",
                   barriers: tuple = (2.0, 0.2, 0.02), newton_iter: int = 500,
                   newton_tol: float = 1e-2, newton_patience: int = 3,
-                  newton_floor: float = 1e-4) -> SphereResult:
+                  newton_floor: float = 1e-4, newton_accept: float = 1e-3,
+                  continuation: int = 4) -> SphereResult:
     """Equiareal map of a closed genus-0 mesh onto the unit sphere by stretch-energy
     minimization.
 
@@ -507,6 +508,14 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         row that lower its objective by less than ``newton_tol`` (relative), or once the
         energy ratio is within ``newton_floor`` of its bound 1; the last one's end is
         convergence (:func:`.sphere_newton.minimize`).
+    newton_accept : float
+        Largest ``R − 1`` at which a minimization that stops above ``newton_floor`` is
+        "converged" (``√newton_accept`` bounds the face-based distortion); further from 1 the
+        status is "stalled".
+    continuation : int
+        Stages of the area continuation (:func:`_area_continuation`; 0: none) run from the
+        map handed to the Gauss–Newton minimization when that minimization stalls; its result
+        replaces the stalled one if its energy ratio is lower.
     max_iter : int
         Guarded hemisphere iterations (each = one half step around each pole).
     tol, patience : float, int
@@ -569,11 +578,22 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         timings["free"] = time.perf_counter() - t0
         if folds == 0:
             t0 = time.perf_counter()
+            S_newton = S
             S, status, it = sphere_newton.minimize(
                 F, A2, S, kappas=barriers, deadline=deadline, max_iter=newton_iter,
                 tol=newton_tol, patience=newton_patience, floor=newton_floor, solver=solver,
-                history=history, clock_start=t_all)
+                history=history, clock_start=t_all, accept=newton_accept)
             timings["newton"] = time.perf_counter() - t0
+            if status == "stalled" and continuation:
+                t0 = time.perf_counter()
+                C, c_status, c_it = _area_continuation(
+                    F, A2, S_newton, continuation, deadline=deadline, kappas=barriers,
+                    max_iter=newton_iter, tol=newton_tol, patience=newton_patience,
+                    floor=newton_floor, solver=solver, history=history, clock_start=t_all,
+                    accept=newton_accept)
+                timings["continuation"] = time.perf_counter() - t0
+                if energy_ratio(A2, C, F) < energy_ratio(A2, S, F):
+                    S, status, it = C, c_status, it + c_it
             timings["total"] = time.perf_counter() - t_all
             return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
                                 iterations=it, status=status, history=history,
@@ -581,7 +601,46 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
         free_iter = 0                              # the hemisphere method goes on from here
     return _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all,
                            deadline, max_iter, tol, patience, radius, min_step, solver,
-                           poles, free_iter, gradient_iter, gradient_tol, cycles)
+                           poles, free_iter, gradient_iter, gradient_tol, cycles,
+                           newton_accept)
+
+
+def _area_continuation(F, A2, S, stages, deadline=np.inf, max_iter=500, stage_iter=60,
+                       history=None, **newton):
+    """Gauss–Newton minimization (:func:`.sphere_newton.minimize`) along a path of surface
+    areas from those of the map ``S`` (fold free) to the true ones: stage ``k = 1 … stages``
+    minimizes towards the double areas ``A_k = a^(1 − t) A2^t``, ``t = k / stages``
+    (geometric interpolation of the normalized image areas ``a`` of ``S`` and ``A2``), from the
+    previous stage's map; the intermediate stages run at most ``stage_iter`` iterations, the
+    last one ``max_iter``. In ``history`` (phase "continuation", with its ``stage``) the
+    intermediate iterations have their ``stage_energy_ratio``; a stage's last iteration also
+    has the ``energy_ratio`` against ``A2``. At ``t = 0`` the map is already equiareal for its targets, and
+    each stage moves the areas by a bounded factor, so every stage starts near its own
+    minimizer — where a start crowded to many orders of magnitude below the true areas (a
+    Tutte map of a mesh with long limbs) stalls the direct minimization far from the bound.
+    Returns ``(map, status of the last stage, iterations)``."""
+    a = face_double_areas(S, F)
+    log_a, log_A = np.log(a / a.sum()), np.log(A2 / A2.sum())
+    status, total = "time_limit", 0
+    for k in range(1, stages + 1):
+        if time.perf_counter() > deadline:
+            status = "time_limit"
+            break
+        t = k / stages
+        target = A2 if k == stages else np.exp((1 - t) * log_a + t * log_A)
+        mark = None if history is None else len(history)
+        S, status, it = sphere_newton.minimize(
+            F, target, S, deadline=deadline, max_iter=max_iter if k == stages else stage_iter,
+            history=history, **newton)
+        total += it
+        if history is not None:
+            for h in history[mark:]:
+                h["phase"], h["stage"] = "continuation", k
+                if k < stages:          # their ratio is against the stage's areas: renamed
+                    h["stage_energy_ratio"] = h.pop("energy_ratio")
+            if k < stages and len(history) > mark:
+                history[-1]["energy_ratio"] = energy_ratio(A2, S, F)
+    return S, status, total
 
 
 def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, history, t_all,
@@ -608,9 +667,10 @@ def _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles, solver, hi
 
 def _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all, deadline,
                     max_iter, tol, patience, radius, min_step, solver, poles, free_iter,
-                    gradient_iter, gradient_tol, cycles) -> SphereResult:
+                    gradient_iter, gradient_tol, cycles, accept=1e-3) -> SphereResult:
     """The alternating-hemisphere method of :func:`spherical_sem` (phases a–c of the module
-    docstring) from the start map ``S``."""
+    docstring) from the start map ``S``; an end with ``R − 1 > accept`` that would be
+    "converged" (progress stopped) is "stalled"."""
     t0 = time.perf_counter()
     S, ratio, folds = _spread(V, F, A2, S, ratio, folds, free_iter, tol, radius, poles,
                               solver, history, t_all, deadline)
@@ -662,6 +722,8 @@ def _hemisphere_sem(V, F, A2, S, ratio, folds, start, history, timings, t_all, d
         timings["gradient"] += time.perf_counter() - t0
         if status == "time_limit" or cycle_start - ratio < tol * cycle_start:
             break
+    if status == "converged" and ratio - 1.0 > accept:
+        status = "stalled"
     timings["total"] = time.perf_counter() - t_all
     return SphereResult(S=S, F=F, start=start, measures=sphere_measures(V, F, S),
                         iterations=it, status=status, history=history, timings=timings)

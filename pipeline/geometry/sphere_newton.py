@@ -233,15 +233,18 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
              deadline: float = np.inf, max_iter: int = 500, tol: float = 1e-2,
              patience: int = 3, floor: float = 1e-4, solver: str = "auto", mu: float = 1e-3,
              min_step: float = 1.0 / 16, restarts: int = 2, history: list | None = None,
-             clock_start: float | None = None) -> tuple[np.ndarray, str, int]:
+             clock_start: float | None = None, accept: float = 1e-3
+             ) -> tuple[np.ndarray, str, int]:
     """Minimize ``Φ_κ`` from the fold-free map ``S`` down the barrier schedule ``kappas``.
 
     A stage ends after ``patience`` iterations in a row that lower ``Φ_κ`` by less than
     ``tol`` (relative), when no step lowers it (``μ`` beyond 1e8), or once ``R − 1 ≤ floor``
-    (the energy at its bound to that precision); the last stage's end is convergence, unless
-    it stalled above the floor: then the schedule starts again from its first ``κ`` (at most
-    ``restarts`` times, and only while a pass lowers ``R``), since a strong barrier moves the
-    map off the nearly folded triangles at which the weak one stalls.
+    (the energy at its bound to that precision); at the last stage's end, if it stalled above
+    the floor, the schedule starts again from its first ``κ`` (at most ``restarts`` times, and
+    only while a pass lowers ``R``), since a strong barrier moves the map off the nearly folded
+    triangles at which the weak one stalls. The end is convergence if ``R − 1 ≤ accept``;
+    a map that stalls further from the bound (a start crowded beyond what the steps can
+    spread) ends "stalled", so that callers can tell.
 
     Parameters
     ----------
@@ -254,6 +257,9 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
         ``time.perf_counter()`` value after which no iteration starts (status "time_limit").
     mu, min_step : float
         Initial Levenberg–Marquardt damping; the shortest step ``t`` tried.
+    accept : float
+        Largest ``R − 1`` reported as "converged" when the minimization stops above ``floor``
+        (``√accept`` bounds the face-based distortion, see :mod:`.sphere`).
     history : list, optional
         Receives one dict per iteration (``kappa``, ``objective``, ``energy_ratio``,
         ``folded_faces``, ``step``, ``damping``, ``seconds`` since ``clock_start``).
@@ -262,7 +268,7 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
     -------
     S : (n, 3) float array
         Fold free.
-    status : {"converged", "time_limit", "max_iter"}
+    status : {"converged", "stalled", "time_limit", "max_iter"}
     iterations : int
     """
     S = np.asarray(S, dtype=np.float64)
@@ -315,7 +321,7 @@ def minimize(F: np.ndarray, A2: np.ndarray, S: np.ndarray, kappas=(2.0, 0.2, 0.0
                 if stage == len(kappas) - 1:
                     if ratio - 1.0 <= floor or restarts == 0 or \
                             ratio > restart_ratio * (1 - tol):
-                        status = "converged"
+                        status = "converged" if ratio - 1.0 <= accept else "stalled"
                         break
                     # stalled above the floor: once more down the schedule (see above)
                     restarts, restart_ratio, stage = restarts - 1, ratio, -1

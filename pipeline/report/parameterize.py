@@ -85,6 +85,8 @@ SPHERE_PHASE_STYLE = {                 # spherical SEM history kind -> (colour, 
     "free+unfold": ("tab:purple", "D", "free half steps + unfolding"),
     "hemisphere": ("tab:blue", "o", "hemisphere iteration (eq. 22 per pole)"),
     "gradient": ("tab:orange", "^", "gradient phase (its last step)"),
+    "newton": ("tab:green", "o", "Gauss–Newton step (fold barrier)"),
+    "continuation": ("tab:olive", "v", "area continuation (end of each stage)"),
 }
 
 
