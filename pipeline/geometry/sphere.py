@@ -26,9 +26,17 @@ Pipeline (:func:`spherical_sem`):
    schedule; every iterate is fold free. It stops when the ratio is within ``newton_floor`` of
    its bound (``R − 1 ≤ 10⁻⁴`` by default, which bounds the face-based distortion by
    ``√(R − 1) = 0.01``: ``Σ|q − p| ≤ (Σ (q − p)²/p)^½ (Σ p)^½`` with ``p = |τ|/|M|``,
-   ``q = |f(τ)|/|f(M)|``) or progress stalls. If a folded face is left after step 3 (no
-   barrier can start there), the hemisphere method below runs instead; ``method="hemisphere"``
-   selects it.
+   ``q = |f(τ)|/|f(M)|``) or progress stalls; a stall with ``R − 1`` above
+   ``newton_accept`` (10⁻³) is reported as "stalled", not "converged". If a folded face is
+   left after step 3 (no barrier can start there), the hemisphere method below runs instead;
+   ``method="hemisphere"`` selects it.
+5. Area continuation (:func:`_area_continuation`), when step 4 stalls: where the free phase
+   leaves folds that :func:`unfold` cannot remove (decimated meshes with long limbs: the
+   Tutte start crowds a hand to ~10⁻¹⁰ of its share), step 4 starts from the crowded Tutte
+   map and stalls far from the bound. The continuation minimizes again from the map step 4
+   started from, towards surface areas that move in a few stages (geometric interpolation)
+   from that map's own image areas, at which it is already equiareal, to the true ones: each
+   stage starts near its minimizer. Its result replaces step 4's if its ratio is lower.
 
 The hemisphere method: the alternating-hemisphere stretch-energy minimization of the
 spherical SEM of Yueh et al., with the stereographic projection from the north pole
@@ -498,8 +506,9 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     F : (m, 3) int array
     method : {"newton", "hemisphere"}
         ``"newton"`` (default): the free phase from the Tutte start, :func:`unfold`, then
-        Gauss–Newton steps on the energy ratio with a fold barrier (:mod:`.sphere_newton`);
-        if a folded face is left, the hemisphere method runs instead. ``"hemisphere"``: the
+        Gauss–Newton steps on the energy ratio with a fold barrier (:mod:`.sphere_newton`),
+        and the area continuation if they stall (``continuation``); if a folded face is
+        left, the hemisphere method runs instead. ``"hemisphere"``: the
         alternating-hemisphere SEM with its free, guarded and gradient phases.
     barriers : tuple of float
         The barrier weights ``κ`` of the Newton stages (decreasing).
@@ -550,8 +559,10 @@ def spherical_sem(V: np.ndarray, F: np.ndarray, max_iter: int = 40, tol: float =
     -------
     SphereResult
         The map never has more folded faces than the start (0 when the start has none): every
-        accepted step adds none. ``timings`` has ``start``, ``newton`` or ``free``/``sem``/
-        ``gradient``, and ``total``.
+        accepted step adds none. ``status``: "converged" (``R − 1 ≤ newton_accept`` where the
+        minimization stopped), "stalled" (stopped further from the bound), "max_iter" or
+        "time_limit". ``timings`` has ``start``, ``newton`` (and ``continuation`` when it
+        ran) or ``free``/``sem``/``gradient``, and ``total``.
     """
     if method not in ("newton", "hemisphere"):
         raise UserError(f"unknown spherical method '{method}'; use newton or hemisphere")

@@ -25,7 +25,9 @@ terms are minimized by the same maps. Its pull on crushed faces (``∂/∂b_τ =
 also spreads crowded limbs, where the stretch energy's pull is bounded
 (``∂R/∂a_τ ∝ a_τ/A_τ − E_S/Σa``) — up to a point: with faces crowded to many orders of
 magnitude below their share, the weights ``p_τ/b_τ²`` make the system too ill-conditioned to
-start, which is why :func:`.sphere.spherical_sem` runs its hemisphere free phase first.
+start, which is why :func:`.sphere.spherical_sem` runs its hemisphere free phase first, and
+its area continuation (target areas moved in stages from the start's own image areas) when
+the minimization stalls all the same.
 ``κ`` goes down a schedule (a barrier method; 2, 0.2, 0.02 by default). Where flat areas and
 orientations differ (large or long thin image triangles), the last ``κ`` shifts the minimizer
 of ``R`` by a little; a schedule may end at 0, where steps are still rejected if they fold a
