@@ -316,12 +316,14 @@ def test_decimated_arm_meets_the_issue_target(decimated_arm):
 
 def test_a_stalled_minimization_is_not_reported_converged(decimated_arm):
     """Without the continuation the direct minimization stalls far from the bound: the status
-    says so; with a tiny iteration cap it is "max_iter"."""
+    says so (also the hemisphere method's); with a tiny iteration cap it is "max_iter"."""
     V, F = decimated_arm
     r = sphere.spherical_sem(V, F, continuation=0, time_limit=120.0)
     assert r.measures["energy_ratio"] > 2 and r.status == "stalled"
     r = sphere.spherical_sem(V, F, newton_iter=2, continuation=0)
     assert r.status == "max_iter"
+    r = sphere.spherical_sem(V, F, method="hemisphere", time_limit=10.0)
+    assert r.measures["energy_ratio"] > 2 and r.status != "converged"
     V, F = icosphere(2)
     A2 = sphere.face_double_areas(V * (1 + 0.5 * V[:, :1] ** 2), F)   # R − 1 ≈ 0.02 at V
     # a damping so strong that the steps barely move: a stall, not convergence

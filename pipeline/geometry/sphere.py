@@ -630,7 +630,7 @@ def _area_continuation(F, A2, S, stages, deadline=np.inf, max_iter=500, stage_it
     minimizer — where a start crowded to many orders of magnitude below the true areas (a
     Tutte map of a mesh with long limbs) stalls the direct minimization far from the bound.
     Returns ``(map, status of the last stage, iterations)``."""
-    a = face_double_areas(S, F)
+    a = np.maximum(face_double_areas(S, F), np.finfo(float).tiny)
     log_a, log_A = np.log(a / a.sum()), np.log(A2 / A2.sum())
     status, total = "time_limit", 0
     for k in range(1, stages + 1):
