@@ -86,7 +86,8 @@ from .sphere import folded_faces, triple_products
 
 __all__ = ["SphereAlignment", "SphereDeformResult", "sphere_faces", "chordal_rms",
            "fit_sphere_rotation", "rotation_summary", "align_sphere", "wendland",
-           "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "hold_back_folds",
+           "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "group_linear_map",
+           "hold_back_folds",
            "deform_sphere_to_landmarks",
            "compose_with_inverse_sphere"]
 
@@ -227,6 +228,22 @@ def landmark_linear_maps(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray,
     return J + (goal - Jp)[:, :, None] * P[:, None, :]
 
 
+def group_linear_map(maps: np.ndarray, P: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """One linear map (3, 3) for a group of landmarks at ``P`` (j, 3) with goals ``goal``
+    (j, 3) and linear maps ``maps`` (j, 3, 3) (:func:`landmark_linear_maps`): the map nearest
+    (Frobenius) to their mean ``M̄`` among those sending each ``p`` to its goal, where they
+    exist,
+
+        M = M̄ + (G − M̄ P) P⁺      (P, G as 3×j columns, P⁺ the pseudo-inverse)
+
+    exact for up to three landmarks with independent positions (least squares beyond). For one
+    landmark it is its own ``M_ℓ``; for two landmarks of one face it moves the face's third
+    vertex with both, so the face keeps its orientation as long as ``det M > 0``."""
+    Mbar = maps.mean(axis=0)
+    Pc, Gc = P.T, goal.T
+    return Mbar + (Gc - Mbar @ Pc) @ np.linalg.pinv(Pc)
+
+
 def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.ndarray,
                     maps: np.ndarray, rounds: int = 48) -> tuple[np.ndarray, int]:
     """Remove a step's folds by holding vertices back: the candidate is
@@ -234,25 +251,31 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         c_v = normalize(b_v + α_v (G_v − b_v))
 
     with ``G`` the full step, ``α_v ∈ [0, 1]`` (1 at first) and the *fallback* ``b_v`` either
-    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M_ℓ z_v)`` (it moves
-    rigidly-linearly with landmark ``ℓ``, :func:`landmark_linear_maps`). Landmarks have
-    ``b = goal``, ``α = 0``. Each round, at every folded face: vertices without a landmark's
-    fallback join the landmark's of another vertex of the face (so the faces around a landmark,
-    which cannot stay behind, move as one linear map with it and keep their orientation however
-    thin they are), and the non-landmark vertices halve ``α`` (0 below 2⁻¹⁰). A face whose
-    vertices all sit at their fallbacks is unchanged (``z``) or mapped by one ``M_ℓ``, so folds
-    remain only at faces between two fallbacks; the caller counts them. Returns
-    ``(candidate (n, 3), vertices that joined a landmark)``."""
-    n = len(z)
-    region = np.full(n, -1, dtype=np.int64)
-    region[landmarks] = np.arange(len(landmarks))
+    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M z_v)`` (it moves
+    linearly with a group of landmarks, ``M`` their :func:`group_linear_map`, at first each
+    landmark alone with its ``M_ℓ`` of :func:`landmark_linear_maps`). Landmarks have
+    ``b = goal``, ``α = 0``. Each round, at every folded face: the landmark groups of its
+    vertices merge into one (two landmarks of one face, or a landmark and a vertex that moves
+    with another, cannot each keep a map of its own: the face between them would fold when
+    they approach each other), the face's vertices without a group join it (so the faces
+    around a landmark, which cannot stay behind, move as one linear map with it and keep their
+    orientation however thin they are), and the non-landmark vertices halve ``α`` (0 below
+    2⁻¹⁰). A group whose map would have ``det M ≤ 0`` is not formed. A face whose vertices all
+    sit at their fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at
+    faces between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
+    that joined a landmark group)``."""
+    n, k = len(z), len(landmarks)
+    region = np.full(n, -1, dtype=np.int64)        # the landmark group of a vertex, or −1
+    region[landmarks] = np.arange(k)
+    P, goal = z[landmarks], G[landmarks]
+    gmap = maps.copy()                             # the linear map of each group (by id)
+    ok_map = np.linalg.det(maps) > 0
     alpha = np.ones(n)
     alpha[landmarks] = 0.0
     B = z.copy()
     C = G.copy()
-    B[landmarks] = C[landmarks] = G[landmarks]
+    B[landmarks] = C[landmarks] = goal
     det = triple_products(C, F)
-    ok_map = np.linalg.det(maps) > 0
     is_lm = np.zeros(n, bool)
     is_lm[landmarks] = True
     for _ in range(rounds):
@@ -261,13 +284,27 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
             break
         Fb = F[bad]
         reg = region[Fb]
-        label = reg.max(axis=1)                        # a landmark's region in the face, or −1
-        join = (reg < 0) & (label[:, None] >= 0) & ok_map[np.maximum(label, 0)][:, None]
-        newly = Fb[join]
+        newly = []
+        for f in np.flatnonzero((reg >= 0).any(axis=1)):    # merge the groups met in a face
+            ids = np.unique(reg[f][reg[f] >= 0])
+            ids = np.unique(region[landmarks[np.isin(region[landmarks], ids)]])
+            if len(ids) > 1:
+                members = np.flatnonzero(np.isin(region[landmarks], ids))
+                M = group_linear_map(maps[members], P[members], goal[members])
+                if np.linalg.det(M) <= 0:
+                    continue
+                old = np.flatnonzero(np.isin(region, ids) & ~is_lm)
+                region[np.isin(region, ids)] = ids[0]
+                gmap[ids[0]], ok_map[ids[0]] = M, True
+                newly.append(old)
+            g = region[Fb[f]].max()
+            join = Fb[f][region[Fb[f]] < 0]
+            if len(join) and ok_map[g]:
+                region[join] = g
+                newly.append(join)
+        newly = np.unique(np.concatenate(newly)) if newly else np.zeros(0, np.int64)
         if len(newly):
-            region[newly] = np.broadcast_to(label[:, None], Fb.shape)[join]
-            newly = np.unique(newly)
-            moved = np.einsum("vab,vb->va", maps[region[newly]], z[newly])
+            moved = np.einsum("vab,vb->va", gmap[region[newly]], z[newly])
             B[newly] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
         idx = np.unique(Fb)
         idx = idx[~is_lm[idx]]
@@ -279,7 +316,7 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         mark[touched] = True
         faces = np.flatnonzero(mark[F].any(axis=1))
         det[faces] = triple_products(C, F[faces])
-    return C, int(np.count_nonzero(region >= 0) - len(landmarks))
+    return C, int(np.count_nonzero(region >= 0) - k)
 
 
 @dataclass
