@@ -22,8 +22,13 @@ registration is
    folded face falls back toward a position on which its faces cannot fold, either its place
    in the current, fold-free map (it stays) or, next to a landmark, its image under the step's
    linear map at that landmark (:func:`landmark_linear_maps`; it moves with the landmark).
-   Below ``min_step`` the run is ``stalled``: the one-step map is returned and its folds
-   reported as a failure, never hidden.
+   Landmarks that meet in a folded face (two corners of one face, or a landmark and a vertex
+   moving with another) form a group of up to three that moves by one linear map sending each
+   of them to its goal (:func:`group_linear_map`). Below ``min_step`` the run is ``stalled``:
+   the one-step map is returned and its folds reported as a failure, never hidden. A face of
+   three landmarks whose orientation their paths reverse folds whatever the other vertices do;
+   it is detected before any step and the run is ``infeasible``
+   (:func:`reversed_landmark_faces`).
 
    *Bijectivity.* Every accepted step leaves ``det[s0, s1, s2] > 0`` on every face (counted,
    not assumed), so the deformed map is again a fold-free triangulation of the sphere of degree
@@ -42,10 +47,21 @@ registration is
    the landmark, so the vertices that join it barely leave the smooth field and the faces
    between them and the rest of the map seldom fold for it.
 
+   *Why adjacent landmarks share a map.* Two landmarks on one edge that approach each other
+   squeeze the faces on that edge: their third vertex, moved by either landmark's ``M_ℓ``
+   alone, lands on the wrong side of the edge between the two goals, since ``M_ℓ`` carries
+   only its own landmark to its goal. The map nearest the mean of the two ``M_ℓ`` that sends
+   both to their goals moves the third vertex with the edge, and the face's ``det`` is
+   multiplied by a positive factor when that map's ``det`` is positive. A linear map of R³ is
+   fixed by three landmarks, so groups stop at three (beyond, a least-squares map would not
+   carry every landmark to its goal).
+
    *Limits.* The deformation does not make up for a poor map: a map that crowds most of its
    surface into a small part of the sphere (area ratios of 10⁻³ and less around most of the
    landmarks) makes the landmarks' path a strong compression, held-back vertices pile up and
-   the continuation stalls; the run then says ``stalled`` with its folds.
+   the continuation stalls; the run then says ``stalled`` with its folds. Groups of landmarks
+   far apart have linear maps far from the smooth step (three of them fix the map entirely),
+   so where held-back regions of distant landmarks meet, folds can remain and the run stalls.
 
    *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
    of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
@@ -87,7 +103,7 @@ from .sphere import folded_faces, triple_products
 __all__ = ["SphereAlignment", "SphereDeformResult", "sphere_faces", "chordal_rms",
            "fit_sphere_rotation", "rotation_summary", "align_sphere", "wendland",
            "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "group_linear_map",
-           "hold_back_folds",
+           "hold_back_folds", "reversed_landmark_faces",
            "deform_sphere_to_landmarks",
            "compose_with_inverse_sphere"]
 
@@ -260,7 +276,8 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
     they approach each other), the face's vertices without a group join it (so the faces
     around a landmark, which cannot stay behind, move as one linear map with it and keep their
     orientation however thin they are), and the non-landmark vertices halve ``α`` (0 below
-    2⁻¹⁰). A group whose map would have ``det M ≤ 0`` is not formed. A face whose vertices all
+    2⁻¹⁰). A group of more than three landmarks or whose map would have ``det M ≤ 0`` is not
+    formed. A face whose vertices all
     sit at their fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at
     faces between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
     that joined a landmark group)``."""
@@ -290,6 +307,8 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
             ids = np.unique(region[landmarks[np.isin(region[landmarks], ids)]])
             if len(ids) > 1:
                 members = np.flatnonzero(np.isin(region[landmarks], ids))
+                if len(members) > 3:
+                    continue
                 M = group_linear_map(maps[members], P[members], goal[members])
                 if np.linalg.det(M) <= 0:
                     continue
@@ -325,11 +344,14 @@ class SphereDeformResult(DeformResult):
     :class:`~pipeline.geometry.register.DeformResult` with ``z`` = ``S`` the deformed map
     (n, 3) unit vectors and the folds counted on the sphere, plus the kernel's support and the
     vertices held back at least once (faces that would have folded) and the most vertices an
-    accepted step moved with a landmark (:func:`hold_back_folds`)."""
+    accepted step moved with a landmark (:func:`hold_back_folds`), and the faces whose three
+    vertices are all landmarks and whose orientation the landmarks' paths reverse (method
+    ``infeasible``: no fold-free map along these paths exists, :func:`reversed_landmark_faces`)."""
 
     support: float = 2.0
     held_vertices: int = 0
     carried_vertices: int = 0
+    landmark_faces_reversed: int = 0
 
     @property
     def S(self) -> np.ndarray:
@@ -337,7 +359,29 @@ class SphereDeformResult(DeformResult):
 
     def as_dict(self) -> dict:
         return {**super().as_dict(), "kernel": "Wendland C2", "support_chordal": self.support,
-                "held_vertices": self.held_vertices, "carried_vertices": self.carried_vertices}
+                "held_vertices": self.held_vertices, "carried_vertices": self.carried_vertices,
+                "landmark_faces_reversed": self.landmark_faces_reversed}
+
+
+def reversed_landmark_faces(F: np.ndarray, start: np.ndarray, landmarks: np.ndarray,
+                            targets: np.ndarray, samples: int = 65) -> np.ndarray:
+    """Faces whose three vertices are all landmarks and whose ``det`` is not positive at some
+    point of the landmarks' great-circle paths from ``start`` to ``targets`` (sampled at
+    ``samples`` fractions, the ends included). The landmarks are placed exactly, so such a face
+    folds whatever the other vertices do: the goal configuration (or its path) is impossible
+    without a fold."""
+    F = np.asarray(F, dtype=np.int64)
+    pos = np.full(int(F.max()) + 1, -1, dtype=np.int64)
+    pos[landmarks] = np.arange(len(landmarks))
+    faces = np.flatnonzero((pos[F] >= 0).all(axis=1))
+    if not len(faces):
+        return faces
+    L = pos[F[faces]]
+    bad = np.zeros(len(faces), bool)
+    for t in np.linspace(0.0, 1.0, samples):
+        X = slerp(start, targets, t) if 0.0 < t < 1.0 else (targets if t == 1.0 else start)
+        bad |= np.einsum("fi,fi->f", X[L[:, 0]], np.cross(X[L[:, 1]], X[L[:, 2]])) <= 0
+    return faces[bad]
 
 
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
@@ -368,7 +412,9 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     -------
     SphereDeformResult
         With ``ok``: ``S[landmarks] == targets`` exactly and no folded face. Stalled: the
-        one-step map (landmarks exact, its folds counted).
+        one-step map (landmarks exact, its folds counted). Infeasible: a face of three
+        landmarks is reversed on their paths (:func:`reversed_landmark_faces`), so no step is
+        tried; the one-step map is returned with its folds.
     """
     F = np.asarray(F, dtype=np.int64)
     S = np.asarray(S, dtype=np.float64)
@@ -376,6 +422,11 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     T = np.asarray(targets, dtype=np.float64)
     T = T / np.linalg.norm(T, axis=1, keepdims=True)
     start, z = S[landmarks].copy(), S
+    reversed_faces = reversed_landmark_faces(F, start, landmarks, T)
+    if len(reversed_faces):
+        z = kernel_step(S, landmarks, T, support)
+        return SphereDeformResult(z, folded_faces(z, F), "infeasible", 0, 0, 0.0, [], support,
+                                  0, 0, len(reversed_faces))
     tau, dtau, accepted, rejected = 0.0, 1.0, 0, 0
     direct, held, joined, history = None, np.zeros(len(S), bool), 0, []
     while tau < 1.0 and accepted + rejected < max_substeps:
