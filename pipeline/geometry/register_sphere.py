@@ -386,7 +386,7 @@ def reversed_landmark_faces(F: np.ndarray, start: np.ndarray, landmarks: np.ndar
 
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
                                targets: np.ndarray, support: float = 2.0,
-                               min_step: float = 1.0 / 1024, max_substeps: int = 400,
+                               min_step: float = 2.0 ** -14, max_substeps: int = 400,
                                hold_rounds: int = 48) -> SphereDeformResult:
     """Move ``landmarks`` of the spherical map ``S`` exactly onto ``targets`` without folding a
     face (module docstring, step 2).
@@ -402,7 +402,8 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         but the landmarks' antipodes (module docstring: the measured choice).
     min_step, max_substeps
         As :class:`~pipeline.geometry.register.DeformOptions`: the continuation gives up (method
-        ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries.
+        ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries. Finer than
+        the disk's 1/1024: faces held back at a landmark can need shorter steps than that.
     hold_rounds : int
         Rounds of :func:`hold_back_folds` per step (each pulls the vertices of the faces still
         folded halfway back toward their fallbacks and lets the vertices of folded faces next
