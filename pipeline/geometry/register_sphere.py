@@ -277,7 +277,8 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
     around a landmark, which cannot stay behind, move as one linear map with it and keep their
     orientation however thin they are), and the non-landmark vertices halve ``α`` (0 below
     2⁻¹⁰). A group of more than three landmarks or whose map would have ``det M ≤ 0`` is not
-    formed. A face whose vertices all
+    formed; the face's other vertices then follow the group of a landmark corner of the face
+    (which cannot move off its goal), if it has one. A face whose vertices all
     sit at their fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at
     faces between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
     that joined a landmark group)``."""
@@ -300,26 +301,30 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         if not len(bad):
             break
         Fb = F[bad]
-        reg = region[Fb]
         newly = []
-        for f in np.flatnonzero((reg >= 0).any(axis=1)):    # merge the groups met in a face
-            ids = np.unique(reg[f][reg[f] >= 0])
-            ids = np.unique(region[landmarks[np.isin(region[landmarks], ids)]])
-            if len(ids) > 1:
+        for f in np.flatnonzero((region[Fb] >= 0).any(axis=1)):
+            face = Fb[f]
+            ids = np.unique(region[face][region[face] >= 0])
+            if len(ids) > 1:                           # merge the groups met in the face
                 members = np.flatnonzero(np.isin(region[landmarks], ids))
-                if len(members) > 3:
+                M = (group_linear_map(maps[members], P[members], goal[members])
+                     if len(members) <= 3 else None)
+                if M is not None and np.linalg.det(M) > 0:
+                    newly.append(np.flatnonzero(np.isin(region, ids) & ~is_lm))
+                    region[np.isin(region, ids)] = ids[0]
+                    gmap[ids[0]], ok_map[ids[0]] = M, True
+                    ids = ids[:1]
+                elif is_lm[face].any():                # no merge: follow the face's landmark
+                    ids = region[face[is_lm[face]]][:1]
+                    move = face[~is_lm[face] & (region[face] != ids[0])]
+                    region[move] = ids[0]
+                    newly.append(move)
                     continue
-                M = group_linear_map(maps[members], P[members], goal[members])
-                if np.linalg.det(M) <= 0:
+                else:
                     continue
-                old = np.flatnonzero(np.isin(region, ids) & ~is_lm)
-                region[np.isin(region, ids)] = ids[0]
-                gmap[ids[0]], ok_map[ids[0]] = M, True
-                newly.append(old)
-            g = region[Fb[f]].max()
-            join = Fb[f][region[Fb[f]] < 0]
-            if len(join) and ok_map[g]:
-                region[join] = g
+            join = face[region[face] < 0]
+            if len(join) and ok_map[ids[0]]:
+                region[join] = ids[0]
                 newly.append(join)
         newly = np.unique(np.concatenate(newly)) if newly else np.zeros(0, np.int64)
         if len(newly):
