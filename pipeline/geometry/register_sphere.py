@@ -278,9 +278,9 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
     orientation however thin they are), and the non-landmark vertices halve ``α`` (0 below
     2⁻¹⁰). A group of more than three landmarks or whose map would have ``det M ≤ 0`` is not
     formed; the face's other vertices then follow the group of a landmark corner of the face
-    (which cannot move off its goal), if it has one. A face whose vertices all
-    sit at their fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at
-    faces between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
+    (which cannot move off its goal), if it has one. A face whose vertices all sit at their
+    fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at faces
+    between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
     that joined a landmark group)``."""
     n, k = len(z), len(landmarks)
     region = np.full(n, -1, dtype=np.int64)        # the landmark group of a vertex, or −1
@@ -314,8 +314,8 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
                     region[np.isin(region, ids)] = ids[0]
                     gmap[ids[0]], ok_map[ids[0]] = M, True
                     ids = ids[:1]
-                elif is_lm[face].any():                # no merge: follow the face's landmark
-                    ids = region[face[is_lm[face]]][:1]
+                elif is_lm[face].any() and ok_map[region[face[is_lm[face]][0]]]:
+                    ids = region[face[is_lm[face]]][:1]    # no merge: follow its landmark
                     move = face[~is_lm[face] & (region[face] != ids[0])]
                     region[move] = ids[0]
                     newly.append(move)
