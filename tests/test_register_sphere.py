@@ -15,7 +15,8 @@ import pytest
 from conftest import require_data
 from pipeline.geometry.register_sphere import (align_sphere, compose_with_inverse_sphere,
                                                deform_sphere_to_landmarks, fit_sphere_rotation,
-                                               kernel_step, landmark_linear_maps,
+                                               group_linear_map, kernel_step,
+                                               landmark_linear_maps, reversed_landmark_faces,
                                                rotation_summary)
 from pipeline.geometry.locate_sphere import locate_on_sphere
 from pipeline.geometry.repair import RepairedMesh
@@ -110,12 +111,12 @@ def test_deformation_moves_landmarks_exactly_without_folds():
     np.testing.assert_allclose(np.linalg.norm(de.S, axis=1), 1, atol=1e-12)
 
 
-def test_a_sliver_at_a_landmark_moves_with_it():
-    """A landmark almost on the opposite edge of one of its faces (det ~1e-8 of the median, as
-    equiareal maps leave them): held-back neighbours would fold that face at any step length;
-    moving them with the landmark's linear map keeps it positive, and the landmarks exact."""
+def sliver_at_landmark_case(seed: int):
+    """icosphere(3), 10 random landmarks, landmark 0 moved 1e-8 from the opposite edge of one
+    of its faces (det ~1e-8 of the median, as equiareal maps leave them), goals the landmarks
+    + 0.15·N(0, 1), normalized."""
     V, F = icosphere(3)
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(seed)
     lm = rng.choice(len(V), 10, replace=False)
     faces = np.flatnonzero((F == lm[0]).any(axis=1))
     v, w = [x for x in F[faces[0]] if x != lm[0]]
@@ -123,14 +124,56 @@ def test_a_sliver_at_a_landmark_moves_with_it():
     S = V.copy()
     p = (1 - 1e-8) * (V[v] + V[w]) / 2 + 1e-8 * V[ring].mean(axis=0)
     S[lm[0]] = p / np.linalg.norm(p)
-    det = triple_products(S, F)
-    assert det.min() > 0 and det.min() < 1e-7 * np.median(det)
     T = S[lm] + 0.15 * rng.normal(size=(10, 3))
     T /= np.linalg.norm(T, axis=1, keepdims=True)
-    de = deform_sphere_to_landmarks(F, S, lm, T)
-    assert de.ok and (triple_products(de.S, F) > 0).all()
-    assert de.carried_vertices > 0
-    np.testing.assert_allclose(de.S[lm], T, atol=1e-15, rtol=0)
+    return F, S, lm, T
+
+
+def test_a_sliver_at_a_landmark_moves_with_it():
+    """Over 20 seeds: where the landmark moves toward the sliver's opposite edge, held-back
+    neighbours would fold the sliver at any step length; moving them with the landmark's linear
+    map keeps it positive, and the landmarks exact. The seeds include adjacent landmarks that
+    approach each other (2, 12): the faces on their shared edge keep their orientation by moving
+    with both landmarks' group map."""
+    failed, carried = [], []
+    for seed in range(20):
+        F, S, lm, T = sliver_at_landmark_case(seed)
+        det = triple_products(S, F)
+        assert det.min() > 0 and det.min() < 1e-7 * np.median(det)
+        assert not len(reversed_landmark_faces(F, S[lm], lm, T))     # a feasible configuration
+        de = deform_sphere_to_landmarks(F, S, lm, T)
+        if not (de.ok and (triple_products(de.S, F) > 0).all()
+                and all(h["flipped_after_hold_back"] == 0 for h in de.history if h["accepted"])
+                and np.abs(de.S[lm] - T).max() <= 1e-15):
+            failed.append((seed, de.method, de.flipped_faces))
+        if de.carried_vertices:
+            carried.append(seed)
+    assert not failed, failed
+    assert 2 in carried and 12 in carried
+
+
+def test_adjacent_landmarks_share_one_linear_map():
+    """Two landmarks of one face with one group map: both reach their goals exactly, and the
+    face's third vertex moved by it keeps the face's orientation."""
+    V, F = icosphere(2)
+    a, b, c = F[0]
+    goal = V[[a, b]] + np.array([[0.05, 0.0, 0.0], [-0.05, 0.02, 0.0]])
+    goal /= np.linalg.norm(goal, axis=1, keepdims=True)
+    maps = landmark_linear_maps(V, np.array([a, b]), goal, 2.0)
+    M = group_linear_map(maps, V[[a, b]], goal)
+    np.testing.assert_allclose(V[[a, b]] @ M.T, goal, atol=1e-14)
+    assert np.linalg.det(M) > 0 and np.linalg.det(np.stack([goal[0], goal[1], M @ V[c]])) > 0
+
+
+def test_a_reversed_face_of_three_landmarks_is_reported_infeasible():
+    """The landmarks are placed exactly, so a face of three landmarks whose goals reverse its
+    orientation folds whatever the rest does: reported as ``infeasible``, not attempted."""
+    V, F = icosphere(2)
+    lm = np.array(F[0])
+    T = V[lm[[0, 2, 1]]]                           # two corners swapped: the face reversed
+    assert len(reversed_landmark_faces(F, V[lm], lm, T)) == 1
+    de = deform_sphere_to_landmarks(F, V, lm, T)
+    assert de.method == "infeasible" and not de.ok and de.landmark_faces_reversed == 1
 
 
 def test_landmark_linear_map_matches_the_kernel_step_to_first_order():

@@ -22,8 +22,13 @@ registration is
    folded face falls back toward a position on which its faces cannot fold, either its place
    in the current, fold-free map (it stays) or, next to a landmark, its image under the step's
    linear map at that landmark (:func:`landmark_linear_maps`; it moves with the landmark).
-   Below ``min_step`` the run is ``stalled``: the one-step map is returned and its folds
-   reported as a failure, never hidden.
+   Landmarks that meet in a folded face (two corners of one face, or a landmark and a vertex
+   moving with another) form a group of up to three that moves by one linear map sending each
+   of them to its goal (:func:`group_linear_map`). Below ``min_step`` the run is ``stalled``:
+   the one-step map is returned and its folds reported as a failure, never hidden. A face of
+   three landmarks whose orientation their paths reverse folds whatever the other vertices do;
+   it is detected before any step and the run is ``infeasible``
+   (:func:`reversed_landmark_faces`).
 
    *Bijectivity.* Every accepted step leaves ``det[s0, s1, s2] > 0`` on every face (counted,
    not assumed), so the deformed map is again a fold-free triangulation of the sphere of degree
@@ -42,10 +47,21 @@ registration is
    the landmark, so the vertices that join it barely leave the smooth field and the faces
    between them and the rest of the map seldom fold for it.
 
+   *Why adjacent landmarks share a map.* Two landmarks on one edge that approach each other
+   squeeze the faces on that edge: their third vertex, moved by either landmark's ``M_ℓ``
+   alone, lands on the wrong side of the edge between the two goals, since ``M_ℓ`` carries
+   only its own landmark to its goal. The map nearest the mean of the two ``M_ℓ`` that sends
+   both to their goals moves the third vertex with the edge, and the face's ``det`` is
+   multiplied by a positive factor when that map's ``det`` is positive. A linear map of R³ is
+   fixed by three landmarks, so groups stop at three (beyond, a least-squares map would not
+   carry every landmark to its goal).
+
    *Limits.* The deformation does not make up for a poor map: a map that crowds most of its
    surface into a small part of the sphere (area ratios of 10⁻³ and less around most of the
    landmarks) makes the landmarks' path a strong compression, held-back vertices pile up and
-   the continuation stalls; the run then says ``stalled`` with its folds.
+   the continuation stalls; the run then says ``stalled`` with its folds. Groups of landmarks
+   far apart have linear maps far from the smooth step (three of them fix the map entirely),
+   so where held-back regions of distant landmarks meet, folds can remain and the run stalls.
 
    *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
    of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
@@ -86,7 +102,8 @@ from .sphere import folded_faces, triple_products
 
 __all__ = ["SphereAlignment", "SphereDeformResult", "sphere_faces", "chordal_rms",
            "fit_sphere_rotation", "rotation_summary", "align_sphere", "wendland",
-           "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "hold_back_folds",
+           "kernel_matrix", "slerp", "kernel_step", "landmark_linear_maps", "group_linear_map",
+           "hold_back_folds", "reversed_landmark_faces",
            "deform_sphere_to_landmarks",
            "compose_with_inverse_sphere"]
 
@@ -227,6 +244,22 @@ def landmark_linear_maps(S: np.ndarray, landmarks: np.ndarray, goal: np.ndarray,
     return J + (goal - Jp)[:, :, None] * P[:, None, :]
 
 
+def group_linear_map(maps: np.ndarray, P: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    """One linear map (3, 3) for a group of landmarks at ``P`` (j, 3) with goals ``goal``
+    (j, 3) and linear maps ``maps`` (j, 3, 3) (:func:`landmark_linear_maps`): the map nearest
+    (Frobenius) to their mean ``M̄`` among those sending each ``p`` to its goal, where they
+    exist,
+
+        M = M̄ + (G − M̄ P) P⁺      (P, G as 3×j columns, P⁺ the pseudo-inverse)
+
+    exact for up to three landmarks with independent positions (least squares beyond). For one
+    landmark it is its own ``M_ℓ``; for two landmarks of one face it moves the face's third
+    vertex with both, so the face keeps its orientation as long as ``det M > 0``."""
+    Mbar = maps.mean(axis=0)
+    Pc, Gc = P.T, goal.T
+    return Mbar + (Gc - Mbar @ Pc) @ np.linalg.pinv(Pc)
+
+
 def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.ndarray,
                     maps: np.ndarray, rounds: int = 48) -> tuple[np.ndarray, int]:
     """Remove a step's folds by holding vertices back: the candidate is
@@ -234,25 +267,33 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         c_v = normalize(b_v + α_v (G_v − b_v))
 
     with ``G`` the full step, ``α_v ∈ [0, 1]`` (1 at first) and the *fallback* ``b_v`` either
-    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M_ℓ z_v)`` (it moves
-    rigidly-linearly with landmark ``ℓ``, :func:`landmark_linear_maps`). Landmarks have
-    ``b = goal``, ``α = 0``. Each round, at every folded face: vertices without a landmark's
-    fallback join the landmark's of another vertex of the face (so the faces around a landmark,
-    which cannot stay behind, move as one linear map with it and keep their orientation however
-    thin they are), and the non-landmark vertices halve ``α`` (0 below 2⁻¹⁰). A face whose
-    vertices all sit at their fallbacks is unchanged (``z``) or mapped by one ``M_ℓ``, so folds
-    remain only at faces between two fallbacks; the caller counts them. Returns
-    ``(candidate (n, 3), vertices that joined a landmark)``."""
-    n = len(z)
-    region = np.full(n, -1, dtype=np.int64)
-    region[landmarks] = np.arange(len(landmarks))
+    ``z_v`` (the current, fold-free map: the vertex stays) or ``normalize(M z_v)`` (it moves
+    linearly with a group of landmarks, ``M`` their :func:`group_linear_map`, at first each
+    landmark alone with its ``M_ℓ`` of :func:`landmark_linear_maps`). Landmarks have
+    ``b = goal``, ``α = 0``. Each round, at every folded face: the landmark groups of its
+    vertices merge into one (two landmarks of one face, or a landmark and a vertex that moves
+    with another, cannot each keep a map of its own: the face between them would fold when
+    they approach each other), the face's vertices without a group join it (so the faces
+    around a landmark, which cannot stay behind, move as one linear map with it and keep their
+    orientation however thin they are), and the non-landmark vertices halve ``α`` (0 below
+    2⁻¹⁰). A group of more than three landmarks or whose map would have ``det M ≤ 0`` is not
+    formed; the face's other vertices then follow the group of a landmark corner of the face
+    (which cannot move off its goal), if it has one. A face whose vertices all sit at their
+    fallbacks is unchanged (``z``) or mapped by one ``M``, so folds remain only at faces
+    between two fallbacks; the caller counts them. Returns ``(candidate (n, 3), vertices
+    that joined a landmark group)``."""
+    n, k = len(z), len(landmarks)
+    region = np.full(n, -1, dtype=np.int64)        # the landmark group of a vertex, or −1
+    region[landmarks] = np.arange(k)
+    P, goal = z[landmarks], G[landmarks]
+    gmap = maps.copy()                             # the linear map of each group (by id)
+    ok_map = np.linalg.det(maps) > 0
     alpha = np.ones(n)
     alpha[landmarks] = 0.0
     B = z.copy()
     C = G.copy()
-    B[landmarks] = C[landmarks] = G[landmarks]
+    B[landmarks] = C[landmarks] = goal
     det = triple_products(C, F)
-    ok_map = np.linalg.det(maps) > 0
     is_lm = np.zeros(n, bool)
     is_lm[landmarks] = True
     for _ in range(rounds):
@@ -260,14 +301,34 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         if not len(bad):
             break
         Fb = F[bad]
-        reg = region[Fb]
-        label = reg.max(axis=1)                        # a landmark's region in the face, or −1
-        join = (reg < 0) & (label[:, None] >= 0) & ok_map[np.maximum(label, 0)][:, None]
-        newly = Fb[join]
+        newly = []
+        for f in np.flatnonzero((region[Fb] >= 0).any(axis=1)):
+            face = Fb[f]
+            ids = np.unique(region[face][region[face] >= 0])
+            if len(ids) > 1:                           # merge the groups met in the face
+                members = np.flatnonzero(np.isin(region[landmarks], ids))
+                M = (group_linear_map(maps[members], P[members], goal[members])
+                     if len(members) <= 3 else None)
+                if M is not None and np.linalg.det(M) > 0:
+                    newly.append(np.flatnonzero(np.isin(region, ids) & ~is_lm))
+                    region[np.isin(region, ids)] = ids[0]
+                    gmap[ids[0]], ok_map[ids[0]] = M, True
+                    ids = ids[:1]
+                elif is_lm[face].any() and ok_map[region[face[is_lm[face]][0]]]:
+                    ids = region[face[is_lm[face]]][:1]    # no merge: follow its landmark
+                    move = face[~is_lm[face] & (region[face] != ids[0])]
+                    region[move] = ids[0]
+                    newly.append(move)
+                    continue
+                else:
+                    continue
+            join = face[region[face] < 0]
+            if len(join) and ok_map[ids[0]]:
+                region[join] = ids[0]
+                newly.append(join)
+        newly = np.unique(np.concatenate(newly)) if newly else np.zeros(0, np.int64)
         if len(newly):
-            region[newly] = np.broadcast_to(label[:, None], Fb.shape)[join]
-            newly = np.unique(newly)
-            moved = np.einsum("vab,vb->va", maps[region[newly]], z[newly])
+            moved = np.einsum("vab,vb->va", gmap[region[newly]], z[newly])
             B[newly] = moved / np.linalg.norm(moved, axis=1, keepdims=True)
         idx = np.unique(Fb)
         idx = idx[~is_lm[idx]]
@@ -279,7 +340,7 @@ def hold_back_folds(z: np.ndarray, G: np.ndarray, F: np.ndarray, landmarks: np.n
         mark[touched] = True
         faces = np.flatnonzero(mark[F].any(axis=1))
         det[faces] = triple_products(C, F[faces])
-    return C, int(np.count_nonzero(region >= 0) - len(landmarks))
+    return C, int(np.count_nonzero(region >= 0) - k)
 
 
 @dataclass
@@ -288,11 +349,14 @@ class SphereDeformResult(DeformResult):
     :class:`~pipeline.geometry.register.DeformResult` with ``z`` = ``S`` the deformed map
     (n, 3) unit vectors and the folds counted on the sphere, plus the kernel's support and the
     vertices held back at least once (faces that would have folded) and the most vertices an
-    accepted step moved with a landmark (:func:`hold_back_folds`)."""
+    accepted step moved with a landmark (:func:`hold_back_folds`), and the faces whose three
+    vertices are all landmarks and whose orientation the landmarks' paths reverse (method
+    ``infeasible``: no fold-free map along these paths exists, :func:`reversed_landmark_faces`)."""
 
     support: float = 2.0
     held_vertices: int = 0
     carried_vertices: int = 0
+    landmark_faces_reversed: int = 0
 
     @property
     def S(self) -> np.ndarray:
@@ -300,12 +364,34 @@ class SphereDeformResult(DeformResult):
 
     def as_dict(self) -> dict:
         return {**super().as_dict(), "kernel": "Wendland C2", "support_chordal": self.support,
-                "held_vertices": self.held_vertices, "carried_vertices": self.carried_vertices}
+                "held_vertices": self.held_vertices, "carried_vertices": self.carried_vertices,
+                "landmark_faces_reversed": self.landmark_faces_reversed}
+
+
+def reversed_landmark_faces(F: np.ndarray, start: np.ndarray, landmarks: np.ndarray,
+                            targets: np.ndarray, samples: int = 65) -> np.ndarray:
+    """Faces whose three vertices are all landmarks and whose ``det`` is not positive at some
+    point of the landmarks' great-circle paths from ``start`` to ``targets`` (sampled at
+    ``samples`` fractions, the ends included). The landmarks are placed exactly, so such a face
+    folds whatever the other vertices do: the goal configuration (or its path) is impossible
+    without a fold."""
+    F = np.asarray(F, dtype=np.int64)
+    pos = np.full(int(F.max()) + 1, -1, dtype=np.int64)
+    pos[landmarks] = np.arange(len(landmarks))
+    faces = np.flatnonzero((pos[F] >= 0).all(axis=1))
+    if not len(faces):
+        return faces
+    L = pos[F[faces]]
+    bad = np.zeros(len(faces), bool)
+    for t in np.linspace(0.0, 1.0, samples):
+        X = slerp(start, targets, t) if 0.0 < t < 1.0 else (targets if t == 1.0 else start)
+        bad |= np.einsum("fi,fi->f", X[L[:, 0]], np.cross(X[L[:, 1]], X[L[:, 2]])) <= 0
+    return faces[bad]
 
 
 def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarray,
                                targets: np.ndarray, support: float = 2.0,
-                               min_step: float = 1.0 / 1024, max_substeps: int = 400,
+                               min_step: float = 2.0 ** -14, max_substeps: int = 400,
                                hold_rounds: int = 48) -> SphereDeformResult:
     """Move ``landmarks`` of the spherical map ``S`` exactly onto ``targets`` without folding a
     face (module docstring, step 2).
@@ -321,7 +407,8 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
         but the landmarks' antipodes (module docstring: the measured choice).
     min_step, max_substeps
         As :class:`~pipeline.geometry.register.DeformOptions`: the continuation gives up (method
-        ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries.
+        ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries. Finer than
+        the disk's 1/1024: faces held back at a landmark can need shorter steps than that.
     hold_rounds : int
         Rounds of :func:`hold_back_folds` per step (each pulls the vertices of the faces still
         folded halfway back toward their fallbacks and lets the vertices of folded faces next
@@ -331,7 +418,9 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     -------
     SphereDeformResult
         With ``ok``: ``S[landmarks] == targets`` exactly and no folded face. Stalled: the
-        one-step map (landmarks exact, its folds counted).
+        one-step map (landmarks exact, its folds counted). Infeasible: a face of three
+        landmarks is reversed on their paths (:func:`reversed_landmark_faces`), so no step is
+        tried; the one-step map is returned with its folds.
     """
     F = np.asarray(F, dtype=np.int64)
     S = np.asarray(S, dtype=np.float64)
@@ -339,6 +428,11 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     T = np.asarray(targets, dtype=np.float64)
     T = T / np.linalg.norm(T, axis=1, keepdims=True)
     start, z = S[landmarks].copy(), S
+    reversed_faces = reversed_landmark_faces(F, start, landmarks, T)
+    if len(reversed_faces):
+        z = kernel_step(S, landmarks, T, support)
+        return SphereDeformResult(z, folded_faces(z, F), "infeasible", 0, 0, 0.0, [], support,
+                                  0, 0, len(reversed_faces))
     tau, dtau, accepted, rejected = 0.0, 1.0, 0, 0
     direct, held, joined, history = None, np.zeros(len(S), bool), 0, []
     while tau < 1.0 and accepted + rejected < max_substeps:

@@ -435,6 +435,9 @@ def register_spheres(pair: Pair, ps, pt, *, baseline: bool = False, log=None,
     seconds["deform"] = time.perf_counter() - t0
     say(f"deformation: {de.method}, {de.substeps} sub-steps accepted, {de.rejected_substeps} "
         f"rejected, {de.flipped_faces} folded faces")
+    if de.method == "infeasible":
+        say(f"deformation: {de.landmark_faces_reversed} faces whose corners are all landmarks "
+            f"are reversed by the target landmarks: no fold-free map places them")
     reg = Registration(pair, "wendland", ps.sphere, pt.sphere, al, de, domain="sphere")
     diag = float(np.linalg.norm(VT.max(axis=0) - VT.min(axis=0)))
     t0 = time.perf_counter()
