@@ -63,25 +63,17 @@ registration is
    far apart have linear maps far from the smooth step (three of them fix the map entirely),
    so where held-back regions of distant landmarks meet, folds can remain and the run stalls.
 
-   *Why not the disk's deformation.* Measured on the bunny pair of the tests (a SEM sphere map
-   of igl_bunny and of a warped, decimated copy, landmarks by farthest-point sampling), the
-   disk's mesh-based deformation (:func:`pipeline.geometry.register.deform_to_landmarks`)
-   applied in the stereographic plane from a pole far from the landmarks (the rim of a cap
-   around the pole fixed) folded 8 faces on the sphere with none folded in the plane, and with
-   the folds counted on the sphere its continuation stalled at the first step; applied to a
-   well-shaped background triangulation of the cap and transferred piecewise-linearly it
-   folded 8–114 faces. Two reasons: SEM maps have slivers (image faces of 10⁻¹¹–10⁻¹⁴ of the
-   median area, 15 of 7k faces on the bunny), which fold under any displacement that is not
-   affine across them, and a mesh-based or piecewise-linear displacement is not smooth at
-   the scale of the faces around a landmark. A smooth field moves small faces almost
-   affinely, and holding back the few slivers' vertices keeps them unfolded.
+   *Why not the disk's deformation.* The disk's mesh-based deformation
+   (:func:`pipeline.geometry.register.deform_to_landmarks`), applied in the stereographic plane
+   from a pole far from the landmarks or to a background triangulation of a cap, folds faces on
+   the sphere: equiareal maps have slivers (image faces many orders of magnitude below the
+   median area), which fold under any displacement that is not affine across them, and a
+   mesh-based or piecewise-linear displacement is not smooth at the scale of the faces around a
+   landmark. A smooth field moves small faces almost affinely.
 
-   *Support.* Warped, decimated copies registered onto igl_bunny, igl_decimated_max,
-   igl_elephant and igl_bumpy_cube (10 farthest-point landmarks, Gauss–Newton maps): with
-   ``ρ = 1`` (chordal) the bumpy cube's continuation stalls (1636 folds); with ``1.5`` and ``2``
-   all four finish with 0 folds, and ``ρ = 2`` has the lowest dense error against the warped
-   source (mean 0.054, 0.029, 0.056, 0.072 of the diagonal vs 0.055, 0.029, 0.058, 0.084 for
-   1.5) and the fewest continuation steps: a global, smoother field.
+   *Support.* ``ρ = 2`` (chordal), a global and smoother field: smaller supports make the
+   continuation stall where landmarks move far, and ρ = 2 needs the fewest continuation steps
+   with the lowest dense error on the warped, decimated pairs that the tests construct.
 3. **Composition** (:func:`compose_with_inverse_sphere`): every deformed source point is located
    in the target's spherical triangulation (:mod:`pipeline.geometry.locate_sphere`) and lifted
    by eq. (1). A source landmark sits exactly on its target landmark's image, so it is mapped to
@@ -404,7 +396,7 @@ def deform_sphere_to_landmarks(F: np.ndarray, S: np.ndarray, landmarks: np.ndarr
     targets : (k, 3) float array of unit vectors
     support : float
         Chordal support radius ``ρ`` of the kernel (D1); 2 (the default) reaches every point
-        but the landmarks' antipodes (module docstring: the measured choice).
+        but the landmarks' antipodes (module docstring: why 2).
     min_step, max_substeps
         As :class:`~pipeline.geometry.register.DeformOptions`: the continuation gives up (method
         ``stalled``) below ``min_step`` of the path or after ``max_substeps`` tries. Finer than

@@ -439,7 +439,7 @@ def _paper_iterations(problem, f, value, opt, record):
 #: more than a slowing SEM step from there). A folded SEM iterate that still removes
 #: ``PHASE_A_UNFOLD_GAIN`` of the previous iterate's excess is waited for (plain SEM often
 #: unfolds within a few steps): Gauss–Newton started on a map far from equiareal crawls with
-#: heavily damped steps (igl_lion).
+#: heavily damped steps.
 PHASE_A_GAIN = {"gradient": 0.01, "gauss_newton": 0.05}
 PHASE_A_UNFOLD_GAIN = 0.01
 #: Levenberg–Marquardt damping: the first μ, its factor after a full or a damped step, and how
@@ -455,12 +455,11 @@ def _converged_iterations(problem, f, value, opt, record):
     and retried when no damped step lowers the energy); with ``descent="gradient"``, the
     preconditioned gradient step on the last preconditioner factor. Then the SEM and gradient
     steps, first whichever of them worked last. Gauss–Newton first moves the interior only (the
-    boundary rows held, ``GaussNewton.hold_boundary``; this does most of the work); when
-    its steps go quiet
-    (``gn_tol``, ``gn_patience``) or fail, it goes on with the boundary angles as unknowns too
-    (on a mesh whose boundary limits the energy, gpp_face, the interior alone ends 6–7 % above
-    the 1000-step map; moving the boundary from the start crawls on meshes with faces that have
-    three boundary vertices). When that goes quiet, the next step is a SEM or gradient step,
+    boundary rows held, ``GaussNewton.hold_boundary``; this does most of the work); when its
+    steps go quiet (``gn_tol``, ``gn_patience``) or fail, it goes on with the boundary angles as
+    unknowns too (where the boundary limits the energy, the interior alone ends well above the
+    long gradient schedule's map; moving the boundary from the start crawls on meshes with
+    faces that have three boundary vertices). When that goes quiet, the next step is a SEM or gradient step,
     and Gauss–Newton resumes only if that step makes progress; otherwise the iteration ends."""
     max_iter = opt.iterations()
     gain = PHASE_A_GAIN[opt.descent]
