@@ -221,8 +221,10 @@ def sphere_measures(V: np.ndarray, F: np.ndarray, S: np.ndarray) -> dict:
 
 def stereographic(S: np.ndarray) -> np.ndarray:
     """Projection (S1) from the north pole, ``h = (x − i y)/(1 − z)``; (n, 3) → (n,) complex.
-    The southern hemisphere maps into the unit disk; outward CCW faces stay CCW."""
-    return (S[:, 0] - 1j * S[:, 1]) / (1.0 - S[:, 2])
+    The southern hemisphere maps into the unit disk; outward CCW faces stay CCW. A point at the
+    pole itself goes to infinity (``h`` is ``inf``/``nan`` there, without a warning)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (S[:, 0] - 1j * S[:, 1]) / (1.0 - S[:, 2])
 
 
 def inverse_stereographic(h: np.ndarray) -> np.ndarray:
@@ -323,7 +325,8 @@ def _hemisphere_step(V, F, A2, S, radius, solver, cache=None, key=None):
     has the stretch weights of eq. (12) computed from the flat image triangles on the sphere and
     the surface areas ``|τ|`` (only faces with a free vertex enter). With a ``cache`` dict, the
     free set of ``key`` is reused for a few iterations (:class:`_Split`). Returns the new (n, 3)
-    map, or None if no vertex or every vertex is free."""
+    map (the fixed vertices exactly as they were), or None if no vertex or every vertex is
+    free."""
     h = stereographic(S)
     split = None if cache is None else cache.get(key)
     if split is None or split.stale(h, radius):
@@ -344,9 +347,9 @@ def _hemisphere_step(V, F, A2, S, radius, solver, cache=None, key=None):
     except NotPositiveDefinite:
         L_II, L_IB, _ = laplacian_blocks(pattern, clamp_positive(w))
         hI = solve_complex(split.solver, L_II, -(L_IB @ hB))
-    h_new = h.copy()
-    h_new[pattern.interior] = hI
-    return inverse_stereographic(h_new)
+    out = S.copy()
+    out[pattern.interior] = inverse_stereographic(hI)
+    return out
 
 
 def unfold(S: np.ndarray, F: np.ndarray, rounds: int = 200) -> tuple[np.ndarray, int]:
