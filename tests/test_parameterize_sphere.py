@@ -122,6 +122,14 @@ def test_domain_resolution_and_its_messages():
         resolve_domain("sphere", False)
 
 
+def test_auto_mode_is_paper_on_the_disk_and_converged_on_the_sphere():
+    auto = SEMOptions(mode="auto", max_iter=None)
+    assert auto.for_domain("disk").mode == "paper" and auto.for_domain("disk").iterations() == 10
+    assert auto.for_domain("sphere").mode == "converged"
+    assert SEMOptions(mode="paper").for_domain("sphere").mode == "paper"   # asked: kept
+    assert SEMOptions().for_domain("disk").mode == "converged"
+
+
 def test_sphere_options_map_the_section():
     assert sphere_options(SEMOptions()) == {"solver": "auto"}
     assert sphere_options(SEMOptions(mode="paper")) == \
@@ -202,6 +210,13 @@ def test_closed_mesh_remeshes_through_the_cli_and_pairs_only_with_closed(tmp_pat
     out = read_mesh(tmp_path / "r" / "remeshed.obj")
     n, m = len(out.V), out.n_faces
     assert abs(n - 300) <= 6 and n - m // 2 == 2            # closed: E = 3m/2, χ = n − m/2
+    rm = json.loads((tmp_path / "r" / "remesh_metrics.json").read_text())
+    assert rm["parameterization"]["mode"] == "converged"   # --mode auto on the sphere
+    code, _, err = cli("remesh", small_face[0], "-o", tmp_path / "d", "--vertices", "300",
+                       "--no-compare", "--no-report")
+    assert code == 0, err
+    rm = json.loads((tmp_path / "d" / "remesh_metrics.json").read_text())
+    assert rm["parameterization"]["mode"] == "paper"       # ... and on the disk
     lm, face_lm = tmp_path / "lm.txt", tmp_path / "face_lm.txt"
     lm.write_text("1\n2\n3\n")
     face_lm.write_text("\n".join(str(int(i)) for i in list(small_face[1].landmarks.values())[:3]) + "\n")

@@ -65,11 +65,14 @@ class SEMOptions(BaseModel):
     """SEM's settings; also the ``parameterize`` section of a run config (validated once, here).
 
     ``max_iter`` defaults to 10 steps in paper mode (Algorithm 1) and 1000 in converged mode.
+    ``mode: auto`` is the quick map for remeshing: paper mode on the disk, converged mode on the
+    sphere (whose Gauss–Newton map is as quick there and gives the better remesh);
+    :meth:`for_domain` resolves it.
     """
 
     model_config = ConfigDict(extra="forbid")
 
-    mode: Literal["paper", "converged"] = "converged"
+    mode: Literal["paper", "converged", "auto"] = "converged"
     # auto: the sphere for a closed genus-0 mesh, the disk otherwise (stages.parameterize)
     domain: Literal["auto", "disk", "sphere"] = "auto"
     max_iter: Optional[int] = Field(None, ge=0)
@@ -87,10 +90,16 @@ class SEMOptions(BaseModel):
     gn_tol: float = Field(3e-6, gt=0.0)
     gn_patience: int = Field(3, ge=1)
 
+    def for_domain(self, domain: str) -> "SEMOptions":
+        """These options with ``mode: auto`` resolved for ``domain`` ("disk" or "sphere")."""
+        if self.mode != "auto":
+            return self
+        return self.model_copy(update={"mode": "converged" if domain == "sphere" else "paper"})
+
     def iterations(self) -> int:
         if self.max_iter is not None:
             return self.max_iter
-        return 10 if self.mode == "paper" else 1000
+        return 1000 if self.mode == "converged" else 10
 
 
 @dataclass
@@ -318,6 +327,7 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     f = h.f
     value = problem.evaluate(f)
     record(0, f, value, 0.0, "harmonic")
+    opt = opt.for_domain("disk")
     if opt.mode == "paper":
         f, value, it, status, reason = _paper_iterations(problem, f, value, opt, record)
     else:

@@ -119,7 +119,9 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
     (§7.1); a singular system (a mesh of a few faces) is a one-line :class:`UserError`."""
     options = options or SEMOptions()
     welded = int(mesh.report.get("vertices_welded") or 0)
-    if resolve_domain(options.domain, mesh.closed, welded) == "sphere":
+    domain = resolve_domain(options.domain, mesh.closed, welded)
+    options = options.for_domain(domain)
+    if domain == "sphere":
         return sphere_parameterization(mesh, options)
     try:
         result = stretch_energy_minimization(mesh.V, mesh.F, mesh.boundary, options, progress)

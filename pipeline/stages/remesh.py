@@ -455,6 +455,6 @@ STAGE = Stage(name="remesh", section=RemeshConfig, run=_run, write=_write,
               needs=("intake", "parameterization"), makes=("remesh",), uses=("report",),
               input_files=("landmarks",),
               summary=_summary, check=_check, check_needs=("intake",),
-              command_defaults={"parameterize.mode": "paper"},
+              command_defaults={"parameterize.mode": "auto"},
               help="uniform remesh through the SEM disk map, with a quality report beside "
                    "pymeshlab and decimation")

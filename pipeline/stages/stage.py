@@ -137,7 +137,8 @@ class Stage:
         that needs a mesh reads one).
     command_defaults : dict
         Defaults of the subcommand that differ from the sections' (``{"parameterize.mode":
-        "paper"}``: the remesh subcommand maps with Algorithm 1's ten steps unless asked).
+        "auto"}``: the remesh subcommand maps with Algorithm 1's ten steps on the disk and in
+        converged mode on the sphere unless asked).
     help : str
         The subcommand's one-line help.
     """
