@@ -62,15 +62,6 @@ def data_dir() -> Path:
 CLOSED_GENUS0 = ("igl_bunny", "igl_arm", "igl_bumpy_cube", "igl_decimated_max", "igl_elephant")
 
 
-def domain_map(p):
-    """The map ``remesh_stage`` takes, and the number of its folded faces."""
-    from pipeline.geometry.sphere import folded_faces
-
-    if p.domain == "sphere":
-        return p.sphere, folded_faces(p.sphere, p.mesh.F)
-    return p.uv, p.sem.flipped_faces
-
-
 def load(name: str):
     """The repaired mesh of a benchmark name."""
     from pipeline.geometry.repair import repair_mesh
@@ -170,7 +161,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
             ref, disk = measure(mesh, b.V, b.F)
             line(name, n, "pymeshlab", len(b.V), ref, disk, 0.0, b.seconds)
             for how, (p, t_map) in ms.items():
-                dmap, flipped = domain_map(p)
+                dmap, flipped = p.image, p.flipped_faces
                 if flipped:
                     print(f"{name:26s} {n:6d} {'ours/' + how:>14s} the map has "
                           f"{flipped} flipped faces: no remesh", flush=True)

@@ -84,6 +84,11 @@ class Parameterization:
         return "disk" if self.sphere is None else "sphere"
 
     @property
+    def image(self) -> np.ndarray:
+        """The map itself: ``uv`` (n, 2) on the disk, ``sphere`` (n, 3) on the sphere."""
+        return self.uv if self.sphere is None else self.sphere
+
+    @property
     def flipped_faces(self) -> int:
         """Faces flipped on the disk, or folded on the sphere (``det[s0, s1, s2] ≤ 0``)."""
         if self.sphere is None:

@@ -233,21 +233,12 @@ class Registration:
 
 def _parameterize(face: Face, opts: SEMOptions, progress):
     p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
-    folds = map_folds(p)
+    folds = p.flipped_faces
     if folds:
         raise ParameterizationFailed(
             f"{face.label} parameterization failed: {folds} flipped faces remain "
             f"(status {p.sem.status}); the registration needs fold-free {p.domain} maps")
     return p
-
-
-def map_folds(p) -> int:
-    """Flipped (disk) or folded (sphere, ``det[s0, s1, s2] ≤ 0``) faces of a parameterization."""
-    if p.domain == "sphere":
-        from ..geometry.sphere import folded_faces
-
-        return folded_faces(p.sphere, sphere_faces(p.sphere, p.mesh.F))
-    return int(p.sem.flipped_faces)
 
 
 def check_same_domain(pair: Pair) -> None:
@@ -507,7 +498,7 @@ def _side_metrics(face: Face, p) -> dict:
             "holes_closed": len(m.closed_holes), "added_vertices": int(len(m.added_vertices)),
             "repair_messages": m.messages,
             "sem": {"mode": p.options.mode, "iterations": p.sem.iterations,
-                    "status": p.sem.status, "flipped_faces": p.sem.flipped_faces,
+                    "status": p.sem.status, "flipped_faces": p.flipped_faces,
                     "energy_ratio": p.sem.history[-1]["energy_ratio"] if p.sem.history else None,
                     "total_area_distortion_eq28":
                         p.metrics["distortion"]["total_area_distortion_eq28"]}}

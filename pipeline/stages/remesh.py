@@ -375,7 +375,7 @@ def _run(ctx: Context) -> dict:
     rc, intake, p = ctx.section("remesh"), ctx.artifacts["intake"], \
         ctx.artifacts["parameterization"]
     if not p.ok:
-        raise ParameterizationFailed(f"parameterization failed: {p.sem.flipped_faces} flipped "
+        raise ParameterizationFailed(f"parameterization failed: {p.flipped_faces} flipped "
                                      f"faces remain; remeshing needs a bijective map")
     mesh = intake.mesh
     if rc.landmarks is not None:
@@ -384,8 +384,7 @@ def _run(ctx: Context) -> dict:
         landmarks = map_landmarks(intake.info["landmarks"], mesh, "sample landmarks")
     else:
         landmarks = {}
-    return {"remesh": remesh_stage(mesh, p.uv if p.domain == "disk" else p.sphere, rc,
-                                   landmarks)}
+    return {"remesh": remesh_stage(mesh, p.image, rc, landmarks)}
 
 
 # Peak memory per remeshed vertex (lattice, triangulation, lift, improvement, measures and
