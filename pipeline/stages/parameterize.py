@@ -161,6 +161,13 @@ def _mesh_counts(mesh: RepairedMesh) -> dict:
             "added_vertices": int(len(mesh.added_vertices)), "closed": mesh.closed}
 
 
+SPHERE_METHODS = {
+    "hemisphere": "spherical SEM (alternating hemispheres, Yueh et al.)",
+    "newton": "spherical stretch-energy minimization (Tutte start, alternating-hemisphere "
+              "free phase, Gauss–Newton with a fold barrier)",
+}
+
+
 def sphere_options(options: SEMOptions) -> dict:
     """Keyword arguments of :func:`spherical_sem` for the ``parameterize`` section (see the
     module docstring: ``paper`` = hemisphere iterations only, ``max_iter`` default 10;
@@ -194,7 +201,7 @@ def sphere_parameterization(mesh: RepairedMesh, options: SEMOptions) -> Paramete
         "status": "ok" if distortion["flipped_faces"] == 0 else "failed",
         "domain": "sphere",
         "mesh": _mesh_counts(mesh),
-        "parameterization": {"method": "spherical SEM (alternating hemispheres, Yueh et al.)",
+        "parameterization": {"method": SPHERE_METHODS[kw.get("method", "newton")],
                              "mode": options.mode, "status": result.status,
                              "iterations": result.iterations, "solver": options.solver,
                              "options": options.model_dump(), "kernel_options": kw,
