@@ -131,6 +131,16 @@ def test_objective_is_infinite_on_a_fold_and_barrier_free_at_kappa_0():
     assert sphere_newton.objective(A2, S, F, 0.0) == np.inf
 
 
+def perturbed_gauss_newton(level: int, noise: float, rng):
+    """``(F, S, A2, SphereGaussNewton)``: an icosphere map moved by ``noise`` and renormalized,
+    with the surface areas of the icosphere stretched along x (so the map is not equiareal)."""
+    V, F = icosphere(level)
+    S = V + noise * rng.standard_normal(V.shape)
+    S /= np.linalg.norm(S, axis=1, keepdims=True)
+    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)
+    return F, S, A2, sphere_newton.SphereGaussNewton(F, len(S), A2)
+
+
 @pytest.mark.parametrize("kappa", [0.0, 0.5])
 def test_gauss_newton_gradient_matches_finite_differences(kappa):
     """The gradient of ``Φ_κ`` in tangent coordinates against central differences along
@@ -138,11 +148,7 @@ def test_gauss_newton_gradient_matches_finite_differences(kappa):
     matrix is symmetric positive semidefinite with the rotations in its null space, and the
     Laplacian damping positive definite."""
     rng = np.random.default_rng(1)
-    V, F = icosphere(1)
-    S = V + 0.03 * rng.standard_normal(V.shape)
-    S /= np.linalg.norm(S, axis=1, keepdims=True)
-    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)
-    gn = sphere_newton.SphereGaussNewton(F, len(S), A2)
+    F, S, A2, gn = perturbed_gauss_newton(1, 0.03, rng)
     gn.linearize(S, kappa)
     data, g, e1, e2, damp = gn._system
     for _ in range(3):
@@ -276,12 +282,7 @@ def test_ratio_gradient_matches_finite_differences():
 @pytest.mark.parametrize("kappa", [0.0, 0.7])
 def test_compiled_gauss_newton_terms_match_numpy(kappa):
     """The compiled per-face pass against its numpy reference, to rounding."""
-    rng = np.random.default_rng(2)
-    V, F = icosphere(3)
-    S = V + 0.02 * rng.standard_normal(V.shape)
-    S /= np.linalg.norm(S, axis=1, keepdims=True)
-    A2 = sphere.face_double_areas(V * (1 + 0.3 * V[:, :1] ** 2), F)
-    gn = sphere_newton.SphereGaussNewton(F, len(S), A2)
+    _, S, _, gn = perturbed_gauss_newton(3, 0.02, np.random.default_rng(2))
     gn.linearize(S, kappa)
     compiled = gn._system
     gn._linearize_numpy(S, kappa)
