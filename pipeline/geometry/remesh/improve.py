@@ -14,7 +14,9 @@ The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`);
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
-3. refinement: split edges farther than ``refine_sag × L`` from the surface; split once the
+3. refinement: split the rim edges that cut off an input boundary vertex by more than
+   ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
+   ``refine_sag × L`` from the surface; split once the
    edges still longer than ``LONG_EDGE × L`` (they lie along the map's stretch, on the surface,
    where the sag test cannot see them); flips; the sag splits again around what changed and
    what the rounds left (they can run out where a steep wall is squeezed against the rim),
@@ -60,6 +62,7 @@ from .flips import flip_edges
 from .halfedge import edge_table
 from .refine import refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
+from .rim import RIM_TOL, refine_rim
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -211,6 +214,7 @@ class _Operations:
         what the first rounds left, flips; at most ``budget`` sag splits in all."""
         S, L = self.S, self.L
         F_pre = S.F.copy()
+        refine_rim(S, RIM_TOL * self.tol, SLIVER * L, budget)
         done, pending = refine_by_sag(S, self.tol, budget)
         F0 = S.F.copy()
         split_long_edges(S, LONG_EDGE * L, budget=budget)
