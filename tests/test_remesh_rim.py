@@ -6,9 +6,10 @@ import numpy as np
 
 from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import lift
-from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh.halfedge import DISK_SHAPE_MIN, disk_shape
-from pipeline.geometry.remesh.rim import arc_parameters, refine_rim, rim_gaps, segment_distances
+from pipeline.geometry.metrics import corner_angles, signed_double_areas
+from pipeline.geometry.remesh.rim import (arc_parameters, open_rim_fans, refine_rim, rim_gaps,
+                                          segment_distances)
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import ccw_delaunay, disk_map
@@ -84,3 +85,22 @@ def test_refine_rim_respects_budget_gap_and_closed_meshes():
     assert refine_rim(S, tol=0.06, min_gap=0.02, budget=100) == 0      # within tolerance
     S.polygon = np.zeros((0, 3))                                       # a sphere: no rim
     assert refine_rim(S, tol=0.001, min_gap=0.0, budget=100) == 0
+
+
+def test_open_rim_fans_splits_the_edge_across_every_wide_rim_angle():
+    """A 24-gon triangulated without interior vertices (every face has three rim corners; the
+    Delaunay triangulation of points on a circle has angles up to nearly 180° at rim vertices):
+    after opening the fans no angle at a rim vertex is wider than the bound, every new vertex
+    is interior, and the result is a counter-clockwise disk."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    uv = uv_in[loop[::10]]
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, np.ones(len(uv), bool), face, bary,
+                    V_in, F_in, uv_in, locator, uv_in[loop])
+    wide = np.degrees(corner_angles(S.X, S.F)).max()
+    assert wide > 150.0
+    done = open_rim_fans(S, 120.0, rounds=10)
+    assert done > 0 and S.n == len(uv) + done and not S.is_rim[len(uv):].any()
+    assert np.degrees(corner_angles(S.X, S.F))[S.is_rim[S.F]].max() <= 120.0
+    assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))

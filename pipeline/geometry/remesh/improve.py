@@ -36,11 +36,14 @@ The schedule (:func:`improve_remesh`):
    the new sag vertices pinned;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
-9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
-   faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
-   splits for the count and flips. It is a best effort: a face it cannot fix stays (the
-   report counts the faces below the minimum);
-10. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
+9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
+   than ``RIM_FAN_MAX_DEG`` at a rim vertex is split — the caps a reflex input corner leaves),
+   flips;
+10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
+    faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
+    splits for the count and flips. It is a best effort: a face it cannot fix stays (the
+    report counts the faces below the minimum);
+11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
     (:func:`.halfedge.disk_shape`) — so it normally has nothing to do; the caller checks that
@@ -62,7 +65,7 @@ from .flips import flip_edges
 from .halfedge import edge_table
 from .refine import refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
-from .rim import RIM_TOL, refine_rim
+from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -130,8 +133,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     RemeshState
         ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
         and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
-        ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``guarantee`` (9) and ``repair``
-        (10).
+        ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``rim_fans`` (9), ``guarantee``
+        (10) and ``repair`` (11).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
@@ -162,6 +165,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         lap("pinned")
     ops.remove_slivers(target)
     lap("slivers")
+    if open_rim_fans(S):
+        ops.flip()
+    lap("rim_fans")
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
@@ -210,8 +216,9 @@ class _Operations:
         S.tally("relaxed_vertex_moves", sum(moved))
 
     def refine(self, budget: int) -> None:
-        """Sag splits, one long-edge split, flips, sag splits again around what changed and
-        what the first rounds left, flips; at most ``budget`` sag splits in all."""
+        """Rim splits (:func:`.rim.refine_rim`), sag splits, one long-edge split, flips, sag
+        splits again around what changed and what the first rounds left, flips; at most
+        ``budget`` rim and ``budget`` sag splits in all."""
         S, L = self.S, self.L
         F_pre = S.F.copy()
         refine_rim(S, RIM_TOL * self.tol, SLIVER * L, budget)

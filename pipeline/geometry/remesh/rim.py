@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import _closest_on_segments, lift
+from ..metrics import corner_angles
 from ..rows import dots, norms
 from .halfedge import edge_table, independent_edges
 from .refine import split_edges, split_keeps_shape
@@ -112,4 +113,39 @@ def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
         if done >= budget:
             break
     S.tally("rim_splits", done)
+    return done
+
+
+#: a face whose angle at a rim vertex is wider than this (degrees) has its opposite edge split
+RIM_FAN_MAX_DEG = 120.0
+
+
+def open_rim_fans(S: RemeshState, max_angle_deg: float = RIM_FAN_MAX_DEG,
+                  rounds: int = 3) -> int:
+    """Split, at its middle on the disk, the interior edge opposite every angle wider than
+    ``max_angle_deg`` at a rim vertex, in rounds of independent splits; returns their number.
+
+    At a reflex corner of the input boundary (a rim vertex whose input faces span more than
+    180°) the rim refinement leaves a rim vertex whose few faces must span that angle: one of
+    them is a cap, flat and wide at the rim vertex, thin at its other corners, that flips
+    cannot remove where the quad across is folded. Splitting the edge across from the wide
+    angle halves it and gives the rim vertex one more face."""
+    done = 0
+    for _ in range(rounds):
+        F = S.F
+        wide = np.degrees(corner_angles(S.X, F)) > max_angle_deg
+        t, c = np.nonzero(wide & S.is_rim[F])
+        if len(t) == 0:
+            break
+        h = 3 * t + (c + 1) % 3                         # the half-edge opposite corner c
+        twin = S.twins()[h]
+        inner = twin >= 0
+        h, twin = h[inner], twin[inner]
+        keep = split_keeps_shape(S, h, twin)
+        h, twin = h[keep], twin[keep]
+        sel = independent_edges(len(F), h, twin, np.zeros(len(h)))
+        if len(sel) == 0:
+            break
+        done += split_edges(S, h[sel], twin[sel])
+    S.tally("rim_fan_splits", done)
     return done
