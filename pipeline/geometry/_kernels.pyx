@@ -924,3 +924,73 @@ def disk_gauss_newton_terms(const int64_t[:, ::1] F, const double complex[::1] f
                 if slot[t, k] >= 0:
                     H_upper[slot[t, k]] += d[p] * d[q] * w
                 k += 1
+
+
+def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
+    """The upper triangle of the symmetric N×N pattern that the 21 unknown pairs ``p ≤ q`` of
+    every face's six unknowns ``cols[t]`` (``< 0``: none) fill, and where each pair lands:
+    returns ``(indptr, indices, slot)``, CSR arrays (int32, sorted rows, each entry once) and
+    ``slot`` (m, 21) int64, the entry of each pair (−1 where a pair has no unknown). Rows are
+    short on a mesh (one vertex's ring), so each is sorted by insertion."""
+    cdef Py_ssize_t m = cols.shape[0], t, p, q, k, r, a, b, i, j, n_unique
+    cdef int64_t lo, hi, x
+    count_arr = np.zeros(N + 1, dtype=np.int64)
+    cdef int64_t[::1] count = count_arr
+    for t in range(m):
+        for p in range(6):
+            if cols[t, p] < 0:
+                continue
+            for q in range(p, 6):
+                if cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    count[lo + 1] += 1
+    for r in range(N):
+        count[r + 1] += count[r]
+    fill_arr = count_arr[:N].copy()
+    cand_arr = np.empty(count[N], dtype=np.int64)
+    cdef int64_t[::1] fill = fill_arr
+    cdef int64_t[::1] cand = cand_arr
+    for t in range(m):
+        for p in range(6):
+            if cols[t, p] < 0:
+                continue
+            for q in range(p, 6):
+                if cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    hi = cols[t, p] + cols[t, q] - lo
+                    cand[fill[lo]] = hi
+                    fill[lo] += 1
+    indptr_arr = np.zeros(N + 1, dtype=np.int32)
+    cdef int[::1] indptr = indptr_arr
+    n_unique = 0
+    for r in range(N):                     # sort each row's candidates, keep each once
+        a, b = count[r], count[r + 1]
+        for i in range(a + 1, b):
+            x = cand[i]
+            j = i - 1
+            while j >= a and cand[j] > x:
+                cand[j + 1] = cand[j]
+                j -= 1
+            cand[j + 1] = x
+        for i in range(a, b):
+            if i == a or cand[i] != cand[i - 1]:
+                cand[count[0] + n_unique] = cand[i]   # compact in place (never ahead of i)
+                n_unique += 1
+        indptr[r + 1] = <int>n_unique
+    indices_arr = cand_arr[:n_unique].astype(np.int32)
+    cdef int[::1] indices = indices_arr
+    slot_arr = np.full((m, 21), -1, dtype=np.int64)
+    cdef int64_t[:, ::1] slot = slot_arr
+    for t in range(m):
+        k = 0
+        for p in range(6):
+            for q in range(p, 6):
+                if cols[t, p] >= 0 and cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    hi = cols[t, p] + cols[t, q] - lo
+                    i = indptr[lo]
+                    while indices[i] != hi:
+                        i += 1
+                    slot[t, k] = i
+                k += 1
+    return indptr_arr, indices_arr, slot_arr

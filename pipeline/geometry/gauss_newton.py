@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from ._kernels import disk_gauss_newton_terms, row_positions
+from ._kernels import disk_gauss_newton_terms, face_pair_pattern, row_positions
 from .solvers import make_solver
 
 #: the 21 pairs ``a ≤ b`` of the local unknowns (u_0, u_1, u_2, v_0, v_1, v_2) of a face
@@ -109,23 +109,22 @@ class GaussNewton:
             c = np.where(self.on_boundary, bcol[F], c)
         else:
             self.on_boundary = None
-        self.cols = np.concatenate([c, v_cols], axis=1)   # m×6
-        self.valid = self.cols >= 0
+        self.cols = np.ascontiguousarray(np.concatenate([c, v_cols], axis=1))   # m×6
         N = 2 * nI + nB
-        r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
-        self.pair_valid = (r >= 0) & (s >= 0)
-        r, s = r[self.pair_valid], s[self.pair_valid]
-        pattern = symmetric_pattern(r, s, N)
-        self.slot, self.n_upper = pattern.slot, pattern.n_upper
-        self.full_from_upper, self.H = pattern.full_from_upper, pattern.H
-        self.diagonal = pattern.diagonal
-        self.face_slots = np.full(self.pair_valid.shape, -1, dtype=np.int64)   # m×21
-        self.face_slots[self.pair_valid] = self.slot
+        indptr, indices, self.face_slots = face_pair_pattern(self.cols, N)
+        self.n_upper = len(indices)
+        U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64), indices, indptr),
+                          shape=(N, N))
+        full = (U + sp.triu(U, 1).T).tocsr()
+        full.sort_indices()
+        rows = np.repeat(np.arange(N), np.diff(full.indptr))
+        self.full_from_upper = full.data.astype(np.int64) - 1
+        self.H = full
+        self.diagonal = np.flatnonzero(full.indices == rows)
         self.corner_flags = np.ascontiguousarray(
             np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
             else self.on_boundary.astype(np.uint8))
         self.F = np.ascontiguousarray(F, dtype=np.int64)
-        self.cols = np.ascontiguousarray(self.cols)
         self._upper = np.empty(self.n_upper)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
