@@ -865,3 +865,132 @@ def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
         for q in range(21):
             D_upper[slot[21 * t + q]] += dl[q]
     return sa
+
+
+def row_positions(const int[::1] indptr, const int[::1] indices, const int64_t[::1] r,
+                  const int64_t[::1] s, int64_t[::1] out):
+    """``out[k]``: the position of entry ``(r[k], s[k])`` in a CSR pattern (``indptr``,
+    ``indices``) that holds it, found by a scan of row ``r[k]`` (a few entries on a mesh)."""
+    cdef Py_ssize_t k, p, row
+    cdef int col
+    for k in range(r.shape[0]):
+        row = r[k]
+        col = <int>s[k]
+        p = indptr[row]
+        while indices[p] != col:
+            p += 1
+        out[k] = p
+
+
+def disk_gauss_newton_terms(const int64_t[:, ::1] F, const double complex[::1] f,
+                            const double[::1] residual, const double[::1] inv_area,
+                            const int64_t[:, ::1] cols, const unsigned char[:, ::1] on_boundary,
+                            const int64_t[:, ::1] slot, double[::1] H_upper, double[::1] g):
+    """The per-face sums of :meth:`pipeline.geometry.gauss_newton.GaussNewton.step`: with
+    ``d`` the six derivatives of a face's double area by its unknowns (``∂a/∂u_i = v_j − v_k``,
+    ``∂a/∂v_i = u_k − u_j``; a boundary corner's ``u`` slot holds ``∂a/∂θ``), adds
+    ``d_p d_q / A_τ`` into ``H_upper[slot[t, q]]`` (the 21 pairs ``p ≤ q``; ``slot < 0`` for a
+    pair with no unknown) and ``d_p residual_τ / A_τ`` into ``g[cols[t, p]]`` (``cols < 0``:
+    none). ``H_upper`` and ``g`` are overwritten."""
+    cdef Py_ssize_t m = F.shape[0], t, c, p, q, k
+    cdef double u[3]
+    cdef double v[3]
+    cdef double d[6]
+    cdef double w, rw
+    cdef int CJ[3]
+    cdef int CK[3]
+    CJ[0], CJ[1], CJ[2] = 1, 2, 0
+    CK[0], CK[1], CK[2] = 2, 0, 1
+    H_upper[:] = 0.0
+    g[:] = 0.0
+    for t in range(m):
+        for c in range(3):
+            u[c] = f[F[t, c]].real
+            v[c] = f[F[t, c]].imag
+        for c in range(3):
+            d[c] = v[CJ[c]] - v[CK[c]]
+            d[3 + c] = u[CK[c]] - u[CJ[c]]
+        for c in range(3):
+            if on_boundary[t, c]:
+                d[c] = -v[c] * d[c] + u[c] * d[3 + c]
+        w = inv_area[t]
+        rw = residual[t] * w
+        for p in range(6):
+            if cols[t, p] >= 0:
+                g[cols[t, p]] += d[p] * rw
+        k = 0
+        for p in range(6):
+            for q in range(p, 6):
+                if slot[t, k] >= 0:
+                    H_upper[slot[t, k]] += d[p] * d[q] * w
+                k += 1
+
+
+def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
+    """The upper triangle of the symmetric N×N pattern that the 21 unknown pairs ``p ≤ q`` of
+    every face's six unknowns ``cols[t]`` (``< 0``: none) fill, and where each pair lands:
+    returns ``(indptr, indices, slot)``, CSR arrays (int32, sorted rows, each entry once) and
+    ``slot`` (m, 21) int64, the entry of each pair (−1 where a pair has no unknown). Rows are
+    short on a mesh (one vertex's ring), so each is sorted by insertion."""
+    cdef Py_ssize_t m = cols.shape[0], t, p, q, k, r, a, b, i, j, n_unique
+    cdef int64_t lo, hi, x
+    count_arr = np.zeros(N + 1, dtype=np.int64)
+    cdef int64_t[::1] count = count_arr
+    for t in range(m):
+        for p in range(6):
+            if cols[t, p] < 0:
+                continue
+            for q in range(p, 6):
+                if cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    count[lo + 1] += 1
+    for r in range(N):
+        count[r + 1] += count[r]
+    fill_arr = count_arr[:N].copy()
+    cand_arr = np.empty(count[N], dtype=np.int64)
+    cdef int64_t[::1] fill = fill_arr
+    cdef int64_t[::1] cand = cand_arr
+    for t in range(m):
+        for p in range(6):
+            if cols[t, p] < 0:
+                continue
+            for q in range(p, 6):
+                if cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    hi = cols[t, p] + cols[t, q] - lo
+                    cand[fill[lo]] = hi
+                    fill[lo] += 1
+    indptr_arr = np.zeros(N + 1, dtype=np.int32)
+    cdef int[::1] indptr = indptr_arr
+    n_unique = 0
+    for r in range(N):                     # sort each row's candidates, keep each once
+        a, b = count[r], count[r + 1]
+        for i in range(a + 1, b):
+            x = cand[i]
+            j = i - 1
+            while j >= a and cand[j] > x:
+                cand[j + 1] = cand[j]
+                j -= 1
+            cand[j + 1] = x
+        for i in range(a, b):
+            if i == a or cand[i] != cand[i - 1]:
+                cand[count[0] + n_unique] = cand[i]   # compact in place (never ahead of i)
+                n_unique += 1
+        indptr[r + 1] = <int>n_unique
+    indices_arr = cand_arr[:n_unique].astype(np.int32)
+    cdef int[::1] indices = indices_arr
+    slot_arr = np.full((m, 21), -1, dtype=np.int64)
+    cdef int64_t[:, ::1] slot = slot_arr
+    for t in range(m):
+        k = 0
+        for p in range(6):
+            for q in range(p, 6):
+                if cols[t, p] >= 0 and cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    hi = cols[t, p] + cols[t, q] - lo
+                    i = indptr[lo]
+                    while indices[i] != hi:
+                        i += 1
+                    slot[t, k] = i
+                k += 1
+    return indptr_arr, indices_arr, slot_arr

@@ -26,7 +26,8 @@ curvature of the area constraints that the Laplacian preconditioner of the gradi
 :mod:`.sem` lacks, which is why it needs few steps where preconditioned gradient steps need
 hundreds. The unknowns are ``[u_I; v_I]``; the pattern of ``H`` (the 2×2-block vertex
 adjacency) and where every face's 21 products land in its ``data`` are computed once, so each
-step assembles ``H`` with one ``np.bincount`` and refactors on a kept analysis.
+step assembles ``H`` and ``g`` in one compiled pass over the faces
+(:func:`._kernels.disk_gauss_newton_terms`) and refactors on a kept analysis.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
+from ._kernels import disk_gauss_newton_terms, face_pair_pattern, row_positions
 from .solvers import make_solver
 
 #: the 21 pairs ``a ≤ b`` of the local unknowns (u_0, u_1, u_2, v_0, v_1, v_2) of a face
@@ -65,18 +67,25 @@ class SymmetricPattern(NamedTuple):
 def symmetric_pattern(r: np.ndarray, s: np.ndarray, N: int) -> SymmetricPattern:
     """The sparsity pattern of a symmetric matrix with entries at ``(r, s)`` and ``(s, r)``
     (int arrays of one shape, each pair once or many times), built once so that an assembly
-    is ``np.bincount(slot, weights)`` over the upper triangle and a gather into ``H.data``."""
-    keys = (np.minimum(r, s) * N + np.maximum(r, s)).ravel()
-    upper_keys, slot = np.unique(keys, return_inverse=True)
-    n_upper = len(upper_keys)
-    U = sp.csr_matrix((np.arange(1, n_upper + 1, dtype=np.float64),
-                       (upper_keys // N, upper_keys % N)), shape=(N, N))
+    is ``np.bincount(slot, weights)`` over the upper triangle and a gather into ``H.data``.
+    The upper triangle's distinct entries come from a COO → CSR conversion (linear time, no
+    global sort of the 21-per-face keys), each entry's slot from a scan of its CSR row."""
+    lo = np.minimum(r, s).ravel()
+    hi = np.maximum(r, s).ravel()
+    U = sp.csr_matrix((np.ones(len(lo)), (lo, hi)), shape=(N, N))
+    U.sum_duplicates()
+    n_upper = U.nnz
+    slot = np.empty(len(lo), dtype=np.int64)
+    row_positions(U.indptr.astype(np.int32, copy=False), U.indices.astype(np.int32, copy=False),
+                  np.ascontiguousarray(lo, dtype=np.int64), np.ascontiguousarray(hi, dtype=np.int64),
+                  slot)
+    U.data = np.arange(1, n_upper + 1, dtype=np.float64)
     full = (U + sp.triu(U, 1).T).tocsr()
     full.sort_indices()
     rows = np.repeat(np.arange(N), np.diff(full.indptr))
-    return SymmetricPattern(np.ascontiguousarray(slot.ravel(), dtype=np.int64), n_upper,
-                            full.data.astype(np.int64) - 1, full, rows,
+    return SymmetricPattern(slot, n_upper, full.data.astype(np.int64) - 1, full, rows,
                             np.flatnonzero(full.indices == rows))
+
 
 class GaussNewton:
     """Levenberg–Marquardt steps on ``E_S`` for the interior of a disk map, boundary held."""
@@ -100,16 +109,23 @@ class GaussNewton:
             c = np.where(self.on_boundary, bcol[F], c)
         else:
             self.on_boundary = None
-        self.cols = np.concatenate([c, v_cols], axis=1)   # m×6
-        self.valid = self.cols >= 0
+        self.cols = np.ascontiguousarray(np.concatenate([c, v_cols], axis=1))   # m×6
         N = 2 * nI + nB
-        r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
-        self.pair_valid = (r >= 0) & (s >= 0)
-        r, s = r[self.pair_valid], s[self.pair_valid]
-        pattern = symmetric_pattern(r, s, N)
-        self.slot, self.n_upper = pattern.slot, pattern.n_upper
-        self.full_from_upper, self.H = pattern.full_from_upper, pattern.H
-        self.diagonal = pattern.diagonal
+        indptr, indices, self.face_slots = face_pair_pattern(self.cols, N)
+        self.n_upper = len(indices)
+        U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64), indices, indptr),
+                          shape=(N, N))
+        full = (U + sp.triu(U, 1).T).tocsr()
+        full.sort_indices()
+        rows = np.repeat(np.arange(N), np.diff(full.indptr))
+        self.full_from_upper = full.data.astype(np.int64) - 1
+        self.H = full
+        self.diagonal = np.flatnonzero(full.indices == rows)
+        self.corner_flags = np.ascontiguousarray(
+            np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
+            else self.on_boundary.astype(np.uint8))
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        self._upper = np.empty(self.n_upper)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
         self.hold_boundary = False
@@ -119,22 +135,16 @@ class GaussNewton:
         double image areas are ``a2``: interior moved by ``δ``, boundary unchanged or (with
         ``boundary``) turned along the circle. Raises :class:`.solvers.NotPositiveDefinite` if
         the factorization fails."""
-        u, v = f.real[self.F], f.imag[self.F]
-        d = np.concatenate([v[:, [1, 2, 0]] - v[:, [2, 0, 1]],          # ∂a/∂u_i = v_j − v_k
-                            u[:, [2, 0, 1]] - u[:, [1, 2, 0]]], axis=1)  # ∂a/∂v_i = u_k − u_j
-        residual = a2
         moving = self.on_boundary is not None and not self.hold_boundary
-        if self.on_boundary is not None:
-            ob = self.on_boundary
-            d[:, :3] = np.where(ob, -v * d[:, :3] + u * d[:, 3:], d[:, :3])   # ∂a/∂θ
+        residual = a2
         if moving:
             residual = a2 - (a2.sum() / self.double_area.sum()) * self.double_area
         N = self.H.shape[0]
-        g = np.bincount(self.cols[self.valid], weights=(d * (residual * self.inv_area)[:, None]
-                                                        )[self.valid], minlength=N)
-        products = d[:, _PAIRS[:, 0]] * d[:, _PAIRS[:, 1]] * self.inv_area[:, None]
-        upper = np.bincount(self.slot, weights=products[self.pair_valid],
-                            minlength=self.n_upper)
+        g = np.empty(N)
+        upper = self._upper
+        disk_gauss_newton_terms(self.F, np.ascontiguousarray(f, dtype=np.complex128),
+                                np.ascontiguousarray(residual, dtype=np.float64), self.inv_area,
+                                self.cols, self.corner_flags, self.face_slots, upper, g)
         H = self.H
         H.data = upper[self.full_from_upper]
         H.data[self.diagonal] *= 1.0 + mu

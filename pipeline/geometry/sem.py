@@ -511,8 +511,7 @@ def _converged_iterations(problem, f, value, opt, record):
     boundary_turn = False           # Gauss–Newton went quiet: a SEM/gradient step's turn
     try:
         while it < max_iter:                                        # phase B
-            w = problem.weights(f)
-            blocks = laplacian_blocks(problem.pattern, w)
+            w = blocks = None               # stretch weights: only for a SEM or gradient try
             step = None
             tries = [(k, False) for k in order]
             if age is not None and age < opt.refactor_every:
@@ -520,6 +519,9 @@ def _converged_iterations(problem, f, value, opt, record):
             if newton is not None and not boundary_turn:
                 tries[:0] = [("gauss_newton", False)] * (GN_RETRIES + 1)
             for kind, stale in tries:
+                if kind != "gauss_newton" and w is None:
+                    w = problem.weights(f)
+                    blocks = laplacian_blocks(problem.pattern, w)
                 try:
                     if kind == "gauss_newton":
                         g = newton.step(f, value[3], mu)
