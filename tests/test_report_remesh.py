@@ -39,6 +39,20 @@ def test_table_verdicts_and_page(tmp_path):
     assert text.startswith("<!DOCTYPE html>") and "<table>" in text
     assert "pymeshlab is not installed" in text and "&amp;#x27;" not in text
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+    assert "Green: best of the three compared methods" in text
+
+
+def test_page_without_baselines_says_so(tmp_path):
+    """--no-compare: only the input and ours were measured; the caption names neither a
+    comparison nor empty baseline notes."""
+    methods = {k: m for k, m in _methods().items() if k in ("input", "sem")}
+    paths = write_report(tmp_path, methods, np.zeros((len(methods["sem"].V), 2)),
+                         methods["sem"].F, {"name": "face", "target": 400}, figures=False)
+    text = paths[0].read_text(encoding="utf-8")
+    assert "No baseline was run (--no-compare)" in text
+    assert "neither the baselines nor our plain lift were measured" in text
+    assert "Green: best" not in text and "pymeshlab: ." not in text
+    assert "Decimation: ." not in text
 
 
 def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():

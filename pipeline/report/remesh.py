@@ -241,6 +241,15 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
         f"<h2>Ours against {e(LABELS[k])}</h2><div class='vs'><div><h3>ours better</h3>"
         f"<ul>{li(b)}</ul></div><div><h3>ours worse</h3><ul>{li(w)}</ul></div></div>"
         for k, (b, w) in verdict.items()) or "<p>No baseline was run (--no-compare).</p>"
+    if any(k in methods for k in ("pymeshlab_isotropic", "fast_simplification")):
+        reference = ("Green: best of the three compared methods (ours improved, pymeshlab, "
+                     "decimation); the input and our plain lift are shown for reference.")
+        baseline_notes = (f"pymeshlab: {e(notes['pymeshlab_isotropic'])}. "
+                          f"Decimation: {e(notes['fast_simplification'])}.")
+    else:
+        reference = ("The input is shown for reference; with --no-compare neither the "
+                     "baselines nor our plain lift were measured.")
+        baseline_notes = ""
     dd = meta.get("distortion", {})
     aniso = (f", stretch anisotropy σ₁/σ₂ (area-weighted) median {dd['anisotropy_median']:.1f}, "
              f"90th percentile {dd['anisotropy_p90']:.1f}, above 10:1 on "
@@ -268,15 +277,14 @@ distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
 <h2>Side by side, at the same vertex count</h2>
 <div class="cmp"><table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
 <tbody>{''.join(body)}</tbody></table></div>
-<p class="caption">Green: best of the three compared methods (ours improved, pymeshlab,
-decimation); the input and our plain lift are shown for reference. Angles are measured on the
+<p class="caption">{reference} Angles are measured on the
 3D faces. Valence counts edges at interior vertices. Distances: samples on each surface — all
 vertices, edge midpoints and face centroids plus {dist.get('random_samples_per_side', 0)}
 points uniform by area (seed 0) — and the exact Euclidean distance of each sample to the other
 surface's triangles (libigl's AABB tree, exact point–triangle distances); Hausdorff = the larger one-sided maximum (a sampled lower bound of the continuous
 value), RMS = root mean square over the area-uniform samples of both sides. Relative to the
 input's bounding-box diagonal. Times on this machine, wall clock; {e(notes['sem'])}.
-pymeshlab: {e(notes['pymeshlab_isotropic'])}. Decimation: {e(notes['fast_simplification'])}.</p>
+{baseline_notes}</p>
 
 {versus}
 <p class="caption">Our remesh keeps every vertex exactly on the input surface (each vertex is a
@@ -285,8 +293,9 @@ pymeshlab: {e(notes['pymeshlab_isotropic'])}. Decimation: {e(notes['fast_simplif
 colours and landmarks. Its limits: the equiareal map distorts angles, so uniform samples are
 skewed on the surface where the distortion is large (long protrusions, deep folds); the
 improvement step (rounds of splits, collapses, flips and relaxation judged by 3D lengths,
-splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, balanced by collapses
-of the shortest edges, and a pass on faces below 20°) removes most but not all of it, and
+splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, and of rim edges at
+the input boundary vertices they cut off, {imp.get('rim_splits', 0)} here, balanced by
+collapses of the shortest edges, and a pass on faces below 20°) removes most but not all of it, and
 sharp features are kept only at corner
 vertices {corners}, not along creases.</p>
 {fig_html}"""
