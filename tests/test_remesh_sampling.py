@@ -62,6 +62,23 @@ def test_triangulation_is_a_ccw_disk_without_leaves(pattern):
     assert len(F) == 2 * n - s.n_rim - 2
 
 
+@pytest.mark.parametrize("k, n", [(3, 100), (4, 100), (4, 2000), (5, 500), (6, 300)])
+def test_triangulation_of_a_polygon_with_few_sharp_corners(k, n):
+    """A mesh with only k boundary vertices maps onto a k-gon with corners of 60°–120°: the
+    rim push dents the rim at such a corner and the hull folds three rim samples of one edge
+    into a flat face over the rim. The triangulation is still the disk of the samples, every
+    face counter-clockwise with positive area, the boundary exactly the rim."""
+    t = 2 * np.pi * np.arange(k) / k
+    s = sample_disk(n, polygon=np.column_stack([np.cos(t), np.sin(t)]))
+    F = triangulate_samples(s)
+    m = len(s.points)
+    facts = mesh_facts(np.column_stack([s.points, np.zeros(m)]), F)
+    assert is_disk(facts) and facts["degenerate_faces"] == 0 and facts["leaf_faces"] == 0
+    assert np.all(signed_double_areas(s.points, F) > 0)
+    assert sorted(topo.boundary_loops(F)[0].tolist()) == list(range(s.n_rim))
+    assert len(F) == 2 * m - s.n_rim - 2
+
+
 def test_hexagonal_construction_equals_delaunay():
     s = sample_disk(30000, polygon=uneven_polygon(60, 3))
     F = triangulate_samples(s)                                   # band Delaunay + lattice

@@ -369,7 +369,9 @@ def triangulate_samples(samples: DiskSamples) -> np.ndarray:
     used[F.ravel()] = True
     if not used.all():                                    # pragma: no cover - Qhull 'coplanar'
         raise RuntimeError(f"Delaunay dropped {int((~used).sum())} samples (coincident points)")
-    F = _flip_leaves(P, F, nb)
+    F = _drop_folded_leaves(P, _flip_leaves(P, F, nb), nb, h)
+    if (F < nb).all(axis=1).any():                      # pragma: no cover
+        raise RuntimeError("could not remove faces with three rim corners")
     a2 = double_areas(P, F)
     if np.any(a2 <= 1e-9 * max(h, 1e-300) ** 2):          # pragma: no cover
         raise RuntimeError("degenerate or clockwise face in the sample triangulation")
@@ -433,6 +435,24 @@ def _hexagonal_triangulation(samples: DiskSamples) -> np.ndarray | None:
     return F
 
 
+def _drop_folded_leaves(P: np.ndarray, F: np.ndarray, nb: int, h: float) -> np.ndarray:
+    """Drop the faces of three rim samples that are flat in ``P`` and whose corners all have
+    other faces. At a corner of the image polygon sharper than a right angle (a mesh with a
+    handful of boundary vertices maps onto such a polygon) the rim push of :func:`_delaunay`
+    can dent the rim inward, and the hull then closes three consecutive rim samples of one
+    polygon edge into a face folded over the rim: zero area on the polygon, its two short edges
+    shared with the faces inside. Without it the triangulation is the disk it should be."""
+    a2 = double_areas(P, F)
+    folded = (F < nb).all(axis=1) & (np.abs(a2) <= 1e-9 * max(h, 1e-300) ** 2)
+    if not folded.any():
+        return F
+    rest = F[~folded]
+    covered = np.zeros(len(P), bool)
+    covered[rest.ravel()] = True
+    drop = folded & covered[F].all(axis=1)
+    return F[~drop]
+
+
 def _flip_leaves(P: np.ndarray, F: np.ndarray, nb: int) -> np.ndarray:
     """Flip away faces with three rim corners (indices < nb) — none are expected (see the
     module docstring); a safety net run in Python over the few leaves."""
@@ -464,8 +484,6 @@ def _flip_leaves(P: np.ndarray, F: np.ndarray, nb: int) -> np.ndarray:
             else:
                 continue
             break
-    if (F < nb).all(axis=1).any():                      # pragma: no cover
-        raise RuntimeError("could not remove faces with three rim corners")
     return F
 
 
