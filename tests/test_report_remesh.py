@@ -70,3 +70,16 @@ def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
     assert "0.89 %" in w[1] and "pymeshlab's is 0.31 %" in w[1]
     w = remesh_warnings(calm, {"sem": far["sem"]})              # --no-compare: no reference
     assert len(w) == 1 and "pymeshlab" not in w[0]
+
+
+def test_remesh_warnings_name_a_vertex_count_off_the_request():
+    """Within 2 % of the request: nothing; beyond it, one sentence with the count, the
+    deviation and its cause (the rim's share of the samples when it is over half)."""
+    assert remesh_warnings({}, {}, count={"requested": 1000, "vertices": 1020, "rim": 90}) == []
+    [w] = remesh_warnings({}, {}, count={"requested": 100, "vertices": 192, "rim": 27})
+    assert w.startswith("the remesh has 192 vertices, +92 % from the 100 requested: the "
+                        "improvement's splits")
+    [w] = remesh_warnings({}, {}, count={"requested": 100, "vertices": 130, "rim": 60})
+    assert "the boundary alone took 60 rim samples" in w
+    [w] = remesh_warnings({}, {}, count={"requested": 1000, "vertices": 970, "rim": 90})
+    assert w == "the remesh has 970 vertices, -3 % from the 1000 requested"

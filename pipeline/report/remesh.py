@@ -34,6 +34,7 @@ __all__ = ["Method", "LABELS", "comparison_table", "verdicts", "remesh_warnings"
            "plain_metrics", "write_report"]
 
 COMPARED = ("sem", "pymeshlab_isotropic", "fast_simplification")
+COUNT_TOLERANCE = 0.02      # a vertex count farther than this from the request is a warning
 STYLE = """
 .cmp th, .cmp td { text-align: right; } .cmp tbody th { text-align: left; }
 td.unit { color: #666; text-align: left; } td.best { background: #dff0d8; font-weight: bold; }
@@ -308,13 +309,28 @@ HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
 ANISOTROPY_SHARE = 0.25       # of the surface stretched more than 10:1
 
 
-def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None) -> list[str]:
+def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
+                    count: dict | None = None) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
     stretch anisotropy); ``methods``: ``remesh_metrics.json``'s ``methods`` block; ``below``:
-    the faces the minimum-angle pass left (``remesh.improve.below_min_angle``)."""
+    the faces the minimum-angle pass left (``remesh.improve.below_min_angle``); ``count``:
+    ``{"requested", "vertices", "rim"}``, the vertex count asked for and made, and how many of
+    the samples were on the rim."""
     out = []
+    want = (count or {}).get("requested")
+    got = (count or {}).get("vertices")
+    if want and got is not None and abs(got - want) > COUNT_TOLERANCE * want:
+        rim = count.get("rim") or 0
+        why = (f": the boundary alone took {rim} rim samples at the spacing {want} vertices "
+               f"give (a surface long and thin for that count); ask for more vertices"
+               if rim > want / 2 else
+               ": the improvement's splits (of edges the map stretches or that leave the "
+               "surface) could not all be given back by collapses without making faces worse"
+               if got > want else "")
+        out.append(f"the remesh has {got} vertices, {100 * (got - want) / want:+.0f} % from the "
+                   f"{want} requested{why}")
     if below and below.get("faces"):
         corners = below.get("input_corner_vertices") or []
         named = (f", {below['at_input_corners']} of them at sharp input corners (input "

@@ -350,8 +350,11 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         "table": [{k: v for k, v in r.items() if k not in ("digits", "pct")} for r in rows],
         "seconds": dict(remesh.seconds, measure=t_measure),
     }
-    metrics["warnings"] = remesh_warnings(pm.get("distortion", {}), metrics["methods"],
-                                          remesh.info.get("improve", {}).get("below_min_angle"))
+    metrics["warnings"] = remesh_warnings(
+        pm.get("distortion", {}), metrics["methods"],
+        remesh.info.get("improve", {}).get("below_min_angle"),
+        {"requested": remesh.info.get("requested_vertices"), "vertices": int(len(remesh.V)),
+         "rim": remesh.info.get("rim_samples")})
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
