@@ -245,4 +245,4 @@ def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) 
     locked = np.zeros(n, bool)
     locked[snapped] = True
     return RemeshState(X, F_out, samples.points, is_rim, face, bary, V, F, uv, locator,
-                       uv[boundary], locked)
+                       uv[boundary], locked, surface_middles=True)
