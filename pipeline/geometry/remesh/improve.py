@@ -31,7 +31,11 @@ The schedule (:func:`improve_remesh`):
    even out the face areas;
 7. the sag refinement again (the smoothing moves vertices off the folds the first one
    caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and flips with
-   the new sag vertices pinned;
+   the new sag vertices pinned; then ``RESHAPE_STEPS`` × (a smoothing step of the vertices
+   around the faces with an angle below ``RESHAPE_DEG`` — the splits and collapses just made
+   leave them skinny — under a veto of every move that takes an edge farther from the
+   surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not without
+   ``relax_iterations``);
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
 9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
@@ -57,10 +61,10 @@ from ..rows import norms
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .flips import flip_edges
-from .halfedge import edge_table
-from .refine import refine_by_sag, split_long_edges
+from .halfedge import edge_table, touching
+from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
-from .sag import edge_sag
+from .sag import edge_sag, edge_sag_along
 from .state import RemeshState
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
@@ -69,6 +73,8 @@ SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × 
 ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
+RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
+RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
 
 
 def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips: bool = True,
@@ -127,8 +133,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     RemeshState
         ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
         and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
-        ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``guarantee`` (9) and ``repair``
-        (10).
+        ``smoothing`` (6), ``pinned`` and ``reshape`` (7), ``slivers`` (8), ``guarantee`` (9)
+        and ``repair`` (10).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
@@ -157,6 +163,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if refine_sag > 0:
         ops.refine_pinned(target, int(refine_budget * S.n), pinned_relax_iterations)
         lap("pinned")
+        for _ in range(RESHAPE_STEPS if relax_iterations > 0 else 0):
+            ops.reshape(RESHAPE_DEG)
+            lap("reshape")
     ops.remove_slivers(target)
     lap("slivers")
     if min_angle_deg > 0:
@@ -198,13 +207,31 @@ class _Operations:
         S.set_faces(F, twin)
         S.tally("flips", k)
 
-    def relax(self) -> None:
-        """One tangential smoothing step of every vertex not on the rim and not locked."""
+    def relax(self, movable: np.ndarray | None = None, veto=None) -> None:
+        """One tangential smoothing step of every vertex not on the rim and not locked (and
+        ``movable``, n bool, if given), without the moves ``veto`` drops
+        (:func:`.relax.tangential_smoothing`)."""
         S = self.S
+        free = ~S.is_rim & ~S.locked
         S.uv, S.face, S.bary, S.X, moved = tangential_smoothing(
             S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
-            ~S.is_rim & ~S.locked, 1, self.relax_step, X=S.X, pullback=S.pullback())
+            free if movable is None else free & movable, 1, self.relax_step, X=S.X,
+            pullback=S.pullback(), veto=veto)
         S.tally("relaxed_vertex_moves", sum(moved))
+
+    def reshape(self, angle_deg: float) -> None:
+        """A smoothing step of the corners of the faces with an angle below ``angle_deg``
+        (those the pinned refinement's splits and collapses left skinny) and of their
+        neighbours, no
+        move taking an edge farther from the surface than the sag tolerance
+        (:func:`sag_veto`), then flips."""
+        S = self.S
+        near = np.zeros(S.n, bool)
+        near[S.F[skinny_faces(S.X, S.F, angle_deg)].ravel()] = True
+        near[S.F[touching(S.F, near)].ravel()] = True
+        if near.any():
+            self.relax(near, None if self.tol is None else partial(sag_veto, S, self.tol))
+            self.flip()
 
     def refine(self, budget: int) -> None:
         """Sag splits, one long-edge split, flips, sag splits again around what changed and
@@ -348,6 +375,26 @@ def degenerate_faces(S: RemeshState) -> np.ndarray:
     bad[degenerate_3d(S.X, S.F)] = True
     bad |= ~(double_areas(S.uv, S.F) > 0)
     return np.flatnonzero(bad)
+
+
+def sag_veto(S: RemeshState, tol: float, uv: np.ndarray, face: np.ndarray, bary: np.ndarray,
+             X: np.ndarray) -> np.ndarray:
+    """The ``veto`` of :func:`.relax.tangential_smoothing` that keeps the remesh on the surface:
+    given ``S`` with its vertices moved to ``uv`` (n×2; located at ``face``, ``bary``, lifted
+    to ``X``), the moving ends (n bool) of the edges with a moving end whose sag at
+    ``SAG_SAMPLES`` points (:func:`.sag.edge_sag_along`) would exceed ``tol`` and grow."""
+    from dataclasses import replace
+
+    moved = np.any(uv != S.uv, axis=1)
+    _, a, b, _ = edge_table(S.F, twin=S.twins())
+    e = np.flatnonzero(moved[a] | moved[b])
+    a, b = a[e], b[e]
+    ts = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)
+    after = edge_sag_along(replace(S, uv=uv, face=face, bary=bary, X=X), a, b, ts)[0]
+    worse = (after > tol) & (after > edge_sag_along(S, a, b, ts)[0])
+    drop = np.zeros(len(uv), bool)
+    drop[a[worse]] = drop[b[worse]] = True
+    return drop & moved
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
