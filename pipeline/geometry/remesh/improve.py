@@ -40,8 +40,10 @@ The schedule (:func:`improve_remesh`):
    guards, the count given back by splits, each followed by flips;
 9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
    faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
-   splits for the count and flips. It is a best effort: a face it cannot fix stays (the
-   report counts the faces below the minimum);
+   splits for the count and flips, then collapses under no guard but validity of an edge of
+   each face still below ``NEEDLE_DEG``. It is a best effort: a face it cannot fix stays (the
+   report counts the faces below the minimum and names the input corners among their
+   corners);
 10. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -72,6 +74,8 @@ SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its s
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
 ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
+NEEDLE_DEG = 5.0      # the minimum-angle pass ends with unguarded collapses below this angle,
+NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
@@ -278,7 +282,10 @@ class _Operations:
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
         """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
         below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
-        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips."""
+        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
+        then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
+        line where the map is most anisotropic, which no guarded collapse or flip removes) as
+        the degenerate faces are (:meth:`collapse_unguarded`)."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -292,17 +299,26 @@ class _Operations:
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
+        self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
+                                "needles_collapsed", NEEDLE_PASSES)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
         first, under no guard but the result's validity, the count given back by splits, then
         flips; the operations do not make such faces, so this normally finds none."""
+        self.collapse_unguarded(target, lambda: degenerate_faces(self.S), "degenerate_repaired",
+                                passes)
+
+    def collapse_unguarded(self, target: int, faces, key: str, passes: int) -> None:
+        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives,
+        shortest first, under no guard but the result's validity, the count given back by
+        splits, then flips; their number tallied under ``key``."""
         S = self.S
         for _ in range(passes):
-            bad = degenerate_faces(S)
+            bad = faces()
             if len(bad) == 0:
                 return
-            S.tally("degenerate_repaired", len(bad))
+            S.tally(key, len(bad))
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
             collapse_short_edges(S, np.inf, np.inf, at=at)
