@@ -74,7 +74,7 @@ class RemeshConfig(Section):
         "hexagonal", description="disk sampling pattern")
     rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
                                                        "the rim")
-    seed: int = Field(0, description="blue noise seed")
+    seed: int = Field(0, description="jittered and blue noise seed")
     improve: Optional[ImproveConfig] = Field(
         ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
     compare: bool = Field(True, description="pymeshlab and decimation at the same vertex count")

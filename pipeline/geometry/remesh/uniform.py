@@ -102,11 +102,11 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         The requested vertex count (met within 2 %, usually exactly), or …
     spacing : float, optional
         … the target edge length in the mesh's units.
-    pattern : {"hexagonal", "blue_noise", "concentric"}
+    pattern : {"hexagonal", "jittered", "blue_noise", "concentric"}
     rim_relax : int
         ODT sweeps of the sample band along the rim.
     seed : int
-        For ``blue_noise``.
+        For ``jittered`` and ``blue_noise``.
     improve : bool
         Run the improvement pass; ``flips`` … ``refine_budget`` and ``isotropic_iterations``
         … ``min_angle_deg`` are its parameters (:func:`.improve.improve_remesh`).
