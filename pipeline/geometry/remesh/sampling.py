@@ -7,10 +7,10 @@ the map is equiareal, points spread evenly over ``P`` are spread evenly over the
 counter-clockwise), evenly spaced by arc length **on the polygon** (so they locate exactly on
 the image's boundary edges), then the *interior* samples. Patterns:
 
-* ``hexagonal`` (default) — an equilateral lattice of spacing ``h`` (the densest even
+* ``hexagonal`` — an equilateral lattice of spacing ``h`` (the densest even
   pattern: every interior triangle equilateral, valence 6), clipped to the points at least
   ``margin·h`` (0.6) inside the polygon so that no sliver forms between the lattice and the rim.
-* ``jittered`` — the hexagonal lattice with every point moved by a seeded uniform offset of
+* ``jittered`` (the remesh's default) — the hexagonal lattice with every point moved by a seeded uniform offset of
   at most ``JITTER/2 · h`` (h/4) along each axis. A regular lattice is a fixed point of the
   improvement's smoothing however the map shears it on the surface (every 1-ring is the same
   parallelogram-symmetric hexagon), so the lifted lattice keeps the map's anisotropy; the

@@ -78,7 +78,7 @@ def area_scale(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
 
 def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray, *,
                    vertices: int | None = None, spacing: float | None = None,
-                   pattern: str = "hexagonal", rim_relax: int = 3, seed: int = 0,
+                   pattern: str = "jittered", rim_relax: int = 3, seed: int = 0,
                    improve: bool = True, flips: bool = True, relax_iterations: int = 2,
                    relax_step: float = 1.0, max_dihedral_deg: float = 20.0,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
