@@ -407,7 +407,8 @@ def sag_veto(S: RemeshState, tol: float, uv: np.ndarray, face: np.ndarray, bary:
     a, b = a[e], b[e]
     ts = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)
     after = edge_sag_along(replace(S, uv=uv, face=face, bary=bary, X=X), a, b, ts)[0]
-    worse = (after > tol) & (after > edge_sag_along(S, a, b, ts)[0])
+    far = np.flatnonzero(after > tol)
+    worse = far[after[far] > edge_sag_along(S, a[far], b[far], ts)[0]]
     drop = np.zeros(len(uv), bool)
     drop[a[worse]] = drop[b[worse]] = True
     return drop & moved
