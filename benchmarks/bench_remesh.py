@@ -3,17 +3,22 @@ location at 10^6 faces.
 
     python benchmarks/bench_remesh.py [--vertices 20000 100000] [--meshes camelhead_x4 ...]
                                       [--repeat 3] [--locate] [--no-remesh]
-    python benchmarks/bench_remesh.py --compare [--maps converged paper 30] --vertices 5000 20000
-                                      --meshes choi_human_face ict_A_neutral_disk ...
+    python benchmarks/bench_remesh.py --compare [--maps converged paper 30] [--vertices 5000 ...]
+                                      [--meshes choi_human_face ict_A_neutral_disk ...] [--no-cli]
     python benchmarks/bench_remesh.py --compare --closed [--vertices 5000 20000] [--meshes ...]
 
-``--compare``: per mesh and count, pymeshlab's isotropic explicit remeshing (10 iterations,
-target length solved for the count) and our remesh on each map of ``--maps``, in the same run
-and by the same evaluator: mean smallest angle, share of faces with an angle under 30°,
-smallest angle, area CV, Hausdorff and RMS distance (% of the bounding-box diagonal), one
-disk (``topo``: ``disk``, or ``χ=2`` for a closed genus-0 manifold), and seconds (ours: the
-map + the remesh stage; pymeshlab: its call). ``*`` marks where ours is at least as good (area
-CV: at most 0.6 × pymeshlab's).
+``--compare``: per mesh and count (default: every disk mesh of ``../shared/data/meshes`` and
+the ICT ``*_disk`` faces, at 5k, 20k and 100k vertices), pymeshlab's isotropic explicit
+remeshing (10 iterations, target length solved for the count) and our remesh on each map of
+``--maps``, in the same run and by the same evaluator: mean smallest angle, share of faces with
+an angle under 30°, smallest angle, area CV, Hausdorff and RMS distance (% of the bounding-box
+diagonal), one disk (``topo``: ``disk``, or ``χ=2`` for a closed genus-0 manifold), and seconds
+(ours: the map + the remesh stage; pymeshlab: its call). The row ``ours/cli`` is what a user
+gets: ``sem-pipeline remesh MESH --vertices N --no-compare --no-report`` run in a fresh
+interpreter, its written ``remeshed.obj`` measured, its wall seconds end to end (start,
+imports, read, repair, map, remesh, measures, write) in ``s total``. ``*`` marks where ours is
+at least as good (area CV: at most 0.6 × pymeshlab's; ``ours/cli`` seconds: less than
+pymeshlab's call).
 
 ``--closed``: the closed genus-0 meshes of ``../shared/data/closed`` (default: all of them but
 the higher-genus ones), read and repaired as the ``input`` stage does, mapped onto the sphere by
@@ -27,8 +32,8 @@ corner snapping), Delaunay (band ``Delaunay`` + lattice by construction), locate
 queries), lift, improve and the total; then improve's own steps
 (:func:`pipeline.geometry.remesh.improve.improve_remesh`'s ``seconds``): the first flips and
 relaxation, the sag refinement, the isotropic rounds (``iso``), the count correction, the
-final smoothing, the pinned second refinement, the sliver collapses, the minimum-angle pass
-(``angle``) and the degenerate-face repair. The goal is
+final smoothing, the pinned second refinement, the sliver collapses, the rim fans
+(``fans``), the minimum-angle pass (``angle``) and the degenerate-face repair. The goal is
 ≤ 3 s for a ~100k-face mesh remeshed to 100k vertices (``camelhead_x4``: igl_camelhead
 subdivided ×4 = 90 816 faces, the same mesh as ``bench_sem.py``'s 100k size).
 
@@ -44,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -62,13 +68,25 @@ def data_dir() -> Path:
 CLOSED_GENUS0 = ("igl_bunny", "igl_arm", "igl_bumpy_cube", "igl_decimated_max", "igl_elephant")
 
 
+def disk_meshes() -> list[str]:
+    """Every disk mesh of the data folder: ``meshes/*.obj`` and the ICT faces' ``*_disk.obj``."""
+    return sorted([p.stem for p in (data_dir() / "meshes").glob("*.obj")]
+                  + [p.stem for p in (data_dir() / "faces" / "ict").glob("*_disk.obj")])
+
+
+def mesh_path(name: str) -> Path | None:
+    """The file of a benchmark name (closed, disk mesh or ICT face), None for a generated one."""
+    for path in (data_dir() / "closed" / f"{name}.obj", data_dir() / "meshes" / f"{name}.obj",
+                 data_dir() / "faces" / "ict" / f"{name}.obj"):
+        if path.exists():
+            return path
+    return None
+
+
 def load(name: str):
     """The repaired mesh of a benchmark name."""
     from pipeline.geometry.repair import repair_mesh
     from pipeline.stages.load import load_stage
-
-    if (data_dir() / "closed" / f"{name}.obj").exists():    # closed: the sphere map's domain
-        return load_stage(data_dir() / "closed" / f"{name}.obj").mesh
 
     if name.endswith("_x4"):                       # midpoint subdivision (1 → 4), cached
         import trimesh
@@ -82,10 +100,8 @@ def load(name: str):
             np.savez(cache, V=V, F=F)
         d = np.load(cache)
         return repair_mesh(d["V"], d["F"], name=name)
-    path = data_dir() / "meshes" / f"{name}.obj"
-    if not path.exists():                          # an ICT face: ict_A_neutral_disk, …
-        path = data_dir() / "faces" / "ict" / f"{name}.obj"
-    return load_stage(path).mesh
+    path = mesh_path(name)
+    return load_stage(path if path is not None else data_dir() / "meshes" / f"{name}.obj").mesh
 
 
 def parameterize(mesh):
@@ -115,20 +131,43 @@ COLS = (("mean min°", "mean_min_angle_deg", "high", 2), ("<30° %", "fraction_m
         ("Haus %", "hausdorff_rel", "low", 3), ("RMS %", "rms_rel", "low", 4))
 
 
-def bench_compare(names, counts, maps, repeat, n_random=100_000):
+def cli_remesh(path: Path, n: int, repeat: int):
+    """``sem-pipeline remesh PATH --vertices n --no-compare --no-report`` as a user runs it
+    (a fresh interpreter: start, imports, read, repair, map, remesh, measure, write): the mesh
+    it wrote and its wall seconds (median of ``repeat`` runs)."""
+    import tempfile
+
+    from pipeline.io.meshio import read_mesh
+
+    secs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        for _ in range(repeat):
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "pipeline", "remesh", str(path), "-o", str(out),
+                            "--vertices", str(n), "--no-compare", "--no-report"],
+                           check=True, capture_output=True)
+            secs.append(time.perf_counter() - t)
+        mesh = read_mesh(out / "remeshed.obj")
+    return mesh.V, np.asarray(mesh.faces), float(np.median(secs))
+
+
+def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
     """Side by side at each vertex count: our remesh (per map of ``maps``) and pymeshlab's
     isotropic explicit remeshing (10 iterations, target length solved for the count), measured
     by the same evaluator (:func:`pipeline.geometry.remesh_quality.remesh_quality`). Seconds:
     ours = map + remesh (median of ``repeat`` remesh runs), pymeshlab = its call (the reported
-    run). ``*`` marks our value where it is at least as good as pymeshlab's; ``area CV`` needs
-    ≤ 0.6 × pymeshlab's for the mark."""
+    run). With ``cli``, also the row ``ours/cli``: the mesh ``sem-pipeline remesh`` writes with
+    its defaults and the command's wall seconds end to end (:func:`cli_remesh`). ``*`` marks our
+    value where it is at least as good as pymeshlab's; ``area CV`` needs ≤ 0.6 × pymeshlab's
+    for the mark, the seconds of ``ours/cli`` less than pymeshlab's call."""
     from pipeline.geometry.remesh_quality import remesh_quality
     from pipeline.stages import baselines
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     head = (f"{'mesh':26s} {'n':>6s} {'method':>14s} {'verts':>6s} "
             + " ".join(f"{c[0]:>9s}" for c in COLS) + f" {'topo':>4s} {'s map':>6s} {'s mesh':>6s}"
-            f" {'s total':>7s}")
+            f" {'s total':>8s}")
     print(head)
 
     def measure(mesh, V, F):
@@ -139,7 +178,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
         vals["rms_rel"] *= 100
         return vals, "disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else "NO"
 
-    def line(name, n, method, nv, vals, disk, t_map, t_mesh, ref=None):
+    def line(name, n, method, nv, vals, disk, t_map, t_mesh, ref=None, total_mark=" "):
         cells = []
         for label, key, better, dig in COLS:
             mark = " "
@@ -150,7 +189,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
                 mark = "*" if ok else " "
             cells.append(f"{vals[key]:8.{dig}f}{mark}")
         print(f"{name:26s} {n:6d} {method:>14s} {nv:6d} " + " ".join(cells)
-              + f" {disk:>4s} {t_map:6.2f} {t_mesh:6.2f} {t_map + t_mesh:7.2f}",
+              + f" {disk:>4s} {t_map:6.2f} {t_mesh:6.2f} {t_map + t_mesh:7.2f}{total_mark}",
               flush=True)
 
     for name in names:
@@ -174,13 +213,19 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000):
                 vals, disk = measure(mesh, r.V, r.F)
                 line(name, n, f"ours/{how}", len(r.V), vals, disk, t_map, float(np.median(secs)),
                      ref)
+            path = mesh_path(name)
+            if cli and path is not None:
+                V, F, t_cli = cli_remesh(path, n, repeat)
+                vals, disk = measure(mesh, V, F)
+                line(name, n, "ours/cli", len(V), vals, disk, 0.0, t_cli, ref,
+                     "*" if t_cli < b.seconds else " ")
 
 
 STEPS = ("sample", "delaunay", "locate", "lift", "improve", "total")
 SUB = ("flips", "relax", "refine", "isotropic", "count", "smoothing", "pinned", "slivers",
-       "guarantee", "repair")
-SUB_HEAD = ("flips", "relax", "refine", "iso", "count", "smooth", "pinned", "sliver", "angle",
-            "repair")
+       "rim_fans", "guarantee", "repair")
+SUB_HEAD = ("flips", "relax", "refine", "iso", "count", "smooth", "pinned", "sliver", "fans",
+            "angle", "repair")
 
 
 def bench_remesh(names, counts, repeat):
@@ -275,6 +320,8 @@ def main(argv=None):
                     help="the side-by-side quality table against pymeshlab instead of the steps")
     ap.add_argument("--maps", nargs="+", default=["converged"],
                     help="with --compare: paper | converged | N (converged, at most N steps)")
+    ap.add_argument("--no-cli", action="store_true",
+                    help="with --compare: no ours/cli rows (the command end to end)")
     ap.add_argument("--closed", action="store_true",
                     help="with --compare: the closed genus-0 meshes through the sphere map "
                          "(default meshes: all of them; default counts 5000 20000)")
@@ -284,11 +331,16 @@ def main(argv=None):
             args.meshes = list(CLOSED_GENUS0)
         if args.vertices == ap.get_default("vertices"):
             args.vertices = [5000, 20000]
+    elif args.compare:
+        if args.meshes == ap.get_default("meshes"):
+            args.meshes = disk_meshes()
+        if args.vertices == ap.get_default("vertices"):
+            args.vertices = [5000, 20000, 100000]
     if args.compare:
         print("side by side, same evaluator; * = ours at least as good as pymeshlab "
               "(area CV: ≤ 0.6 ×); seconds: ours = SEM map + remesh_stage (median of "
               f"{args.repeat}), pymeshlab = its call\n")
-        bench_compare(args.meshes, args.vertices, args.maps, args.repeat)
+        bench_compare(args.meshes, args.vertices, args.maps, args.repeat, cli=not args.no_cli)
         return
     if not args.no_remesh:
         print("remesh_stage, seconds per step (median of "

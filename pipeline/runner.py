@@ -31,16 +31,27 @@ from .stages.stage import Context, _log_stderr
 METHOD_FAILURES = (ParameterizationFailed, RemeshFailed, RegistrationFailed)
 
 
+#: the packages whose versions a run records: import name → distribution name
+VERSIONED = {"numpy": "numpy", "scipy": "scipy", "trimesh": "trimesh", "sksparse": "scikit-sparse",
+             "pydantic": "pydantic", "yaml": "PyYAML", "matplotlib": "matplotlib"}
+
+
 def versions() -> dict:
+    """The versions of Python, sem-pipeline and :data:`VERSIONED` (absent ones left out), read
+    from the installed distributions' metadata: a run that draws no figure never imports
+    matplotlib just to name its version."""
+    from importlib import metadata
+
     out = {"sem-pipeline": __version__, "python": platform.python_version()}
-    for name in ("numpy", "scipy", "trimesh", "sksparse", "pydantic", "yaml", "matplotlib"):
+    for name, dist in VERSIONED.items():
         module = sys.modules.get(name)
-        if module is None:
-            try:
-                module = __import__(name)
-            except ImportError:
-                continue
-        out[name] = getattr(module, "__version__", "?")
+        if module is not None and hasattr(module, "__version__"):
+            out[name] = module.__version__
+            continue
+        try:
+            out[name] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            continue
     return out
 
 

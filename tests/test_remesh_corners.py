@@ -7,7 +7,7 @@ import numpy as np
 from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator, _closest_on_segments, lift
 from pipeline.geometry.metrics import signed_double_areas
-from pipeline.geometry.remesh.corners import insert_vertices
+from pipeline.geometry.remesh.corners import _kept_apart, insert_vertices
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import ccw_delaunay, disk_map, disk_points
@@ -42,3 +42,19 @@ def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyo
     assert S.is_rim[new_rim].all()
     _, _, q = _closest_on_segments(S.uv[new_rim], uv_in[loop], np.roll(uv_in[loop], -1, 0))
     assert np.allclose(q, S.uv[new_rim], atol=1e-15)               # on the image polygon
+
+
+def test_kept_apart_is_the_greedy_pass_over_every_pair():
+    """The KD-tree pass keeps exactly what comparing each point with every kept one keeps
+    (a pair exactly ``gap`` apart counts as apart), on clustered points with exact ties."""
+    rng = np.random.default_rng(5)
+    P = np.vstack([rng.random((300, 3)), rng.random((200, 3)) * 0.05,
+                   [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.2, 0.0, 0.0]]])
+    for gap in (0.0, 0.01, 0.1, 0.3):
+        kept_pts, expected = [], []
+        for p in P:
+            ok = all(np.linalg.norm(p - q) >= gap for q in kept_pts)
+            expected.append(ok)
+            if ok:
+                kept_pts.append(p)
+        assert np.array_equal(_kept_apart(P, gap), expected)

@@ -174,6 +174,29 @@ def test_config_runs_remesh_after_parameterize(tmp_path):
     assert len(lm) == 16                                          # the sample's landmarks
     manifest = json.loads((run_dir / "manifest.json").read_text())
     assert "remesh" in manifest["stages"]
+    methods = json.loads((rem / "remesh_metrics.json").read_text())["methods"]
+    assert set(methods) == {"input", "sem"}                  # compare: false measures ours only
+
+
+def test_remesh_without_report_never_imports_matplotlib(tmp_path):
+    """`--no-report` is the quick path: no figure is drawn, so matplotlib (a third of a second
+    to import) is not loaded, while a config run's manifest still names its version."""
+    import subprocess
+    import sys
+
+    obj = tmp_path / "face.obj"
+    face = make_face(800)
+    write_obj(obj, face.V, face.F)
+    out = tmp_path / "o"
+    code = ("import sys\nfrom pipeline.cli import main\nfrom pipeline.runner import versions\n"
+            "assert main(sys.argv[1:]) == 0\n"
+            "assert 'matplotlib' in versions()\n"
+            "assert 'matplotlib' not in sys.modules, 'matplotlib was imported'\n")
+    proc = subprocess.run([sys.executable, "-c", code, "remesh", str(obj), "-o", str(out),
+                           "--vertices", "500", "--no-compare", "--no-report"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "remeshed.obj").is_file() and not (out / "report.html").exists()
 
 
 def test_config_remesh_keys_are_checked(tmp_path):

@@ -19,7 +19,6 @@ from pydantic import Field, model_validator
 from ..geometry.repair import RepairedMesh, RepairOptions, repair_mesh
 from ..io.artifacts import staged_output
 from ..io.meshio import read_mesh
-from ..sample import make_face, write_sample
 from .stage import Context, Section, Stage
 
 
@@ -66,6 +65,8 @@ def load_stage(path: str | Path, options: RepairOptions | None = None) -> Intake
 def sample_stage(n_vertices: int = 6000, expression: str = "neutral", identity: int = 0,
                  options: RepairOptions | None = None) -> Intake:
     """The embedded synthetic face (``pipeline.sample``), through the same repair checks."""
+    from ..sample import make_face          # (scipy.interpolate: only a sample run needs it)
+
     t0 = time.perf_counter()
     face = make_face(n_vertices, expression=expression, identity=identity)
     mesh = repair_mesh(face.V, face.F, None, options or RepairOptions(), name=face.name)
@@ -89,6 +90,8 @@ def _run(ctx: Context) -> dict:
 
 
 def _write(ctx: Context, folder: Path) -> dict[str, Path]:
+    from ..sample import write_sample
+
     sample = ctx.section("input").sample
     if sample is None:
         return {}

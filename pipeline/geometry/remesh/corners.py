@@ -73,19 +73,39 @@ def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
 
 def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float) -> np.ndarray:
     """The targets (in order) whose lifts are at least ``min_gap`` from every locked vertex
-    and from every target kept before them."""
+    and from every target kept before them (KD-trees: a noisy scan has thousands of sharp
+    vertices, and comparing every pair of them took a minute)."""
     if min_gap <= 0 or len(targets_uv) == 0:
         return targets_uv
+    from scipy.spatial import cKDTree
+
     f, b, _ = S.locator.locate_with_inside(targets_uv)
     P = lift(S.V_in, S.F_in, f, b)
-    kept_pts = list(S.X[S.locked])
-    keep = []
-    for i, p in enumerate(P):
-        if all(np.linalg.norm(p - q) >= min_gap for q in kept_pts):
-            keep.append(i)
-            kept_pts.append(p)
-    S.tally("corners_too_close", len(P) - len(keep))
-    return targets_uv[keep]
+    keep = np.ones(len(P), bool)
+    if S.locked.any():
+        keep = cKDTree(S.X[S.locked]).query(P)[0] >= min_gap
+    idx = np.flatnonzero(keep)
+    idx = idx[_kept_apart(P[idx], min_gap)]
+    S.tally("corners_too_close", len(P) - len(idx))
+    return targets_uv[idx]
+
+
+def _kept_apart(P: np.ndarray, gap: float) -> np.ndarray:
+    """Greedily in order, which points (k bool) are kept: each one at least ``gap`` from every
+    point kept before it (a KD-tree's pairs closer than ``gap``, then one pass)."""
+    kept = np.ones(len(P), bool)
+    if len(P) < 2 or gap <= 0:
+        return kept
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(P).query_pairs(np.nextafter(gap, 0.0), output_type="ndarray")
+    later, earlier = pairs.max(axis=1), pairs.min(axis=1)
+    order = np.argsort(later, kind="stable")
+    later, earlier = later[order], earlier[order]
+    bounds = np.searchsorted(later, np.arange(len(P) + 1))
+    for i in range(len(P)):
+        kept[i] = not kept[earlier[bounds[i]:bounds[i + 1]]].any()
+    return kept
 
 
 def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) -> np.ndarray:

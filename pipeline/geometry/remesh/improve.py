@@ -14,7 +14,9 @@ The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`);
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
-3. refinement: split edges farther than ``refine_sag × L`` from the surface; split once the
+3. refinement: split the rim edges that cut off an input boundary vertex by more than
+   ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
+   ``refine_sag × L`` from the surface; split once the
    edges still longer than ``LONG_EDGE × L`` (they lie along the map's stretch, on the surface,
    where the sag test cannot see them); flips; the sag splits again around what changed and
    what the rounds left (they can run out where a steep wall is squeezed against the rim),
@@ -38,13 +40,16 @@ The schedule (:func:`improve_remesh`):
    ``relax_iterations``);
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
-9. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
-   faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
-   splits for the count and flips, then collapses under no guard but validity of an edge of
-   each face still below ``NEEDLE_DEG``. It is a best effort: a face it cannot fix stays (the
-   report counts the faces below the minimum and names the input corners among their
-   corners);
-10. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
+9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
+   than ``RIM_FAN_MAX_DEG`` at a rim vertex is split — the caps a reflex input corner leaves),
+   flips;
+10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
+    faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
+    splits for the count and flips, then collapses under no guard but validity of an edge of
+    each face still below ``NEEDLE_DEG``. It is a best effort: a face it cannot fix stays (the
+    report counts the faces below the minimum and names the input corners among their
+    corners);
+11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
     (:func:`.halfedge.disk_shape`) — so it normally has nothing to do; the caller checks that
@@ -66,6 +71,7 @@ from .flips import flip_edges
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
+from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
 from .state import RemeshState
 
@@ -123,7 +129,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     pinned_relax_iterations : int
         Smoothing steps after the second sag refinement (step 7).
     min_angle_deg : float
-        The minimum-angle pass's threshold (step 9; 0: no pass).
+        The minimum-angle pass's threshold (step 10; 0: no pass).
     sag_floor : float
         The sag tolerance (refinement and guards) is at least this, in the mesh's units
         (default 0: ``refine_sag × L`` alone). A remesh finer than its input sees the input's
@@ -137,8 +143,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     RemeshState
         ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
         and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
-        ``smoothing`` (6), ``pinned`` and ``reshape`` (7), ``slivers`` (8), ``guarantee`` (9)
-        and ``repair`` (10).
+        ``smoothing`` (6), ``pinned`` and ``reshape`` (7), ``slivers`` (8), ``rim_fans`` (9),
+        ``guarantee`` (10) and ``repair`` (11).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
@@ -172,6 +178,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
             lap("reshape")
     ops.remove_slivers(target)
     lap("slivers")
+    if open_rim_fans(S):
+        ops.flip()
+    lap("rim_fans")
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
@@ -238,10 +247,12 @@ class _Operations:
             self.flip()
 
     def refine(self, budget: int) -> None:
-        """Sag splits, one long-edge split, flips, sag splits again around what changed and
-        what the first rounds left, flips; at most ``budget`` sag splits in all."""
+        """Rim splits (:func:`.rim.refine_rim`), sag splits, one long-edge split, flips, sag
+        splits again around what changed and what the first rounds left, flips; at most
+        ``budget`` rim and ``budget`` sag splits in all."""
         S, L = self.S, self.L
         F_pre = S.F.copy()
+        refine_rim(S, RIM_TOL * self.tol, SLIVER * L, budget)
         done, pending = refine_by_sag(S, self.tol, budget)
         F0 = S.F.copy()
         split_long_edges(S, LONG_EDGE * L, budget=budget)

@@ -43,7 +43,7 @@ MIN_BALANCE = 0.25    # with surface middles, an edge whose every split point li
 
 
 def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
-                t: np.ndarray | None = None) -> int:
+                t: np.ndarray | None = None, points: np.ndarray | None = None) -> int:
     """Split edges on the disk: face ``[a, b, p]`` becomes ``[a, w, p]`` and ``[w, b, p]``,
     and so does the face across, with the new vertex ``w`` lifted by eq. (1).
 
@@ -57,6 +57,9 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
         Their twins, −1 on the boundary (``w`` then goes on the image polygon).
     t : (k,) float, optional
         Split at ``(1 − t)·uv[a] + t·uv[b]``; default the disk midpoint.
+    points : (k, 2) float, optional
+        Or the domain points of the new vertices themselves (a boundary edge's on the image
+        polygon, :func:`.rim.refine_rim`).
 
     Returns
     -------
@@ -70,7 +73,7 @@ def split_edges(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     f, c = h // 3, h % 3
     a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
     on_b = twin < 0
-    M = _split_points(S, a, b, on_b, t)
+    M = _split_points(S, a, b, on_b, t) if points is None else points
     near_a = np.ones(k, bool) if t is None else t <= 0.5
     mf, mb, _ = S.locator.relocate(M, np.where(near_a, S.face[a], S.face[b]), walk=SAG_WALK)
     w = S.append_vertices(M, mf, mb, on_b)
@@ -111,7 +114,8 @@ def split_balance(S: RemeshState, a: np.ndarray, b: np.ndarray, t: np.ndarray) -
 
 
 def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
-                      t: np.ndarray | None = None) -> np.ndarray:
+                      t: np.ndarray | None = None, points: np.ndarray | None = None
+                      ) -> np.ndarray:
     """Which splits of :func:`split_edges` (same arguments; a bool mask) make only faces with a
     disk shape (:func:`.halfedge.disk_shape`) of at least ``DISK_SHAPE_MIN``. Halving the
     short disk edge of a face the map squeezes thin halves its shape; without this test,
@@ -122,7 +126,7 @@ def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     f, c = h // 3, h % 3
     a, b, p = F[f, c], F[f, (c + 1) % 3], F[f, (c + 2) % 3]
     on_b = twin < 0
-    M = _split_points(S, a, b, on_b, t)
+    M = _split_points(S, a, b, on_b, t) if points is None else points
     g, d = np.maximum(twin, 0) // 3, np.maximum(twin, 0) % 3
     q = np.where(on_b, p, F[g, (d + 2) % 3])
     w = S.n + np.arange(len(h))
