@@ -296,7 +296,8 @@ class _Operations:
         rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
         then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
         line where the map is most anisotropic, which no guarded collapse or flip removes) as
-        the degenerate faces are (:meth:`collapse_unguarded`)."""
+        the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
+        rim's vertices, those of its refinement among them, stay)."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -311,7 +312,7 @@ class _Operations:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
-                                "needles_collapsed", NEEDLE_PASSES)
+                                "needles_collapsed", NEEDLE_PASSES, rim=False)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
@@ -320,10 +321,12 @@ class _Operations:
         self.collapse_unguarded(target, lambda: degenerate_faces(self.S), "degenerate_repaired",
                                 passes)
 
-    def collapse_unguarded(self, target: int, faces, key: str, passes: int) -> None:
-        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives,
-        shortest first, under no guard but the result's validity, the count given back by
-        splits, then flips; their number tallied under ``key``."""
+    def collapse_unguarded(self, target: int, faces, key: str, passes: int,
+                           rim: bool = True) -> None:
+        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives
+        (between interior corners unless ``rim``), shortest first, under no guard but the
+        result's validity, the count given back by splits, then flips; their number tallied
+        under ``key``."""
         S = self.S
         for _ in range(passes):
             bad = faces()
@@ -332,6 +335,8 @@ class _Operations:
             S.tally(key, len(bad))
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
+            if not rim:
+                at &= ~S.is_rim
             collapse_short_edges(S, np.inf, np.inf, at=at)
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
