@@ -85,3 +85,61 @@ def test_alligator_paper_map_20k_has_no_degenerate_face():
     assert np.isfinite(corner_angles(r.V, r.F)).all()
     assert (signed_double_areas(r.uv, r.F) > 0).all()
     assert abs(len(r.V) - 20000) <= 400
+
+
+def _flat_or_tent_state(tent: float):
+    """A 37-vertex remesh (the centre and rings at 0.3, 0.6, 0.9) of the unit disk lifted onto
+    :func:`remesh_helpers.disk_map` with a tent of height ``tent`` over radius 0.25."""
+    from remesh_helpers import ccw_delaunay, disk_map, disk_points
+
+    uv_in, F_in, V_in, loop, loc = disk_map(tent)
+    uv = 0.9 * disk_points(3, 6)
+    F = ccw_delaunay(uv)
+    face, bary = loc.locate(uv)
+    is_rim = np.linalg.norm(uv, axis=1) > 0.85
+    return RemeshState(lift(V_in, F_in, face, bary), F, uv, is_rim, face, bary, V_in, F_in,
+                       uv_in, loc, uv_in[loop])
+
+
+def _moved(S, v, to):
+    """``S``'s vertices with ``v`` moved to the disk point ``to``: ``(uv, face, bary, X)``."""
+    uv = S.uv.copy()
+    uv[v] = to
+    face, bary = S.locator.locate(uv)
+    return uv, face, bary, lift(S.V_in, S.F_in, face, bary)
+
+
+def test_sag_veto_drops_a_move_that_bridges_the_tent_and_keeps_one_on_the_flat():
+    """The centre vertex sits on the tent's apex; moved to (0.2, 0) its edge to the far
+    neighbour (−0.3, 0) passes over the apex (the tent is 0.5 high there), far more than the
+    tolerance: both ends of that edge are dropped, but only the moving one is reported. A
+    vertex of the second ring has only flat neighbours: its move is kept."""
+    from pipeline.geometry.remesh.improve import sag_veto
+
+    S = _flat_or_tent_state(0.5)
+    assert np.linalg.norm(S.uv[0]) == 0 and S.X[0, 2] == pytest.approx(0.5)
+    drop = sag_veto(S, 0.05, *_moved(S, 0, [0.2, 0.0]))
+    assert np.flatnonzero(drop).tolist() == [0]
+    ring2 = int(np.flatnonzero(np.isclose(np.linalg.norm(S.uv, axis=1), 0.6))[0])
+    drop = sag_veto(S, 0.05, *_moved(S, ring2, 1.02 * S.uv[ring2]))
+    assert not drop.any()
+
+
+def test_unguarded_collapses_remove_a_cap_and_keep_the_count():
+    """A vertex pushed almost onto the edge between two of its neighbours makes a cap (an
+    angle near 180°, two under 5°); the needle collapses remove it, the count is given back by
+    a split, and the remesh stays a counter-clockwise disk."""
+    from pipeline.geometry.remesh.improve import NEEDLE_DEG, _Operations, skinny_faces
+
+    S = _flat_or_tent_state(0.0)
+    n0 = S.n
+    a, b, p = S.F[np.flatnonzero(~S.is_rim[S.F].any(axis=1))[0]]     # an inner face
+    uv, face, bary, X = _moved(S, p, 0.02 * S.uv[p] + 0.49 * (S.uv[a] + S.uv[b]))
+    S.uv, S.face, S.bary, S.X = uv, face, bary, X
+    assert np.all(signed_double_areas(S.uv, S.F) > 0)
+    assert len(skinny_faces(S.X, S.F, NEEDLE_DEG)) > 0
+    ops = _Operations(S, 0.3, True, 20.0, 0.5, 0.0)
+    ops.collapse_unguarded(n0, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG), "needles", 3)
+    assert len(skinny_faces(S.X, S.F, NEEDLE_DEG)) == 0 and S.log["needles"] >= 1
+    assert S.n == n0 and np.all(signed_double_areas(S.uv, S.F) > 0)
+    assert is_disk(mesh_facts(S.X, S.F))

@@ -104,3 +104,21 @@ def test_snap_rim_moves_the_nearest_rim_sample_onto_a_corner():
     assert np.array_equal(s.points[moved], poly[[3, 11]])
     F = triangulate_samples(s)
     assert np.all(signed_double_areas(s.points, F) > 0)
+
+
+def test_jittered_points_are_the_lattice_moved_by_at_most_a_quarter_spacing():
+    """Every jittered point is the hexagonal lattice point of the same spacing nearest to it,
+    moved by at most ``JITTER/2 · h`` along each axis; none stays on the lattice; the same seed
+    gives the same points."""
+    from pipeline.geometry.remesh.sampling import JITTER, _Polygon, jittered_points
+
+    poly = _Polygon(uneven_polygon())
+    h = 0.05
+    X = jittered_points(poly, h, seed=3)
+    dy = h * np.sqrt(3.0) / 2.0
+    r = np.rint(X[:, 1] / dy)
+    c = np.rint(X[:, 0] / h - 0.5 * (r % 2))
+    off = X - np.column_stack([(c + 0.5 * (r % 2)) * h, r * dy])
+    assert np.abs(off).max() <= JITTER / 2 * h and (np.abs(off).max(axis=1) > 0).all()
+    assert np.array_equal(X, jittered_points(poly, h, seed=3))
+    assert not np.array_equal(X, jittered_points(poly, h, seed=4))

@@ -277,12 +277,14 @@ def test_real_mesh_anisotropy_warning_at_20k(remeshed_20k):
 
 @pytest.mark.parametrize("rel", MESHES)
 def test_real_mesh_remesh_is_isotropic_at_20k(remeshed_20k, rel):
-    """The isotropic rounds: the mean smallest angle is near the equilateral's 60° (≥ 47°)
-    and under 2.5 % of the faces have an angle under 30° (the lift alone: 12–47 %)."""
+    """The isotropic rounds on the jittered lattice: the mean smallest angle is near the
+    equilateral's 60° (≥ 49.5°; measured 49.9–52.0°, the exact lattice keeps the map's shear:
+    47.7–51.4°) and under 1 % of the faces have an angle under 30° (the lift alone: 12–47 %;
+    measured 0.01–0.87 %, igl_camel_b the most)."""
     _, r, q, _ = remeshed_20k(rel)
     t = q["triangles"]
-    assert t["mean_min_angle_deg"] >= 47.0
-    assert t["fraction_min_angle_below_30"] <= 0.025
+    assert t["mean_min_angle_deg"] >= 49.5
+    assert t["fraction_min_angle_below_30"] <= 0.01
 
 
 @pytest.mark.parametrize("rel", MESHES)

@@ -71,10 +71,10 @@ class RemeshConfig(Section):
     spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
                                                                "mesh's units")
     pattern: Literal[PATTERNS] = Field(
-        "hexagonal", description="disk sampling pattern")
+        "jittered", description="disk sampling pattern")
     rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
                                                        "the rim")
-    seed: int = Field(0, description="blue noise seed")
+    seed: int = Field(0, description="jittered and blue noise seed")
     improve: Optional[ImproveConfig] = Field(
         ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
     compare: bool = Field(True, description="measure the plain lift, pymeshlab and decimation "

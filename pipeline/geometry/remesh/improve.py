@@ -33,7 +33,11 @@ The schedule (:func:`improve_remesh`):
    even out the face areas;
 7. the sag refinement again (the smoothing moves vertices off the folds the first one
    caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and flips with
-   the new sag vertices pinned;
+   the new sag vertices pinned; then ``RESHAPE_STEPS`` × (a smoothing step of the vertices
+   around the faces with an angle below ``RESHAPE_DEG`` — the splits and collapses just made
+   leave them skinny — under a veto of every move that takes an edge farther from the
+   surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not without
+   ``relax_iterations``);
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
@@ -41,8 +45,10 @@ The schedule (:func:`improve_remesh`):
    flips;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
-    splits for the count and flips. It is a best effort: a face it cannot fix stays (the
-    report counts the faces below the minimum);
+    splits for the count and flips, then collapses under no guard but validity of an edge of
+    each face still below ``NEEDLE_DEG``. It is a best effort: a face it cannot fix stays (the
+    report counts the faces below the minimum and names the input corners among their
+    corners);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -62,11 +68,11 @@ from ..rows import norms
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .flips import flip_edges
-from .halfedge import edge_table
-from .refine import refine_by_sag, split_long_edges
+from .halfedge import edge_table, touching
+from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
-from .sag import edge_sag
+from .sag import edge_sag, edge_sag_along
 from .state import RemeshState
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
@@ -74,7 +80,11 @@ SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its s
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
 ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
+NEEDLE_DEG = 5.0      # the minimum-angle pass ends with unguarded collapses below this angle,
+NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
+RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
+RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
 
 
 def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips: bool = True,
@@ -119,7 +129,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     pinned_relax_iterations : int
         Smoothing steps after the second sag refinement (step 7).
     min_angle_deg : float
-        The minimum-angle pass's threshold (step 9; 0: no pass).
+        The minimum-angle pass's threshold (step 10; 0: no pass).
     sag_floor : float
         The sag tolerance (refinement and guards) is at least this, in the mesh's units
         (default 0: ``refine_sag × L`` alone). A remesh finer than its input sees the input's
@@ -133,8 +143,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     RemeshState
         ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
         and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
-        ``smoothing`` (6), ``pinned`` (7), ``slivers`` (8), ``rim_fans`` (9), ``guarantee``
-        (10) and ``repair`` (11).
+        ``smoothing`` (6), ``pinned`` and ``reshape`` (7), ``slivers`` (8), ``rim_fans`` (9),
+        ``guarantee`` (10) and ``repair`` (11).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
@@ -163,6 +173,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if refine_sag > 0:
         ops.refine_pinned(target, int(refine_budget * S.n), pinned_relax_iterations)
         lap("pinned")
+        for _ in range(RESHAPE_STEPS if relax_iterations > 0 else 0):
+            ops.reshape(RESHAPE_DEG)
+            lap("reshape")
     ops.remove_slivers(target)
     lap("slivers")
     if open_rim_fans(S):
@@ -207,13 +220,31 @@ class _Operations:
         S.set_faces(F, twin)
         S.tally("flips", k)
 
-    def relax(self) -> None:
-        """One tangential smoothing step of every vertex not on the rim and not locked."""
+    def relax(self, movable: np.ndarray | None = None, veto=None) -> None:
+        """One tangential smoothing step of every vertex not on the rim and not locked (and
+        ``movable``, n bool, if given), without the moves ``veto`` drops
+        (:func:`.relax.tangential_smoothing`)."""
         S = self.S
+        free = ~S.is_rim & ~S.locked
         S.uv, S.face, S.bary, S.X, moved = tangential_smoothing(
             S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
-            ~S.is_rim & ~S.locked, 1, self.relax_step, X=S.X, pullback=S.pullback())
+            free if movable is None else free & movable, 1, self.relax_step, X=S.X,
+            pullback=S.pullback(), veto=veto)
         S.tally("relaxed_vertex_moves", sum(moved))
+
+    def reshape(self, angle_deg: float) -> None:
+        """A smoothing step of the corners of the faces with an angle below ``angle_deg``
+        (those the pinned refinement's splits and collapses left skinny) and of their
+        neighbours, no
+        move taking an edge farther from the surface than the sag tolerance
+        (:func:`sag_veto`), then flips."""
+        S = self.S
+        near = np.zeros(S.n, bool)
+        near[S.F[skinny_faces(S.X, S.F, angle_deg)].ravel()] = True
+        near[S.F[touching(S.F, near)].ravel()] = True
+        if near.any():
+            self.relax(near, None if self.tol is None else partial(sag_veto, S, self.tol))
+            self.flip()
 
     def refine(self, budget: int) -> None:
         """Rim splits (:func:`.rim.refine_rim`), sag splits, one long-edge split, flips, sag
@@ -262,7 +293,11 @@ class _Operations:
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
         """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
         below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
-        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips."""
+        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
+        then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
+        line where the map is most anisotropic, which no guarded collapse or flip removes) as
+        the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
+        rim's vertices, those of its refinement among them, stay)."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -276,19 +311,32 @@ class _Operations:
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
+        self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
+                                "needles_collapsed", NEEDLE_PASSES, rim=False)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
         first, under no guard but the result's validity, the count given back by splits, then
         flips; the operations do not make such faces, so this normally finds none."""
+        self.collapse_unguarded(target, lambda: degenerate_faces(self.S), "degenerate_repaired",
+                                passes)
+
+    def collapse_unguarded(self, target: int, faces, key: str, passes: int,
+                           rim: bool = True) -> None:
+        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives
+        (between interior corners unless ``rim``), shortest first, under no guard but the
+        result's validity, the count given back by splits, then flips; their number tallied
+        under ``key``."""
         S = self.S
         for _ in range(passes):
-            bad = degenerate_faces(S)
+            bad = faces()
             if len(bad) == 0:
                 return
-            S.tally("degenerate_repaired", len(bad))
+            S.tally(key, len(bad))
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
+            if not rim:
+                at &= ~S.is_rim
             collapse_short_edges(S, np.inf, np.inf, at=at)
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
@@ -359,6 +407,27 @@ def degenerate_faces(S: RemeshState) -> np.ndarray:
     bad[degenerate_3d(S.X, S.F)] = True
     bad |= ~(double_areas(S.uv, S.F) > 0)
     return np.flatnonzero(bad)
+
+
+def sag_veto(S: RemeshState, tol: float, uv: np.ndarray, face: np.ndarray, bary: np.ndarray,
+             X: np.ndarray) -> np.ndarray:
+    """The ``veto`` of :func:`.relax.tangential_smoothing` that keeps the remesh on the surface:
+    given ``S`` with its vertices moved to ``uv`` (n×2; located at ``face``, ``bary``, lifted
+    to ``X``), the moving ends (n bool) of the edges with a moving end whose sag at
+    ``SAG_SAMPLES`` points (:func:`.sag.edge_sag_along`) would exceed ``tol`` and grow."""
+    from dataclasses import replace
+
+    moved = np.any(uv != S.uv, axis=1)
+    _, a, b, _ = edge_table(S.F, twin=S.twins())
+    e = np.flatnonzero(moved[a] | moved[b])
+    a, b = a[e], b[e]
+    ts = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)
+    after = edge_sag_along(replace(S, uv=uv, face=face, bary=bary, X=X), a, b, ts)[0]
+    far = np.flatnonzero(after > tol)
+    worse = far[after[far] > edge_sag_along(S, a[far], b[far], ts)[0]]
+    drop = np.zeros(len(uv), bool)
+    drop[a[worse]] = drop[b[worse]] = True
+    return drop & moved
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:

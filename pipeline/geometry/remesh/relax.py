@@ -8,9 +8,11 @@ face under the vertex, ``Δu = J⁺ d`` (:func:`.state.pullback_matrices`), and 
 re-located and lifted by eq. (1), so it stays on the input surface. Moves that would flip a
 face on the disk (or shrink it below 10⁻⁶ of its area, or make it thinner than
 ``DISK_SHAPE_MIN``, :func:`.halfedge.disk_shape`) are halved, up to 6 times, then dropped;
-moves that would leave the image polygon are dropped. On the sphere (:mod:`.domain`) the same
-step is taken in the chordal plane of the input face's spherical image (``J⁺`` then maps to
-3D) and normalised back onto the sphere; the face tests are the sphere's orientation tests.
+moves that would leave the image polygon are dropped, and so are those a ``veto`` refuses
+(:func:`.improve.sag_veto`: the moves that take an edge off the surface). On the sphere
+(:mod:`.domain`) the same step is taken in the chordal plane of the input face's spherical
+image (``J⁺`` then maps to 3D) and normalised back onto the sphere; the face tests are the
+sphere's orientation tests.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
                          locator: PointLocator, uv: np.ndarray, F: np.ndarray,
                          face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
                          iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None,
-                         pullback: np.ndarray | None = None):
+                         pullback: np.ndarray | None = None, veto=None):
     """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input map.
 
     Parameters
@@ -53,6 +55,9 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         The lift of ``uv``, when already computed.
     pullback : (M, 2, 3) float, optional
         :func:`.state.pullback_matrices` of the input, when already computed.
+    veto : callable ``veto(uv, face, bary, X) -> (n,) bool``, optional
+        Given the remesh with every move made (arrays as above), the vertices whose moves are
+        dropped (:func:`.improve.sag_veto`: those that would make an edge leave the surface).
 
     Returns
     -------
@@ -91,6 +96,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         go = np.flatnonzero(np.any(du != 0, axis=1))
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
+        if veto is not None:
+            go, f2, b2 = go[inside], f2[inside], b2[inside]
+            uv2, face2, bary2, X2 = uv.copy(), face.copy(), bary.copy(), X.copy()
+            uv2[go], face2[go], bary2[go] = project(uv[go] + du[go]), f2, b2
+            X2[go] = lift(V_in, F_in, f2, b2)
+            du[veto(uv2, face2, bary2, X2)] = 0.0
         while True:                              # dropping moves can flip a face: drop more
             bad = _too_thin(uv + du, F, area_floor, np.any(du != 0, axis=1))
             if len(bad) == 0:

@@ -89,8 +89,10 @@ class RemeshState:
     surface_middles : bool
         Long edges are split at their middle on the surface rather than in the domain, and no
         split (long or sagging edge) is made whose point lifts next to an end
-        (:func:`.refine.split_long_edges`, :func:`.refine.refine_by_sag`); the sphere remesher
-        sets it, the disk's default keeps its output.
+        (:func:`.refine.split_long_edges`, :func:`.refine.refine_by_sag`); both remeshers
+        set it (on the disk, where the map is most anisotropic — the thin tips of a flat
+        outline — the domain midpoint lifts next to an end or an opposite corner and leaves a
+        needle no collapse may remove).
     """
 
     X: np.ndarray

@@ -78,7 +78,7 @@ def area_scale(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
 
 def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray, *,
                    vertices: int | None = None, spacing: float | None = None,
-                   pattern: str = "hexagonal", rim_relax: int = 3, seed: int = 0,
+                   pattern: str = "jittered", rim_relax: int = 3, seed: int = 0,
                    improve: bool = True, flips: bool = True, relax_iterations: int = 2,
                    relax_step: float = 1.0, max_dihedral_deg: float = 20.0,
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
@@ -102,11 +102,11 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         The requested vertex count (met within 2 %, usually exactly), or …
     spacing : float, optional
         … the target edge length in the mesh's units.
-    pattern : {"hexagonal", "blue_noise", "concentric"}
+    pattern : {"hexagonal", "jittered", "blue_noise", "concentric"}
     rim_relax : int
         ODT sweeps of the sample band along the rim.
     seed : int
-        For ``blue_noise``.
+        For ``jittered`` and ``blue_noise``.
     improve : bool
         Run the improvement pass; ``flips`` … ``refine_budget`` and ``isotropic_iterations``
         … ``min_angle_deg`` are its parameters (:func:`.improve.improve_remesh`).
@@ -245,4 +245,4 @@ def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) 
     locked = np.zeros(n, bool)
     locked[snapped] = True
     return RemeshState(X, F_out, samples.points, is_rim, face, bary, V, F, uv, locator,
-                       uv[boundary], locked)
+                       uv[boundary], locked, surface_middles=True)
