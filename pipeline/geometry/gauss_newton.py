@@ -40,13 +40,10 @@ import scipy.sparse as sp
 from ._kernels import disk_gauss_newton_terms, face_pair_pattern, row_positions
 from .solvers import make_solver
 
-#: the 21 pairs ``a ≤ b`` of the local unknowns (u_0, u_1, u_2, v_0, v_1, v_2) of a face
 #: ``hold_boundary``: the boundary angles' diagonal is scaled by this, so their coupling to the
 #: interior step is ~1/HOLD of it (the step is the interior-only one to rounding) while the
 #: system keeps its pattern and PARDISO/CHOLMOD their analysis for when the boundary moves
 HOLD = 1e12
-_PAIRS = np.array([(a, b) for a in range(6) for b in range(a, 6)], dtype=np.int64)
-
 
 
 class SymmetricPattern(NamedTuple):
@@ -80,11 +77,18 @@ def symmetric_pattern(r: np.ndarray, s: np.ndarray, N: int) -> SymmetricPattern:
                   np.ascontiguousarray(lo, dtype=np.int64), np.ascontiguousarray(hi, dtype=np.int64),
                   slot)
     U.data = np.arange(1, n_upper + 1, dtype=np.float64)
+    full_from_upper, H, rows, diagonal = full_pattern(U)
+    return SymmetricPattern(slot, n_upper, full_from_upper, H, rows, diagonal)
+
+
+def full_pattern(U: sp.csr_matrix):
+    """The full symmetric matrix of an upper triangle ``U`` (CSR, N×N) whose stored values are
+    its entries' numbers ``1 … nnz``: ``(full_from_upper, H, rows, diagonal)`` as in
+    :class:`SymmetricPattern`."""
     full = (U + sp.triu(U, 1).T).tocsr()
     full.sort_indices()
-    rows = np.repeat(np.arange(N), np.diff(full.indptr))
-    return SymmetricPattern(slot, n_upper, full.data.astype(np.int64) - 1, full, rows,
-                            np.flatnonzero(full.indices == rows))
+    rows = np.repeat(np.arange(U.shape[0]), np.diff(full.indptr))
+    return full.data.astype(np.int64) - 1, full, rows, np.flatnonzero(full.indices == rows)
 
 
 class GaussNewton:
@@ -94,7 +98,8 @@ class GaussNewton:
                  solver_kind: str, boundary: np.ndarray | None = None):
         nI = len(interior)
         nB = 0 if boundary is None else len(boundary)
-        self.F, self.interior, self.nI, self.boundary = F, interior, nI, boundary
+        self.F = np.ascontiguousarray(F, dtype=np.int64)
+        self.interior, self.nI, self.boundary = interior, nI, boundary
         self.double_area = double_area
         self.inv_area = 1.0 / double_area
         col = np.full(n, -1, dtype=np.int64)
@@ -115,16 +120,10 @@ class GaussNewton:
         self.n_upper = len(indices)
         U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64), indices, indptr),
                           shape=(N, N))
-        full = (U + sp.triu(U, 1).T).tocsr()
-        full.sort_indices()
-        rows = np.repeat(np.arange(N), np.diff(full.indptr))
-        self.full_from_upper = full.data.astype(np.int64) - 1
-        self.H = full
-        self.diagonal = np.flatnonzero(full.indices == rows)
+        self.full_from_upper, self.H, _, self.diagonal = full_pattern(U)
         self.corner_flags = np.ascontiguousarray(
             np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
             else self.on_boundary.astype(np.uint8))
-        self.F = np.ascontiguousarray(F, dtype=np.int64)
         self._upper = np.empty(self.n_upper)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
