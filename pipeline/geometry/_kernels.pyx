@@ -754,6 +754,22 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
     out[2] = ax * by - ay * bx
 
 
+cdef inline double _sphere_face(const double[:, ::1] S, const int64_t[:, ::1] F, Py_ssize_t t,
+                                double P[3][3], double edge[3][3], double N[3]):
+    """Face ``t`` of ``(S, F)``: its corners ``P``, the edges ``edge[c] = P[c+2] − P[c+1]``
+    opposite them, ``N = (P1 − P0) × (P2 − P0)``; returns ``|N|`` (twice its area)."""
+    cdef Py_ssize_t c, u
+    for c in range(3):
+        for u in range(3):
+            P[c][u] = S[F[t, c], u]
+    for c in range(3):
+        for u in range(3):
+            edge[c][u] = P[(c + 2) % 3][u] - P[(c + 1) % 3][u]
+    _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+           P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+    return sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
+
+
 def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
                               const double[:, ::1] e1, const double[:, ::1] e2,
                               const double[::1] A2, const double[::1] p, double kappa,
@@ -785,16 +801,7 @@ def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
     CK[0], CK[1], CK[2] = 2, 0, 1
     # pass 1: sums
     for t in range(m):
-        for c in range(3):
-            vi = F[t, c]
-            for u in range(3):
-                P[c][u] = S[vi, u]
-        for c in range(3):
-            for u in range(3):
-                edge[c][u] = P[CK[c]][u] - P[CJ[c]][u]
-        _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
-               P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
-        a = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
+        a = _sphere_face(S, F, t, P, edge, N)
         sa += a
         sb += P[0][0] * N[0] + P[0][1] * N[1] + P[0][2] * N[2]
         energy += a * a / A2[t]
@@ -806,18 +813,12 @@ def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
     floor_cot = 1e-3 * cot_abs / (3.0 * m)
     # pass 2: local terms and scatter
     for t in range(m):
+        a = _sphere_face(S, F, t, P, edge, N)
         for c in range(3):
             vi = F[t, c]
             for u in range(3):
-                P[c][u] = S[vi, u]
                 E[c][0][u] = e1[vi, u]
                 E[c][1][u] = e2[vi, u]
-        for c in range(3):
-            for u in range(3):
-                edge[c][u] = P[CK[c]][u] - P[CJ[c]][u]
-        _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
-               P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
-        a = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2])
         b = P[0][0] * N[0] + P[0][1] * N[1] + P[0][2] * N[2]
         nx, ny, nz = N[0] / a, N[1] / a, N[2] / a
         for c in range(3):
@@ -926,6 +927,27 @@ def disk_gauss_newton_terms(const int64_t[:, ::1] F, const double complex[::1] f
                 k += 1
 
 
+cdef void _bucket_pairs(const int64_t[:, ::1] cols, int64_t[::1] at, int64_t[::1] cand,
+                        bint place):
+    """The two passes of a counting sort of every pair ``lo ≤ hi`` of a face's unknowns
+    ``cols[t]`` (``< 0``: none) by ``lo``: with ``place`` false, count them (``at[lo + 1]``);
+    with ``place`` true, write ``hi`` at ``cand[at[lo]]`` and advance ``at[lo]``."""
+    cdef Py_ssize_t t, p, q
+    cdef int64_t lo
+    for t in range(cols.shape[0]):
+        for p in range(6):
+            if cols[t, p] < 0:
+                continue
+            for q in range(p, 6):
+                if cols[t, q] >= 0:
+                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
+                    if place:
+                        cand[at[lo]] = cols[t, p] + cols[t, q] - lo
+                        at[lo] += 1
+                    else:
+                        at[lo + 1] += 1
+
+
 def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
     """The upper triangle of the symmetric N×N pattern that the 21 unknown pairs ``p ≤ q`` of
     every face's six unknowns ``cols[t]`` (``< 0``: none) fill, and where each pair lands:
@@ -936,30 +958,13 @@ def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
     cdef int64_t lo, hi, x
     count_arr = np.zeros(N + 1, dtype=np.int64)
     cdef int64_t[::1] count = count_arr
-    for t in range(m):
-        for p in range(6):
-            if cols[t, p] < 0:
-                continue
-            for q in range(p, 6):
-                if cols[t, q] >= 0:
-                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
-                    count[lo + 1] += 1
+    _bucket_pairs(cols, count, count, False)
     for r in range(N):
         count[r + 1] += count[r]
     fill_arr = count_arr[:N].copy()
     cand_arr = np.empty(count[N], dtype=np.int64)
-    cdef int64_t[::1] fill = fill_arr
     cdef int64_t[::1] cand = cand_arr
-    for t in range(m):
-        for p in range(6):
-            if cols[t, p] < 0:
-                continue
-            for q in range(p, 6):
-                if cols[t, q] >= 0:
-                    lo = cols[t, p] if cols[t, p] < cols[t, q] else cols[t, q]
-                    hi = cols[t, p] + cols[t, q] - lo
-                    cand[fill[lo]] = hi
-                    fill[lo] += 1
+    _bucket_pairs(cols, fill_arr, cand, True)
     indptr_arr = np.zeros(N + 1, dtype=np.int32)
     cdef int[::1] indptr = indptr_arr
     n_unique = 0
