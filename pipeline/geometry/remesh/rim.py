@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..locate import _closest_on_segments, lift
+from ..locate import lift
 from ..metrics import corner_angles
 from ..rows import dots, norms
 from .halfedge import edge_table, independent_edges
 from .refine import split_edges, split_keeps_shape
+from .sampling import arc_parameters
 from .state import RemeshState
 
 #: the rim is held to this × the sag tolerance: a chord that cuts off a boundary vertex is
@@ -36,14 +37,6 @@ def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray
     e = B - A
     t = np.clip(dots(P - A, e) / np.maximum(dots(e, e), 1e-300), 0.0, 1.0)
     return norms(P - (A + t[:, None] * e))
-
-
-def arc_parameters(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Arc length (k,) from the polygon's first vertex to each point on it."""
-    A, B = polygon, np.roll(polygon, -1, axis=0)
-    cum = np.r_[0.0, np.cumsum(norms(B - A))]
-    seg, t, _ = _closest_on_segments(points, A, B)
-    return cum[seg] + t * (cum[seg + 1] - cum[seg])
 
 
 def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):

@@ -111,6 +111,11 @@ class _Polygon:
         cr = np.abs(e[:, 0] * self.A[:, 1] - e[:, 1] * self.A[:, 0])
         self.apothem = float((cr / np.maximum(seg, 1e-300)).min())
 
+    def arc_position(self, points: np.ndarray) -> np.ndarray:
+        """Arc length (k,) from the first vertex to each point's closest point on the polygon."""
+        seg, t, _ = _closest_on_segments(points, self.A, self.B)
+        return self.cum[seg] + t * (self.cum[seg + 1] - self.cum[seg])
+
     def at_arclength(self, s: np.ndarray) -> np.ndarray:
         """Points at arc lengths ``s`` (mod perimeter) from the first vertex: exactly on edges."""
         s = np.mod(s, self.length)
@@ -511,6 +516,12 @@ def _flip_leaves(P: np.ndarray, F: np.ndarray, nb: int) -> np.ndarray:
     return F
 
 
+def arc_parameters(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Arc length (k,) from the first vertex of the closed polygon (k'×2) to each point's
+    closest point on it."""
+    return _Polygon(np.asarray(polygon, dtype=np.float64)).arc_position(points)
+
+
 def snap_rim(samples: DiskSamples, targets: np.ndarray) -> np.ndarray:
     """Move the rim sample nearest (by arc length) to each target — points of the rim
     polygon, e.g. the images of the input boundary's sharp corners — exactly onto it, so that
@@ -521,8 +532,7 @@ def snap_rim(samples: DiskSamples, targets: np.ndarray) -> np.ndarray:
         return np.zeros(0, np.int64)
     poly = _Polygon(samples.polygon)
     T = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
-    seg, t, _ = _closest_on_segments(T, poly.A, poly.B)
-    s = poly.cum[seg] + t * (poly.cum[seg + 1] - poly.cum[seg])
+    s = poly.arc_position(T)
     nb = samples.n_rim
     k = np.rint(s / (poly.length / nb)).astype(np.int64) % nb
     _, first = np.unique(k, return_index=True)
