@@ -235,8 +235,7 @@ class _Operations:
     def reshape(self, angle_deg: float) -> None:
         """A smoothing step of the corners of the faces with an angle below ``angle_deg``
         (those the pinned refinement's splits and collapses left skinny) and of their
-        neighbours, no
-        move taking an edge farther from the surface than the sag tolerance
+        neighbours, no move taking an edge farther from the surface than the sag tolerance
         (:func:`sag_veto`), then flips."""
         S = self.S
         near = np.zeros(S.n, bool)

@@ -96,11 +96,11 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         go = np.flatnonzero(np.any(du != 0, axis=1))
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
+        go, f2, b2 = go[inside], f2[inside], b2[inside]
+        uv_go, X_go = project(uv[go] + du[go]), lift(V_in, F_in, f2, b2)   # the moved state
         if veto is not None:
-            go, f2, b2 = go[inside], f2[inside], b2[inside]
             uv2, face2, bary2, X2 = uv.copy(), face.copy(), bary.copy(), X.copy()
-            uv2[go], face2[go], bary2[go] = project(uv[go] + du[go]), f2, b2
-            X2[go] = lift(V_in, F_in, f2, b2)
+            uv2[go], face2[go], bary2[go], X2[go] = uv_go, f2, b2, X_go
             du[veto(uv2, face2, bary2, X2)] = 0.0
         while True:                              # dropping moves can flip a face: drop more
             bad = _too_thin(uv + du, F, area_floor, np.any(du != 0, axis=1))
@@ -108,10 +108,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
                 break
             du[F[bad].ravel()] = 0.0
         keep = np.any(du[go] != 0, axis=1)
-        go, f2, b2 = go[keep], f2[keep], b2[keep]
-        uv[go] = project(uv[go] + du[go])
-        face[go], bary[go] = f2, b2
-        X[go] = lift(V_in, F_in, f2, b2)
+        go = go[keep]
+        uv[go], face[go], bary[go], X[go] = uv_go[keep], f2[keep], b2[keep], X_go[keep]
         moved_counts.append(int(len(go)))
     return uv, face, bary, X, moved_counts
 
