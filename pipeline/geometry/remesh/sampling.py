@@ -10,13 +10,13 @@ the image's boundary edges), then the *interior* samples. Patterns:
 * ``hexagonal`` — an equilateral lattice of spacing ``h`` (the densest even
   pattern: every interior triangle equilateral, valence 6), clipped to the points at least
   ``margin·h`` (0.6) inside the polygon so that no sliver forms between the lattice and the rim.
-* ``jittered`` (the remesh's default) — the hexagonal lattice with every point moved by a seeded uniform offset of
-  at most ``JITTER/2 · h`` (h/4) along each axis. A regular lattice is a fixed point of the
-  improvement's smoothing however the map shears it on the surface (every 1-ring is the same
-  parallelogram-symmetric hexagon), so the lifted lattice keeps the map's anisotropy; the
-  offsets break that symmetry and let the isotropic rounds and flips reorganise the triangles
-  in the surface's own metric (mean smallest angle ≈ 51° against 47.5–49° on the faces), at
-  the price of less even areas (area CV +0.01–0.03) than the exact lattice.
+* ``jittered`` (the remesh's default) — the hexagonal lattice with every point moved by a
+  seeded uniform offset of at most ``JITTER/2 · h`` (h/4) along each axis. A regular lattice
+  is a fixed point of the improvement's smoothing however the map shears it on the surface
+  (every 1-ring is the same parallelogram-symmetric hexagon), so the lifted lattice keeps the
+  map's anisotropy; the offsets break that symmetry and let the isotropic rounds and flips
+  reorganise the triangles in the surface's own metric (larger smallest angles, see the
+  README's remesh table), at the price of slightly less even areas than the exact lattice.
 * ``blue_noise`` — a Poisson-disk set (every pair ≥ r apart, r = h / 1.33 so that the density
   matches the lattice's), by parallel dart throwing on a grid (Wei 2008); random but even,
   with no lattice direction. Seeded, so reproducible.
