@@ -160,5 +160,10 @@ class GaussNewton:
             out[self.boundary] = f[self.boundary] * np.exp(-1j * x[2 * nI:])
         return out
 
+    def set_areas(self, double_area: np.ndarray) -> None:
+        """Aim the steps at other double areas ``A_τ`` (an area continuation's stage)."""
+        self.double_area = double_area
+        self.inv_area = 1.0 / double_area
+
     def release(self) -> None:
         self.solver.release()

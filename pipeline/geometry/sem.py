@@ -21,7 +21,11 @@ Modes:
   passes through folded maps (negative stretch weights, Remark 4). So:
 
   A. plain SEM steps, keeping the best *flip-free* iterate by the normalized energy
-     ``E_S / (|f(M)|²/|M|)``; this phase ends once ``patience`` steps bring no new best;
+     ``E_S / (|f(M)|²/|M|)``; this phase ends once ``patience`` steps bring no new best. If
+     every plain step folds (many obtuse triangles: a decimated scan), paper mode's damped steps
+     from the start take its place (:func:`_damped_start`). If the map is then still crowded
+     (:func:`crowded`: a face's share of the image below 10⁻³ of its share of the surface), phase
+     B first runs towards intermediate areas (:func:`_area_continuation`);
   B. from that iterate, a monotone descent: each step first tries a Levenberg–Marquardt
      (Gauss–Newton) step on ``E_S`` written as a sum of squared image areas, on the interior,
      later with the boundary angles too (:mod:`.gauss_newton`; ``descent="gauss_newton"``, the
@@ -36,7 +40,9 @@ Modes:
      ``descent="gradient"`` is the schedule without Gauss–Newton: many cheap steps on a kept
      preconditioner factor instead of one factorization per step.
 
-The returned map is the best flip-free map found, so it has no flipped face whenever the
+The returned map is the best flip-free map found (an area continuation's stages are recorded as
+phase ``continuation``, their energy against the true areas, which may rise there; the map it
+ends on is kept only if it is better than its start), so it has no flipped face whenever the
 harmonic start has none (guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
 what remains, and callers treat a non-zero count as failure; ``SEMResult.stop_reason`` says why
 the iteration ended and ``SEMResult.steps`` how many steps of each kind were taken (both go into
@@ -45,6 +51,7 @@ the ``parameterization`` section of ``metrics.json``).
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
 from typing import Literal, Optional
@@ -179,6 +186,16 @@ class _Problem:
                         np.ascontiguousarray(f, dtype=np.complex128), np.empty(E), w)
         return w
 
+    def with_areas(self, double_area: np.ndarray) -> "_Problem":
+        """This problem with other surface double areas ``2|τ|`` (an area continuation stage):
+        the same pattern and solvers, the energy, weights and distortions against them."""
+        stage = copy.copy(self)
+        stage.A2, stage.area_M = double_area, double_area.sum() / 2
+        stage.surface_fractions = vertex_area_fractions(self.F, len(self.V), double_area,
+                                                        self.incidence)
+        stage.weight_map = stretch_weight_map(self.pattern, double_area)
+        return stage
+
     def release(self):
         for s in (self.solver_I, self.solver_P, self.solver_B):
             s.release()
@@ -240,9 +257,11 @@ def damped(f: np.ndarray, g: np.ndarray, alpha: float, boundary: np.ndarray) -> 
 
 
 def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, allowed: int,
-                           rounds: int = 8):
+                           rounds: int | None = None):
     """Keep the previous position of every vertex of a face that ``g`` flips, until ``g`` flips
-    no more faces than ``allowed`` (or ``rounds`` passes); returns ``(g, evaluation)``.
+    no more faces than ``allowed`` (or ``rounds`` passes; by default as many as it takes, which
+    ends at the latest when every vertex of a flipped face is held: such a face is as it was in
+    ``f``); returns ``(g, evaluation)``.
 
     Round 1 holds the vertices of every flipped face; each later round holds the not yet held
     vertices of the faces that the last round re-measured and found flipped (a face still flipped
@@ -255,7 +274,8 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
     if count > allowed:
         g = g.copy()
         VF = problem.incidence
-        hold_rounds(problem.F, VF.indptr, VF.indices, f, g, a2, count, allowed, rounds)
+        hold_rounds(problem.F, VF.indptr, VF.indices, f, g, a2, count, allowed,
+                    len(f) if rounds is None else rounds)
     return g, problem.evaluate(g, a2)
 
 
@@ -457,6 +477,63 @@ PHASE_A_UNFOLD_GAIN = 0.01
 GN_MU, GN_MU_DOWN, GN_MU_UP, GN_RETRIES = 1e-3, 1.0 / 3.0, 2.0, 2
 
 
+#: Area continuation (:func:`_area_continuation`): run when the map phase B starts from has a
+#: face whose share of the image area is below ``CROWDED`` × its share of the surface, in
+#: ``CONTINUATION_STAGES`` stages of at most ``STAGE_ITER`` steps before the last.
+CROWDED = 1e-3
+#: Phase A's fallback when every plain SEM step folds: at most this many damped SEM steps.
+DAMPED_START = 10
+CONTINUATION_STAGES = 8
+STAGE_ITER = 60
+
+
+def crowded(double_area: np.ndarray, image_double_area: np.ndarray) -> bool:
+    """Whether some face's normalized area ratio ``(|f(τ)|/|f(M)|) / (|τ|/|M|)`` is below
+    ``CROWDED``: a map crowded there by orders of magnitude (a Tutte or harmonic start of a
+    mesh with long limbs, which SEM's plain steps could not spread without folding)."""
+    q = (np.abs(image_double_area) / double_area) * (double_area.sum()
+                                                     / np.abs(image_double_area).sum())
+    return bool(q.min() < CROWDED)
+
+
+def continuation_areas(start_double_area: np.ndarray, double_area: np.ndarray, t: float
+                       ) -> np.ndarray:
+    """Double areas ``A_t = a^(1 − t) A^t`` on the geometric path from the start map's normalized
+    image areas ``a`` (t = 0, where that map is equiareal) to the surface's ``A`` (t = 1), scaled
+    to the surface's total."""
+    a = np.maximum(np.abs(start_double_area), np.finfo(float).tiny)
+    log_a, log_A = np.log(a / a.sum()), np.log(double_area / double_area.sum())
+    return np.exp((1.0 - t) * log_a + t * log_A) * double_area.sum()
+
+
+def _area_continuation(problem, newton, f, value, opt, record, it, max_iter):
+    """Phase B towards intermediate surface areas before the true ones: stage ``k = 1 …
+    CONTINUATION_STAGES − 1`` descends (:func:`_descent`, at most ``STAGE_ITER`` steps) towards
+    :func:`continuation_areas` at ``t = k / CONTINUATION_STAGES`` from the last stage's map.
+
+    A map crowded to many orders of magnitude below the surface's areas (:func:`crowded`) is a
+    start from which the fold-free descent on the true areas crawls: every Gauss–Newton step that
+    spreads the crowded faces is cut short by the faces it would flip, for hundreds of steps
+    (decimated scans of hands and heads). Each stage moves the targets by a bounded factor from
+    areas at which its start is already nearly equiareal, so it starts near its own minimizer.
+    Its steps are recorded as phase ``continuation`` with the energy against the true areas.
+    Returns ``(f, evaluation, iterations)``; the caller finishes on the true areas."""
+    start = value[3]
+
+    def staged(i, g, v, alpha, kind):
+        record(i, g, problem.evaluate(g, v[3]), alpha, "continuation")
+
+    for k in range(1, CONTINUATION_STAGES):
+        target = continuation_areas(start, problem.A2, k / CONTINUATION_STAGES)
+        stage = problem.with_areas(target)
+        newton.set_areas(target)
+        f, _, it, _, _ = _descent(stage, newton, f, stage.evaluate(f, value[3]), opt, staged,
+                                  it, min(max_iter, it + STAGE_ITER))
+        value = problem.evaluate(f)
+    newton.set_areas(problem.A2)
+    return f, value, it
+
+
 def _converged_iterations(problem, f, value, opt, record):
     """Phase A (plain SEM, best flip-free iterate) then phase B (monotone descent).
 
@@ -489,14 +566,56 @@ def _converged_iterations(problem, f, value, opt, record):
         elif not (v[2] > 0 and fast(prev, PHASE_A_UNFOLD_GAIN)):
             since_best += 1             # (a folded iterate that still improves fast is waited
         prev = v                        #  for: plain SEM often unfolds within a few steps)
-    if best is not None:
+    if best is not None and best[0] is not f:
         f, value = best
+    elif it < max_iter:
+        # every plain SEM step folded: Algorithm 1's damped steps spread the start instead
+        f, value, it = _damped_start(problem, f, value, opt, record, it, max_iter)
+    newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
+                         problem.B) if opt.descent == "gauss_newton" and it < max_iter else None
+    try:
+        if newton is None or not crowded(problem.A2, value[3]):
+            return _descent(problem, newton, f, value, opt, record, it, max_iter)
+        start = f, value
+        f, value, it = _area_continuation(problem, newton, f, value, opt, record, it, max_iter)
+        f, value, it, status, reason = _descent(problem, newton, f, value, opt, record, it,
+                                                max_iter)
+        if start[1][1] < value[1]:          # the continuation's map is kept only if better
+            return (*start, it, status, reason + "; the area continuation ended above its "
+                    "start, which is returned")
+        return f, value, it, status, reason
+    finally:
+        if newton is not None:
+            problem.gn_factorizations = newton.factorizations
+            newton.release()
+
+
+def _damped_start(problem, f, value, opt, record, it, max_iter):
+    """Paper mode's iterations (:func:`_paper_iterations`, at most ``DAMPED_START`` steps, kept
+    only while they lower ``E_S``) from the start ``f``, recorded after the ``it`` steps taken
+    so far. Where every plain SEM step folds (meshes with many obtuse triangles: a decimated
+    scan), phase A keeps the crowded harmonic start, from which the fold-free descent crawls;
+    the damped SEM steps spread it first. Returns ``(f, evaluation, iterations)``."""
+    steps = min(DAMPED_START, max_iter - it)
+
+    def shifted(i, g, v, alpha, kind):
+        if i > 0:
+            record(it + i, g, v, alpha, kind)
+
+    paper = opt.model_copy(update={"mode": "paper", "max_iter": steps,
+                                   "stop_when_energy_rises": True})
+    f, value, taken, _, _ = _paper_iterations(problem, f, value, paper, shifted)
+    return f, value, it + max(taken, 1)
+
+
+def _descent(problem, newton, f, value, opt, record, it, max_iter):
+    """Phase B from ``f`` (see :func:`_converged_iterations`) up to ``max_iter`` steps in all;
+    ``newton`` is the Gauss–Newton stepper or None. Returns ``(f, evaluation, iterations, status,
+    reason)``."""
     status, quiet = "max_iter", 0
     reason = f"reached max_iter = {max_iter}"
     order = ["gradient", "sem"]
     age = None                      # iterations since the preconditioner was factored
-    newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
-                         problem.B) if opt.descent == "gauss_newton" and it < max_iter else None
     if newton is not None:
         newton.hold_boundary = True  # interior first (one analysis serves both stages)
 
@@ -509,72 +628,67 @@ def _converged_iterations(problem, f, value, opt, record):
         (opt.tol, opt.patience)
     mu = GN_MU
     boundary_turn = False           # Gauss–Newton went quiet: a SEM/gradient step's turn
-    try:
-        while it < max_iter:                                        # phase B
-            w = blocks = None               # stretch weights: only for a SEM or gradient try
-            step = None
-            tries = [(k, False) for k in order]
-            if age is not None and age < opt.refactor_every:
-                tries.insert(0, ("gradient", True))  # first: the stale preconditioner
-            if newton is not None and not boundary_turn:
-                tries[:0] = [("gauss_newton", False)] * (GN_RETRIES + 1)
-            for kind, stale in tries:
-                if kind != "gauss_newton" and w is None:
-                    w = problem.weights(f)
-                    blocks = laplacian_blocks(problem.pattern, w)
-                try:
-                    if kind == "gauss_newton":
-                        g = newton.step(f, value[3], mu)
-                    elif kind == "gradient":
-                        g = gradient_step(problem, f, w, blocks, refactor=not stale)
-                        age = age + 1 if stale else 0
-                    else:
-                        g = sem_step(problem, f, w, opt.inversion)
-                except NotPositiveDefinite:
-                    if kind == "gauss_newton":
-                        mu *= 10.0
-                    continue
-                step = line_search(problem, f, g, value, lambda v: v[1] < value[1],
-                                   opt.min_step, hold=True,
-                                   max_step=1.0 if kind == "gauss_newton" else opt.max_step)
+    while it < max_iter:
+        w = blocks = None               # stretch weights: only for a SEM or gradient try
+        step = None
+        tries = [(k, False) for k in order]
+        if age is not None and age < opt.refactor_every:
+            tries.insert(0, ("gradient", True))  # first: the stale preconditioner
+        if newton is not None and not boundary_turn:
+            tries[:0] = [("gauss_newton", False)] * (GN_RETRIES + 1)
+        for kind, stale in tries:
+            if kind != "gauss_newton" and w is None:
+                w = problem.weights(f)
+                blocks = laplacian_blocks(problem.pattern, w)
+            try:
                 if kind == "gauss_newton":
-                    if step is not None:
-                        mu *= GN_MU_DOWN if step[2] == 1.0 else GN_MU_UP
-                        break
+                    g = newton.step(f, value[3], mu)
+                elif kind == "gradient":
+                    g = gradient_step(problem, f, w, blocks, refactor=not stale)
+                    age = age + 1 if stale else 0
+                else:
+                    g = sem_step(problem, f, w, opt.inversion)
+            except NotPositiveDefinite:
+                if kind == "gauss_newton":
                     mu *= 10.0
-                    continue
-                if step is not None and not (stale and step[2] < 1.0):
-                    break
-                step = None                 # a damped stale step: refactor and try again
-            if step is None and newton is not None and newton.hold_boundary:
-                turn_boundary()
                 continue
-            if step is None:
-                status = "stalled" if quiet < patience else "converged"
-                reason = (f"no Gauss–Newton, SEM or gradient step down to α = {opt.min_step:g} "
-                          "lowers the energy ratio without flipping a face")
+            step = line_search(problem, f, g, value, lambda v: v[1] < value[1],
+                               opt.min_step, hold=True,
+                               max_step=1.0 if kind == "gauss_newton" else opt.max_step)
+            if kind == "gauss_newton":
+                if step is not None:
+                    mu *= GN_MU_DOWN if step[2] == 1.0 else GN_MU_UP
+                    break
+                mu *= 10.0
+                continue
+            if step is not None and not (stale and step[2] < 1.0):
                 break
-            it += 1
-            if kind in order and kind != order[0]:
-                order.reverse()             # try first what worked last
-            g, new, alpha = step
-            quiet = quiet + 1 if (value[1] - new[1]) < tol * value[1] else 0
-            f, value = g, new
-            record(it, f, value, alpha, kind)
-            if boundary_turn and quiet == 0:
-                boundary_turn = False       # the boundary moved: Gauss–Newton again
-            elif quiet >= patience and kind == "gauss_newton" and newton.hold_boundary:
-                turn_boundary()             # interior-only went quiet: the boundary moves too
-                quiet = 0
-            elif quiet >= patience and kind == "gauss_newton":
-                boundary_turn = True        # Gauss–Newton went quiet: a SEM step's turn
-            elif quiet >= patience:
-                status = "converged"
-                reason = (f"the energy ratio fell by less than {tol:g} (relative) in "
-                          f"{patience} steps in a row")
-                break
-    finally:
-        if newton is not None:
-            problem.gn_factorizations = newton.factorizations
-            newton.release()
+            step = None                 # a damped stale step: refactor and try again
+        if step is None and newton is not None and newton.hold_boundary:
+            turn_boundary()
+            continue
+        if step is None:
+            status = "stalled" if quiet < patience else "converged"
+            reason = (f"no Gauss–Newton, SEM or gradient step down to α = {opt.min_step:g} "
+                      "lowers the energy ratio without flipping a face")
+            break
+        it += 1
+        if kind in order and kind != order[0]:
+            order.reverse()             # try first what worked last
+        g, new, alpha = step
+        quiet = quiet + 1 if (value[1] - new[1]) < tol * value[1] else 0
+        f, value = g, new
+        record(it, f, value, alpha, kind)
+        if boundary_turn and quiet == 0:
+            boundary_turn = False       # the boundary moved: Gauss–Newton again
+        elif quiet >= patience and kind == "gauss_newton" and newton.hold_boundary:
+            turn_boundary()             # interior-only went quiet: the boundary moves too
+            quiet = 0
+        elif quiet >= patience and kind == "gauss_newton":
+            boundary_turn = True        # Gauss–Newton went quiet: a SEM step's turn
+        elif quiet >= patience:
+            status = "converged"
+            reason = (f"the energy ratio fell by less than {tol:g} (relative) in "
+                      f"{patience} steps in a row")
+            break
     return f, value, it, status, reason
