@@ -13,7 +13,10 @@ clock, and the process's CPU time, which a loaded shared machine inflates less; 
 one thread), and pass/fail against: ratio ≤ 1.05, 0 flips, SEM wall seconds ≤ 3 below 500k
 faces and ≤ 40 above. Mesh
 names are shared meshes, ``NAME_loopK`` for K Loop subdivisions (``trimesh``'s
-``subdivide_loop``, cached under benchmarks/.cache/). Each converged run is a fresh subprocess.
+``subdivide_loop``, cached under benchmarks/.cache/) and ``NAME_decN`` for the mesh decimated to
+N faces (fast-simplification, aggressiveness 7, border kept: slivers and obtuse triangles, on
+which plain SEM steps fold; ``--meshes decimated`` runs ``DECIMATED_MESHES``). Each converged run
+is a fresh subprocess.
 
 Meshes are made from shared meshes by midpoint subdivision (every face → 4, original vertices
 kept; the shape does not change): gpp_bunny ×4 ≈ 10k faces, igl_camelhead ×4 ≈ 91k faces,
@@ -52,6 +55,10 @@ SIZES = {"10k": ("gpp_bunny", 1), "100k": ("igl_camelhead", 1), "1M": ("igl_lion
 #: the done-when meshes of issue #20: two ~100k scans and a 1.07M-face Loop subdivision
 CONVERGED_MESHES = ["choi_hand", "choi_human_brain", "igl_lion_loop3"]
 #: the other shared disk meshes (--converged --meshes all)
+#: decimated shared meshes (--converged --meshes decimated): inputs with many obtuse triangles
+DECIMATED_MESHES = ["choi_hand_dec10000", "choi_hand_dec20000", "choi_human_brain_dec10000",
+                    "igl_camelhead_dec4000", "igl_lion_dec4000", "choi_human_face_dec5000",
+                    "choi_chinese_lion_dec5000", "igl_camel_b_dec1500"]
 OTHER_MESHES = ["gpp_face", "gpp_bunny", "igl_camel_b", "c3d_alligator", "igl_lion",
                 "igl_camelhead", "choi_human_face", "choi_chinese_lion"]
 REFERENCE_ITERATIONS = 1000
@@ -80,11 +87,19 @@ def subdivided_mesh(size: str) -> Path:
 
 
 def named_mesh(name: str):
-    """``(V, F)`` of a shared mesh (repaired into a disk), or of ``NAME_loopK``: K Loop
-    subdivisions of it, cached as .npz under benchmarks/.cache/."""
+    """``(V, F)`` of a shared mesh (repaired into a disk), of ``NAME_loopK``: K Loop
+    subdivisions of it, cached as .npz under benchmarks/.cache/, or of ``NAME_decN``: it
+    decimated to N faces."""
     from pipeline.stages.load import load_stage
     import trimesh
 
+    base, _, faces = name.partition("_dec")
+    if faces:
+        import fast_simplification as fs
+
+        V, F = named_mesh(base)
+        V, F = fs.simplify(V, F, target_count=int(faces), agg=7, preserve_border=True)
+        return np.asarray(V, np.float64), np.asarray(F, np.int64).reshape(-1, 3)
     base, _, loops = name.partition("_loop")
     loops = int(loops or 0)
     cache = HERE / ".cache" / f"{base}_loop{loops}.npz"
@@ -247,7 +262,8 @@ def main(argv=None) -> None:
     ap.add_argument("--converged", action="store_true",
                     help="issue #20's table: converged mode against the 1000-iteration map")
     ap.add_argument("--meshes", nargs="+", default=CONVERGED_MESHES,
-                    help="with --converged: mesh names, NAME_loopK, or 'all'")
+                    help="with --converged: mesh names, NAME_loopK, NAME_decN, 'all' or "
+                         "'decimated'")
     ap.add_argument("--solver", default="pardiso", help="with --converged: the solver")
     ap.add_argument("--out", default=str(HERE / "outputs"),
                     help="with --converged: folder of the reference cache")
@@ -259,7 +275,8 @@ def main(argv=None) -> None:
         print(json.dumps(converged_run(name, solver, which == "reference")))
         return
     if args.converged:
-        meshes = CONVERGED_MESHES + OTHER_MESHES if args.meshes == ["all"] else args.meshes
+        meshes = {"all": CONVERGED_MESHES + OTHER_MESHES,
+                  "decimated": DECIMATED_MESHES}.get(" ".join(args.meshes), args.meshes)
         rows = converged_table(meshes, args.solver, Path(args.out))
         if args.json:
             Path(args.json).write_text(json.dumps(rows, indent=2))
