@@ -12,6 +12,7 @@ from conftest import (as_complex, boundary_loop, height_field, load_mesh, random
                       stretch_L)
 from pipeline.geometry import metrics
 from pipeline.geometry.laplacian import laplacian_pattern
+from pipeline.geometry.repair import disk_blockers
 from pipeline.geometry.sem import (CROWDED, SEMOptions, _Problem, continuation_areas, crowded,
                                    hold_flipping_vertices, sem_step,
                                    stretch_energy_minimization)
@@ -276,6 +277,7 @@ def _decimated(name: str, faces: int):
     V, F = load_mesh(name)
     V, F = fs.simplify(V, F, target_count=faces, agg=7, preserve_border=True)
     F = np.asarray(F, np.int64).reshape(-1, 3)
+    assert not disk_blockers(F, len(V))            # still a manifold disk
     return V, F, boundary_loop(F, V)
 
 
