@@ -10,7 +10,10 @@ bound), i.e. makes the map equiareal. With ``J = ∂a/∂f_I`` (one row per face
 
     (H + μ diag H) δ = −g,      f_I ← f_I + δ
 
-(Levenberg–Marquardt damping ``μ``; ``H + μ diag H`` is SPD for ``μ > 0``).
+(Levenberg–Marquardt damping ``μ``; ``H + μ diag H`` is SPD for ``μ > 0``). With ``barrier``
+set (the caller does after a step that ran faces into folds), the sums are those of ``E_S``
+plus an orientation barrier ``−β c² Σ A log a`` (:func:`barrier_terms`), which keeps the step
+from running nearly flat image faces into folds.
 
 With ``boundary`` given, the boundary points move too, along the unit circle: each is
 ``f_b = e^{iθ_b}`` with its angle as the unknown (``∂a_τ/∂θ_b = −v_b ∂a_τ/∂u_b + u_b ∂a_τ/∂v_b``),
@@ -44,6 +47,53 @@ from .solvers import make_solver
 #: interior step is ~1/HOLD of it (the step is the interior-only one to rounding) while the
 #: system keeps its pattern and PARDISO/CHOLMOD their analysis for when the boundary moves
 HOLD = 1e12
+#: weight β of the orientation barrier that shapes a step (:func:`barrier_terms`; the caller
+#: sets ``GaussNewton.barrier``), and the excess energy ratio below which it fades
+BARRIER = 0.1
+BARRIER_EXCESS = 1e-3
+
+
+def barrier_terms(a2: np.ndarray, residual: np.ndarray, double_area: np.ndarray, beta: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals and weights that make the Gauss–Newton sums those of the per-face objective
+    ``ψ(a) = r(a)² / (2A) − β c² A log a`` (``r`` the area residual, ``c = Σa / ΣA``).
+
+    The assembly adds ``d w r`` to the gradient and ``d dᵀ w`` to the matrix for a face's area
+    derivatives ``d``; with ``w = ψ''(a) = 1/A + β c² A / a²`` and ``r' = ψ'(a) / ψ''(a)``,
+    ``ψ'(a) = r/A − β c² A / a``, it gives Gauss–Newton on ``ψ``. The barrier's curvature
+    ``β c² A / a²`` exceeds the area term's ``1/A`` only on faces whose normalized ratio
+    ``a / (cA)`` is below ``√β``, and grows without bound as such a face tends to zero area, so
+    the step moves the corners of nearly flat image faces less and pushes their area up
+    (Newton on ``−log a`` at most doubles ``a``) instead of running them into the fold that the
+    flip holding would stop at. Steps are still accepted on ``E_S`` alone
+    (:func:`pipeline.geometry.sem.line_search`): the barrier shapes the direction only. Its
+    weight fades with the excess energy ratio ``R − 1`` below ``BARRIER_EXCESS``
+    (``β R−1 / BARRIER_EXCESS``), so that close to the minimizer the steps are Gauss–Newton's on
+    ``E_S`` and converge to it; at an equiareal map the barrier vanishes.
+
+    Parameters
+    ----------
+    a2 : (m,) float
+        Signed double image areas (all positive on a fold-free map).
+    residual : (m,) float
+        The area residuals ``r`` (``a``, or ``a − cA`` with the boundary moving).
+    double_area : (m,) float
+        The target double areas ``A``.
+    beta : float
+        The barrier weight ``β``.
+
+    Returns
+    -------
+    (residual, weight) : two (m,) float arrays
+        ``r' = ψ'/ψ''`` and ``w = ψ''``.
+    """
+    c = a2.sum() / double_area.sum()
+    a = np.maximum(a2, np.finfo(float).tiny)
+    excess = float(np.sum(a2 * a2 / double_area)) / (c * c * double_area.sum()) - 1.0
+    beta = beta if excess > BARRIER_EXCESS else 0.0
+    push = beta * c * c * double_area / a
+    weight = 1.0 / double_area + push / a
+    return (residual / double_area - push) / weight, weight
 
 
 class SymmetricPattern(NamedTuple):
@@ -128,6 +178,7 @@ class GaussNewton:
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
         self.hold_boundary = False
+        self.barrier = 0.0            # β of barrier_terms (0: Gauss–Newton on E_S alone)
 
     def step(self, f: np.ndarray, a2: np.ndarray, mu: float) -> np.ndarray:
         """The damped Gauss–Newton map from ``f`` (complex, one value per vertex) whose signed
@@ -138,11 +189,14 @@ class GaussNewton:
         residual = a2
         if moving:
             residual = a2 - (a2.sum() / self.double_area.sum()) * self.double_area
+        weight = self.inv_area
+        if self.barrier > 0:
+            residual, weight = barrier_terms(a2, residual, self.double_area, self.barrier)
         N = self.H.shape[0]
         g = np.empty(N)
         upper = self._upper
         disk_gauss_newton_terms(self.F, np.ascontiguousarray(f, dtype=np.complex128),
-                                np.ascontiguousarray(residual, dtype=np.float64), self.inv_area,
+                                np.ascontiguousarray(residual, dtype=np.float64), weight,
                                 self.cols, self.corner_flags, self.face_slots, upper, g)
         H = self.H
         H.data = upper[self.full_from_upper]

@@ -28,7 +28,8 @@ Modes:
      B first runs towards intermediate areas (:func:`_area_continuation`);
   B. from that iterate, a monotone descent: each step first tries a Levenberg–Marquardt
      (Gauss–Newton) step on ``E_S`` written as a sum of squared image areas, on the interior,
-     later with the boundary angles too (:mod:`.gauss_newton`; ``descent="gauss_newton"``, the
+     later with the boundary angles too, its direction shaped by an orientation barrier after
+     a step that ran faces into folds (:mod:`.gauss_newton`; ``descent="gauss_newton"``, the
      default), then the SEM step and the preconditioned gradient step
      ``f_I ← f_I − P⁻¹ (L(f) f)_I``. ``L(f) f`` is half the gradient of ``E_S`` (an identity of
      the paper's Appendix, checked by finite differences in the tests) and ``P`` is ``L_II``
@@ -59,7 +60,7 @@ from typing import Literal, Optional
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from .gauss_newton import GaussNewton
+from .gauss_newton import BARRIER, GaussNewton
 from .harmonic import clamp_positive, harmonic_map
 from .laplacian import (face_double_areas, laplacian_blocks, laplacian_pattern,
                         stretch_weight_map)
@@ -475,6 +476,10 @@ PHASE_A_UNFOLD_GAIN = 0.01
 #: Levenberg–Marquardt damping: the first μ, its factor after a full or a damped step, and how
 #: often μ is raised tenfold before phase B falls back to the SEM and gradient steps.
 GN_MU, GN_MU_DOWN, GN_MU_UP, GN_RETRIES = 1e-3, 1.0 / 3.0, 2.0, 2
+#: μ is kept at least this: below it the step's components along the near-null directions of
+#: the Gauss–Newton matrix (motions that keep every image area) are set by rounding, and the maps
+#: of different solvers drift apart step by step.
+GN_MU_MIN = 1e-4
 
 
 #: Area continuation (:func:`_area_continuation`): run when the map phase B starts from has a
@@ -566,10 +571,11 @@ def _converged_iterations(problem, f, value, opt, record):
         elif not (v[2] > 0 and fast(prev, PHASE_A_UNFOLD_GAIN)):
             since_best += 1             # (a folded iterate that still improves fast is waited
         prev = v                        #  for: plain SEM often unfolds within a few steps)
-    if best is not None and best[0] is not f:
+    accepted = best is not None and best[0] is not f
+    if best is not None:
         f, value = best
-    elif it < max_iter:
-        # every plain SEM step folded: Algorithm 1's damped steps spread the start instead
+    if it < max_iter and (not accepted or (prev[2] > 0 and prev[1] < value[1])):
+        # plain SEM steps fold where they would gain: Algorithm 1's damped steps take over
         f, value, it = _damped_start(problem, f, value, opt, record, it, max_iter)
     newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
                          problem.B) if opt.descent == "gauss_newton" and it < max_iter else None
@@ -608,6 +614,11 @@ def _damped_start(problem, f, value, opt, record, it, max_iter):
     return f, value, it + max(taken, 1)
 
 
+def _folds_more(problem: _Problem, g: np.ndarray, flipped: int) -> bool:
+    """Whether the map ``g`` has more flipped faces than ``flipped``."""
+    return int(np.count_nonzero(signed_double_areas(_as_uv(g), problem.F) <= 0)) > flipped
+
+
 def _descent(problem, newton, f, value, opt, record, it, max_iter):
     """Phase B from ``f`` (see :func:`_converged_iterations`) up to ``max_iter`` steps in all;
     ``newton`` is the Gauss–Newton stepper or None. Returns ``(f, evaluation, iterations, status,
@@ -643,6 +654,9 @@ def _descent(problem, newton, f, value, opt, record, it, max_iter):
             try:
                 if kind == "gauss_newton":
                     g = newton.step(f, value[3], mu)
+                    # the orientation barrier shapes the next step after one that runs faces
+                    # into folds (which the line search then holds back)
+                    newton.barrier = BARRIER if _folds_more(problem, g, value[2]) else 0.0
                 elif kind == "gradient":
                     g = gradient_step(problem, f, w, blocks, refactor=not stale)
                     age = age + 1 if stale else 0
@@ -657,7 +671,7 @@ def _descent(problem, newton, f, value, opt, record, it, max_iter):
                                max_step=1.0 if kind == "gauss_newton" else opt.max_step)
             if kind == "gauss_newton":
                 if step is not None:
-                    mu *= GN_MU_DOWN if step[2] == 1.0 else GN_MU_UP
+                    mu = max(mu * (GN_MU_DOWN if step[2] == 1.0 else GN_MU_UP), GN_MU_MIN)
                     break
                 mu *= 10.0
                 continue
