@@ -65,6 +65,7 @@ from functools import partial
 import numpy as np
 
 from ..rows import norms
+from .angles import raise_min_angles
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .flips import flip_edges
@@ -312,6 +313,12 @@ class _Operations:
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
+        raise_min_angles(S, min_angle_deg, tol)
+        if S.n < target:
+            n0 = S.n
+            split_long_edges(S, 0.0, budget=target - S.n)
+            raise_min_angles(S, min_angle_deg, tol, faces=np.flatnonzero(
+                touching(S.F, np.arange(S.n) >= n0)))
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
