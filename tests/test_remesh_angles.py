@@ -11,6 +11,7 @@ from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh.angles import (forced_by_corners, ideal_points, raise_min_angles,
                                              triangle_min_angles)
+from pipeline.geometry.remesh.improve import skinny_faces
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh.uniform import below_min_angle
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
@@ -49,7 +50,7 @@ def test_a_cap_is_removed_and_every_face_reaches_the_minimum():
     S, _ = _with_cap()
     rim_before = S.uv[S.is_rim].copy()
     assert _smallest(S) < 5.0 and np.all(signed_double_areas(S.uv, S.F) > 0)
-    done = raise_min_angles(S, 20.0, tol=0.05)
+    done = raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0))
     assert done >= 1 and S.log["min_angle_operations"] == done
     assert _smallest(S) >= 20.0
     assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))
@@ -64,7 +65,7 @@ def test_a_locked_vertex_is_neither_moved_nor_removed():
     S, p = _with_cap()
     S.locked[p] = True
     at, n0 = S.uv[p].copy(), S.n
-    assert raise_min_angles(S, 20.0, tol=0.05) >= 1
+    assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) >= 1
     assert S.n == n0 and np.flatnonzero(S.locked).tolist() == [p]
     assert np.array_equal(S.uv[p], at)
     assert np.all(signed_double_areas(S.uv, S.F) > 0)
@@ -92,7 +93,7 @@ def test_a_corner_sharper_than_the_minimum_is_reported_not_fixed():
     flagged. Unlocked, the same face is not forced (no input corner kept there)."""
     S = _kite(lock_tip=True)
     assert abs(np.degrees(corner_angles(S.X, S.F))[0, 0] - 2 * np.degrees(np.arctan(0.13))) < 1e-9
-    assert raise_min_angles(S, 20.0, tol=0.05) == 0
+    assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) == 0
     assert np.array_equal(S.F, [[0, 1, 3], [1, 2, 3]])
     assert forced_by_corners(S, 20.0).tolist() == [True, False]
     below = below_min_angle(S, S.V_in, 20.0)

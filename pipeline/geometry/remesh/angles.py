@@ -123,7 +123,7 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
-                     faces: np.ndarray | None = None) -> int:
+                     faces: np.ndarray) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -135,16 +135,14 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     min_angle_deg : float
     tol : float or None
         The sag tolerance (mesh units); None: no sag or gap guard.
-    faces : (k,) int, optional
-        The faces to start from; default: every face below ``min_angle_deg``.
+    faces : (k,) int
+        The faces to start from (those below ``min_angle_deg``:
+        :func:`.improve.skinny_faces`; others are passed over).
 
     Returns
     -------
     int
     """
-    if faces is None:
-        from .improve import skinny_faces
-        faces = skinny_faces(S.X, S.F, min_angle_deg)
     if len(faces) == 0:
         return 0
     patch = _Patch(S, faces, tol)

@@ -319,7 +319,7 @@ class _Operations:
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
-        raise_min_angles(S, min_angle_deg, tol)
+        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
         if S.n < target:
             n0 = S.n
             split_long_edges(S, 0.0, budget=target - S.n)
