@@ -99,7 +99,7 @@ def test_a_corner_sharper_than_the_minimum_is_reported_not_fixed():
     below = below_min_angle(S, S.V_in, 20.0)
     assert below == {"threshold_deg": 20.0, "faces": 1, "at_input_corners": 1,
                      "input_corner_vertices": [0]}
-    assert forced_by_corners(S, 14.0).tolist() == [False, False]
+    assert forced_by_corners(S, 14.0).tolist() == [False, False]    # 14.8° is not below
     S = _kite(lock_tip=False)
     assert forced_by_corners(S, 20.0).tolist() == [False, False]
     assert below_min_angle(S, S.V_in, 20.0)["at_input_corners"] == 0
@@ -125,3 +125,27 @@ def test_real_mesh_every_face_reaches_the_minimum_but_those_corners_force(rel):
     assert imp["below_min_angle"]["faces"] == int((smallest < 20.0).sum())
     assert imp["below_min_angle"]["faces"] == imp["below_min_angle"]["at_input_corners"]
     assert abs(len(r.V) - 20000) <= 0.02 * 20000
+
+
+def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
+    """A flat fan: a rim tip ``O`` of 30° split by an interior vertex ``M`` into two faces of
+    15° (a rim vertex has at least two faces: one would be a leaf). 30° is more than 20° but
+    less than 2 × 20°: both faces are forced, no operation changes them, the other two faces
+    (at least 22°) are not flagged."""
+    c, s_ = np.cos(np.radians(15)), np.sin(np.radians(15))
+    uv = np.array([[0.0, 0.0], [c, -s_], [1.6, 0.0], [c, s_], [1.0, 0.0]])    # O P1 D P2 M
+    F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [4, 3, 0]])
+    V = np.column_stack([uv, np.zeros(len(uv))])
+    loop = topo.boundary_loops(F)[0]
+    loc = PointLocator(uv, F, loop)
+    face, bary = loc.locate(uv)
+    S = RemeshState(lift(V, F, face, bary), F.copy(), uv.copy(), np.arange(5) < 4, face, bary,
+                    V, F, uv, loc, uv[loop])
+    S.locked[0] = True
+    A = np.degrees(corner_angles(S.X, S.F))
+    assert np.allclose([A[0, 0], A[3, 2]], 15.0) and A[[1, 2]].min() > 20.0
+    assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) == 0
+    assert np.array_equal(S.F, F)
+    assert forced_by_corners(S, 20.0).tolist() == [True, False, False, True]
+    below = below_min_angle(S, S.V_in, 20.0)
+    assert (below["faces"], below["at_input_corners"], below["input_corner_vertices"]) == (2, 2, [0])

@@ -11,24 +11,29 @@ first and tries, on the few vertices around each, the local operations that chan
 * a move of each of its free corners (not on the rim, not locked) to a position that raises
   the smallest angle of the corner's star: candidates towards the average of the ideal points
   of the star's faces (the apex of the equilateral triangle on each opposite edge) and towards
-  the ring's centroid, made on the domain through the pull-back of the input face under it,
-  then located and lifted by eq. (1) (:func:`.relax.tangential_smoothing`'s step),
+  the ring's centroid, made on the domain through the pull-back of the input face under it
+  (:func:`.relax.tangential_smoothing`'s step), and the points of a pattern search around it
+  on the domain (:func:`pattern_points`: where the map is strongly anisotropic the pull-back's
+  step lands far from its aim), each located and lifted by eq. (1),
 * the collapse of each of its edges (either way),
 
 all judged on the surface: an operation is made when the smallest 3D angle of the faces it
-makes is larger than that of the faces it replaces, every new face is counter-clockwise and
+makes is larger than that of the faces it replaces and no more of them are below the
+threshold (a greedy raise of the worst face must not leave more faces below), every new face is counter-clockwise and
 not thinner than ``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no
 face over in 3D, gives no face three rim corners, and — the sag guard of the other steps — no
 new or moved edge is farther from the surface than the sag tolerance unless it was already. A
-collapse also keeps the removed vertex within the tolerance of the new faces, and removes no
-rim vertex (its chords would cut off the input boundary vertices it holds). Each operation
-raises the smallest angle of the faces it touches, so the pass ends; it stops earlier after
+collapse also keeps the removed vertex within the tolerance of the new faces, and removes a
+rim vertex only along the rim and only when the chord that replaces its two stays within
+``RIM_TOL`` × the tolerance of the input boundary vertices it spans (or no farther than the
+two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each operation raises the
+smallest angle of the faces it touches, so the pass ends; it stops earlier after
 ``OPERATIONS_PER_FACE`` operations per face it started from.
 
 What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
 input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
-threshold times the fewest faces a vertex there can have (one on the rim, three inside) is
-forced by the input; any other face is a failure of the pass, counted apart in the report.
+threshold times the fewest faces a vertex there can have (two on the rim, where a single face
+would be a leaf, three inside) is forced by the input; any other face is a failure of the pass, counted apart in the report.
 """
 
 from __future__ import annotations
@@ -43,11 +48,15 @@ from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
+from .rim import RIM_TOL, segment_distances
+from .sampling import arc_parameters
 from .sag import edge_sag_along
 from .state import RemeshState
 
 SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
 MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation target
+PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
+PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
 
 
@@ -92,10 +101,36 @@ def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
     return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
 
 
+def pattern_points(uv: np.ndarray, v: int, star: np.ndarray) -> np.ndarray:
+    """Domain points around ``uv[v]`` for a pattern search of its position: ``PATTERN_DIRS``
+    directions at ``PATTERN_STEPS`` × the shortest domain edge of its star ``star`` (d×3,
+    ``v`` first), in the disk's plane or the sphere's tangent plane at ``uv[v]``.
+
+    Returns
+    -------
+    (PATTERN_DIRS · len(PATTERN_STEPS), 2 or 3) float
+        Not yet projected onto the domain.
+    """
+    u = uv[v]
+    h = norms(uv[star[:, 1:]].reshape(-1, uv.shape[1]) - u).min()
+    theta = 2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS
+    if uv.shape[1] == 2:
+        E = np.eye(2)
+    else:                                           # an orthonormal basis of the tangent plane
+        a = np.eye(3)[np.argmin(np.abs(u))]
+        e1 = np.cross(u, a)
+        e1 /= np.linalg.norm(e1)
+        E = np.vstack([e1, np.cross(u, e1)])
+    dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
+    return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
+
+
 def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
     """Which faces (m bool) have an angle below ``min_angle_deg`` at a locked vertex whose input
     vertex is too sharp for any fan to do better: its angle sum on the input is below
-    ``min_angle_deg`` × the fewest faces a vertex there can have (1 on the rim, 3 inside).
+    ``min_angle_deg`` × the fewest faces a vertex there can have — 3 inside, 2 on the rim (a
+    rim vertex with one face would make a face with three rim corners, a leaf face the remesh
+    never has: paper Def. 4).
 
     A locked vertex lies exactly on its input vertex (:mod:`.corners`): the input vertex is the
     corner of the input face under it with the largest barycentric coordinate."""
@@ -105,7 +140,7 @@ def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
     if len(locked):
         vin = S.F_in[S.face[locked], np.argmax(S.bary[locked], axis=1)]
         sums = input_angle_sums(S)[vin]
-        sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 1, 3)
+        sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 2, 3)
     A = corner_angles_deg(S.X, F)
     return (sharp[F] & (A < min_angle_deg)).any(axis=1)
 
@@ -177,6 +212,8 @@ class _Patch:
         self.next_id = len(S.F)
         self.removed = np.zeros(S.n, bool)
         self.start = [int(t) for t in start]
+        self.boundary = None                  # the input's boundary vertices, when first asked
+        self.threshold = 0.0                  # the minimum angle (degrees), set by :meth:`run`
 
     # ------------------------------------------------------------------------------ measures
 
@@ -187,6 +224,19 @@ class _Patch:
         T = np.asarray(tris, dtype=np.int64)
         X = self.S.X
         return float(triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]]).min())
+
+    def better(self, old, new) -> float | None:
+        """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
+        (a larger smallest angle and no more faces below the threshold), else None."""
+        T_old, T_new = np.asarray(old, np.int64), np.asarray(new, np.int64)
+        X = self.S.X
+        a_old = triangle_min_angles(X[T_old[:, 0]], X[T_old[:, 1]], X[T_old[:, 2]])
+        a_new = triangle_min_angles(X[T_new[:, 0]], X[T_new[:, 1]], X[T_new[:, 2]])
+        if a_new.min() <= a_old.min():
+            return None
+        if (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
+            return None
+        return float(a_new.min())
 
     def shapes_ok(self, tris, uv=None) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
@@ -227,6 +277,7 @@ class _Patch:
     def run(self, min_angle_deg: float, max_operations: int) -> int:
         """Worst face first: the operation at it that raises the smallest angle most, until
         none is below ``min_angle_deg`` or none helps; returns the number made."""
+        self.threshold = min_angle_deg
         heap = [(self.min_angle([self.faces[t]]), t) for t in self.start if t in self.faces]
         heapq.heapify(heap)
         done = 0
@@ -280,8 +331,8 @@ class _Patch:
             f, g, p, q = g, f, q, p
         new = [[a, q, p], [q, b, p]]
         old = [f, g]
-        after = self.min_angle(new)
-        if after <= self.min_angle(old) or not self.shapes_ok(new):
+        after = self.better(old, new)
+        if after is None or not self.shapes_ok(new):
             return None
         if not _same_side(S.X, old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
             return None
@@ -291,14 +342,14 @@ class _Patch:
         return after, commit
 
     def collapse(self, r, k):
-        """Collapse ``r`` into ``k``: ``r`` free (not locked, not on the rim: removing a rim
-        vertex lets its chords cut off the input boundary vertices it held); the link
-        condition; the guards of the module docstring."""
+        """Collapse ``r`` into ``k``: ``r`` free (not locked; on the rim only along a rim edge,
+        under :meth:`rim_chord_ok`); the link condition; the guards of the module
+        docstring."""
         S = self.S
         if not (self.inner[r] and self.inner[k]) or S.locked[r]:
             return None
         shared = self.edge_faces(r, k)
-        if S.is_rim[r]:
+        if S.is_rim[r] and not (len(shared) == 1 and self.tol is not None):
             return None
         ring_r, ring_k = self.ring(r), self.ring(k)
         if len(ring_r & ring_k) != len(shared):
@@ -309,8 +360,8 @@ class _Patch:
         new = [[k if v == r else v for v in self.faces[t]] for t in kept]
         if not new:
             return None
-        after = self.min_angle(new)
-        if after <= self.min_angle(old) or not self.shapes_ok(new):
+        after = self.better(old, new)
+        if after is None or not self.shapes_ok(new):
             return None
         if not _same_side(S.X, [self.faces[t] for t in kept], new):
             return None
@@ -320,6 +371,8 @@ class _Patch:
             gap = norms(P - closest_points_on_triangles(P, S.X[T[:, 0]], S.X[T[:, 1]],
                                                         S.X[T[:, 2]])).min()
             if gap > self.tol:
+                return None
+            if S.is_rim[r] and not self.rim_chord_ok(r, k):
                 return None
             xs = sorted(ring_r - ring_k - {k})
             if not self.sag_ok([k] * len(xs), xs, self.sag([r] * len(xs), xs)):
@@ -331,6 +384,23 @@ class _Patch:
             del self.vf[r]
             return out
         return after, commit
+
+    def rim_chord_ok(self, r, k) -> bool:
+        """Whether the rim chord ``k–x`` that replaces ``k–r`` and ``r–x`` (``x``: ``r``'s other
+        rim neighbour) stays within ``RIM_TOL`` × the tolerance of the input boundary vertices
+        the polygon passes between ``k`` and ``x``, or no farther from them than the two
+        chords it replaces were."""
+        x = next((w for w in self.ring(r) if w != k and len(self.edge_faces(r, w)) == 1), None)
+        if x is None or not self.inner[x]:
+            return False
+        if self.boundary is None:
+            self.boundary = _BoundaryCorners(self.S)
+        X = self.S.X
+        P = self.boundary.between(self.S.uv[[k, r, x]])
+        new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
+        old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
+                                                  for w in pair)) for pair in ((k, r), (r, x))))
+        return bool(new.max(initial=0.0) <= max(RIM_TOL * self.tol, old.max(initial=0.0)))
 
     def move(self, v):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
@@ -353,13 +423,15 @@ class _Patch:
         D = np.array([s * (p - X[v]) for p in targets for s in MOVE_FRACTIONS])
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
-        M = project(S.uv[v] + D @ J.T)
+        M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv, v, star)]))
         mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
         P = lift(S.V_in, S.F_in, mf, mb)
         d = len(star)
-        score = triangle_min_angles(np.repeat(P, d, axis=0), np.tile(B, (len(M), 1)),
-                                    np.tile(C, (len(M), 1))).reshape(len(M), d).min(axis=1)
-        score[~inside] = -1.0
+        each = triangle_min_angles(np.repeat(P, d, axis=0), np.tile(B, (len(M), 1)),
+                                   np.tile(C, (len(M), 1))).reshape(len(M), d)
+        score = each.min(axis=1)
+        more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+        score[~inside | more_below] = -1.0
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
             if score[j] <= before:
@@ -405,6 +477,28 @@ class _Patch:
         S.set_faces(F.astype(S.F.dtype))
         if self.removed.any():
             S.keep_vertices(~self.removed)
+
+
+class _BoundaryCorners:
+    """The input boundary vertices (the image polygon's corners) of ``S``, lifted, and their
+    arc lengths along the polygon."""
+
+    def __init__(self, S: RemeshState):
+        f, bary, _ = S.locator.locate_with_inside(S.polygon)
+        self.polygon = S.polygon
+        self.X = lift(S.V_in, S.F_in, f, bary)
+        self.s = arc_parameters(S.polygon, S.polygon)
+        self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
+
+    def between(self, uv: np.ndarray) -> np.ndarray:
+        """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
+        points, 3×2) that passes through ``uv[1]``."""
+        sa, sv, sb = arc_parameters(self.polygon, uv)
+        span = (sb - sa) % self.length
+        if (sv - sa) % self.length > span:
+            sa, span = sb, (sa - sb) % self.length
+        d = (self.s - sa) % self.length
+        return self.X[(d > 0) & (d < span)]
 
 
 def _rotate_to(f, v) -> list:
