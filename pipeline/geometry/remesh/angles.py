@@ -101,26 +101,29 @@ def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
     return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
 
 
-def pattern_points(uv: np.ndarray, v: int, star: np.ndarray) -> np.ndarray:
-    """Domain points around ``uv[v]`` for a pattern search of its position: ``PATTERN_DIRS``
-    directions at ``PATTERN_STEPS`` × the shortest domain edge of its star ``star`` (d×3,
-    ``v`` first), in the disk's plane or the sphere's tangent plane at ``uv[v]``.
+def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
+    """Domain points around ``u`` for a pattern search of a vertex position: ``PATTERN_DIRS``
+    directions at ``PATTERN_STEPS`` × ``h``, in the disk's plane or in the sphere's tangent
+    plane at ``u``.
+
+    Parameters
+    ----------
+    u : (2,) or (3,) float
+    h : float
+        The step unit (the shortest domain edge around the vertex).
 
     Returns
     -------
     (PATTERN_DIRS · len(PATTERN_STEPS), 2 or 3) float
         Not yet projected onto the domain.
     """
-    u = uv[v]
-    h = norms(uv[star[:, 1:]].reshape(-1, uv.shape[1]) - u).min()
     theta = 2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS
-    if uv.shape[1] == 2:
+    if len(u) == 2:
         E = np.eye(2)
     else:                                           # an orthonormal basis of the tangent plane
-        a = np.eye(3)[np.argmin(np.abs(u))]
-        e1 = np.cross(u, a)
+        e1 = np.cross(u, np.eye(3)[np.argmin(np.abs(u))])
         e1 /= np.linalg.norm(e1)
-        E = np.vstack([e1, np.cross(u, e1)])
+        E = np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
 
@@ -423,7 +426,8 @@ class _Patch:
         D = np.array([s * (p - X[v]) for p in targets for s in MOVE_FRACTIONS])
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
-        M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv, v, star)]))
+        h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
+        M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
         mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
         P = lift(S.V_in, S.F_in, mf, mb)
         d = len(star)

@@ -49,7 +49,8 @@ The schedule (:func:`improve_remesh`):
     each face still below ``NEEDLE_DEG``; then the local operations of
     :func:`.angles.raise_min_angles` (flips, vertex moves, collapses, each made only if it
     raises the smallest 3D angle of the faces it touches, under the sag guard) around the
-    faces still below, the count given back by splits and the operations again around them.
+    faces still below, the count restored (splits, or guarded collapses of the shortest
+    edges) and the operations again around the faces then below.
     A face no operation can raise stays: the report counts the faces below the minimum and,
     among them, those an input corner too sharp for any fan forces
     (:func:`.angles.forced_by_corners`);
@@ -302,8 +303,9 @@ class _Operations:
         line where the map is most anisotropic, which no guarded collapse or flip removes) as
         the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
         rim's vertices, those of its refinement among them, stay); last the local operations
-        of :func:`.angles.raise_min_angles` around the faces still below, the count given
-        back by splits and the operations again around the new vertices."""
+        of :func:`.angles.raise_min_angles` around the faces still below, the count restored
+        (splits, or collapses of the shortest edges under the guards) and the operations
+        again around the faces then below."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -321,10 +323,11 @@ class _Operations:
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
         raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
         if S.n < target:
-            n0 = S.n
             split_long_edges(S, 0.0, budget=target - S.n)
-            raise_min_angles(S, min_angle_deg, tol, faces=np.flatnonzero(
-                touching(S.F, np.arange(S.n) >= n0)))
+        elif S.n > target:
+            collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
+                                 max_sag=tol)
+        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
