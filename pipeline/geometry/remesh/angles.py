@@ -44,6 +44,7 @@ from collections import defaultdict
 import numpy as np
 
 from ..locate import lift
+from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
 from .domain import project
@@ -156,7 +157,6 @@ def input_angle_sums(S: RemeshState) -> np.ndarray:
 
 def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The angle (degrees, m×3) at every corner of the faces ``F`` of ``X``."""
-    from ..metrics import corner_angles
     return np.degrees(corner_angles(X, F))
 
 
@@ -241,13 +241,13 @@ class _Patch:
             return None
         return float(a_new.min())
 
-    def shapes_ok(self, tris, uv=None) -> bool:
+    def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
         ``DISK_SHAPE_MIN`` in the domain and have no three rim corners."""
         T = np.asarray(tris, dtype=np.int64)
         if self.S.is_rim[T].all(axis=1).any():
             return False
-        return bool((disk_shape(self.S.uv if uv is None else uv, T) >= DISK_SHAPE_MIN).all())
+        return bool((disk_shape(self.S.uv, T) >= DISK_SHAPE_MIN).all())
 
     def sag_ok(self, a, b, before) -> bool:
         """Whether no edge ``a–b`` is farther than the tolerance from the surface, or farther
@@ -273,7 +273,7 @@ class _Patch:
 
     def edge_faces(self, a, b) -> list:
         """The patch faces with the edge ``a–b``."""
-        return [t for t in self.vf[a] & self.vf[b]]
+        return list(self.vf[a] & self.vf[b])
 
     # ---------------------------------------------------------------------------- operations
 
