@@ -149,3 +149,16 @@ def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
     assert forced_by_corners(S, 20.0).tolist() == [True, False, False, True]
     below = below_min_angle(S, S.V_in, 20.0)
     assert (below["faces"], below["at_input_corners"], below["input_corner_vertices"]) == (2, 2, [0])
+
+
+@pytest.mark.parametrize("tent", [0.0, 0.5])
+def test_splits_for_the_count_add_exactly_k_and_make_no_face_below(tent):
+    """``split_for_count`` adds the vertices asked for, and no face it makes is below the
+    minimum (or below the faces it replaced): on the flat remesh and over the tent."""
+    from pipeline.geometry.remesh.angles import split_for_count
+
+    S = _flat_or_tent_state(tent)
+    n0, before = S.n, _smallest(S)
+    assert split_for_count(S, 4, 20.0) == 4 and S.n == n0 + 4
+    assert _smallest(S) >= min(20.0, before) - 1e-9
+    assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))

@@ -48,10 +48,11 @@ from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
 from .domain import project
-from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
+from .refine import split_edges, split_keeps_shape
 from .rim import RIM_TOL, segment_distances
 from .sampling import arc_parameters
-from .sag import edge_sag_along
+from .sag import SAG_WALK, edge_sag_along
 from .state import RemeshState
 
 SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
@@ -59,6 +60,7 @@ MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation ta
 PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
 PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
+SPLIT_POOL, SPLIT_POOL_MIN = 8, 64      # split_for_count tries the 8 × k + 64 longest edges
 
 
 def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
@@ -127,6 +129,53 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
         E = np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
+
+
+def split_for_count(S: RemeshState, k: int, min_angle_deg: float, rounds: int = 3) -> int:
+    """Add ``k`` vertices by splitting interior edges at their domain middles
+    (:func:`.refine.split_edges`), the longest first among those whose four new faces keep a
+    smallest 3D angle of at least ``min_angle_deg`` or of the two faces they replace if that
+    is less, and are not too thin on the domain (:func:`.refine.split_keeps_shape`); in
+    rounds of independent splits. Splitting the longest edges alone (:func:`.refine.
+    split_long_edges`) can split one along a crease, where the lifted middle makes a cap.
+
+    Returns
+    -------
+    int
+        The number of splits (fewer than ``k`` if too few edges qualify).
+    """
+    done = 0
+    for _ in range(rounds):
+        if done >= k:
+            break
+        h, a, b, tw = edge_table(S.F, twin=S.twins())
+        inner = tw >= 0
+        h, a, b, tw = h[inner], a[inner], b[inner], tw[inner]
+        length = norms(S.X[a] - S.X[b])
+        order = np.argsort(-length, kind="stable")[:SPLIT_POOL * (k - done) + SPLIT_POOL_MIN]
+        h, a, b, tw, length = h[order], a[order], b[order], tw[order], length[order]
+        keep = split_keeps_shape(S, h, tw)
+        h, a, b, tw, length = h[keep], a[keep], b[keep], tw[keep], length[keep]
+        F = S.F
+        p = F[h // 3, (h % 3 + 2) % 3]
+        q = F[tw // 3, (tw % 3 + 2) % 3]
+        M = project(0.5 * (S.uv[a] + S.uv[b]))
+        mf, mb, _ = S.locator.relocate(M, S.face[a], walk=SAG_WALK)
+        W = lift(S.V_in, S.F_in, mf, mb)
+        X = S.X
+        new = np.min([triangle_min_angles(*corners) for corners in
+                      ((X[a], W, X[p]), (W, X[b], X[p]), (X[b], W, X[q]), (W, X[a], X[q]))],
+                     axis=0)
+        old = np.minimum(triangle_min_angles(X[a], X[b], X[p]),
+                         triangle_min_angles(X[b], X[a], X[q]))
+        ok = np.flatnonzero(new >= np.minimum(old, min_angle_deg))
+        sel = ok[independent_edges(len(F), h[ok], tw[ok], -length[ok])]
+        sel = sel[np.argsort(-length[sel], kind="stable")][:k - done]
+        if len(sel) == 0:
+            break
+        done += split_edges(S, h[sel], tw[sel])
+    S.tally("splits", done)
+    return done
 
 
 def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:

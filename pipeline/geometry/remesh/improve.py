@@ -70,7 +70,7 @@ from functools import partial
 import numpy as np
 
 from ..rows import norms
-from .angles import raise_min_angles
+from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .flips import flip_edges
@@ -317,13 +317,13 @@ class _Operations:
             t = None if tol is None else tol * (1.0 if i < passes // 2 else LOOSE)
             collapse_short_edges(S, L, 2.0 * L, max_gap=t, max_sag=t, at=at)
             if S.n < target:
-                split_long_edges(S, 0.0, budget=target - S.n)
+                split_for_count(S, target - S.n, min_angle_deg)
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
         raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
         if S.n < target:
-            split_long_edges(S, 0.0, budget=target - S.n)
+            split_for_count(S, target - S.n, min_angle_deg)
         elif S.n > target:
             collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
                                  max_sag=tol)
