@@ -43,6 +43,7 @@ from collections import defaultdict
 
 import numpy as np
 
+from .._kernels import corner_cosines
 from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
@@ -64,24 +65,23 @@ SPLIT_POOL, SPLIT_POOL_MIN = 8, 64      # split_for_count tries the 8 × k + 64 
 
 
 def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
-    """The smallest interior angle (degrees) of each triangle ``P0, P1, P2``.
+    """The smallest interior angle (degrees) of each triangle ``P0, P1, P2`` (the largest of
+    its corners' cosines, compiled: :func:`.._kernels.corner_cosines`).
 
     Parameters
     ----------
-    P0, P1, P2 : (k, d) float
-        The corners, 2D or 3D.
+    P0, P1, P2 : (k, 3) float
+        The corners.
 
     Returns
     -------
     (k,) float
         0 for a triangle with coincident corners.
     """
-    def angle(o, p, q):
-        u, v = p - o, q - o
-        cos = dots(u, v) / np.maximum(norms(u) * norms(v), 1e-300)
-        return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-
-    return np.minimum(np.minimum(angle(P0, P1, P2), angle(P1, P2, P0)), angle(P2, P0, P1))
+    k = len(P0)
+    P = np.ascontiguousarray(np.stack([P0, P1, P2], axis=1).reshape(3 * k, 3), dtype=np.float64)
+    cos = corner_cosines(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3)).max(axis=1)
+    return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
 def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
@@ -266,6 +266,10 @@ class _Patch:
         self.start = [int(t) for t in start]
         self.boundary = None                  # the input's boundary vertices, when first asked
         self.threshold = 0.0                  # the minimum angle (degrees), set by :meth:`run`
+        # a vertex's version counts the operations that changed a face at it (or moved a
+        # neighbour); a move refused at a version is refused again until it changes
+        self.version = defaultdict(int)
+        self.no_move = {}
 
     # ------------------------------------------------------------------------------ measures
 
@@ -349,6 +353,8 @@ class _Patch:
             done += 1
             for f in new_faces:
                 if f in self.faces:
+                    for v in self.faces[f]:
+                        self.version[v] += 1
                     a = self.min_angle([self.faces[f]])
                     if a < min_angle_deg:
                         heapq.heappush(heap, (a, f))
@@ -460,6 +466,9 @@ class _Patch:
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
+        if self.no_move.get(v) == self.version[v]:
+            return None                        # refused, and nothing around it changed since
+        self.no_move[v] = self.version[v]
         ids = list(self.vf[v])
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)   # v first
         before = self.min_angle(star)
@@ -500,6 +509,7 @@ class _Patch:
                 def commit(where=where):
                     S.uv[v], S.face[v], S.bary[v], S.X[v] = where
                     return ids
+                del self.no_move[v]
                 return float(score[j]), commit
         return None
 
