@@ -30,6 +30,9 @@ two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each operation r
 smallest angle of the faces it touches, so the pass ends; it stops earlier after
 ``OPERATIONS_PER_FACE`` operations per face it started from.
 
+The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
+whose split makes no face below the threshold.
+
 What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
 input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
 threshold times the fewest faces a vertex there can have (two on the rim, where a single face
