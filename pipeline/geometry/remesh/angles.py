@@ -23,7 +23,8 @@ threshold (a greedy raise of the worst face must not leave more faces below), ev
 not thinner than ``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no
 face over in 3D, gives no face three rim corners, and — the sag guard of the other steps — no
 new or moved edge is farther from the surface than the sag tolerance unless it was already. A
-collapse also keeps the removed vertex within the tolerance of the new faces, and removes a
+collapse or a move also keeps the removed vertex or the old position within the tolerance of
+the new faces (no tip or crease cut off), and a collapse removes a
 rim vertex only along the rim and only when the chord that replaces its two stays within
 ``RIM_TOL`` × the tolerance of the input boundary vertices it spans (or no farther than the
 two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each operation raises the
@@ -31,7 +32,7 @@ smallest angle of the faces it touches, so the pass ends; it stops earlier after
 ``OPERATIONS_PER_FACE`` operations per face it started from.
 
 The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
-whose split makes no face below the threshold.
+whose split makes no face below the threshold (:func:`keeps_min_angle`).
 
 What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
 input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
@@ -43,6 +44,7 @@ from __future__ import annotations
 
 import heapq
 from collections import defaultdict
+from functools import partial
 
 import numpy as np
 
@@ -52,11 +54,11 @@ from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
 from .domain import project
-from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
-from .refine import split_edges, split_keeps_shape
+from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
+from .refine import split_long_edges
 from .rim import RIM_TOL, segment_distances
 from .sampling import arc_parameters
-from .sag import SAG_WALK, edge_sag_along
+from .sag import edge_sag_along, lift_samples
 from .state import RemeshState
 
 SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
@@ -64,7 +66,6 @@ MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation ta
 PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
 PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
-SPLIT_POOL, SPLIT_POOL_MIN = 8, 64      # split_for_count tries the 8 × k + 64 longest edges
 
 
 def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
@@ -134,51 +135,34 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
 
 
-def split_for_count(S: RemeshState, k: int, min_angle_deg: float, rounds: int = 3) -> int:
-    """Add ``k`` vertices by splitting interior edges at their domain middles
-    (:func:`.refine.split_edges`), the longest first among those whose four new faces keep a
-    smallest 3D angle of at least ``min_angle_deg`` or of the two faces they replace if that
-    is less, and are not too thin on the domain (:func:`.refine.split_keeps_shape`); in
-    rounds of independent splits. Splitting the longest edges alone (:func:`.refine.
-    split_long_edges`) can split one along a crease, where the lifted middle makes a cap.
+def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:
+    """Add ``k`` vertices by splitting the longest edges (:func:`.refine.split_long_edges`)
+    among those whose split makes no face below ``min_angle_deg`` or below the faces it
+    replaces (:func:`keeps_min_angle`): the longest edge can lie along a crease, where its
+    lifted middle makes a cap. Returns the number of splits (fewer than ``k`` if too few edges
+    qualify)."""
+    return split_long_edges(S, 0.0, budget=k, accept=partial(keeps_min_angle, S, min_angle_deg))
 
-    Returns
-    -------
-    int
-        The number of splits (fewer than ``k`` if too few edges qualify).
-    """
-    done = 0
-    for _ in range(rounds):
-        if done >= k:
-            break
-        h, a, b, tw = edge_table(S.F, twin=S.twins())
-        inner = tw >= 0
-        h, a, b, tw = h[inner], a[inner], b[inner], tw[inner]
-        length = norms(S.X[a] - S.X[b])
-        order = np.argsort(-length, kind="stable")[:SPLIT_POOL * (k - done) + SPLIT_POOL_MIN]
-        h, a, b, tw, length = h[order], a[order], b[order], tw[order], length[order]
-        keep = split_keeps_shape(S, h, tw)
-        h, a, b, tw, length = h[keep], a[keep], b[keep], tw[keep], length[keep]
-        F = S.F
-        p = F[h // 3, (h % 3 + 2) % 3]
-        q = F[tw // 3, (tw % 3 + 2) % 3]
-        M = project(0.5 * (S.uv[a] + S.uv[b]))
-        mf, mb, _ = S.locator.relocate(M, S.face[a], walk=SAG_WALK)
-        W = lift(S.V_in, S.F_in, mf, mb)
-        X = S.X
-        new = np.min([triangle_min_angles(*corners) for corners in
-                      ((X[a], W, X[p]), (W, X[b], X[p]), (X[b], W, X[q]), (W, X[a], X[q]))],
-                     axis=0)
-        old = np.minimum(triangle_min_angles(X[a], X[b], X[p]),
-                         triangle_min_angles(X[b], X[a], X[q]))
-        ok = np.flatnonzero(new >= np.minimum(old, min_angle_deg))
-        sel = ok[independent_edges(len(F), h[ok], tw[ok], -length[ok])]
-        sel = sel[np.argsort(-length[sel], kind="stable")][:k - done]
-        if len(sel) == 0:
-            break
-        done += split_edges(S, h[sel], tw[sel])
-    S.tally("splits", done)
-    return done
+
+def keeps_min_angle(S: RemeshState, min_angle_deg: float, h: np.ndarray, t: np.ndarray
+                    ) -> np.ndarray:
+    """Which splits of the half-edges ``h`` (``a → b`` in face ``a, b, p``; the face across,
+    if any, ``b, a, q``) at ``t`` along them (k, :func:`.refine.split_edges`) make faces whose
+    smallest 3D angle is at least ``min_angle_deg`` or that of the faces they replace, and —
+    on the rim — no face with three rim corners (k bool). The split point is judged at the
+    lift of the domain point at ``t`` (a rim edge's new vertex goes to the polygon next to
+    it)."""
+    F, X = S.F, S.X
+    tw = S.twins()[h]
+    a, b, p = F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], F[h // 3, (h % 3 + 2) % 3]
+    rim = tw < 0
+    g = np.maximum(tw, 0)
+    q = np.where(rim, p, F[g // 3, (g % 3 + 2) % 3])
+    W, _ = lift_samples(S, a, b, np.asarray(t, dtype=np.float64)[:, None])
+    new = np.min([triangle_min_angles(*corners) for corners in
+                  ((X[a], W, X[p]), (W, X[b], X[p]), (X[b], W, X[q]), (W, X[a], X[q]))], axis=0)
+    old = np.minimum(triangle_min_angles(X[a], X[b], X[p]), triangle_min_angles(X[b], X[a], X[q]))
+    return (new >= np.minimum(old, min_angle_deg)) & ~(rim & S.is_rim[p])
 
 
 def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
@@ -316,6 +300,19 @@ class _Patch:
         limit = np.full(len(sag), self.tol) if before is None else np.maximum(before, self.tol)
         return bool((sag <= limit).all())
 
+    def gap_ok(self, point: np.ndarray, tris) -> bool:
+        """Whether ``point`` (3,), a point of the surface the faces being replaced reach (a
+        removed or moved vertex), is within the tolerance of the new faces ``tris``: what
+        keeps a collapse or a move from cutting off a tip or a crease (the input-to-remesh
+        distance)."""
+        if self.tol is None:
+            return True
+        T = np.asarray(tris, np.int64)
+        X = self.S.X
+        P = np.repeat(point[None], len(T), axis=0)
+        near = closest_points_on_triangles(P, X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
+        return bool(norms(P - near).min() <= self.tol)
+
     def sag(self, a, b) -> np.ndarray | None:
         """The sag of the edges ``a–b`` (None without a tolerance)."""
         if self.tol is None or len(a) == 0:
@@ -427,11 +424,7 @@ class _Patch:
         if not _same_side(S.X, [self.faces[t] for t in kept], new):
             return None
         if self.tol is not None:
-            T = np.asarray(new, np.int64)
-            P = np.repeat(S.X[r][None], len(T), axis=0)
-            gap = norms(P - closest_points_on_triangles(P, S.X[T[:, 0]], S.X[T[:, 1]],
-                                                        S.X[T[:, 2]])).min()
-            if gap > self.tol:
+            if not self.gap_ok(S.X[r], new):
                 return None
             if S.is_rim[r] and not self.rim_chord_ok(r, k):
                 return None
@@ -504,6 +497,7 @@ class _Patch:
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
             ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
+                  and self.gap_ok(old[3], star)
                   and self.sag_ok([v] * len(star), star[:, 1], sag_before))
             S.uv[v], S.face[v], S.bary[v], S.X[v] = old
             if ok:

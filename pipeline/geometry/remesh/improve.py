@@ -45,13 +45,13 @@ The schedule (:func:`improve_remesh`):
    flips;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
-    splits for the count that make no face below the minimum (:func:`.angles.split_for_count`)
-    and flips, then collapses under no guard but validity of an edge of each face still below
-    ``NEEDLE_DEG``; then the local operations of :func:`.angles.raise_min_angles` (flips,
-    vertex moves, collapses, each made only if it raises the smallest 3D angle of the faces it
-    touches, under the sag guard) around the faces still below, the count restored (those
-    splits, or guarded collapses of the shortest edges) and the operations again around the
-    faces then below. A face no operation can raise stays: the report counts the faces below the minimum and,
+    splits for the count and flips, then collapses under no guard but validity of an edge of
+    each face still below ``NEEDLE_DEG``; then the local operations of
+    :func:`.angles.raise_min_angles` (flips, vertex moves, collapses, each made only if it
+    raises the smallest 3D angle of the faces it touches, under the sag guard) around the
+    faces still below, the count restored (splits that make no face below the minimum,
+    :func:`.angles.split_for_count`, or guarded collapses of the shortest edges) and the
+    operations again around the faces then below. A face no operation can raise stays: the report counts the faces below the minimum and,
     among them, those an input corner too sharp for any fan forces
     (:func:`.angles.forced_by_corners`);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
@@ -298,8 +298,7 @@ class _Operations:
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
         """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
         below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
-        rest under guards ``LOOSE`` times looser), the count given back by splits that make no
-        face below the minimum (:func:`.angles.split_for_count`), then flips;
+        rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
         then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
         line where the map is most anisotropic, which no guarded collapse or flip removes) as
         the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
@@ -318,7 +317,7 @@ class _Operations:
             t = None if tol is None else tol * (1.0 if i < passes // 2 else LOOSE)
             collapse_short_edges(S, L, 2.0 * L, max_gap=t, max_sag=t, at=at)
             if S.n < target:
-                split_for_count(S, target - S.n, min_angle_deg)
+                split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
