@@ -46,9 +46,14 @@ The schedule (:func:`improve_remesh`):
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
     splits for the count and flips, then collapses under no guard but validity of an edge of
-    each face still below ``NEEDLE_DEG``. It is a best effort: a face it cannot fix stays (the
-    report counts the faces below the minimum and names the input corners among their
-    corners);
+    each face still below ``NEEDLE_DEG``; then the local operations of
+    :func:`.angles.raise_min_angles` (flips, vertex moves, collapses, each made only if it
+    raises the smallest 3D angle of the faces it touches, under the sag guard) around the
+    faces still below, the count restored (splits that make no face below the minimum,
+    :func:`.angles.split_for_count`, or guarded collapses of the shortest edges) and the
+    operations again around the faces then below. A face no operation can raise stays: the report counts the faces below the minimum and,
+    among them, those an input corner too sharp for any fan forces
+    (:func:`.angles.forced_by_corners`);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -65,6 +70,7 @@ from functools import partial
 import numpy as np
 
 from ..rows import norms
+from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .flips import flip_edges
@@ -296,7 +302,10 @@ class _Operations:
         then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
         line where the map is most anisotropic, which no guarded collapse or flip removes) as
         the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
-        rim's vertices, those of its refinement among them, stay)."""
+        rim's vertices, those of its refinement among them, stay); last the local operations
+        of :func:`.angles.raise_min_angles` around the faces still below, the count restored
+        (splits, or collapses of the shortest edges under the guards) and the operations
+        again around the faces then below."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -312,6 +321,13 @@ class _Operations:
             self.flip()
         self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                 "needles_collapsed", NEEDLE_PASSES, rim=False)
+        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
+        if S.n < target:
+            split_for_count(S, target - S.n, min_angle_deg)
+        elif S.n > target:
+            collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
+                                 max_sag=tol)
+        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest

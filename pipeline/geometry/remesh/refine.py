@@ -214,7 +214,7 @@ def _after_splits(S: RemeshState, n0: int, a: np.ndarray, b: np.ndarray,
 
 
 def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
-                     budget: int | None = None) -> int:
+                     budget: int | None = None, accept=None) -> int:
     """Split edges longer than ``L_max``, longest first, in independent rounds (after the
     first, only the edges at new vertices and the candidates that waited).
 
@@ -227,6 +227,9 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
     max_rounds : int
     budget : int, optional
         At most this many splits.
+    accept : callable ``accept(h, t) -> (k,) bool``, optional
+        Which splits of the half-edges ``h`` at ``t`` along them (:func:`split_edges`) may be
+        made (:func:`.angles.keeps_min_angle`: none that makes a skinny face).
 
     Returns
     -------
@@ -249,6 +252,8 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             cand = cand[balance >= MIN_BALANCE]          # no split point away from both ends
         cand = cand[split_keeps_shape(S, h[cand], twin[cand],
                                       t[h[cand]] if S.surface_middles else None)]
+        if accept is not None and len(cand):
+            cand = cand[accept(h[cand], t[h[cand]])]
         if len(cand) == 0:
             break
         sel = cand[independent_edges(len(S.F), h[cand], twin[cand], -ln[cand])]

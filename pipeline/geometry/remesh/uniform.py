@@ -23,6 +23,7 @@ import numpy as np
 from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
+from .angles import forced_by_corners
 from .corners import boundary_corners, interior_corners
 from .domain import on_sphere
 from .halfedge import double_areas
@@ -223,16 +224,18 @@ def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
 
 def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
     """The faces the minimum-angle pass left below ``min_angle_deg``: how many, how many of
-    them have a corner on a sharp input corner (a locked vertex) and which input vertices those
-    corners are (the nearest input vertex of each)."""
+    them the input forces (an angle below it at a kept input corner too sharp for any fan:
+    :func:`.angles.forced_by_corners`) and which input vertices those corners are (the nearest
+    input vertex of each)."""
     from scipy.spatial import cKDTree
 
     bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
-    at_corner = S.locked[S.F[bad]].any(axis=1) if len(bad) else np.zeros(0, bool)
-    corners = np.unique(S.F[bad[at_corner]][S.locked[S.F[bad[at_corner]]]])
+    forced = forced_by_corners(S, min_angle_deg)[bad] if len(bad) else np.zeros(0, bool)
+    T = S.F[bad[forced]]
+    corners = np.unique(T[S.locked[T]])
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
     return {"threshold_deg": float(min_angle_deg), "faces": int(len(bad)),
-            "at_input_corners": int(at_corner.sum()),
+            "at_input_corners": int(forced.sum()),
             "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)})}
 
 

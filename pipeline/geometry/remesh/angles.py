@@ -1,0 +1,584 @@
+"""The minimum-angle guarantee: local operations on the faces with a small 3D angle.
+
+The faces left with an angle below the threshold after the improvement's global steps are
+few (tens in a 5k remesh) and each has its own reason: a needle on a rim edge between two
+boundary corners kept closer than the spacing, a cap whose long edge is on the rim, a cap or
+needle where the surface is wrinkled finer than the remesh (a quad folded too much for the
+Delaunay flips), a needle at an interior corner. :func:`raise_min_angles` takes them worst
+first and tries, on the few vertices around each, the local operations that change it —
+
+* the flip of each of its interior edges,
+* a move of each of its free corners (not on the rim, not locked) to a position that raises
+  the smallest angle of the corner's star: candidates towards the average of the ideal points
+  of the star's faces (the apex of the equilateral triangle on each opposite edge) and towards
+  the ring's centroid, made on the domain through the pull-back of the input face under it
+  (:func:`.relax.tangential_smoothing`'s step), and the points of a pattern search around it
+  on the domain (:func:`pattern_points`: where the map is strongly anisotropic the pull-back's
+  step lands far from its aim), each located and lifted by eq. (1),
+* the collapse of each of its edges (either way),
+
+all judged on the surface: an operation is made when the smallest 3D angle of the faces it
+makes is larger than that of the faces it replaces and no more of them are below the
+threshold (a greedy raise of the worst face must not leave more faces below), every new face is counter-clockwise and
+not thinner than ``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no
+face over in 3D, gives no face three rim corners, and — the sag guard of the other steps — no
+new or moved edge is farther from the surface than the sag tolerance unless it was already. A
+collapse or a move also keeps the removed vertex or the old position within the tolerance of
+the new faces (no tip or crease cut off), and a collapse removes a
+rim vertex only along the rim and only when the chord that replaces its two stays within
+``RIM_TOL`` × the tolerance of the input boundary vertices it spans (or no farther than the
+two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each operation raises the
+smallest angle of the faces it touches, so the pass ends; it stops earlier after
+``OPERATIONS_PER_FACE`` operations per face it started from.
+
+The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
+whose split makes no face below the threshold (:func:`keeps_min_angle`).
+
+What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
+input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
+threshold times the fewest faces a vertex there can have (two on the rim, where a single face
+would be a leaf, three inside) is forced by the input; any other face is a failure of the pass, counted apart in the report.
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections import defaultdict
+from functools import partial
+
+import numpy as np
+
+from .._kernels import corner_cosines
+from ..locate import lift
+from ..metrics import corner_angles
+from ..remesh_quality import closest_points_on_triangles
+from ..rows import cross, dots, norms
+from .domain import project
+from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
+from .refine import split_long_edges
+from .rim import RIM_TOL, segment_distances
+from .sampling import arc_parameters
+from .sag import edge_sag_along, lift_samples
+from .state import RemeshState
+
+SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
+MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation target
+PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
+PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
+OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
+
+
+def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+    """The smallest interior angle (degrees) of each triangle ``P0, P1, P2`` (the largest of
+    its corners' cosines, compiled: :func:`.._kernels.corner_cosines`).
+
+    Parameters
+    ----------
+    P0, P1, P2 : (k, 3) float
+        The corners.
+
+    Returns
+    -------
+    (k,) float
+        0 for a triangle with coincident corners.
+    """
+    k = len(P0)
+    P = np.ascontiguousarray(np.stack([P0, P1, P2], axis=1).reshape(3 * k, 3), dtype=np.float64)
+    cos = corner_cosines(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3)).max(axis=1)
+    return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
+
+
+def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """For each triangle ``(A, B, C)`` the point ``A*`` that makes it equilateral: on the side
+    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C``.
+
+    Parameters
+    ----------
+    A, B, C : (k, 3) float
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    e = C - B
+    mid = 0.5 * (B + C)
+    w = cross(cross(B - A, C - A), e)               # in the plane, perpendicular to B–C
+    w /= np.maximum(norms(w), 1e-300)[:, None]
+    w *= np.where(dots(w, A - mid) >= 0, 1.0, -1.0)[:, None]
+    return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+
+
+def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
+    """Domain points around ``u`` for a pattern search of a vertex position: ``PATTERN_DIRS``
+    directions at ``PATTERN_STEPS`` × ``h``, in the disk's plane or in the sphere's tangent
+    plane at ``u``.
+
+    Parameters
+    ----------
+    u : (2,) or (3,) float
+    h : float
+        The step unit (the shortest domain edge around the vertex).
+
+    Returns
+    -------
+    (PATTERN_DIRS · len(PATTERN_STEPS), 2 or 3) float
+        Not yet projected onto the domain.
+    """
+    theta = 2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS
+    if len(u) == 2:
+        E = np.eye(2)
+    else:                                           # an orthonormal basis of the tangent plane
+        e1 = np.cross(u, np.eye(3)[np.argmin(np.abs(u))])
+        e1 /= np.linalg.norm(e1)
+        E = np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
+    dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
+    return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
+
+
+def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:
+    """Add ``k`` vertices by splitting the longest edges (:func:`.refine.split_long_edges`)
+    among those whose split makes no face below ``min_angle_deg`` or below the faces it
+    replaces (:func:`keeps_min_angle`): the longest edge can lie along a crease, where its
+    lifted middle makes a cap. Returns the number of splits (fewer than ``k`` if too few edges
+    qualify)."""
+    return split_long_edges(S, 0.0, budget=k, accept=partial(keeps_min_angle, S, min_angle_deg))
+
+
+def keeps_min_angle(S: RemeshState, min_angle_deg: float, h: np.ndarray, t: np.ndarray
+                    ) -> np.ndarray:
+    """Which splits of the half-edges ``h`` (``a → b`` in face ``a, b, p``; the face across,
+    if any, ``b, a, q``) at ``t`` along them (k, :func:`.refine.split_edges`) make faces whose
+    smallest 3D angle is at least ``min_angle_deg`` or that of the faces they replace, and —
+    on the rim — no face with three rim corners (k bool). The split point is judged at the
+    lift of the domain point at ``t`` (a rim edge's new vertex goes to the polygon next to
+    it)."""
+    F, X = S.F, S.X
+    tw = S.twins()[h]
+    a, b, p = F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], F[h // 3, (h % 3 + 2) % 3]
+    rim = tw < 0
+    g = np.maximum(tw, 0)
+    q = np.where(rim, p, F[g // 3, (g % 3 + 2) % 3])
+    W, _ = lift_samples(S, a, b, np.asarray(t, dtype=np.float64)[:, None])
+    new = np.min([triangle_min_angles(*corners) for corners in
+                  ((X[a], W, X[p]), (W, X[b], X[p]), (X[b], W, X[q]), (W, X[a], X[q]))], axis=0)
+    old = np.minimum(triangle_min_angles(X[a], X[b], X[p]), triangle_min_angles(X[b], X[a], X[q]))
+    return (new >= np.minimum(old, min_angle_deg)) & ~(rim & S.is_rim[p])
+
+
+def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
+    """Which faces (m bool) have an angle below ``min_angle_deg`` at a locked vertex whose input
+    vertex is too sharp for any fan to do better: its angle sum on the input is below
+    ``min_angle_deg`` × the fewest faces a vertex there can have — 3 inside, 2 on the rim (a
+    rim vertex with one face would make a face with three rim corners, a leaf face the remesh
+    never has: paper Def. 4).
+
+    A locked vertex lies exactly on its input vertex (:mod:`.corners`): the input vertex is the
+    corner of the input face under it with the largest barycentric coordinate."""
+    F = S.F
+    locked = np.flatnonzero(S.locked)
+    sharp = np.zeros(S.n, bool)
+    if len(locked):
+        vin = S.F_in[S.face[locked], np.argmax(S.bary[locked], axis=1)]
+        sums = input_angle_sums(S)[vin]
+        sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 2, 3)
+    A = corner_angles_deg(S.X, F)
+    return (sharp[F] & (A < min_angle_deg)).any(axis=1)
+
+
+def input_angle_sums(S: RemeshState) -> np.ndarray:
+    """The sum (degrees) of the input faces' angles at each input vertex (N)."""
+    A = corner_angles_deg(S.V_in, S.F_in)
+    return np.bincount(S.F_in.ravel(), A.ravel(), len(S.V_in))
+
+
+def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The angle (degrees, m×3) at every corner of the faces ``F`` of ``X``."""
+    return np.degrees(corner_angles(X, F))
+
+
+def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
+                     faces: np.ndarray) -> int:
+    """Flips, vertex moves and collapses around the faces with a 3D angle below
+    ``min_angle_deg`` (module docstring), worst first; returns the number made.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place: faces rewritten, vertices moved, collapsed vertices dropped (the
+        others keep their order).
+    min_angle_deg : float
+    tol : float or None
+        The sag tolerance (mesh units); None: no sag or gap guard.
+    faces : (k,) int
+        The faces to start from (those below ``min_angle_deg``:
+        :func:`.improve.skinny_faces`; others are passed over).
+
+    Returns
+    -------
+    int
+    """
+    if len(faces) == 0:
+        return 0
+    patch = _Patch(S, faces, tol)
+    done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
+    patch.write_back()
+    S.tally("min_angle_operations", done)
+    return done
+
+
+class _Patch:
+    """The faces within two rings of some faces of ``S``, editable one operation at a time.
+
+    ``faces`` maps a face id (its row in ``S.F``, or a new id past them) to its corners; a
+    vertex is *inner* when all its faces are in the patch (the corners of the start faces and
+    their neighbours): only inner vertices are moved, removed or have their fans changed.
+    Moves are written to ``S`` at once (positions only); faces and removals at the end
+    (:meth:`write_back`)."""
+
+    def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None):
+        self.S, self.tol = S, tol
+        near = np.zeros(S.n, bool)
+        near[S.F[start].ravel()] = True
+        inner = np.zeros(S.n, bool)
+        inner[S.F[touching(S.F, near)].ravel()] = True
+        self.rows = np.flatnonzero(touching(S.F, inner))
+        self.inner = inner
+        self.faces = {int(t): list(map(int, S.F[t])) for t in self.rows}
+        self.vf = defaultdict(set)
+        for t, f in self.faces.items():
+            for v in f:
+                self.vf[v].add(t)
+        self.next_id = len(S.F)
+        self.removed = np.zeros(S.n, bool)
+        self.start = [int(t) for t in start]
+        self.boundary = None                  # the input's boundary vertices, when first asked
+        self.threshold = 0.0                  # the minimum angle (degrees), set by :meth:`run`
+        # a vertex's version counts the operations that changed a face at it (or moved a
+        # neighbour); a move refused at a version is refused again until it changes
+        self.version = defaultdict(int)
+        self.no_move = {}
+
+    # ------------------------------------------------------------------------------ measures
+
+    def min_angle(self, tris) -> float:
+        """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices)."""
+        if len(tris) == 0:
+            return 180.0
+        T = np.asarray(tris, dtype=np.int64)
+        X = self.S.X
+        return float(triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]]).min())
+
+    def better(self, old, new) -> float | None:
+        """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
+        (a larger smallest angle and no more faces below the threshold), else None."""
+        T_old, T_new = np.asarray(old, np.int64), np.asarray(new, np.int64)
+        X = self.S.X
+        a_old = triangle_min_angles(X[T_old[:, 0]], X[T_old[:, 1]], X[T_old[:, 2]])
+        a_new = triangle_min_angles(X[T_new[:, 0]], X[T_new[:, 1]], X[T_new[:, 2]])
+        if a_new.min() <= a_old.min():
+            return None
+        if (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
+            return None
+        return float(a_new.min())
+
+    def shapes_ok(self, tris) -> bool:
+        """Whether the faces ``tris`` are counter-clockwise and not thinner than
+        ``DISK_SHAPE_MIN`` in the domain and have no three rim corners."""
+        T = np.asarray(tris, dtype=np.int64)
+        if self.S.is_rim[T].all(axis=1).any():
+            return False
+        return bool((disk_shape(self.S.uv, T) >= DISK_SHAPE_MIN).all())
+
+    def sag_ok(self, a, b, before) -> bool:
+        """Whether no edge ``a–b`` is farther than the tolerance from the surface, or farther
+        than ``before`` (their sag before the operation, or None for new edges with no
+        predecessor)."""
+        if self.tol is None or len(a) == 0:
+            return True
+        sag = edge_sag_along(self.S, np.asarray(a, np.int64), np.asarray(b, np.int64),
+                             SAG_TS)[0]
+        limit = np.full(len(sag), self.tol) if before is None else np.maximum(before, self.tol)
+        return bool((sag <= limit).all())
+
+    def gap_ok(self, point: np.ndarray, tris) -> bool:
+        """Whether ``point`` (3,), a point of the surface the faces being replaced reach (a
+        removed or moved vertex), is within the tolerance of the new faces ``tris``: what
+        keeps a collapse or a move from cutting off a tip or a crease (the input-to-remesh
+        distance)."""
+        if self.tol is None:
+            return True
+        T = np.asarray(tris, np.int64)
+        X = self.S.X
+        P = np.repeat(point[None], len(T), axis=0)
+        near = closest_points_on_triangles(P, X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
+        return bool(norms(P - near).min() <= self.tol)
+
+    def sag(self, a, b) -> np.ndarray | None:
+        """The sag of the edges ``a–b`` (None without a tolerance)."""
+        if self.tol is None or len(a) == 0:
+            return None
+        return edge_sag_along(self.S, np.asarray(a, np.int64), np.asarray(b, np.int64),
+                              SAG_TS)[0]
+
+    def ring(self, v) -> set:
+        """The neighbours of ``v``."""
+        return {w for t in self.vf[v] for w in self.faces[t] if w != v}
+
+    def edge_faces(self, a, b) -> list:
+        """The patch faces with the edge ``a–b``."""
+        return list(self.vf[a] & self.vf[b])
+
+    # ---------------------------------------------------------------------------- operations
+
+    def run(self, min_angle_deg: float, max_operations: int) -> int:
+        """Worst face first: the operation at it that raises the smallest angle most, until
+        none is below ``min_angle_deg`` or none helps; returns the number made."""
+        self.threshold = min_angle_deg
+        heap = [(self.min_angle([self.faces[t]]), t) for t in self.start if t in self.faces]
+        heapq.heapify(heap)
+        done = 0
+        while heap and done < max_operations:
+            worst, t = heapq.heappop(heap)
+            if t not in self.faces or worst >= min_angle_deg:
+                continue
+            if self.min_angle([self.faces[t]]) != worst:
+                continue                       # changed since: pushed again with its new value
+            best = None
+            for op in self.options(t):
+                if op is not None and (best is None or op[0] > best[0]):
+                    best = op
+            if best is None or best[0] <= worst:
+                continue
+            new_faces = best[1]()
+            done += 1
+            for f in new_faces:
+                if f in self.faces:
+                    for v in self.faces[f]:
+                        self.version[v] += 1
+                    a = self.min_angle([self.faces[f]])
+                    if a < min_angle_deg:
+                        heapq.heappush(heap, (a, f))
+        return done
+
+    def options(self, t):
+        """The candidate operations at face ``t``: ``(smallest angle after, commit)`` or None
+        where one is not allowed."""
+        f = self.faces[t]
+        for i in range(3):
+            a, b = f[i], f[(i + 1) % 3]
+            yield self.flip(a, b)
+            yield self.collapse(a, b)
+            yield self.collapse(b, a)
+        for v in f:
+            yield self.move(v)
+
+    def flip(self, a, b):
+        """Flip the edge ``a–b`` (both faces in the patch, all four corners inner)."""
+        S = self.S
+        tf = self.edge_faces(a, b)
+        if len(tf) != 2 or not all(self.inner[[a, b]]):
+            return None
+        f, g = (self.faces[t] for t in tf)
+        p = next(v for v in f if v not in (a, b))
+        q = next(v for v in g if v not in (a, b))
+        if not (self.inner[p] and self.inner[q]) or q in self.ring(p):
+            return None
+        # the quad a, q, b, p is counter-clockwise when f has a → b; otherwise swap the ends
+        if f[(f.index(a) + 1) % 3] != b:
+            tf = tf[::-1]
+            f, g, p, q = g, f, q, p
+        new = [[a, q, p], [q, b, p]]
+        old = [f, g]
+        after = self.better(old, new)
+        if after is None or not self.shapes_ok(new):
+            return None
+        if not _same_side(S.X, old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
+            return None
+
+        def commit():
+            return self.replace(tf, new)
+        return after, commit
+
+    def collapse(self, r, k):
+        """Collapse ``r`` into ``k``: ``r`` free (not locked; on the rim only along a rim edge,
+        under :meth:`rim_chord_ok`); the link condition; the guards of the module
+        docstring."""
+        S = self.S
+        if not (self.inner[r] and self.inner[k]) or S.locked[r]:
+            return None
+        shared = self.edge_faces(r, k)
+        if S.is_rim[r] and not (len(shared) == 1 and self.tol is not None):
+            return None
+        ring_r, ring_k = self.ring(r), self.ring(k)
+        if len(ring_r & ring_k) != len(shared):
+            return None
+        old_ids = list(self.vf[r])
+        old = [self.faces[t] for t in old_ids]
+        kept = [t for t in old_ids if t not in shared]
+        new = [[k if v == r else v for v in self.faces[t]] for t in kept]
+        if not new:
+            return None
+        after = self.better(old, new)
+        if after is None or not self.shapes_ok(new):
+            return None
+        if not _same_side(S.X, [self.faces[t] for t in kept], new):
+            return None
+        if self.tol is not None:
+            if not self.gap_ok(S.X[r], new):
+                return None
+            if S.is_rim[r] and not self.rim_chord_ok(r, k):
+                return None
+            xs = sorted(ring_r - ring_k - {k})
+            if not self.sag_ok([k] * len(xs), xs, self.sag([r] * len(xs), xs)):
+                return None
+
+        def commit():
+            self.removed[r] = True
+            out = self.replace(old_ids, new)
+            del self.vf[r]
+            return out
+        return after, commit
+
+    def rim_chord_ok(self, r, k) -> bool:
+        """Whether the rim chord ``k–x`` that replaces ``k–r`` and ``r–x`` (``x``: ``r``'s other
+        rim neighbour) stays within ``RIM_TOL`` × the tolerance of the input boundary vertices
+        the polygon passes between ``k`` and ``x``, or no farther from them than the two
+        chords it replaces were."""
+        x = next((w for w in self.ring(r) if w != k and len(self.edge_faces(r, w)) == 1), None)
+        if x is None or not self.inner[x]:
+            return False
+        if self.boundary is None:
+            self.boundary = _BoundaryCorners(self.S)
+        X = self.S.X
+        P = self.boundary.between(self.S.uv[[k, r, x]])
+        new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
+        old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
+                                                  for w in pair)) for pair in ((k, r), (r, x))))
+        return bool(new.max(initial=0.0) <= max(RIM_TOL * self.tol, old.max(initial=0.0)))
+
+    def move(self, v):
+        """Move the free inner vertex ``v`` to the candidate position (module docstring) that
+        raises the smallest angle of its star most, under the guards."""
+        S = self.S
+        if not self.inner[v] or S.is_rim[v] or S.locked[v]:
+            return None
+        if self.no_move.get(v) == self.version[v]:
+            return None                        # refused, and nothing around it changed since
+        self.no_move[v] = self.version[v]
+        ids = list(self.vf[v])
+        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)   # v first
+        before = self.min_angle(star)
+        X = S.X
+        B, C = X[star[:, 1]], X[star[:, 2]]
+        A = np.repeat(X[v][None], len(star), axis=0)
+        ideal = ideal_points(A, B, C)
+        angles = triangle_min_angles(A, B, C)
+        targets = [ideal.mean(axis=0), ideal[np.argmin(angles)],
+                   X[np.unique(star[:, 1:])].mean(axis=0)]
+        normal = cross(B - A, C - A).sum(axis=0)
+        normal /= max(np.linalg.norm(normal), 1e-300)
+        D = np.array([s * (p - X[v]) for p in targets for s in MOVE_FRACTIONS])
+        D -= (D @ normal)[:, None] * normal
+        J = S.pullback()[S.face[v]]
+        h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
+        M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
+        mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
+        P = lift(S.V_in, S.F_in, mf, mb)
+        d = len(star)
+        each = triangle_min_angles(np.repeat(P, d, axis=0), np.tile(B, (len(M), 1)),
+                                   np.tile(C, (len(M), 1))).reshape(len(M), d)
+        score = each.min(axis=1)
+        more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+        score[~inside | more_below] = -1.0
+        sag_before = self.sag([v] * len(star), star[:, 1])
+        for j in np.argsort(-score)[:3]:
+            if score[j] <= before:
+                break
+            old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
+            S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
+            ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
+                  and self.gap_ok(old[3], star)
+                  and self.sag_ok([v] * len(star), star[:, 1], sag_before))
+            S.uv[v], S.face[v], S.bary[v], S.X[v] = old
+            if ok:
+                where = (M[j], mf[j], mb[j], P[j])
+
+                def commit(where=where):
+                    S.uv[v], S.face[v], S.bary[v], S.X[v] = where
+                    return ids
+                del self.no_move[v]
+                return float(score[j]), commit
+        return None
+
+    def replace(self, old_ids, new) -> list:
+        """Replace the faces ``old_ids`` by ``new`` (lists of corners); returns the new ids
+        (the old ones reused first)."""
+        for t in old_ids:
+            for v in self.faces.pop(t):
+                if v in self.vf:
+                    self.vf[v].discard(t)
+        ids = list(old_ids[:len(new)])
+        while len(ids) < len(new):
+            ids.append(self.next_id)
+            self.next_id += 1
+        for t, f in zip(ids, new):
+            self.faces[t] = list(f)
+            for v in f:
+                self.vf[v].add(t)
+        return ids
+
+    def write_back(self) -> None:
+        """The patch's faces into ``S.F`` (those outside it keep their rows), the removed
+        vertices dropped."""
+        S = self.S
+        keep = np.ones(len(S.F), bool)
+        keep[self.rows] = False
+        F = np.vstack([S.F[keep], np.asarray(list(self.faces.values()), np.int64).reshape(-1, 3)])
+        S.set_faces(F.astype(S.F.dtype))
+        if self.removed.any():
+            S.keep_vertices(~self.removed)
+
+
+class _BoundaryCorners:
+    """The input boundary vertices (the image polygon's corners) of ``S``, lifted, and their
+    arc lengths along the polygon."""
+
+    def __init__(self, S: RemeshState):
+        f, bary, _ = S.locator.locate_with_inside(S.polygon)
+        self.polygon = S.polygon
+        self.X = lift(S.V_in, S.F_in, f, bary)
+        self.s = arc_parameters(S.polygon, S.polygon)
+        self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
+
+    def between(self, uv: np.ndarray) -> np.ndarray:
+        """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
+        points, 3×2) that passes through ``uv[1]``."""
+        sa, sv, sb = arc_parameters(self.polygon, uv)
+        span = (sb - sa) % self.length
+        if (sv - sa) % self.length > span:
+            sa, span = sb, (sa - sb) % self.length
+        d = (self.s - sa) % self.length
+        return self.X[(d > 0) & (d < span)]
+
+
+def _rotate_to(f, v) -> list:
+    """The face ``f`` (3 vertices) with its corners rotated so that ``v`` comes first."""
+    i = f.index(v)
+    return [f[i], f[(i + 1) % 3], f[(i + 2) % 3]]
+
+
+def _same_side(X: np.ndarray, old, new) -> bool:
+    """Whether each new face's 3D normal agrees (positive dot product) with the summed normal
+    of the old faces: no face of the operation turns over on the surface."""
+    To, Tn = np.asarray(old, np.int64), np.asarray(new, np.int64)
+    n_old = cross(X[To[:, 1]] - X[To[:, 0]], X[To[:, 2]] - X[To[:, 0]]).sum(axis=0)
+    n_new = cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
+    return bool((n_new @ n_old > 0).all())
+
+
+def _same_side_points(A0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
+    """Whether every face ``(A, B, C)`` keeps the side its normal points to when ``A`` moves
+    from ``A0`` to ``A1`` (3D; a move that turns a face over is refused)."""
+    n0 = cross(B - A0, C - A0)
+    n1 = cross(B - A1, C - A1)
+    return bool((dots(n0, n1) > 0).all())
