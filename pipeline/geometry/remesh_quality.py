@@ -14,7 +14,8 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
 * **Distance to the input** (:func:`surface_distance`): samples on each surface — all its
   vertices, edge midpoints and face centroids, plus ``n_random`` points drawn uniformly by area
   (fixed seed) — and the *exact* Euclidean distance of every sample to the other surface's
-  triangles (:func:`point_mesh_distance`). One-sided maxima, the two-sided Hausdorff distance
+  triangles (:class:`MeshDistance`); a midpoint or centroid that the distance's Lipschitz
+  bound keeps below the largest distance found is left out of the maximum it cannot change. One-sided maxima, the two-sided Hausdorff distance
   ``max(h(A→B), h(B→A))`` (a sampled lower bound of the continuous value; with these densities
   it agrees with MeshLab's sampled Hausdorff filter) and the two-sided RMS distance
   ``sqrt((mean_A d² + mean_B d²) / 2)`` over the area-uniform samples only (an area-weighted
@@ -30,7 +31,8 @@ from .laplacian import face_double_areas
 from .metrics import corner_angles
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
-           "MeshDistance", "z_order", "point_mesh_distance", "surface_samples", "surface_distance", "remesh_quality",
+           "MeshDistance", "z_order", "point_mesh_distance", "surface_samples",
+           "surface_distance", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
