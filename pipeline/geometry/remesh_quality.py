@@ -14,10 +14,11 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
 * **Distance to the input** (:func:`surface_distance`): samples on each surface — all its
   vertices, edge midpoints and face centroids, plus ``n_random`` points drawn uniformly by area
   (fixed seed) — and the *exact* Euclidean distance of every sample to the other surface's
-  triangles (:class:`MeshDistance`); a midpoint or centroid that the distance's Lipschitz
-  bound keeps below the largest distance found is left out of the maximum it cannot change. One-sided maxima, the two-sided Hausdorff distance
-  ``max(h(A→B), h(B→A))`` (a sampled lower bound of the continuous value; with these densities
-  it agrees with MeshLab's sampled Hausdorff filter) and the two-sided RMS distance
+  triangles (:class:`MeshDistance`; a midpoint or centroid that the distance's Lipschitz
+  bound keeps below the largest distance found is not measured: it cannot change the
+  maximum). One-sided maxima, the two-sided Hausdorff distance ``max(h(A→B), h(B→A))`` (a
+  sampled lower bound of the continuous value; with these densities it agrees with MeshLab's
+  sampled Hausdorff filter) and the two-sided RMS distance
   ``sqrt((mean_A d² + mean_B d²) / 2)`` over the area-uniform samples only (an area-weighted
   mean). Reported in the input's units and in % of the input's bounding-box diagonal.
 """
