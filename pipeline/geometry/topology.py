@@ -106,13 +106,35 @@ def _sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return keys[order], order
 
 
+#: ``(F, groups)`` of the last :func:`_halfedge_groups` call (a private copy of ``F``)
+_LAST_GROUPS: tuple | None = None
+
+
 def _halfedge_groups(F: np.ndarray, n: int | None = None):
     """Half-edges grouped by undirected edge.
 
     Returns ``(order, start, size, edge_of)``: ``order`` lists the half-edges sorted by edge (ties
     by half-edge index), the edge ``e`` owns ``order[start[e] : start[e] + size[e]]``, and
-    ``edge_of[h]`` is the edge of half-edge ``h``. Edges are numbered in ``(min, max)`` order.
+    ``edge_of[h]`` is the edge of half-edge ``h``. Edges are numbered in ``(min, max)`` order,
+    so the result does not depend on ``n`` (any count above the largest index).
+
+    The repair's checks and the measures of a mesh ask for the groups of one face array a dozen
+    times: the last result is kept (read-only) with a copy of its faces and returned again while
+    the faces are equal.
     """
+    global _LAST_GROUPS
+    last = _LAST_GROUPS
+    if last is not None and last[0].shape == F.shape and np.array_equal(last[0], F):
+        return last[1]
+    groups = _group_halfedges(F, n)
+    for array in groups:
+        array.setflags(write=False)
+    _LAST_GROUPS = (F.copy(), groups)
+    return groups
+
+
+def _group_halfedges(F: np.ndarray, n: int | None):
+    """:func:`_halfedge_groups` computed: one sort of the half-edges' undirected keys."""
     n = _n_of(F, n)
     keys = _edge_keys(F, n)
     sk, order = _sort_with_index(keys)
@@ -144,7 +166,7 @@ def edges_with_faces(F) -> tuple[np.ndarray, np.ndarray]:
     a, b = half_edges(F)
     h = order[start]
     E = np.stack([np.minimum(a[h], b[h]), np.maximum(a[h], b[h])], axis=1)
-    return E, size
+    return E, size.copy()
 
 
 def boundary_edges(F) -> np.ndarray:
