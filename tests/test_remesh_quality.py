@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import require_data
-from pipeline.geometry.remesh_quality import (MeshDistance, closest_points_on_triangles, is_disk,
+from pipeline.geometry.remesh_quality import (MeshDistance, SampledSurface,
+                                              closest_points_on_triangles, is_disk,
                                               mesh_facts, point_mesh_distance, surface_distance,
                                               surface_samples, triangle_quality, valence_stats,
                                               z_order)
@@ -100,6 +101,18 @@ def test_hausdorff_is_the_largest_distance_of_every_sample():
         assert d[key]["samples"] == len(S) + len(R)
         if key == "output_to_input":
             assert every[len(Va):len(S)].max() > max(every[:len(Va)].max(), every[len(S):].max())
+
+
+def test_a_sampled_reference_measures_every_remesh_as_a_fresh_one():
+    fine, F = lattice_mesh(24, 0.5)
+    fine[:, 2] = 0.1 * np.sin(fine[:, 0])
+    reference = SampledSurface(fine, F, 2000, seed=3)
+    for k in (5, 8):
+        coarse, G = lattice_mesh(k, 12 / k)
+        assert surface_distance(fine, F, coarse, G, 2000, 3, reference=reference) == \
+            surface_distance(fine, F, coarse, G, 2000, 3)
+    with pytest.raises(ValueError, match="n_random=2000"):
+        surface_distance(fine, F, coarse, G, 1000, 3, reference=reference)
 
 
 def test_hausdorff_agrees_with_meshlab():

@@ -32,8 +32,8 @@ from .laplacian import face_double_areas
 from .metrics import corner_angles
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
-           "MeshDistance", "z_order", "point_mesh_distance", "surface_samples",
-           "surface_distance", "remesh_quality",
+           "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
+           "surface_samples", "surface_distance", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
@@ -311,30 +311,67 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
     return max(best, float(d.max(initial=0.0)))
 
 
+class SampledSurface:
+    """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
+    ``n_random`` area-uniform samples (seeded) and, made on first use, its AABB tree
+    (:class:`MeshDistance`). The input of a remesh is one such surface for every method it is
+    compared with: its samples are drawn and its tree built once."""
+
+    def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0):
+        self.V, self.F = V, F
+        self.n_random, self.seed = int(n_random), seed
+        self.E, _ = topo.edges_with_faces(F)
+        self.random = _random_samples(V, F, n_random, seed)
+        self._distance = None
+
+    @property
+    def distance(self) -> MeshDistance:
+        if self._distance is None:
+            self._distance = MeshDistance(self.V, self.F)
+        return self._distance
+
+    @property
+    def sample_count(self) -> int:
+        """Vertices, edge midpoints, face centroids and random samples."""
+        return len(self.V) + len(self.E) + len(self.F) + len(self.random)
+
+    def distances_to(self, other: SampledSurface) -> tuple[float, float]:
+        """``(largest distance of any sample, mean squared distance of the random samples)``
+        from this surface's samples to ``other``."""
+        d, _ = other.distance(np.vstack([self.V, self.random]))
+        d_vertex, d_random = d[:len(self.V)], d[len(self.V):]
+        largest = _structured_max(self.V, self.F, self.E, d_vertex, float(d_random.max()),
+                                  other.distance)
+        return largest, float(np.mean(d_random ** 2))
+
+
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
-                     n_random: int = 200_000, seed: int = 0, scale: float | None = None
-                     ) -> dict:
+                     n_random: int = 200_000, seed: int = 0, scale: float | None = None,
+                     reference: SampledSurface | None = None) -> dict:
     """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference.
 
     ``scale`` (default: the reference's bounding-box diagonal) turns the distances into the
-    ``*_rel`` fractions. See the module docstring for the sampling; the edge midpoints and face
+    ``*_rel`` fractions. ``reference``: the reference ``(V_ref, F_ref)`` already sampled with
+    the same ``n_random`` and ``seed`` (:class:`SampledSurface`), to reuse across remeshes of
+    one input. See the module docstring for the sampling; the edge midpoints and face
     centroids that cannot be the farthest sample are not measured (:func:`_structured_max`).
     """
+    if reference is None:
+        reference = SampledSurface(V_ref, F_ref, n_random, seed)
+    elif (reference.n_random, reference.seed) != (n_random, seed):
+        raise ValueError(f"the reference was sampled with n_random={reference.n_random}, "
+                         f"seed={reference.seed}; asked for {n_random}, {seed}")
     scale = bounding_box_diagonal(V_ref) if scale is None else float(scale)
+    ours = SampledSurface(V, F, n_random, seed)
     out = {}
     ms = []
-    for name, (Va, Fa, Vb, Fb) in {"output_to_input": (V, F, V_ref, F_ref),
-                                   "input_to_output": (V_ref, F_ref, V, F)}.items():
-        E, _ = topo.edges_with_faces(Fa)
-        R = _random_samples(Va, Fa, n_random, seed)
-        distance = MeshDistance(Vb, Fb)
-        d, _ = distance(np.vstack([Va, R]))
-        dV, dR = d[:len(Va)], d[len(Va):]
-        mx = _structured_max(Va, Fa, E, dV, float(dR.max()), distance)
-        ms.append(float(np.mean(dR ** 2)))
-        out[name] = {"max": mx, "max_rel": mx / scale, "rms": float(np.sqrt(ms[-1])),
-                     "rms_rel": float(np.sqrt(ms[-1])) / scale,
-                     "samples": int(len(Va) + len(E) + len(Fa) + len(R))}
+    for name, (a, b) in {"output_to_input": (ours, reference),
+                         "input_to_output": (reference, ours)}.items():
+        mx, mean_square = a.distances_to(b)
+        ms.append(mean_square)
+        out[name] = {"max": mx, "max_rel": mx / scale, "rms": float(np.sqrt(mean_square)),
+                     "rms_rel": float(np.sqrt(mean_square)) / scale,
+                     "samples": int(a.sample_count)}
     h = max(out["output_to_input"]["max"], out["input_to_output"]["max"])
     rms = float(np.sqrt(np.mean(ms)))
     out.update({"hausdorff": h, "hausdorff_rel": h / scale, "rms": rms, "rms_rel": rms / scale,
@@ -343,8 +380,10 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
 
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
-                   n_random: int = 200_000, seed: int = 0, distance: bool = True) -> dict:
-    """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict.
+                   n_random: int = 200_000, seed: int = 0, distance: bool = True,
+                   reference: SampledSurface | None = None) -> dict:
+    """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
+    (``reference``: the input sampled for the distances, see :func:`surface_distance`).
 
     Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
@@ -356,5 +395,6 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
            "triangles": triangle_quality(V, F),
            "valence": valence_stats(F, len(V))}
     if distance:
-        out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed)
+        out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed,
+                                           reference=reference)
     return out
