@@ -295,6 +295,11 @@ def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> n
 _BOUND_MARGIN = 1e-9
 
 
+def _lengths(D: np.ndarray) -> np.ndarray:
+    """Euclidean lengths of the vectors along the last axis of ``D``."""
+    return np.sqrt(np.einsum("...k,...k->...", D, D))
+
+
 def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
                     known_max: float, distance: MeshDistance) -> float:
     """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
@@ -302,16 +307,20 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
 
     The distance to a surface is 1-Lipschitz, so a point ``x`` is at most ``d(v) + |x − v|``
     away for each corner ``v`` of its edge or face; a midpoint or centroid whose bound is below
-    ``known_max`` cannot raise the maximum and is not queried. The result is the maximum over
-    every sample, as if all had been queried."""
-    X = _structured_samples(V, F, E)[len(V):]
-    corners = np.vstack([np.pad(E, ((0, 0), (0, 1)), mode="edge"), F])
-    bound = np.min(d_vertex[corners] + np.linalg.norm(X[:, None, :] - V[corners], axis=2),
-                   axis=1)
-    scale = bounding_box_diagonal(V)
+    the largest distance known cannot raise the maximum and is not queried. The result is the
+    maximum over every sample, as if all had been queried (each queried point is the one
+    :func:`_structured_samples` makes)."""
     best = max(known_max, float(d_vertex.max(initial=0.0)))
-    need = bound * (1 + _BOUND_MARGIN) + _BOUND_MARGIN * scale >= best
-    d, _ = distance(X[need])
+    slack = _BOUND_MARGIN * bounding_box_diagonal(V)
+    a, b = E[:, 0], E[:, 1]
+    mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * _lengths(V[b] - V[a])
+    corners = V[F]
+    centroids = corners.mean(axis=1)
+    centroid_bound = np.min(d_vertex[F] + _lengths(centroids[:, None, :] - corners), axis=1)
+    mids = np.flatnonzero(mid_bound * (1 + _BOUND_MARGIN) + slack >= best)
+    cents = np.flatnonzero(centroid_bound * (1 + _BOUND_MARGIN) + slack >= best)
+    X = np.vstack([(V[a[mids]] + V[b[mids]]) / 2, centroids[cents]])
+    d, _ = distance(X)
     return max(best, float(d.max(initial=0.0)))
 
 
