@@ -71,7 +71,7 @@ def _mkl_rt_paths() -> list[str]:
     if given:
         return [given]
     found = []
-    for prefix in dict.fromkeys([sys.prefix, site.USER_BASE]):
+    for prefix in dict.fromkeys(p for p in (sys.prefix, site.USER_BASE) if p):
         for pattern in _MKL_RT_GLOBS:
             found += sorted(glob.glob(os.path.join(prefix, pattern)), key=len)
     return found
