@@ -403,11 +403,12 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     (:func:`valence_stats`), ``distance`` (:func:`surface_distance`; ``*_rel`` = fraction of
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
-    facts = mesh_facts(V, F)
-    out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
-           "triangles": triangle_quality(V, F),
-           "valence": valence_stats(F, len(V))}
-    if distance:
-        out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed,
-                                           reference=reference)
+    with topo.kept_edge_groups():             # every measure below groups F's edges
+        facts = mesh_facts(V, F)
+        out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
+               "triangles": triangle_quality(V, F),
+               "valence": valence_stats(F, len(V))}
+        if distance:
+            out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed,
+                                               reference=reference)
     return out
