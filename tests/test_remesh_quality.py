@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 from conftest import require_data
-from pipeline.geometry.remesh_quality import (closest_points_on_triangles, is_disk, mesh_facts,
-                                              point_mesh_distance, surface_distance,
-                                              triangle_quality, valence_stats)
+from pipeline.geometry.remesh_quality import (MeshDistance, SampledSurface,
+                                              closest_points_on_triangles, is_disk,
+                                              mesh_facts, point_mesh_distance, surface_distance,
+                                              surface_samples, triangle_quality, valence_stats,
+                                              z_order)
 from pipeline.geometry.repair import repair_mesh
 from pipeline.geometry.sem import SEMOptions
 from pipeline.io.meshio import read_mesh
@@ -62,6 +64,55 @@ def test_surface_distance_of_a_shifted_plane_is_the_shift():
     assert surface_distance(V, F, V, F, n_random=2000)["hausdorff"] < 1e-14
     dist, _ = point_mesh_distance(np.array([[3.0, 2.0, -1.5]]), V, F)
     assert abs(dist[0] - 1.5) < 1e-12
+
+
+def test_z_order_visits_the_corners_of_a_cube_x_first_then_y_then_z():
+    corners = np.array([[x, y, z] for z in (0.0, 2.0) for y in (0.0, 1.0) for x in (0.0, 3.0)])
+    shuffled = np.random.default_rng(1).permutation(8)
+    np.testing.assert_array_equal(corners[shuffled][z_order(corners[shuffled])], corners)
+
+
+def test_distances_in_z_order_are_libigls_in_the_given_order():
+    import igl
+
+    V, F = lattice_mesh(15)
+    V[:, 2] = np.sin(V[:, 0]) * np.cos(V[:, 1])
+    P = np.random.default_rng(2).uniform(-2, 17, size=(5000, 3))
+    sq, face, _ = igl.point_mesh_squared_distance(P, V, F)
+    d, f = MeshDistance(V, F)(P)
+    np.testing.assert_array_equal(d, np.sqrt(sq))
+    np.testing.assert_array_equal(f, face)
+
+
+def test_hausdorff_is_the_largest_distance_of_every_sample():
+    """Edge midpoints and centroids that the Lipschitz bound leaves unmeasured never hold the
+    maximum: both one-sided maxima equal those of all samples measured, here where the
+    farthest samples are centroids (a coarse paraboloid's chords against a fine one)."""
+    fine, F = lattice_mesh(48, 0.25)
+    coarse, G = lattice_mesh(8, 1.5)
+    for V in (fine, coarse):
+        V[:, 2] = 0.05 * ((V[:, 0] - 9) ** 2 + (V[:, 1] - 5) ** 2)
+    d = surface_distance(fine, F, coarse, G, n_random=500)
+    for (Va, Fa, Vb, Fb), key in (((coarse, G, fine, F), "output_to_input"),
+                                  ((fine, F, coarse, G), "input_to_output")):
+        S, R = surface_samples(Va, Fa, 500)
+        every, _ = point_mesh_distance(np.vstack([S, R]), Vb, Fb)
+        assert d[key]["max"] == every.max()
+        assert d[key]["samples"] == len(S) + len(R)
+        if key == "output_to_input":
+            assert every[len(Va):len(S)].max() > max(every[:len(Va)].max(), every[len(S):].max())
+
+
+def test_a_sampled_reference_measures_every_remesh_as_a_fresh_one():
+    fine, F = lattice_mesh(24, 0.5)
+    fine[:, 2] = 0.1 * np.sin(fine[:, 0])
+    reference = SampledSurface(fine, F, 2000, seed=3)
+    for k in (5, 8):
+        coarse, G = lattice_mesh(k, 12 / k)
+        assert surface_distance(fine, F, coarse, G, 2000, 3, reference=reference) == \
+            surface_distance(fine, F, coarse, G, 2000, 3)
+    with pytest.raises(ValueError, match="n_random=2000"):
+        surface_distance(fine, F, coarse, G, 1000, 3, reference=reference)
 
 
 def test_hausdorff_agrees_with_meshlab():

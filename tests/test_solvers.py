@@ -14,6 +14,7 @@ import scipy.sparse as sp
 from pipeline.errors import UserError
 from pipeline.geometry.laplacian import (corner_dot_over_area, edge_weights, face_double_areas,
                                          laplacian_blocks, laplacian_pattern)
+from pipeline.geometry import solvers
 from pipeline.geometry.solvers import (NotPositiveDefinite, cholmod_available, make_solver,
                                        pardiso_available, solve_complex)
 
@@ -61,6 +62,28 @@ def test_solvers_agree_on_spd_block(kind, refactored, spd_block):
     np.testing.assert_allclose(solve_complex(s, A3, b), np.linalg.solve(A3.toarray(), b),
                                rtol=1e-10)
     s.release()
+
+
+def test_mkl_library_named_in_pypardiso_mkl_rt_is_the_only_candidate(monkeypatch):
+    monkeypatch.setenv("PYPARDISO_MKL_RT", "/opt/intel/libmkl_rt.so.2")
+    assert solvers._mkl_rt_paths() == ["/opt/intel/libmkl_rt.so.2"]
+
+
+def test_mkl_library_is_found_in_the_wheel_folder(monkeypatch):
+    """The ``mkl`` wheel pypardiso brings puts ``libmkl_rt`` in the installation's own library
+    folder, where the loader looks first (no search of the whole tree)."""
+    _need("pardiso")
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    paths = solvers._mkl_rt_paths()
+    assert paths and "mkl_rt" in os.path.basename(paths[0])
+    assert hasattr(solvers._load_mkl_rt(), "pardiso")
+
+
+def test_mkl_loader_falls_back_to_pypardiso_when_no_candidate_loads(monkeypatch):
+    _need("pardiso")
+    monkeypatch.setattr(solvers, "_mkl_rt_paths", lambda: ["/nonexistent/libmkl_rt.so"])
+    monkeypatch.delenv("PYPARDISO_MKL_RT", raising=False)
+    assert hasattr(solvers._load_mkl_rt(), "pardiso")
 
 
 def test_make_solver_rejects_unknown_kind():

@@ -127,6 +127,25 @@ def test_edges_with_faces_two_triangles():
     assert topo.nonmanifold_edges(F).shape == (0, 2)
 
 
+def test_kept_edge_groups_follow_faces_changed_in_place():
+    """Inside ``kept_edge_groups`` the groups of the last face array are reused, but not for
+    different faces, even the same array changed in place; what callers keep is theirs to
+    change; nothing is kept after the block."""
+    F = np.array([[0, 1, 2], [2, 1, 3]])
+    with topo.kept_edge_groups():
+        E, counts = topo.edges_with_faces(F)
+        counts[:] = 7
+        np.testing.assert_array_equal(topo.edges_with_faces(F)[1], [1, 1, 2, 1, 1])
+        assert topo._halfedge_groups(F) is topo._halfedge_groups(F.copy())
+        F[1] = [2, 3, 4]
+        E, counts = topo.edges_with_faces(F)
+        np.testing.assert_array_equal(E, [[0, 1], [0, 2], [1, 2], [2, 3], [2, 4], [3, 4]])
+        np.testing.assert_array_equal(counts, [1, 1, 1, 1, 1, 1])
+        assert topo.euler_characteristic(F, 5) == 5 - 6 + 2
+        assert not any(a.flags.writeable for a in topo._halfedge_groups(F))
+    assert topo._halfedge_groups(F) is not topo._halfedge_groups(F)
+
+
 def test_boundary_loop_of_grid_has_interior_on_left():
     V, F = grid(4)
     loops = topo.boundary_loops(F, V)

@@ -746,6 +746,12 @@ def repair_mesh(V, faces, colors=None, options: RepairOptions | None = None,
     the steps, their order and the ``report`` keys. Raises :class:`UserError` for everything that
     cannot be (or may not be, per ``options``) repaired.
     """
+    with topo.kept_edge_groups():        # the checks below group one mesh's edges many times
+        return _repair_mesh(V, faces, colors, options, name)
+
+
+def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> RepairedMesh:
+    """:func:`repair_mesh`'s steps."""
     opts = options if options is not None else RepairOptions()
     report: dict = {
         "input_vertices": 0, "input_faces": 0,

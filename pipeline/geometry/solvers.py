@@ -4,11 +4,12 @@ Every SEM iteration solves ``L_II X = B`` (and the small ``L_BB`` system) with t
 pattern and new values (Remark 1 of the paper: both blocks are SPD when the weights are
 positive). Three solvers, each analysing a pattern once where it can:
 
-* ``pardiso`` — MKL PARDISO (the ``mkl`` wheel, located through ``pypardiso``, a default
-  dependency on x86-64 Linux and Windows) called directly: SPD type (mtype 2) on the upper
-  triangle, analysis (phase 11) once per pattern, numeric refactorization (phase 22) and solve
-  (phase 33) after that, no iterative refinement. pypardiso's own ``spsolve`` is not used: it
-  re-analyses whenever the values change and treats the matrix as unsymmetric.
+* ``pardiso`` — MKL PARDISO (the ``mkl`` wheel that ``pypardiso``, a default dependency on
+  x86-64 Linux and Windows, brings; its library is found in the wheel's folder, else through
+  pypardiso's loader) called directly: SPD type (mtype 2) on the upper triangle, analysis
+  (phase 11) once per pattern, numeric refactorization (phase 22) and solve (phase 33) after
+  that, no iterative refinement. pypardiso's own ``spsolve`` is not used: it re-analyses
+  whenever the values change and treats the matrix as unsymmetric.
 * ``cholmod`` — CHOLMOD through scikit-sparse (the optional ``fast`` extra; needs SuiteSparse
   headers to build): ordering and symbolic factorization on the first call, ``cholesky_inplace``
   after that.
@@ -17,9 +18,11 @@ positive). Three solvers, each analysing a pattern once where it can:
 ``auto`` takes CHOLMOD when it is installed (an explicit opt-in), then PARDISO, then SciPy.
 PARDISO's refactor + solve is the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py``
 (the README's performance table), but converged mode mostly solves with a kept factor, where
-CHOLMOD's solves are faster, and loading MKL costs up to a second per process: on meshes below
-about 100k faces converged maps take longer with PARDISO, above it about as long. All take real right-hand sides with two columns (the real and imaginary parts of the
-complex map), never a complex one (see ``shared/docs/SOLVERS.md``).
+CHOLMOD's solves are faster: on meshes below about 100k faces converged maps take longer with
+PARDISO, above it about as long. Loading MKL (its library, and its kernels on the first call)
+costs a few hundredths of a second per process. All take real right-hand sides with two
+columns (the real and imaginary parts of the complex map), never a complex one (see
+``shared/docs/SOLVERS.md``).
 """
 
 from __future__ import annotations
@@ -49,19 +52,57 @@ def cholmod_available() -> bool:
 _MKL_LOCK = threading.Lock()
 _MKL_PARDISO = None      # the ctypes function, once loaded; False when it cannot be loaded
 
+#: where the ``mkl`` wheel puts MKL's single dynamic library, relative to an installation
+#: prefix (``sys.prefix`` or the user base): Linux, then Windows
+_MKL_RT_GLOBS = ("lib/libmkl_rt.so*", "Library/bin/mkl_rt*.dll")
+
+
+def _mkl_rt_paths() -> list[str]:
+    """Candidate paths of MKL's ``mkl_rt`` library, cheapest look-ups first: the
+    ``PYPARDISO_MKL_RT`` variable, then the ``mkl`` wheel's own folder under ``sys.prefix``
+    and the user base (a few ``stat`` calls; pypardiso's import and its loader search the
+    whole installation tree recursively, which costs most of a second)."""
+    import glob
+    import os
+    import site
+    import sys
+
+    given = os.environ.get("PYPARDISO_MKL_RT")
+    if given:
+        return [given]
+    found = []
+    for prefix in dict.fromkeys(p for p in (sys.prefix, site.USER_BASE) if p):
+        for pattern in _MKL_RT_GLOBS:
+            found += sorted(glob.glob(os.path.join(prefix, pattern)), key=len)
+    return found
+
+
+def _load_mkl_rt():
+    """MKL's ``mkl_rt`` as a ``ctypes.CDLL``: from :func:`_mkl_rt_paths`, else through
+    pypardiso's own library search; ``None`` when neither finds it."""
+    for path in _mkl_rt_paths():
+        try:
+            return ctypes.CDLL(path)
+        except OSError:
+            continue
+    try:
+        import pypardiso
+        return pypardiso.PyPardisoSolver().libmkl
+    except (ImportError, OSError, AttributeError):
+        return None
+
 
 def _mkl_pardiso():
-    """MKL's ``pardiso`` entry point from the ``mkl`` wheel (found by pypardiso's loader), or
-    ``None`` when pypardiso or MKL is not installed."""
+    """MKL's ``pardiso`` entry point from the ``mkl`` wheel (the wheel's folder first, then
+    pypardiso's loader), or ``None`` when MKL is not installed."""
     global _MKL_PARDISO
     with _MKL_LOCK:
         if _MKL_PARDISO is None:
+            lib = _load_mkl_rt()
             try:
-                import pypardiso
-                lib = pypardiso.PyPardisoSolver().libmkl
                 fn = lib.pardiso
                 set_threads = lib.MKL_Set_Num_Threads_Local
-            except (ImportError, OSError, AttributeError):
+            except AttributeError:          # no library, or not MKL's
                 _MKL_PARDISO = False
             else:
                 set_threads.argtypes = [ctypes.c_int]

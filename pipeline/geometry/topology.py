@@ -17,6 +17,9 @@ Conventions
 
 from __future__ import annotations
 
+import threading
+from contextlib import contextmanager
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components as _cc
@@ -42,6 +45,7 @@ __all__ = [
     "vertex_faces",
     "vertex_neighbours",
     "orient_faces_consistently",
+    "kept_edge_groups",
 ]
 
 
@@ -106,13 +110,47 @@ def _sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return keys[order], order
 
 
+_KEPT = threading.local()     # .on: inside kept_edge_groups(); .last: (F copy, groups)
+
+
+@contextmanager
+def kept_edge_groups():
+    """Inside this block the half-edge groups of the last face array are kept (read-only,
+    with a private copy of its faces) and returned again while the faces are equal: a mesh's
+    repair checks and measures ask for them a dozen times. They are dropped when the
+    outermost block ends (no memory held after it), and nothing is kept outside a block."""
+    outer = not getattr(_KEPT, "on", False)
+    _KEPT.on = True
+    try:
+        yield
+    finally:
+        if outer:
+            _KEPT.on, _KEPT.last = False, None
+
+
 def _halfedge_groups(F: np.ndarray, n: int | None = None):
     """Half-edges grouped by undirected edge.
 
     Returns ``(order, start, size, edge_of)``: ``order`` lists the half-edges sorted by edge (ties
     by half-edge index), the edge ``e`` owns ``order[start[e] : start[e] + size[e]]``, and
-    ``edge_of[h]`` is the edge of half-edge ``h``. Edges are numbered in ``(min, max)`` order.
+    ``edge_of[h]`` is the edge of half-edge ``h``. Edges are numbered in ``(min, max)`` order,
+    so the result does not depend on ``n`` (any count above the largest index). Reused inside
+    :func:`kept_edge_groups`.
     """
+    if not getattr(_KEPT, "on", False):
+        return _group_halfedges(F, n)
+    last = getattr(_KEPT, "last", None)
+    if last is not None and last[0].shape == F.shape and np.array_equal(last[0], F):
+        return last[1]
+    groups = _group_halfedges(F, n)
+    for array in groups:
+        array.setflags(write=False)
+    _KEPT.last = (F.copy(), groups)
+    return groups
+
+
+def _group_halfedges(F: np.ndarray, n: int | None):
+    """:func:`_halfedge_groups` computed: one sort of the half-edges' undirected keys."""
     n = _n_of(F, n)
     keys = _edge_keys(F, n)
     sk, order = _sort_with_index(keys)
@@ -144,7 +182,7 @@ def edges_with_faces(F) -> tuple[np.ndarray, np.ndarray]:
     a, b = half_edges(F)
     h = order[start]
     E = np.stack([np.minimum(a[h], b[h]), np.maximum(a[h], b[h])], axis=1)
-    return E, size
+    return E, size.copy()
 
 
 def boundary_edges(F) -> np.ndarray:

@@ -265,13 +265,18 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
                     progress=None) -> dict[str, Method]:
     """Measure the input and our remesh, and with ``compare`` the columns it is compared
     with: the plain lift before improvement (paper §8) and the baselines."""
-    from ..geometry.remesh_quality import remesh_quality
+    from ..geometry.remesh_quality import SampledSurface, remesh_quality
     from ..report.remesh import Method
     from . import baselines
 
     def say(msg):
         if progress:
             progress(msg)
+
+    reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+
+    def quality(V, F):
+        return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference)
 
     out: dict[str, Method] = {}
     out["input"] = Method("input", V_in, F_in, None,
@@ -282,10 +287,10 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
         out["sem_lifted"] = Method("sem_lifted", Xl, Fl, remesh.seconds["sample"]
                                    + remesh.seconds["delaunay"] + remesh.seconds["locate"]
                                    + remesh.seconds["lift"],
-                                   remesh_quality(V_in, F_in, Xl, Fl, n_random, seed))
+                                   quality(Xl, Fl))
     say("measuring the improved remesh")
     out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
-                        remesh_quality(V_in, F_in, remesh.V, remesh.F, n_random, seed))
+                        quality(remesh.V, remesh.F))
     if not compare:
         return out
     if baselines.pymeshlab_available():
@@ -293,7 +298,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
         b = baselines.isotropic_remesh(V_in, F_in, target)
         out["pymeshlab_isotropic"] = Method(
             "pymeshlab_isotropic", b.V, b.F, b.seconds,
-            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
+            quality(b.V, b.F),
             extra={"runs": b.runs, "parameters": b.parameter,
                    "seconds_all_runs": b.seconds_all_runs})
     else:
@@ -310,7 +315,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
     else:
         out["fast_simplification"] = Method(
             "fast_simplification", b.V, b.F, b.seconds,
-            remesh_quality(V_in, F_in, b.V, b.F, n_random, seed),
+            quality(b.V, b.F),
             extra={"runs": b.runs, "parameters": b.parameter,
                    "seconds_all_runs": b.seconds_all_runs})
     return out
