@@ -90,7 +90,7 @@ def test_make_solver_rejects_unknown_kind():
     with pytest.raises(UserError):
         make_solver("bogus")
     assert make_solver("scipy").name == "scipy"
-    auto = "cholmod" if cholmod_available() else "pardiso" if pardiso_available() else "scipy"
+    auto = "pardiso" if pardiso_available() else "cholmod" if cholmod_available() else "scipy"
     assert make_solver("auto").name == auto
 
 

@@ -15,11 +15,10 @@ positive). Three solvers, each analysing a pattern once where it can:
   after that.
 * ``scipy`` — SuperLU in symmetric mode, the fallback everywhere (it cannot keep an analysis).
 
-``auto`` takes CHOLMOD when it is installed (an explicit opt-in), then PARDISO, then SciPy.
-PARDISO's refactor + solve is the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py``
-(the README's performance table), but converged mode mostly solves with a kept factor, where
-CHOLMOD's solves are faster: on meshes below about 100k faces converged maps take longer with
-PARDISO, above it about as long. Loading MKL (its library, and its kernels on the first call)
+``auto`` takes PARDISO where it is installed, then CHOLMOD, then SciPy. PARDISO's refactor +
+solve is the fastest at 100k and 1M faces in ``benchmarks/bench_sem.py`` (the README's
+performance table), and both modes refactor at every step (a SEM step, a Gauss–Newton step),
+so its maps are the quickest. Loading MKL (its library, and its kernels on the first call)
 costs a few hundredths of a second per process. All take real right-hand sides with two
 columns (the real and imaginary parts of the complex map), never a complex one (see
 ``shared/docs/SOLVERS.md``).
@@ -375,7 +374,7 @@ class ScipySolver:
 
 
 def make_solver(kind: str = "auto", refactored: bool = False):
-    """A fresh solver of the requested kind; ``auto`` prefers CHOLMOD, then PARDISO, when
+    """A fresh solver of the requested kind; ``auto`` prefers PARDISO, then CHOLMOD, when
     installed. ``refactored``: Laplacians of one pattern refactored many times (see
     ``CholmodSolver``)."""
     if kind not in SOLVER_KINDS:
@@ -386,10 +385,10 @@ def make_solver(kind: str = "auto", refactored: bool = False):
     if kind == "cholmod" and not cholmod_available():
         raise UserError("solver 'cholmod' requested but scikit-sparse is not installed; "
                         "pip install scikit-sparse (needs libsuitesparse-dev) or use solver: auto")
-    if kind == "cholmod" or (kind == "auto" and cholmod_available()):
-        return CholmodSolver(refactored=refactored)
     if kind == "pardiso" or (kind == "auto" and pardiso_available()):
         return PardisoSolver(refactored=refactored)
+    if kind == "cholmod" or (kind == "auto" and cholmod_available()):
+        return CholmodSolver(refactored=refactored)
     return ScipySolver()
 
 
