@@ -22,8 +22,9 @@ Modes:
 
   A. plain SEM steps, keeping the best *flip-free* iterate by the normalized energy
      ``E_S / (|f(M)|²/|M|)``; this phase ends once ``patience`` steps bring no new best. If
-     every plain step folds (many obtuse triangles: a decimated scan), paper mode's damped steps
-     from the start take its place (:func:`_damped_start`). If the map is then still crowded
+     the plain steps fold where they would gain (every one of them, or those after the best:
+     many obtuse triangles, as in a decimated scan), paper mode's damped steps go on from the
+     best (:func:`_damped_start`). If the map is then still crowded
      (:func:`crowded`: a face's share of the image below 10⁻³ of its share of the surface), phase
      B first runs towards intermediate areas (:func:`_area_continuation`);
   B. from that iterate, a monotone descent: each step first tries a Levenberg–Marquardt
@@ -482,12 +483,12 @@ GN_MU, GN_MU_DOWN, GN_MU_UP, GN_RETRIES = 1e-3, 1.0 / 3.0, 2.0, 2
 GN_MU_MIN = 1e-4
 
 
+#: Phase A's fallback where plain SEM steps fold: at most this many damped SEM steps.
+DAMPED_START = 10
 #: Area continuation (:func:`_area_continuation`): run when the map phase B starts from has a
 #: face whose share of the image area is below ``CROWDED`` × its share of the surface, in
 #: ``CONTINUATION_STAGES`` stages of at most ``STAGE_ITER`` steps before the last.
 CROWDED = 1e-3
-#: Phase A's fallback when every plain SEM step folds: at most this many damped SEM steps.
-DAMPED_START = 10
 CONTINUATION_STAGES = 8
 STAGE_ITER = 60
 
@@ -598,10 +599,11 @@ def _converged_iterations(problem, f, value, opt, record):
 
 def _damped_start(problem, f, value, opt, record, it, max_iter):
     """Paper mode's iterations (:func:`_paper_iterations`, at most ``DAMPED_START`` steps, kept
-    only while they lower ``E_S``) from the start ``f``, recorded after the ``it`` steps taken
-    so far. Where every plain SEM step folds (meshes with many obtuse triangles: a decimated
-    scan), phase A keeps the crowded harmonic start, from which the fold-free descent crawls;
-    the damped SEM steps spread it first. Returns ``(f, evaluation, iterations)``."""
+    only while they lower ``E_S``) from phase A's best ``f``, recorded after the ``it`` steps
+    taken so far. Where the plain SEM steps fold where they would gain (meshes with many obtuse
+    triangles: a decimated scan), phase A keeps a crowded map (the harmonic start, or the first
+    step), from which the fold-free descent crawls; the damped SEM steps spread it first.
+    Returns ``(f, evaluation, iterations)``."""
     steps = min(DAMPED_START, max_iter - it)
 
     def shifted(i, g, v, alpha, kind):
