@@ -282,15 +282,16 @@ def hold_flipping_vertices(problem: "_Problem", f: np.ndarray, g: np.ndarray, al
 
 
 def line_search(problem: _Problem, f, g, current, better, min_step, hold: bool,
-                max_step: float = 1.0, start: float = 1.0):
+                max_step: float = 1.0, start: float = 1.0, rounds: int | None = None):
     """Largest ``α = start, start/2, … ≥ min_step`` whose damped map flips no new face and
     satisfies ``better(evaluation)``; if α = 1 passes, ``α = 2, 4 … ≤ max_step`` while the
-    energy keeps falling. Returns ``(map, evaluation, α)`` or ``None``."""
+    energy keeps falling. ``rounds``: of the flip holding (:func:`hold_flipping_vertices`).
+    Returns ``(map, evaluation, α)`` or ``None``."""
     alpha = start
     while alpha >= min_step:
         cand = g if alpha == 1.0 else damped(f, g, alpha, problem.B)
         if hold:
-            cand, value = hold_flipping_vertices(problem, f, cand, current[2])
+            cand, value = hold_flipping_vertices(problem, f, cand, current[2], rounds)
         else:
             value = problem.evaluate(cand)
         if value[2] <= current[2] and better(value):
@@ -370,9 +371,11 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
 
 #: Paper mode: a relative decrease of ``E_S`` below this counts as none (rounding, not progress).
 PAPER_RTOL = 1e-13
+#: Paper mode's damped steps hold flipping vertices for at most this many rounds first.
+PAPER_HOLD_ROUNDS = 8
 
 
-def _paper_iterations(problem, f, value, opt, record):
+def _paper_iterations(problem, f, value, opt, record, rounds=PAPER_HOLD_ROUNDS):
     """Algorithm 1 for at most ``max_iter`` steps, with damped steps where it would stop early.
 
     Each iteration takes the SEM step, eq. (19)–(22), from the current Algorithm-1 iterate and
@@ -395,8 +398,9 @@ def _paper_iterations(problem, f, value, opt, record):
     flipped face (a stationary map: Remark 3's stop), else ``stalled``. With
     ``stop_when_energy_rises=False`` every SEM step is kept whatever ``E_S`` does, and a damped
     step only has to add no flipped face: exactly ``max_iter`` iterations, ending on a map with
-    no more flipped faces than the start. Returns ``(f, evaluation, iterations, status,
-    reason)``."""
+    no more flipped faces than the start. ``rounds``: of the flip holding in the damped steps
+    (if both damped searches fail, the damped SEM step is tried once more with no limit;
+    None: no limit from the start). Returns ``(f, evaluation, iterations, status, reason)``."""
     max_iter = opt.iterations()
     it, start = 0, 1.0
     g_f, g_v = f, value            # the Algorithm-1 iterate (may be folded)
@@ -440,14 +444,20 @@ def _paper_iterations(problem, f, value, opt, record):
         w = problem.weights(f)
         g_sem = sem_step(problem, f, w, opt.inversion)
         step, kind = line_search(problem, f, g_sem, current, better, opt.min_step, hold=True,
-                                 start=start), "sem"
+                                 start=start, rounds=rounds), "sem"
         if step is None:
             try:
                 g = gradient_step(problem, f, w, laplacian_blocks(problem.pattern, w))
                 step, kind = line_search(problem, f, g, current, better, opt.min_step,
-                                         hold=True), "gradient"
+                                         hold=True, rounds=rounds), "gradient"
             except NotPositiveDefinite:
                 step = None
+        if step is None and rounds is not None:
+            # a crowded map (the harmonic start of a decimated scan) can need longer holding
+            # cascades than ``rounds``: the damped SEM step once more with as many as it
+            # takes, before the iteration is called stalled
+            step, kind = line_search(problem, f, g_sem, current, better, opt.min_step,
+                                     hold=True), "sem"
         if step is None:
             if hold_flipping_vertices(problem, f, g_sem, current[2])[1][2] <= current[2]:
                 reason = (f"iteration {it + 1}: the SEM step raises E_S (Remark 3) and no "
@@ -612,7 +622,7 @@ def _damped_start(problem, f, value, opt, record, it, max_iter):
 
     paper = opt.model_copy(update={"mode": "paper", "max_iter": steps,
                                    "stop_when_energy_rises": True})
-    f, value, taken, _, _ = _paper_iterations(problem, f, value, paper, shifted)
+    f, value, taken, _, _ = _paper_iterations(problem, f, value, paper, shifted, rounds=None)
     return f, value, it + max(taken, 1)
 
 
