@@ -338,7 +338,7 @@ def test_paper_mode_does_not_stall_where_a_held_damped_step_progresses():
 
 def test_barrier_terms_are_newton_terms_of_the_barrier_objective():
     """``barrier_terms`` gives ``w = ψ''`` and ``r' w = ψ'`` for ``ψ(a) = r²/(2A) − β c² A log a``
-    with β faded by the excess ratio (full above BARRIER_EXCESS): checked against central
+    with β while the excess ratio is above BARRIER_EXCESS: checked against central
     differences of ψ; and at an equiareal map (a = cA) the barrier vanishes."""
     from pipeline.geometry.gauss_newton import BARRIER_EXCESS, barrier_terms
 

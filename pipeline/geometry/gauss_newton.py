@@ -48,7 +48,7 @@ from .solvers import make_solver
 #: system keeps its pattern and PARDISO/CHOLMOD their analysis for when the boundary moves
 HOLD = 1e12
 #: weight β of the orientation barrier that shapes a step (:func:`barrier_terms`; the caller
-#: sets ``GaussNewton.barrier``), and the excess energy ratio below which it fades
+#: sets ``GaussNewton.barrier``), and the excess energy ratio at or below which it is left out
 BARRIER = 0.1
 BARRIER_EXCESS = 1e-3
 
@@ -66,10 +66,9 @@ def barrier_terms(a2: np.ndarray, residual: np.ndarray, double_area: np.ndarray,
     the step moves the corners of nearly flat image faces less and pushes their area up
     (Newton on ``−log a`` at most doubles ``a``) instead of running them into the fold that the
     flip holding would stop at. Steps are still accepted on ``E_S`` alone
-    (:func:`pipeline.geometry.sem.line_search`): the barrier shapes the direction only. Its
-    weight fades with the excess energy ratio ``R − 1`` below ``BARRIER_EXCESS``
-    (``β R−1 / BARRIER_EXCESS``), so that close to the minimizer the steps are Gauss–Newton's on
-    ``E_S`` and converge to it; at an equiareal map the barrier vanishes.
+    (:func:`pipeline.geometry.sem.line_search`): the barrier shapes the direction only. It is
+    left out (β = 0) once the excess energy ratio ``R − 1`` is at most ``BARRIER_EXCESS``, so
+    that close to the minimizer the steps are Gauss–Newton's on ``E_S`` and converge to it.
 
     Parameters
     ----------
