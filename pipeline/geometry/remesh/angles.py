@@ -260,21 +260,22 @@ class _Patch:
 
     # ------------------------------------------------------------------------------ measures
 
+    def face_min_angles(self, tris) -> np.ndarray:
+        """The smallest 3D angle (degrees) of each face of ``tris`` (lists of 3 vertices)."""
+        T = np.asarray(tris, dtype=np.int64)
+        X = self.S.X
+        return triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
+
     def min_angle(self, tris) -> float:
         """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices)."""
         if len(tris) == 0:
             return 180.0
-        T = np.asarray(tris, dtype=np.int64)
-        X = self.S.X
-        return float(triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]]).min())
+        return float(self.face_min_angles(tris).min())
 
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and no more faces below the threshold), else None."""
-        T_old, T_new = np.asarray(old, np.int64), np.asarray(new, np.int64)
-        X = self.S.X
-        a_old = triangle_min_angles(X[T_old[:, 0]], X[T_old[:, 1]], X[T_old[:, 2]])
-        a_new = triangle_min_angles(X[T_new[:, 0]], X[T_new[:, 1]], X[T_new[:, 2]])
+        a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
         if a_new.min() <= a_old.min():
             return None
         if (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
@@ -293,10 +294,9 @@ class _Patch:
         """Whether no edge ``a–b`` is farther than the tolerance from the surface, or farther
         than ``before`` (their sag before the operation, or None for new edges with no
         predecessor)."""
-        if self.tol is None or len(a) == 0:
+        sag = self.sag(a, b)
+        if sag is None:
             return True
-        sag = edge_sag_along(self.S, np.asarray(a, np.int64), np.asarray(b, np.int64),
-                             SAG_TS)[0]
         limit = np.full(len(sag), self.tol) if before is None else np.maximum(before, self.tol)
         return bool((sag <= limit).all())
 
