@@ -30,6 +30,7 @@ import numpy as np
 from . import topology as topo
 from .laplacian import face_double_areas
 from .metrics import corner_angles
+from .rows import norms
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
            "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
@@ -295,11 +296,6 @@ def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> n
 _BOUND_MARGIN = 1e-9
 
 
-def _lengths(D: np.ndarray) -> np.ndarray:
-    """Euclidean lengths of the vectors along the last axis of ``D``."""
-    return np.sqrt(np.einsum("...k,...k->...", D, D))
-
-
 def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
                     known_max: float, distance: MeshDistance) -> float:
     """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
@@ -313,10 +309,11 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
     best = max(known_max, float(d_vertex.max(initial=0.0)))
     slack = _BOUND_MARGIN * bounding_box_diagonal(V)
     a, b = E[:, 0], E[:, 1]
-    mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * _lengths(V[b] - V[a])
+    mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
     corners = V[F]
     centroids = corners.mean(axis=1)
-    centroid_bound = np.min(d_vertex[F] + _lengths(centroids[:, None, :] - corners), axis=1)
+    to_corners = (centroids[:, None, :] - corners).reshape(-1, 3)
+    centroid_bound = np.min(d_vertex[F] + norms(to_corners).reshape(F.shape), axis=1)
     mids = np.flatnonzero(mid_bound * (1 + _BOUND_MARGIN) + slack >= best)
     cents = np.flatnonzero(centroid_bound * (1 + _BOUND_MARGIN) + slack >= best)
     X = np.vstack([(V[a[mids]] + V[b[mids]]) / 2, centroids[cents]])
