@@ -42,9 +42,12 @@ Modes:
      ``descent="gradient"`` is the schedule without Gauss–Newton: many cheap steps on a kept
      preconditioner factor instead of one factorization per step.
 
-The returned map is the best flip-free map found (an area continuation's stages are recorded as
-phase ``continuation``, their energy against the true areas, which may rise there; the map it
-ends on is kept only if it is better than its start), so it has no flipped face whenever the
+Both modes minimize eq. (15) with every face's area raised to at least 10⁻³ of the mean
+(:func:`target_double_areas`: the near-zero slivers of decimated scans), and record its energy
+and distortions against the surface's own areas. The returned map is the best flip-free map
+found (an area continuation's stages are recorded as phase ``continuation``, their energy
+against the surface's areas, which may rise there; the map it ends on is kept only if it is
+better than its start), so it has no flipped face whenever the
 harmonic start has none (guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
 what remains, and callers treat a non-zero count as failure; ``SEMResult.stop_reason`` says why
 the iteration ended and ``SEMResult.steps`` how many steps of each kind were taken (both go into
@@ -149,12 +152,15 @@ class _Problem:
 
     def __init__(self, V, F, boundary, solver_kind):
         self.V, self.F = V, F
-        self.A2 = face_double_areas(V, F)        # 2|τ|
+        self.surface_A2 = face_double_areas(V, F)            # 2|τ|
+        self.A2 = target_double_areas(self.surface_A2)       # what the map's areas aim at
+        self.floored = bool(np.any(self.A2 != self.surface_A2))
         self.area_M = self.A2.sum() / 2
         # vertex–face incidence (faces in increasing order in each row), as floats for the
         # per-vertex area sums of eq. (28) and as the faces around held vertices
         self.incidence = vertex_faces(F, len(V)).astype(np.float64)
-        self.surface_fractions = vertex_area_fractions(F, len(V), self.A2, self.incidence)
+        self.surface_fractions = vertex_area_fractions(F, len(V), self.surface_A2,
+                                                       self.incidence)
         self.pattern = laplacian_pattern(F, len(V), boundary)
         self.I, self.B = self.pattern.interior, self.pattern.boundary
         self.weight_map = stretch_weight_map(self.pattern, self.A2)
@@ -174,10 +180,21 @@ class _Problem:
         area_f = np.abs(a2).sum() / 2
         return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0)), a2
 
+    def surface_energy(self, value) -> tuple[float, float]:
+        """``(E_S, E_S/(|f(M)|²/|M|))`` of eq. (15) with the surface's own areas, from an
+        :meth:`evaluate` result (the same numbers unless a face's area was raised by
+        :func:`target_double_areas`)."""
+        if not self.floored:
+            return value[0], value[1]
+        a2 = value[3]
+        E = float(0.5 * np.sum(a2 * a2 / self.surface_A2))
+        return E, E * (self.surface_A2.sum() / 2) / (np.abs(a2).sum() / 2) ** 2
+
     def distortions(self, a2):
-        """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map."""
-        return area_distortions(self.F, len(self.V), self.A2, a2, self.surface_fractions,
-                                self.incidence)
+        """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map,
+        against the surface's own areas."""
+        return area_distortions(self.F, len(self.V), self.surface_A2, a2,
+                                self.surface_fractions, self.incidence)
 
     def weights(self, f):
         """Stretch Laplacian edge weights ``w_ij(f)``, eq. (12), from the squared edge lengths:
@@ -201,6 +218,33 @@ class _Problem:
     def release(self):
         for s in (self.solver_I, self.solver_P, self.solver_B):
             s.release()
+
+
+#: A face whose area is below this share of the mean face area counts as having that area in
+#: the energy the map minimizes (:func:`target_double_areas`).
+AREA_FLOOR = 1e-3
+
+
+def target_double_areas(double_area: np.ndarray) -> np.ndarray:
+    """The double areas ``2|τ|`` that eq. (15)'s energy and the stretch factors use: the
+    surface's, each raised to at least ``AREA_FLOOR`` × their mean.
+
+    A sliver of nearly zero area (10⁻¹¹ of the mean in a quadric-decimated scan, where whole
+    strips of them sit) asks for an image triangle as flat as itself: every step that moves
+    its corners folds it, the line search holds them, and the descent around it crawls. Raised
+    to a thousandth of the mean, the targets of such faces change the total by at most 10⁻³ of
+    a face per sliver, and faces at least that large keep their own areas.
+
+    Parameters
+    ----------
+    double_area : (m,) float
+        The surface's double face areas.
+
+    Returns
+    -------
+    (m,) float
+    """
+    return np.maximum(double_area, AREA_FLOOR * double_area.mean())
 
 
 def sem_step(problem: _Problem, f: np.ndarray, w: np.ndarray, inversion: bool = False
@@ -329,7 +373,7 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     timings["setup"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    h = harmonic_map(V, F, problem.pattern, problem.solver_I, problem.A2)
+    h = harmonic_map(V, F, problem.pattern, problem.solver_I, problem.surface_A2)
     timings["harmonic"] = time.perf_counter() - t0
 
     history: list = []
@@ -337,8 +381,9 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
 
     def record(it, f, value, alpha, phase):
         D, face_D = problem.distortions(value[3])
-        entry = {"iteration": it, "phase": phase, "stretch_energy": value[0],
-                 "energy_ratio": value[1],
+        energy, ratio = problem.surface_energy(value)
+        entry = {"iteration": it, "phase": phase, "stretch_energy": energy,
+                 "energy_ratio": ratio,
                  "total_area_distortion_eq28": D,
                  "face_area_distortion": face_D,
                  "flipped_faces": value[2], "step": alpha,
@@ -532,8 +577,8 @@ def _area_continuation(problem, newton, f, value, opt, record, it, max_iter):
     spreads the crowded faces is cut short by the faces it would flip, for hundreds of steps
     (decimated scans of hands and heads). Each stage moves the targets by a bounded factor from
     areas at which its start is already nearly equiareal, so it starts near its own minimizer.
-    Its steps are recorded as phase ``continuation`` with the energy against the true areas.
-    Returns ``(f, evaluation, iterations)``; the caller finishes on the true areas."""
+    Its steps are recorded as phase ``continuation`` with the energy against the surface's
+    areas. Returns ``(f, evaluation, iterations)``; the caller finishes on the target areas."""
     start = value[3]
 
     def staged(i, g, v, alpha, kind):
