@@ -82,3 +82,27 @@ def test_collapse_only_between_marked_vertices(face_map):
     done = collapse_short_edges(S, np.inf, np.inf, at=at)
     assert done > 0 and S.n == len(X) - done
     assert before <= {tuple(x) for x in S.X}
+
+
+def test_collapse_never_removes_a_rim_vertex_into_a_locked_interior_one():
+    """A vertex just inside the rim, locked (a kept input corner), with the short interior edge
+    to its rim neighbour the only one below ``L_min``: the locked end cannot go, and the rim
+    end may go only along a rim edge, so nothing collapses and the disk keeps its rim (removing
+    the rim vertex made the locked one a second rim vertex there: a non-manifold pinch)."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    rings = disk_points(4, 6)                 # the centre, rings at r = 0.25 … 1 (the rim)
+    uv = np.vstack([0.97 * rings[-24:-23], rings])   # first: the end the edge starts from
+    F = ccw_delaunay(uv)
+    # the face with the half-edge locked → rim first, so that it is the edge's candidate
+    rim_end = len(uv) - 24
+    starts = ((F == 0) & (np.roll(F, -1, axis=1) == rim_end)).any(axis=1)
+    F = np.vstack([F[starts], F[~starts]])
+    face, bary = locator.locate(uv)
+    is_rim = topo.boundary_vertices_mask(F, len(uv))
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, is_rim, face, bary, V_in, F_in,
+                    uv_in, locator, uv_in[loop])
+    S.locked[0] = True
+    rim_before = S.uv[S.is_rim].copy()
+    k = collapse_short_edges(S, 0.05, np.inf)
+    assert k == 0 and is_disk(mesh_facts(S.X, S.F))
+    np.testing.assert_array_equal(S.uv[S.is_rim], rim_before)

@@ -78,7 +78,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
         Fs = F
         if look is None and (budget is not None or np.isfinite(L_min)):
-            tails = F.ravel()
+            tails, heads = F.ravel(), np.roll(F, -1, axis=1).ravel()
             hl = half_edge_lengths(F, X)
         if budget is not None and look is None:
             # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
@@ -88,11 +88,14 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
+            # both ends: a boundary edge has one half-edge, and its head's ring must be whole too
             if look is None:
-                ends = tails[hl < thr]
+                short = hl < thr
+                ends = np.concatenate([tails[short], heads[short]])
             else:
                 Fl = F[touching(F, look)]
-                ends = Fl.ravel()[half_edge_lengths(Fl, X) < thr]
+                short = half_edge_lengths(Fl, X) < thr
+                ends = np.concatenate([Fl.ravel()[short], np.roll(Fl, -1, axis=1).ravel()[short]])
             if len(ends) == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
@@ -120,7 +123,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         keep_a = (ra & ~rb) | S.locked[a]
         r = np.where(keep_a, b, a)
         k = np.where(keep_a, a, b)
-        ok &= ~S.locked[r]
+        ok &= ~S.locked[r] & ~(S.is_rim[r] & ~on_b)   # (a locked k can make r a rim vertex)
         r, k, a, b, ln, on_b, h, twin = (x[ok] for x in (r, k, a, b, ln, on_b, h, twin))
         if len(r) == 0:
             break
