@@ -67,6 +67,27 @@ def test_a_degenerate_face_is_repaired_or_the_remesh_fails_loudly():
     assert is_disk(mesh_facts(S.X, S.F))
 
 
+def test_a_remesh_that_is_not_one_disk_is_refused():
+    """``check_topology``: a fan of four triangles around a vertex is one disk; two triangles
+    meeting at one vertex (a pinch, what a rim vertex collapsed into an interior one left) are
+    not, nor is a closed octahedron; the octahedron is the sphere remesher's shape."""
+    from pipeline.geometry.remesh.uniform import RemeshFailed, check_topology
+
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0]], float)
+    fan = np.array([[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]])
+    check_topology(X, fan)
+    with pytest.raises(RemeshFailed, match="not one manifold disk"):
+        check_topology(X, fan[[0, 2]])
+    octa = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    Fo = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4],
+                   [1, 0, 5], [2, 1, 5], [3, 2, 5], [0, 3, 5]])
+    check_topology(octa, Fo, closed=True)
+    with pytest.raises(RemeshFailed, match="not one manifold disk"):
+        check_topology(octa, Fo)
+    with pytest.raises(RemeshFailed, match="not a closed genus-0"):
+        check_topology(X, fan, closed=True)
+
+
 def test_alligator_paper_map_20k_has_no_degenerate_face():
     """c3d_alligator's 10-step map squeezes much of the body thin (median stretch 9:1): at
     20k vertices, splits and flips there once drove faces to rounding-level thinness on the

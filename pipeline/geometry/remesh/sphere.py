@@ -30,7 +30,7 @@ from .improve import Stopwatch
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples
 from .state import RemeshState
-from .uniform import RemeshFailed, RemeshResult, check_remesh, improve_state
+from .uniform import RemeshResult, check_remesh, check_topology, improve_state
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
@@ -92,17 +92,6 @@ def target_length(V: np.ndarray, F: np.ndarray, n: int) -> float:
     ``2n − 4`` equilateral faces of side ``L`` share the area, ``L = √(4·area / (√3 (2n − 4)))``."""
     area = float(face_double_areas(V, F).sum() / 2)
     return float(np.sqrt(4.0 * area / (np.sqrt(3) * (2 * n - 4))))
-
-
-def check_closed(X: np.ndarray, F: np.ndarray) -> None:
-    """Raise :class:`.uniform.RemeshFailed` unless ``(X, F)`` is one closed, manifold,
-    consistently oriented component with Euler characteristic 2 (a sphere)."""
-    from ..remesh_quality import is_sphere, mesh_facts
-
-    f = mesh_facts(X, F)
-    if not is_sphere(f):
-        raise RemeshFailed(f"remesh: the sphere remesh is not a closed genus-0 manifold ({f}); "
-                           f"nothing is written")
 
 
 def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
@@ -181,7 +170,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
-    check_closed(X, F_out)
+    check_topology(X, F_out, closed=True)
     carried = carry_landmarks(landmarks or {}, V, S_in, X, uv_out, F_out)
     lap("landmarks")
     info = {

@@ -153,6 +153,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
+    check_topology(X, F_out)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -220,6 +221,19 @@ def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
         raise RemeshFailed(f"remesh: {len(flat)} degenerate faces and {len(clockwise)} faces "
                            f"not counter-clockwise {where} are left (first: "
                            f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
+
+
+def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> None:
+    """Raise :class:`RemeshFailed` unless ``(X, F)`` is one manifold disk (one boundary loop,
+    Euler characteristic 1) or, with ``closed``, one closed, manifold, consistently oriented
+    component with Euler characteristic 2 (a sphere)."""
+    from ..remesh_quality import is_disk, is_sphere, mesh_facts
+
+    f = mesh_facts(X, F)
+    if not (is_sphere(f) if closed else is_disk(f)):
+        what = "sphere remesh is not a closed genus-0 manifold" if closed else \
+            "remesh is not one manifold disk"
+        raise RemeshFailed(f"remesh: the {what} ({f}); nothing is written")
 
 
 def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
