@@ -81,6 +81,11 @@ def test_baselines_hit_the_vertex_count(face_map):
     d = baselines.decimate(mesh.V, mesh.F, 1000)
     assert abs(len(d.V) - 1000) <= 0.05 * 1000
     assert baselines.decimate(mesh.V, mesh.F, len(mesh.V)) is None
+    # just under the input's count: 2 faces a vertex would be more faces than the input has
+    near = len(mesh.V) - 5
+    assert 2 * near >= len(mesh.F)
+    d = baselines.decimate(mesh.V, mesh.F, near)
+    assert len(d.V) < len(mesh.V) and len(d.F) < len(mesh.F)
     if not baselines.pymeshlab_available():
         pytest.skip("pymeshlab not installed")
     b = baselines.isotropic_remesh(mesh.V, mesh.F, 1500)
