@@ -92,6 +92,32 @@ def test_baselines_hit_the_vertex_count(face_map):
     assert abs(len(b.V) - 1500) <= 0.05 * 1500 and len(b.runs) >= 1
 
 
+def test_a_baseline_that_fails_costs_its_column_not_the_remesh(face_map, monkeypatch):
+    """A comparison library raising on an input (fast_simplification's ValueError, say): the
+    remesh and the other columns are measured, the failed column is empty with the reason, and
+    the warnings name it."""
+    from pipeline.report.remesh import LABELS
+    from pipeline.stages import baselines
+    from pipeline.stages.remesh import compare_methods
+
+    _, mesh, p = face_map
+
+    def broken(*args, **kwargs):
+        raise ValueError("``target_count`` must be less than the number of faces 9\nmore")
+
+    monkeypatch.setattr(baselines, "decimate", broken)
+    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=800))
+    methods = compare_methods(mesh.V, mesh.F, r, 800, n_random=20_000)
+    assert methods["sem"].ok and not methods["fast_simplification"].ok
+    assert methods["fast_simplification"].note == (
+        "failed on this input: ValueError: ``target_count`` must be less than the number of "
+        "faces 9")
+    block = {k: {"label": LABELS[k], "note": m.note} for k, m in methods.items()}
+    assert [w for w in remesh_warnings({}, block) if "failed" in w] == [
+        f"{LABELS['fast_simplification']} {methods['fast_simplification'].note}; its column is "
+        "empty"]
+
+
 @pytest.fixture(scope="module")
 def small_face_file(tmp_path_factory):
     d = tmp_path_factory.mktemp("remesh_face")

@@ -344,6 +344,9 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
                    f"(median σ₁/σ₂ = {distortion['anisotropy_median']:.1f}): uniform samples "
                    f"of the map are that much farther apart along one direction there, so the "
                    f"lifted triangles are skewed before the improvement step")
+    for key, m in methods.items():
+        if str(m.get("note", "")).startswith("failed"):
+            out.append(f"{m.get('label', key)} {m['note']}; its column is empty")
     ours = methods.get("sem", {}).get("distance", {}).get("hausdorff_rel")
     theirs = methods.get("pymeshlab_isotropic", {}).get("distance", {}).get("hausdorff_rel")
     if ours is not None and ours > HAUSDORFF_GOAL:

@@ -293,31 +293,34 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
                         quality(remesh.V, remesh.F))
     if not compare:
         return out
+
+    def baseline(key: str, make) -> Method:
+        """The column of a baseline, or an empty one saying why it failed: a third-party
+        library's failure on an input costs its column, not the remesh."""
+        try:
+            b = make()
+        except Exception as exc:  # noqa: BLE001 - any failure of the library
+            return Method(key, None, None, note=f"failed on this input: {type(exc).__name__}: "
+                                                f"{str(exc).splitlines()[0] if str(exc) else ''}")
+        if b is None:
+            return Method(key, None, None,
+                          note=f"not applicable: decimation only removes vertices and the "
+                               f"input has {len(V_in)} ≤ {target}")
+        return Method(key, b.V, b.F, b.seconds, quality(b.V, b.F),
+                      extra={"runs": b.runs, "parameters": b.parameter,
+                             "seconds_all_runs": b.seconds_all_runs})
+
     if baselines.pymeshlab_available():
         say("pymeshlab isotropic explicit remeshing (solving for the target length)")
-        b = baselines.isotropic_remesh(V_in, F_in, target)
-        out["pymeshlab_isotropic"] = Method(
-            "pymeshlab_isotropic", b.V, b.F, b.seconds,
-            quality(b.V, b.F),
-            extra={"runs": b.runs, "parameters": b.parameter,
-                   "seconds_all_runs": b.seconds_all_runs})
+        out["pymeshlab_isotropic"] = baseline(
+            "pymeshlab_isotropic", lambda: baselines.isotropic_remesh(V_in, F_in, target))
     else:
         out["pymeshlab_isotropic"] = Method("pymeshlab_isotropic", None, None,
                                             note="pymeshlab is not installed "
                                                  "(pip install pymeshlab)")
     say("fast-simplification decimation")
-    b = baselines.decimate(V_in, F_in, target)
-    if b is None:
-        out["fast_simplification"] = Method(
-            "fast_simplification", None, None,
-            note=f"not applicable: decimation only removes vertices and the input has "
-                 f"{len(V_in)} ≤ {target}")
-    else:
-        out["fast_simplification"] = Method(
-            "fast_simplification", b.V, b.F, b.seconds,
-            quality(b.V, b.F),
-            extra={"runs": b.runs, "parameters": b.parameter,
-                   "seconds_all_runs": b.seconds_all_runs})
+    out["fast_simplification"] = baseline(
+        "fast_simplification", lambda: baselines.decimate(V_in, F_in, target))
     return out
 
 
