@@ -145,6 +145,15 @@ def test_bad_meshes_exit_2_with_one_line(tmp_path, make, words):
     assert not (tmp_path / "out" / "parameterization.npz").exists()
 
 
+def test_a_decimation_request_on_a_torus_names_its_genus(tmp_path):
+    """With --decimate, a closed genus-1 mesh is refused for its genus (what the user must
+    change), not for a decimation that could not keep genus 0."""
+    path = _closed_torus(tmp_path / "torus.obj", k=12)
+    code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out", "--decimate", 100)
+    assert_one_line_error(code, err, "closed", "genus 1")
+    assert "decimat" not in err
+
+
 def test_empty_file_and_unknown_format(tmp_path):
     empty = tmp_path / "empty.obj"
     empty.write_text("")

@@ -851,6 +851,9 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
 
     # 11. decimation --------------------------------------------------------------------------
     if opts.decimate_to_faces is not None:
+        # handles are the input's, not the decimation's: named before it is tried (a
+        # decimation is kept only if it leaves a genus-0 mesh)
+        _check_genus(M, count_boundary_loops(M.F), name)
         if _decimate(M, opts.decimate_to_faces, report, messages, name):
             _clean(M, opts, report, messages, name, when=" after decimation")
 
