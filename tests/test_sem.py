@@ -238,6 +238,24 @@ def test_converged_default_matches_the_1000_iteration_gradient_map(name):
     assert new.iterations * 5 <= old.iterations
 
 
+def test_converged_mode_stops_once_the_stretch_is_uniform_to_gn_cv():
+    """igl_lion: the descent ends at the first step whose excess E_S/bound − 1 (σ's squared
+    coefficient of variation) is at most gn_cv² and at most gn_drop × the excess where it
+    started; with gn_drop = 0 only the gn_tol rule ends it, later."""
+    V, F = load_mesh("igl_lion")
+    b = boundary_loop(F, V)
+    opt = SEMOptions(mode="converged")
+    r = stretch_energy_minimization(V, F, b, opt)
+    assert r.status == "converged" and "uniform to 0.01" in r.stop_reason
+    excess = [e["energy_ratio"] - 1.0 for e in r.history]
+    first_gn = next(i for i, e in enumerate(r.history) if e["phase"] == "gauss_newton")
+    bound = min(opt.gn_cv ** 2, opt.gn_drop * excess[first_gn - 1])
+    assert excess[-1] <= bound < excess[-2]
+    full = stretch_energy_minimization(V, F, b, SEMOptions(mode="converged", gn_drop=0.0))
+    assert full.status == "converged" and "uniform to" not in full.stop_reason
+    assert full.iterations > r.iterations and full.flipped_faces == r.flipped_faces == 0
+
+
 def test_gauss_newton_step_turns_the_boundary_along_the_circle(ddisk):
     """With the boundary as unknowns (angles), a Gauss–Newton step keeps every boundary point on
     the unit circle, moves interior and boundary, and its direction lowers the area-matching

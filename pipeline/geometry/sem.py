@@ -38,7 +38,11 @@ Modes:
      A step is accepted only if it lowers the energy and flips no face: damped by halving,
      and vertices of faces that would flip keep their previous position.
      Phase B ends when the relative decrease stays below ``tol`` for ``patience`` steps in a
-     row (``gn_tol``, ``gn_patience`` with Gauss–Newton), or at ``max_iter`` steps in all.
+     row (``gn_tol``, ``gn_patience`` with Gauss–Newton), or at ``max_iter`` steps in all; with
+     Gauss–Newton also once the stretch ``σ = |f(τ)|/|τ|`` is uniform to ``gn_cv`` (1 %: the
+     excess ``E_S/bound − 1`` is σ's squared area-weighted coefficient of variation) and the
+     excess is at most ``gn_drop`` (3 %) of its value where the descent started, which is
+     where its linear tail would refine a map already that equiareal for tens of steps.
      ``descent="gradient"`` is the schedule without Gauss–Newton: many cheap steps on a kept
      preconditioner factor instead of one factorization per step.
 
@@ -101,6 +105,11 @@ class SEMOptions(BaseModel):
     # converged with gauss_newton: its own stopping rule in place of tol and patience
     gn_tol: float = Field(3e-6, gt=0.0)
     gn_patience: int = Field(3, ge=1)
+    # converged with gauss_newton: also ends once the stretch σ = |f(τ)|/|τ| is uniform to
+    # gn_cv (its area-weighted coefficient of variation, √(E_S/bound − 1)) and the excess
+    # E_S/bound − 1 is at most gn_drop × its value where phase B started (gn_drop 0: off)
+    gn_cv: float = Field(0.01, gt=0.0)
+    gn_drop: float = Field(0.03, ge=0.0, le=1.0)
 
     def for_domain(self, domain: str) -> "SEMOptions":
         """These options with ``mode: auto`` resolved for ``domain`` ("disk" or "sphere")."""
@@ -696,6 +705,8 @@ def _descent(problem, newton, f, value, opt, record, it, max_iter):
         (opt.tol, opt.patience)
     mu = GN_MU
     boundary_turn = False           # Gauss–Newton went quiet: a SEM/gradient step's turn
+    # the accuracy at which Gauss–Newton's descent counts as converged (see SEMOptions.gn_cv)
+    accurate = min(opt.gn_cv ** 2, opt.gn_drop * (value[1] - 1.0))
     while it < max_iter:
         w = blocks = None               # stretch weights: only for a SEM or gradient try
         step = None
@@ -750,6 +761,12 @@ def _descent(problem, newton, f, value, opt, record, it, max_iter):
         quiet = quiet + 1 if (value[1] - new[1]) < tol * value[1] else 0
         f, value = g, new
         record(it, f, value, alpha, kind)
+        if newton is not None and value[1] - 1.0 <= accurate:
+            status = "converged"
+            reason = (f"the stretch is uniform to {opt.gn_cv:g} (coefficient of variation) and "
+                      f"the excess energy ratio fell to {opt.gn_drop:g} of where the descent "
+                      "started")
+            break
         if boundary_turn and quiet == 0:
             boundary_turn = False       # the boundary moved: Gauss–Newton again
         elif quiet >= patience and kind == "gauss_newton" and newton.hold_boundary:
