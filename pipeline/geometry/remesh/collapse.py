@@ -78,7 +78,6 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
         Fs = F
         if look is None and (budget is not None or np.isfinite(L_min)):
-            tails, heads = F.ravel(), np.roll(F, -1, axis=1).ravel()
             hl = half_edge_lengths(F, X)
         if budget is not None and look is None:
             # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
@@ -88,14 +87,11 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
-            # both ends: a boundary edge has one half-edge, and its head's ring must be whole too
             if look is None:
-                short = hl < thr
-                ends = np.concatenate([tails[short], heads[short]])
+                ends = _half_edge_ends(F, hl < thr, S.is_rim)
             else:
                 Fl = F[touching(F, look)]
-                short = half_edge_lengths(Fl, X) < thr
-                ends = np.concatenate([Fl.ravel()[short], np.roll(Fl, -1, axis=1).ravel()[short]])
+                ends = _half_edge_ends(Fl, half_edge_lengths(Fl, X) < thr, S.is_rim)
             if len(ends) == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
@@ -163,6 +159,16 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         S.keep_vertices(alive)
     S.tally("collapses", done)
     return done
+
+
+def _half_edge_ends(F: np.ndarray, mask: np.ndarray, is_rim: np.ndarray) -> np.ndarray:
+    """The vertices whose rings a collapse of the half-edges ``F[t, c] → F[t, c+1]`` that
+    ``mask`` (3m bool, half-edge order) marks reads: their tails, and the heads of those on
+    the rim (an interior edge's head is its twin's tail; a boundary edge has no twin)."""
+    h = np.flatnonzero(mask)
+    tails = F.ravel()[h]
+    h = h[is_rim[tails]]
+    return np.concatenate([tails, F[h // 3, (h % 3 + 1) % 3]])
 
 
 def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap, max_sag,
