@@ -8,9 +8,11 @@ import pytest
 from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import signed_double_areas
+from pipeline.geometry.remesh import uniform_remesh
 from pipeline.geometry.remesh.fidelity import far_input_vertices, follow_input
 from pipeline.geometry.remesh.state import RemeshState
-from pipeline.geometry.remesh_quality import MeshDistance, is_disk, mesh_facts
+from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
+                                              triangle_quality)
 from remesh_helpers import ccw_delaunay, disk_points
 
 
@@ -61,3 +63,20 @@ def test_follow_input_puts_a_locked_vertex_on_far_input_vertices_of_a_crease():
     assert interior_distances(V_in, F_in, S.X, S.F).max() <= 0.05
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
 
+
+@pytest.mark.timeout(120)
+def test_uniform_remesh_follows_a_sharp_crease():
+    """The disk creased at slope 2 (a 127° fold) remeshed at 1000 vertices: without
+    ``follow_input`` its faces cut across the crease, an input vertex on it 0.35 L from the
+    remesh; with it (0.25, the default) every interior input vertex is within 0.25 L, with the
+    same count, one disk, and no smaller smallest angle."""
+    uv_in, F_in, V_in, loop, _ = creased_disk(2.0)
+    far, smallest = {}, {}
+    for follow in (0.0, 0.25):
+        r = uniform_remesh(V_in, F_in, uv_in, loop, vertices=1000, follow_input=follow)
+        L = r.info["spacing_mesh_units"]
+        far[follow] = interior_distances(V_in, F_in, r.V, r.F).max() / L
+        smallest[follow] = triangle_quality(r.V, r.F)["min_angle_deg"]
+        assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
+    assert far[0.0] > 0.3 and far[0.25] <= 0.25
+    assert smallest[0.25] >= smallest[0.0]
