@@ -125,9 +125,8 @@ def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: f
     far = e[sag > max_sag]
     back[a[far]] = back[b[far]] = True
     back &= is_moved
-    uv_new = S.uv.copy()
-    while back.any():
-        uv = uv_new.copy()
+    while back.any():                            # keep the snaps whose undoing folds a face
+        uv = S.uv.copy()
         uv[back] = old[0][back[:len(old[0])]]
         faces = np.flatnonzero(touching(S.F, back))
         bad = faces[~(double_areas(uv, S.F[faces]) > 0)]
