@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.locate import PointLocator, lift
+from pipeline.geometry.locate import PointLocator
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
 from pipeline.geometry.remesh.fidelity import far_input_vertices, follow_input
-from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
-from remesh_helpers import ccw_delaunay, disk_points
+from remesh_helpers import ccw_delaunay, coarse_state, disk_points
 
 
 def creased_disk(slope: float, x0: float = 0.1):
@@ -45,13 +44,8 @@ def test_follow_input_puts_a_locked_vertex_on_far_input_vertices_of_a_crease():
     After :func:`follow_input` (tolerance 0.05, gap 0.1) each vertex it returns is locked and
     lies exactly on a far input vertex, none of the input vertices is farther than 0.05 any
     more, and the remesh is still a counter-clockwise disk."""
-    uv_in, F_in, V_in, loop, locator = creased_disk(1.0)
-    ring = np.flatnonzero(np.isclose(np.linalg.norm(uv_in, axis=1), 1.0))[::10]
-    uv = np.vstack([disk_points(4, 6), uv_in[ring]])
-    F = ccw_delaunay(uv)
-    face, bary = locator.locate(uv)
-    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
-                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    F_in, V_in = S.F_in, S.V_in
     far = far_input_vertices(S, 0.05)
     assert len(far) == 365
     assert np.isclose(interior_distances(V_in, F_in, S.X, S.F).max(), 0.1366, atol=1e-4)
