@@ -58,3 +58,21 @@ def disk_map(tent: float = 0.0):
     V_in = np.column_stack([uv_in, tent * np.maximum(0, 1 - np.linalg.norm(uv_in, axis=1) / 0.25)])
     loop = topo.boundary_loops(F_in)[0]
     return uv_in, F_in, V_in, loop, PointLocator(uv_in, F_in, loop)
+
+
+def coarse_state(uv_in, F_in, V_in, loop, locator, rings: int):
+    """A coarse remesh of the disk map ``(uv_in, F_in)`` of ``V_in`` as a
+    :class:`pipeline.geometry.remesh.state.RemeshState`: the points of :func:`disk_points`
+    (``rings`` rings of 6·i) and every 10th map point on the unit circle (its rim),
+    triangulated by :func:`ccw_delaunay`, located and lifted; also those rim points' map
+    indices."""
+    from pipeline.geometry.locate import lift
+    from pipeline.geometry.remesh.state import RemeshState
+
+    ring = np.flatnonzero(np.isclose(np.linalg.norm(uv_in, axis=1), 1.0))[::10]
+    uv = np.vstack([disk_points(rings, 6), uv_in[ring]])
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
+                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    return S, ring

@@ -4,13 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.geometry import topology as topo
-from pipeline.geometry.locate import PointLocator, _closest_on_segments, lift
+from pipeline.geometry.locate import PointLocator, _closest_on_segments
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh.corners import _kept_apart, insert_vertices
-from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
-from remesh_helpers import ccw_delaunay, disk_map, disk_points
+from remesh_helpers import coarse_state, disk_map
 
 
 def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyond_the_rim():
@@ -20,12 +18,7 @@ def test_insert_vertices_puts_locked_vertices_exactly_on_targets_inside_and_beyo
     only a rim split (its vertex on the polygon) brings it inside. Each gets a locked vertex
     exactly there, and the result is still a counter-clockwise disk."""
     uv_in, F_in, V_in, loop, locator = disk_map()
-    ring = np.flatnonzero(np.isclose(np.linalg.norm(uv_in, axis=1), 1.0))[::10]
-    uv = np.vstack([disk_points(3, 6), uv_in[ring]])
-    F = ccw_delaunay(uv)
-    face, bary = locator.locate(uv)
-    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
-                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    S, ring = coarse_state(uv_in, F_in, V_in, loop, locator, 3)
     a = np.arctan2(*uv_in[ring[:2]][:, ::-1].T)                  # two neighbouring rim points
     mid = 0.5 * (a[0] + a[1]) if abs(a[1] - a[0]) < np.pi else 0.5 * (a[0] + a[1]) + np.pi
     beyond = 0.9985 * np.array([np.cos(mid), np.sin(mid)])       # chord at cos(π/24) ≈ 0.991

@@ -37,7 +37,14 @@ The schedule (:func:`improve_remesh`):
    around the faces with an angle below ``RESHAPE_DEG`` — the splits and collapses just made
    leave them skinny — under a veto of every move that takes an edge farther from the
    surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not without
-   ``relax_iterations``);
+   ``relax_iterations``); then the remesh follows the input (:meth:`_Operations.follow`,
+   :mod:`.fidelity`): a vertex snapped (or inserted) and locked on every interior input
+   vertex farther than ``follow_input × L`` from the remesh — the sharp creases and thin
+   folds no sag test sees — no two closer than ``FOLLOW_GAP × L``, a snap undone where it
+   leaves an edge farther than the sag tolerance from the surface, flips, as many guarded
+   collapses of the shortest edges as vertices were inserted, flips; after the smoothing,
+   which would move the vertices next to them off the creases again, and locked until the
+   minimum-angle pass (step 10), which may move them;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
@@ -73,6 +80,7 @@ from ..rows import norms
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
+from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
@@ -91,6 +99,7 @@ NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
+FOLLOW_GAP = 0.4      # vertices snapped onto far input vertices are this × L apart at least
 
 
 def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips: bool = True,
@@ -101,7 +110,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6,
                    pinned_relax_iterations: int = 2,
-                   min_angle_deg: float = 20.0, sag_floor: float = 0.0) -> RemeshState:
+                   min_angle_deg: float = 20.0, sag_floor: float = 0.0,
+                   follow_input: float = 0.25) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -143,14 +153,17 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         crease angle, which no split removes and which the refinement would chase at the cost
         of the triangles' shape; the sphere remesher floors the tolerance at ``refine_sag`` ×
         the input's own spacing (:func:`.sphere.sphere_remesh`).
+    follow_input : float
+        At the end of step 7, a vertex goes onto every interior input vertex farther than this
+        × ``L`` from the remesh (0: none).
 
     Returns
     -------
     RemeshState
         ``S``, with counts and seconds per step in ``S.log``: ``log["seconds"]`` has ``flips``
         and ``relax`` (step 2), ``refine`` (3), ``isotropic`` (4), ``count`` (5),
-        ``smoothing`` (6), ``pinned`` and ``reshape`` (7), ``slivers`` (8), ``rim_fans`` (9),
-        ``guarantee`` (10) and ``repair`` (11).
+        ``smoothing`` (6), ``pinned``, ``reshape`` and ``follow`` (7), ``slivers`` (8),
+        ``rim_fans`` (9), ``guarantee`` (10) and ``repair`` (11).
     """
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
@@ -182,11 +195,16 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         for _ in range(RESHAPE_STEPS if relax_iterations > 0 else 0):
             ops.reshape(RESHAPE_DEG)
             lap("reshape")
+    corners = S.X[S.locked].copy()
+    if follow_input > 0:
+        ops.follow(follow_input * L)
+        lap("follow")
     ops.remove_slivers(target)
     lap("slivers")
     if open_rim_fans(S):
         ops.flip()
     lap("rim_fans")
+    S.locked = _at_points(S.X, corners)         # the followed vertices free again
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
@@ -278,6 +296,21 @@ class _Operations:
         self.flip()
         self.relax()
         self.flip()
+
+    def follow(self, tol: float) -> None:
+        """Snap (or insert) a locked vertex onto every interior input vertex farther than
+        ``tol`` from the remesh, ``FOLLOW_GAP × L`` apart, no snap leaving an edge farther
+        than the sag tolerance from the surface (:func:`.fidelity.follow_input`), flips, as
+        many collapses of the shortest edges under the guards as vertices were inserted,
+        flips."""
+        S = self.S
+        n0 = S.n
+        snap_far_input(S, tol, FOLLOW_GAP * self.L, self.tol)
+        self.flip()
+        if S.n > n0:
+            collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - n0, max_gap=self.tol,
+                                 max_sag=self.tol)
+            self.flip()
 
     def refine_pinned(self, target: int, budget: int, relax_iterations: int) -> None:
         """Sag refinement again after the relaxation (which moves vertices off the folds the

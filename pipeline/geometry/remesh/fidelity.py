@@ -1,0 +1,141 @@
+"""The remesh follows the input: a vertex on each input vertex it has drifted too far from.
+
+The sag tests (:mod:`.sag`) look at the remesh's edges from the remesh's side: how far a
+straight edge leaves the surface under it. They do not see the input's own thin features —
+a crease or a fold narrower than the target length (a nostril's rim, a sulcus' lip, a lip's
+corner) — that the remesh cuts across between two vertices on either side: there the remesh
+is close to the surface everywhere along its edges, but an input vertex on the crease is far
+from it, and the input-to-remesh Hausdorff distance is decided at such vertices.
+:func:`follow_input` finds the interior input vertices farther from the remesh than a
+tolerance (exact point–triangle distances, :class:`..remesh_quality.MeshDistance`) and moves
+the nearest free remesh vertex exactly onto each (or inserts one there), locked
+(:func:`.corners.snap_vertices`), farthest first, no two closer than a gap on the surface. A
+snap next to a feature narrower than the remesh's edges (a spike, a sulcus) tilts the faces
+around it over the surface; those that leave an edge farther than the sag tolerance from the
+surface are undone (:func:`undo_sagging_snaps`). The counts go to the state's log as
+``followed_snapped``, ``followed_inserted``, ``followed_too_close`` and
+``follow_snaps_undone``, apart from the corners'.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import topology as topo
+from ..remesh_quality import MeshDistance
+from .corners import snap_vertices
+from .halfedge import double_areas, edge_table, touching
+from .refine import SAG_SAMPLES
+from .sag import edge_sag_along
+from .state import RemeshState
+
+CORNER_COUNTS = ("corners_snapped", "corners_inserted", "corners_too_close")
+
+
+def far_input_vertices(S: RemeshState, tol: float) -> np.ndarray:
+    """The interior input vertices farther than ``tol`` from the remesh ``(S.X, S.F)``,
+    farthest first.
+
+    Parameters
+    ----------
+    S : RemeshState
+    tol : float
+        In the mesh's units.
+
+    Returns
+    -------
+    (k,) int
+        Input vertex indices.
+    """
+    d, _ = MeshDistance(S.X, S.F)(S.V_in)
+    d[topo.boundary_vertices_mask(S.F_in, len(S.V_in))] = 0.0
+    far = np.flatnonzero(d > tol)
+    return far[np.argsort(-d[far], kind="stable")]
+
+
+def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
+                 ) -> np.ndarray:
+    """Snap (or insert) a locked remesh vertex onto every interior input vertex farther than
+    ``tol`` from the remesh, farthest first, none within ``min_gap`` on the surface of one
+    snapped before or of a locked vertex (:func:`.corners.snap_vertices`); given
+    ``max_sag``, the snaps that leave an edge farther than that from the surface are undone
+    (:func:`undo_sagging_snaps`).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    tol, min_gap : float
+        In the mesh's units.
+    max_sag : float, optional
+        In the mesh's units.
+
+    Returns
+    -------
+    (j,) int
+        The snapped and inserted vertices that stay.
+    """
+    far = far_input_vertices(S, tol)
+    S.tally("far_input_vertices", len(far))
+    if len(far) == 0:
+        return np.zeros(0, np.int64)
+    n0 = S.n
+    old = S.uv.copy(), S.face.copy(), S.bary.copy(), S.X.copy()
+    counts = {k: S.log.get(k, 0) for k in CORNER_COUNTS}
+    v = snap_vertices(S, S.uv_in[far], min_gap=min_gap)
+    for k, k0 in counts.items():                 # the corners' counts stay the corners'
+        S.tally(k.replace("corners_", "followed_"), S.log.get(k, 0) - k0)
+        S.log[k] = k0
+    if max_sag is not None:
+        undone = undo_sagging_snaps(S, v[v < n0], old, max_sag)
+        v = np.setdiff1d(v, undone)
+    return v
+
+
+def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: float
+                       ) -> np.ndarray:
+    """Put back the snapped vertices ``moved`` with an edge farther than ``max_sag`` from the
+    surface (:func:`.sag.edge_sag_along` at ``SAG_SAMPLES`` points), unlocked, where no face
+    turns clockwise on the disk by it (a snap next to a narrow feature tilts its faces over
+    the surface around it).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    moved : (k,) int
+    old : tuple of (n₀, 2), (n₀,), (n₀, 3), (n₀, 3) arrays
+        ``uv``, ``face``, ``bary`` and ``X`` of the first ``n₀`` vertices before the snaps.
+    max_sag : float
+        In the mesh's units.
+
+    Returns
+    -------
+    (j,) int
+        The vertices put back.
+    """
+    if len(moved) == 0:
+        return moved
+    is_moved = np.zeros(S.n, bool)
+    is_moved[moved] = True
+    _, a, b, _ = edge_table(S.F, twin=S.twins())
+    e = np.flatnonzero(is_moved[a] | is_moved[b])
+    sag, _ = edge_sag_along(S, a[e], b[e], np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1))
+    back = np.zeros(S.n, bool)
+    far = e[sag > max_sag]
+    back[a[far]] = back[b[far]] = True
+    back &= is_moved
+    while back.any():                            # keep the snaps whose undoing folds a face
+        uv = S.uv.copy()
+        uv[back] = old[0][back[:len(old[0])]]
+        faces = np.flatnonzero(touching(S.F, back))
+        bad = faces[~(double_areas(uv, S.F[faces]) > 0)]
+        if len(bad) == 0:
+            break
+        back[S.F[bad].ravel()] = False
+    r = np.flatnonzero(back)
+    S.uv[r], S.face[r], S.bary[r], S.X[r] = (x[r] for x in old)
+    S.locked[r] = False
+    S.tally("follow_snaps_undone", len(r))
+    return r
+
