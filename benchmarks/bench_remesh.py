@@ -223,9 +223,9 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
 
 STEPS = ("sample", "delaunay", "locate", "lift", "improve", "total")
 SUB = ("flips", "relax", "refine", "isotropic", "count", "smoothing", "pinned", "reshape",
-       "slivers", "rim_fans", "guarantee", "repair")
-SUB_HEAD = ("flips", "relax", "refine", "iso", "count", "smooth", "pinned", "reshape", "sliver",
-            "fans", "angle", "repair")
+       "follow", "slivers", "rim_fans", "guarantee", "repair")
+SUB_HEAD = ("flips", "relax", "refine", "iso", "count", "smooth", "pinned", "reshape", "follow",
+            "sliver", "fans", "angle", "repair")
 
 
 def bench_remesh(names, counts, repeat):
