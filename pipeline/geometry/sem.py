@@ -51,8 +51,8 @@ Both modes minimize eq. (15) with every face's area raised to at least 10⁻³ o
 and distortions against the surface's own areas. The returned map is the best flip-free map
 found (an area continuation's stages are recorded as phase ``continuation``, their energy
 against the surface's areas, which may rise there; the map it ends on is kept only if it is
-better than its start), so it has no flipped face whenever the
-harmonic start has none (guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
+better than its start), so it has no flipped face whenever the harmonic start has none
+(guaranteed by :mod:`.harmonic`). ``SEMResult.flipped_faces`` reports
 what remains, and callers treat a non-zero count as failure; ``SEMResult.stop_reason`` says why
 the iteration ended and ``SEMResult.steps`` how many steps of each kind were taken (both go into
 the ``parameterization`` section of ``metrics.json``).
