@@ -73,10 +73,12 @@ def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
     return sharp[np.argsort(-dev[sharp])]
 
 
-def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float) -> np.ndarray:
+def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float,
+                      counts: str = "corners") -> np.ndarray:
     """The targets (in order) whose lifts are at least ``min_gap`` from every locked vertex
     and from every target kept before them (KD-trees: a noisy scan has thousands of sharp
-    vertices, and comparing every pair of them took a minute)."""
+    vertices, and comparing every pair of them took a minute); the others are counted as
+    ``<counts>_too_close``."""
     if min_gap <= 0 or len(targets_uv) == 0:
         return targets_uv
     from scipy.spatial import cKDTree
@@ -88,7 +90,7 @@ def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float) ->
         keep = cKDTree(S.X[S.locked]).query(P)[0] >= min_gap
     idx = np.flatnonzero(keep)
     idx = idx[_kept_apart(P[idx], min_gap)]
-    S.tally("corners_too_close", len(P) - len(idx))
+    S.tally(f"{counts}_too_close", len(P) - len(idx))
     return targets_uv[idx]
 
 
@@ -110,7 +112,8 @@ def _kept_apart(P: np.ndarray, gap: float) -> np.ndarray:
     return kept
 
 
-def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) -> np.ndarray:
+def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0,
+                  counts: str = "corners") -> np.ndarray:
     """Move an interior vertex exactly onto each target (the disk image of a sharp input
     vertex) and lock it: for each target in the given order (sharpest first), the nearest of
     its 4 nearest free vertices on the disk whose faces stay counter-clockwise there; a target
@@ -128,6 +131,9 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
         Disk images of the sharp input vertices, sharpest first.
     min_gap : float
         In the mesh's units.
+    counts : str
+        The log's keys: ``<counts>_snapped``, ``<counts>_inserted`` and ``<counts>_too_close``
+        (:mod:`.fidelity` snaps onto input vertices under ``followed``).
 
     Returns
     -------
@@ -137,7 +143,7 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
     from scipy.spatial import cKDTree
 
     T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
-    T = _apart_on_surface(S, T, min_gap)
+    T = _apart_on_surface(S, T, min_gap, counts)
     free = np.flatnonzero(~S.is_rim & ~S.locked)
     if len(T) == 0 or len(free) == 0:
         return np.zeros(0, np.int64)
@@ -168,14 +174,14 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0) 
         S.face[v], S.bary[v] = f, b
         S.X[v] = lift(S.V_in, S.F_in, f, b)
         S.locked[v] = True
-    S.tally("corners_snapped", len(v))
+    S.tally(f"{counts}_snapped", len(v))
     if missed:
         T = np.array([t for t, _ in missed])
         cands = np.array([c for _, c in missed])
         f, b, _ = S.locator.locate_with_inside(T)
         gap = np.linalg.norm(S.X[cands] - lift(S.V_in, S.F_in, f, b)[:, None, :], axis=2)
         gap = gap.min(axis=1)
-        v = np.concatenate([v, insert_vertices(S, T[gap >= min_gap])])
+        v = np.concatenate([v, insert_vertices(S, T[gap >= min_gap], counts=counts)])
     return v
 
 
@@ -199,13 +205,15 @@ def locate_near(S: RemeshState, T: np.ndarray, k: int = NEAR_VERTICES
     return sub[f], bary, inside
 
 
-def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6) -> np.ndarray:
+def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6,
+                    counts: str = "corners") -> np.ndarray:
     """Insert a locked vertex exactly at each disk target (the image of a sharp input vertex
     that no existing vertex could be snapped to), in rounds of targets in distinct faces of
     the remesh: a target inside a face splits it 1 → 3, one on an edge splits the edge there.
     A target beyond the remesh's rim — between a rim chord and the image polygon, where a
     spike squeezed against the boundary ends up — first splits that rim edge at the polygon
-    point nearest to it, which brings the target inside. Returns the inserted vertices."""
+    point nearest to it, which brings the target inside. Returns the inserted vertices,
+    counted as ``<counts>_inserted``."""
     T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
     done = []
     for _ in range(max_rounds):
@@ -234,5 +242,5 @@ def insert_vertices(S: RemeshState, targets_uv: np.ndarray, max_rounds: int = 6)
         again[first[on_edge | strict]] = False
         T = T[again]
     v = np.concatenate(done) if done else np.zeros(0, np.int64)
-    S.tally("corners_inserted", len(v))
+    S.tally(f"{counts}_inserted", len(v))
     return v

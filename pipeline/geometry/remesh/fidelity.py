@@ -29,8 +29,6 @@ from .refine import SAG_SAMPLES
 from .sag import edge_sag_along
 from .state import RemeshState
 
-CORNER_COUNTS = ("corners_snapped", "corners_inserted", "corners_too_close")
-
 
 def far_input_vertices(S: RemeshState, tol: float) -> np.ndarray:
     """The interior input vertices farther than ``tol`` from the remesh ``(S.X, S.F)``,
@@ -81,11 +79,7 @@ def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | No
         return np.zeros(0, np.int64)
     n0 = S.n
     old = S.uv.copy(), S.face.copy(), S.bary.copy(), S.X.copy()
-    counts = {k: S.log.get(k, 0) for k in CORNER_COUNTS}
-    v = snap_vertices(S, S.uv_in[far], min_gap=min_gap)
-    for k, k0 in counts.items():                 # the corners' counts stay the corners'
-        S.tally(k.replace("corners_", "followed_"), S.log.get(k, 0) - k0)
-        S.log[k] = k0
+    v = snap_vertices(S, S.uv_in[far], min_gap=min_gap, counts="followed")
     if max_sag is not None:
         undone = undo_sagging_snaps(S, v[v < n0], old, max_sag)
         v = np.setdiff1d(v, undone)
