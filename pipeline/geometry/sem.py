@@ -215,12 +215,12 @@ class _Problem:
         return w
 
     def with_areas(self, double_area: np.ndarray) -> "_Problem":
-        """This problem with other surface double areas ``2|τ|`` (an area continuation stage):
-        the same pattern and solvers, the energy, weights and distortions against them."""
+        """This problem aiming at other double areas ``2|τ|`` (an area continuation stage):
+        the same pattern and solvers, the energy and weights against them. Its steps are
+        recorded through this problem (:func:`_area_continuation`), so distortions stay the
+        surface's."""
         stage = copy.copy(self)
         stage.A2, stage.area_M = double_area, double_area.sum() / 2
-        stage.surface_fractions = vertex_area_fractions(self.F, len(self.V), double_area,
-                                                        self.incidence)
         stage.weight_map = stretch_weight_map(self.pattern, double_area)
         return stage
 
