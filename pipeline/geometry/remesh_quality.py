@@ -54,8 +54,12 @@ def degenerate_faces(V: np.ndarray, F: np.ndarray, rtol: float = DEGENERATE_RTOL
 
 def mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
     """Topology and validity counts of a triangle mesh (see the module docstring)."""
+    with topo.kept_edge_groups():           # the counts below group F's edges five times
+        return _mesh_facts(V, np.asarray(F, np.int64))
+
+
+def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
     n = len(V)
-    F = np.asarray(F, np.int64)
     ncomp, _ = topo.connected_components(F, n)
     nm_edges = len(topo.nonmanifold_edges(F))
     try:
