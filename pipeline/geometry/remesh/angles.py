@@ -19,8 +19,8 @@ first and tries, on the few vertices around each, the local operations that chan
 
 all judged on the surface: an operation is made when the smallest 3D angle of the faces it
 makes is larger than that of the faces it replaces and no more of them are below the
-threshold (a greedy raise of the worst face must not leave more faces below), every new face is counter-clockwise and
-not thinner than ``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no
+threshold (a greedy raise of the worst face must not leave more faces below), every new face
+is counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no
 face over in 3D, gives no face three rim corners, and — the sag guard of the other steps — no
 new or moved edge is farther from the surface than the sag tolerance unless it was already. A
 collapse or a move also keeps the removed vertex or the old position within the tolerance of
@@ -37,7 +37,8 @@ whose split makes no face below the threshold (:func:`keeps_min_angle`).
 What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
 input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
 threshold times the fewest faces a vertex there can have (two on the rim, where a single face
-would be a leaf, three inside) is forced by the input; any other face is a failure of the pass, counted apart in the report.
+would be a leaf, three inside) is forced by the input; any other face is a failure of the
+pass, counted apart in the report.
 """
 
 from __future__ import annotations

@@ -58,9 +58,9 @@ The schedule (:func:`improve_remesh`):
     raises the smallest 3D angle of the faces it touches, under the sag guard) around the
     faces still below, the count restored (splits that make no face below the minimum,
     :func:`.angles.split_for_count`, or guarded collapses of the shortest edges) and the
-    operations again around the faces then below. A face no operation can raise stays: the report counts the faces below the minimum and,
-    among them, those an input corner too sharp for any fan forces
-    (:func:`.angles.forced_by_corners`);
+    operations again around the faces then below. A face no operation can raise stays: the
+    report counts the faces below the minimum and, among them, those an input corner too
+    sharp for any fan forces (:func:`.angles.forced_by_corners`);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
