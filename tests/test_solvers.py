@@ -64,6 +64,27 @@ def test_solvers_agree_on_spd_block(kind, refactored, spd_block):
     s.release()
 
 
+@pytest.mark.parametrize("kind", ["scipy", "pardiso", "cholmod"])
+def test_upper_triangle_alone_factors_the_symmetric_matrix(kind, spd_block):
+    """``factorize(U, upper=True)`` with U the upper triangle (CSR, sorted rows) solves with the
+    whole symmetric matrix, and switching between the two forms of one pattern re-analyses."""
+    _need(kind)
+    A = spd_block.tocsr()
+    U = sp.triu(A).tocsr()
+    U.sort_indices()
+    rng = np.random.default_rng(11)
+    b = rng.normal(size=A.shape[0])
+    exact = np.linalg.solve(A.toarray(), b)
+    s = make_solver(kind, refactored=True)
+    for M, upper in [(U, True), (A, False), (U, True)]:
+        s.factorize(M, upper=upper)
+        np.testing.assert_allclose(s.solve(b), exact, rtol=1e-10, atol=1e-12)
+    U.data = U.data * 2.0            # new values on the upper pattern: a refactorization
+    s.factorize(U, upper=True)
+    np.testing.assert_allclose(s.solve(b), exact / 2.0, rtol=1e-10, atol=1e-12)
+    s.release()
+
+
 def test_mkl_library_named_in_pypardiso_mkl_rt_is_the_only_candidate(monkeypatch):
     monkeypatch.setenv("PYPARDISO_MKL_RT", "/opt/intel/libmkl_rt.so.2")
     assert solvers._mkl_rt_paths() == ["/opt/intel/libmkl_rt.so.2"]

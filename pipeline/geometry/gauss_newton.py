@@ -27,10 +27,11 @@ interior-only steps on the same system (the boundary rows decoupled by a huge di
 that turning the boundary loose later needs no new analysis. It uses the
 curvature of the area constraints that the Laplacian preconditioner of the gradient step in
 :mod:`.sem` lacks, which is why it needs few steps where preconditioned gradient steps need
-hundreds. The unknowns are ``[u_I; v_I]``; the pattern of ``H`` (the 2×2-block vertex
-adjacency) and where every face's 21 products land in its ``data`` are computed once, so each
-step assembles ``H`` and ``g`` in one compiled pass over the faces
-(:func:`._kernels.disk_gauss_newton_terms`) and refactors on a kept analysis.
+hundreds. The unknowns are ``[u_I; v_I]``; the pattern of ``H``'s upper triangle (the 2×2-block
+vertex adjacency) and where every face's 21 products land in its ``data`` are computed once, so
+each step assembles that triangle and ``g`` in one compiled pass over the faces
+(:func:`._kernels.disk_gauss_newton_terms`) and refactors it as it is (the solvers'
+``upper=True``) on a kept analysis.
 """
 
 from __future__ import annotations
@@ -167,13 +168,13 @@ class GaussNewton:
         N = 2 * nI + nB
         indptr, indices, self.face_slots = face_pair_pattern(self.cols, N)
         self.n_upper = len(indices)
-        U = sp.csr_matrix((np.arange(1, self.n_upper + 1, dtype=np.float64), indices, indptr),
-                          shape=(N, N))
-        self.full_from_upper, self.H, _, self.diagonal = full_pattern(U)
+        # the upper triangle is what the solvers factor (``upper=True``); rows sorted, so each
+        # row's diagonal entry comes first
+        self.H = sp.csr_matrix((np.empty(self.n_upper), indices, indptr), shape=(N, N))
+        self.diagonal = indptr[:-1].astype(np.int64)
         self.corner_flags = np.ascontiguousarray(
             np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
             else self.on_boundary.astype(np.uint8))
-        self._upper = np.empty(self.n_upper)
         self.solver = make_solver(solver_kind, refactored=True)
         self.factorizations = 0
         self.hold_boundary = False
@@ -193,17 +194,15 @@ class GaussNewton:
             residual, weight = barrier_terms(a2, residual, self.double_area, self.barrier)
         N = self.H.shape[0]
         g = np.empty(N)
-        upper = self._upper
+        H = self.H
         disk_gauss_newton_terms(self.F, np.ascontiguousarray(f, dtype=np.complex128),
                                 np.ascontiguousarray(residual, dtype=np.float64), weight,
-                                self.cols, self.corner_flags, self.face_slots, upper, g)
-        H = self.H
-        H.data = upper[self.full_from_upper]
+                                self.cols, self.corner_flags, self.face_slots, H.data, g)
         H.data[self.diagonal] *= 1.0 + mu
         if self.on_boundary is not None and not moving:
             g[2 * self.nI:] = 0.0
             H.data[self.diagonal[2 * self.nI:]] *= HOLD
-        self.solver.factorize(H)
+        self.solver.factorize(H, upper=True)
         self.factorizations += 1
         x = self.solver.solve(g)
         out = f.copy()

@@ -21,7 +21,10 @@ performance table), and both modes refactor at every step (a SEM step, a Gauss�
 so its maps are the quickest. Loading MKL (its library, and its kernels on the first call)
 costs a few hundredths of a second per process. All take real right-hand sides with two
 columns (the real and imaginary parts of the complex map), never a complex one (see
-``shared/docs/SOLVERS.md``).
+``shared/docs/SOLVERS.md``). ``factorize(A, upper=True)`` takes the upper triangle alone (CSR,
+sorted rows, every diagonal entry stored), as the Gauss–Newton assembly writes it: PARDISO
+factors it as given, CHOLMOD reads it as the lower triangle of the CSC form (the same arrays),
+SciPy mirrors it first.
 """
 
 from __future__ import annotations
@@ -168,9 +171,11 @@ class CholmodSolver:
         self.ordering = ordering
         self.refactored = refactored
 
-    def factorize(self, A: sp.spmatrix) -> None:
+    def factorize(self, A: sp.spmatrix, upper: bool = False) -> None:
         from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
 
+        # CHOLMOD reads the lower triangle only: an upper triangle's CSR arrays are the CSC
+        # arrays of the lower one
         A = _as_csc_symmetric(A)
         self._valid = False
         if not _same_pattern(self._key, A):
@@ -287,33 +292,41 @@ class PardisoSolver:
             self._fn.set_threads(previous)
         return err.value, X
 
-    def _analyse(self, A: sp.csr_matrix) -> None:
+    def _analyse(self, A: sp.csr_matrix, upper: bool) -> None:
         _pardiso_release(self.pt, self.iparm)
         n = A.shape[0]
-        rows = np.repeat(np.arange(n), np.diff(A.indptr))
-        upper = np.flatnonzero(A.indices >= rows)          # CSR rows sorted: diagonal first
-        ja = A.indices[upper].astype(np.int32)
-        ia = np.zeros(n + 1, dtype=np.int32)
-        np.cumsum(np.bincount(rows[upper], minlength=n), out=ia[1:])
-        self._ia, self._ja, self._upper = ia, ja, upper
+        if upper:
+            ia, ja = A.indptr.astype(np.int32), A.indices.astype(np.int32)
+            entries = None
+        else:
+            rows = np.repeat(np.arange(n), np.diff(A.indptr))
+            entries = np.flatnonzero(A.indices >= rows)      # CSR rows sorted: diagonal first
+            ja = A.indices[entries].astype(np.int32)
+            ia = np.zeros(n + 1, dtype=np.int32)
+            np.cumsum(np.bincount(rows[entries], minlength=n), out=ia[1:])
+        self._ia, self._ja, self._upper = ia, ja, entries
         self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
         self._key = (A.indptr, A.indices)
         if self._has_diagonal:
-            err, _ = self._call(11, np.ascontiguousarray(A.data[upper]))
+            err, _ = self._call(11, self._upper_values(A))
             if err:
                 raise RuntimeError(f"PARDISO analysis failed with error {err}")
 
-    def factorize(self, A: sp.spmatrix) -> None:
+    def _upper_values(self, A: sp.csr_matrix) -> np.ndarray:
+        """The values of the analysed upper triangle, from ``A``'s ``data``."""
+        return np.ascontiguousarray(A.data if self._upper is None else A.data[self._upper])
+
+    def factorize(self, A: sp.spmatrix, upper: bool = False) -> None:
         A = A.tocsr() if not sp.isspmatrix_csr(A) else A
         if not A.has_sorted_indices:
             A = A.sorted_indices()
         A = A.astype(np.float64, copy=False)
         self._valid = False
-        if not _same_pattern(self._key, A):
-            self._analyse(A)
+        if not _same_pattern(self._key, A) or (self._upper is None) != upper:
+            self._analyse(A, upper)
         if not self._has_diagonal:
             raise NotPositiveDefinite("matrix is not positive definite (a zero diagonal entry)")
-        self._data = np.ascontiguousarray(A.data[self._upper])
+        self._data = self._upper_values(A)
         err, _ = self._call(22, self._data)
         if err == -4:
             raise NotPositiveDefinite("matrix is not positive definite (PARDISO pivot ≤ 0)")
@@ -352,7 +365,9 @@ class ScipySolver:
     def __init__(self):
         self._lu = None
 
-    def factorize(self, A: sp.spmatrix) -> None:
+    def factorize(self, A: sp.spmatrix, upper: bool = False) -> None:
+        if upper:
+            A = (A + sp.triu(A, 1).T).tocsr()
         try:
             self._lu = spla.splu(_as_csc_symmetric(A), permc_spec="COLAMD", diag_pivot_thresh=0.0,
                                  options=dict(SymmetricMode=True))
