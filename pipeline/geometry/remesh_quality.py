@@ -284,15 +284,45 @@ def _structured_samples(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> np.ndarr
 
 
 def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> np.ndarray:
-    """``n_random`` points uniform by area (seeded)."""
+    """``n_random`` points uniform by area (seeded): a face drawn with probability
+    proportional to its area (:func:`_area_weighted_faces`), then a point uniform in it,
+    ``p0 + u (p1 − p0) + v (p2 − p0)`` with ``(u, v)`` uniform in the unit square and
+    reflected into the triangle (computed one coordinate at a time)."""
     rng = np.random.default_rng(seed)
-    A = face_double_areas(V, F)
-    f = rng.choice(len(F), size=n_random, p=A / A.sum())
+    f = _area_weighted_faces(face_double_areas(V, F), n_random, rng)
     u, v = rng.random(n_random), rng.random(n_random)
     flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    T = V[F[f]]
-    return T[:, 0] + u[:, None] * (T[:, 1] - T[:, 0]) + v[:, None] * (T[:, 2] - T[:, 0])
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    T = F[f]
+    out = np.empty((n_random, 3))
+    for axis in range(3):
+        x = np.ascontiguousarray(V[:, axis])
+        x0 = x[T[:, 0]]
+        out[:, axis] = x0 + u * (x[T[:, 1]] - x0) + v * (x[T[:, 2]] - x0)
+    return out
+
+
+def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """``k`` indices into ``A`` (face areas) drawn with probability proportional to ``A``:
+    the draws of ``rng.choice(len(A), k, p=A / A.sum())``, the same indices from the same
+    state of ``rng`` (its normalised cumulative sums, then for each of ``k`` uniform draws
+    ``u`` the first index whose sum exceeds ``u``). The search starts from a guide table
+    (the first index past ``j / m`` for each of ``m`` equal steps, one step below ``u``) and
+    moves forward, instead of bisecting the whole table for every draw."""
+    total = A.sum()
+    if not total > 0:
+        raise ValueError("a surface with no area has no area-uniform samples")
+    cdf = (A / total).cumsum()
+    cdf /= cdf[-1]
+    u = rng.random(k)
+    m = len(cdf)
+    guide = cdf.searchsorted(np.arange(m) / m, side="right")
+    f = guide[np.maximum((u * m).astype(np.int64) - 1, 0)]
+    behind = np.arange(k)
+    while len(behind):
+        behind = behind[cdf[f[behind]] <= u[behind]]
+        f[behind] += 1
+    return f
 
 
 #: relative margin of the Lipschitz bound below which a structured sample is not queried:
