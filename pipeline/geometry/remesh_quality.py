@@ -425,9 +425,10 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
                    n_random: int = 200_000, seed: int = 0, distance: bool = True,
-                   reference: SampledSurface | None = None) -> dict:
+                   reference: SampledSurface | None = None, facts: dict | None = None) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
-    (``reference``: the input sampled for the distances, see :func:`surface_distance`).
+    (``reference``: the input sampled for the distances, see :func:`surface_distance`;
+    ``facts``: :func:`mesh_facts` of ``(V, F)`` when already computed).
 
     Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
@@ -435,7 +436,7 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
     with topo.kept_edge_groups():             # every measure below groups F's edges
-        facts = mesh_facts(V, F)
+        facts = mesh_facts(V, F) if facts is None else facts
         out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
                "triangles": triangle_quality(V, F),
                "valence": valence_stats(F, len(V))}

@@ -121,6 +121,7 @@ class Remesh:
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)   # remesh_metrics.json, once written
+    facts: dict = field(default_factory=dict)     # mesh_facts of (V, F), as checked
 
 
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
@@ -181,7 +182,7 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
             **r.info, "attributes": lifted_attrs}
     return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted, r.landmarks,
-                  info, sec)
+                  info, sec, facts=r.facts)
 
 
 def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
@@ -277,8 +278,9 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
 
     reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
 
-    def quality(V, F):
-        return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference)
+    def quality(V, F, facts=None):
+        return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference,
+                              facts=facts)
 
     out: dict[str, Method] = {}
     out["input"] = Method("input", V_in, F_in, None,
@@ -292,7 +294,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
                                    quality(Xl, Fl))
     say("measuring the improved remesh")
     out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
-                        quality(remesh.V, remesh.F))
+                        quality(remesh.V, remesh.F, remesh.facts or None))
     if not compare:
         return out
 
