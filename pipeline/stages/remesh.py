@@ -32,9 +32,7 @@ from pydantic import Field, field_validator, model_validator
 from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import signed_double_areas
-from ..geometry.sphere import folded_faces
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
-from ..geometry.remesh.sphere import sphere_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
@@ -128,8 +126,12 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
     if uv.ndim != 2 or uv.shape[0] != len(mesh.V) or uv.shape[1] not in (2, 3):
         raise UserError(f"remesh: the map has shape {uv.shape}, expected {len(mesh.V)}×2 (a "
                         f"disk) or {len(mesh.V)}×3 (a sphere)")
-    flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0)) if uv.shape[1] == 2 \
-        else folded_faces(uv, _outward(mesh.F, uv))
+    if uv.shape[1] == 2:
+        flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0))
+    else:
+        from ..geometry.sphere import folded_faces
+
+        flipped = folded_faces(uv, _outward(mesh.F, uv))
     if flipped:
         raise UserError(f"remesh: the {'disk' if uv.shape[1] == 2 else 'sphere'} map has "
                         f"{flipped} flipped faces; remeshing needs a bijective map "
@@ -164,6 +166,8 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
     F = mesh.F
     if uv.shape[1] == 3:
+        from ..geometry.remesh.sphere import sphere_remesh
+
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
