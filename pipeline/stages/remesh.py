@@ -273,6 +273,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
     """Measure the input and our remesh, and with ``compare`` the columns it is compared
     with: the plain lift before improvement (paper §8) and the baselines."""
     from ..geometry.remesh_quality import SampledSurface, remesh_quality
+    from ..geometry.topology import kept_edge_groups
     from ..report.remesh import Method
     from . import baselines
 
@@ -280,15 +281,16 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
         if progress:
             progress(msg)
 
-    reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+    with kept_edge_groups():               # the input's edges, grouped once for both
+        reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+        measured_input = remesh_quality(V_in, F_in, V_in, F_in, distance=False)
 
     def quality(V, F, facts=None):
         return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference,
                               facts=facts)
 
     out: dict[str, Method] = {}
-    out["input"] = Method("input", V_in, F_in, None,
-                          remesh_quality(V_in, F_in, V_in, F_in, distance=False))
+    out["input"] = Method("input", V_in, F_in, None, measured_input)
     if compare:
         Xl, Fl = remesh.lifted
         say("measuring the lifted remesh")
