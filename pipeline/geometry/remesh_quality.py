@@ -314,9 +314,10 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
     """``k`` indices into ``A`` (face areas) drawn with probability proportional to ``A``:
     the draws of ``rng.choice(len(A), k, p=A / A.sum())``, the same indices from the same
     state of ``rng`` (its normalised cumulative sums, then for each of ``k`` uniform draws
-    ``u`` the first index whose sum exceeds ``u``). The search starts from a guide table
-    (the first index past ``j / m`` for each of ``m`` equal steps, one step below ``u``) and
-    moves forward, instead of bisecting the whole table for every draw."""
+    ``u`` the first index whose sum exceeds ``u``). Each search starts from a guide table
+    (for the ``m`` equal steps ``j / m`` of [0, 1), the first index whose sum exceeds
+    ``j / m``), at the step below the draw's own, which rounding cannot put past the answer,
+    and moves forward one index at a time, instead of bisecting the whole table per draw."""
     total = A.sum()
     if not total > 0:
         raise ValueError("a surface with no area has no area-uniform samples")
