@@ -192,6 +192,8 @@ def test_distortion_summary_matches_individual_functions_and_ignores_unused_vert
     assert s["stretch_energy"] == metrics.stretch_energy(V, F, uv)
     assert s["energy_ratio"] == metrics.energy_ratio(V, F, uv)
     assert s["flipped_faces"] == 0
+    for k, v in metrics.anisotropy_summary(V, F, uv).items():
+        assert s[k] == v, k
     # an unreferenced vertex has no fan: its ratio is undefined and left out of the statistics
     V2 = np.vstack([V, [[10.0, 10, 10]]])
     uv2 = np.vstack([uv, [[10.0, 10]]])
@@ -260,6 +262,7 @@ def test_area_weighted_quantile():
     assert metrics.area_weighted_quantile(v, w, 0.5) == 2.0
     assert metrics.area_weighted_quantile(v, w, 0.75) == 2.0
     assert metrics.area_weighted_quantile(v, w, 0.76) == 3.0
+    assert metrics.area_weighted_quantile(v, w, (0.25, 0.5, 0.76)) == [1.0, 2.0, 3.0]
 
 
 def test_energy_ratio_lower_bound_and_equality_for_affine_maps(ddisk):

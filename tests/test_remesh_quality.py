@@ -66,6 +66,21 @@ def test_surface_distance_of_a_shifted_plane_is_the_shift():
     assert abs(dist[0] - 1.5) < 1e-12
 
 
+def test_area_weighted_faces_are_the_draws_of_numpys_choice():
+    from pipeline.geometry.remesh_quality import _area_weighted_faces
+
+    rng = np.random.default_rng(4)
+    A = rng.random(3000) ** 8                       # many tiny faces among large ones
+    A[::7] = 0.0                                    # and faces of no area, never drawn
+    for seed in (0, 1):
+        ours, numpys = np.random.default_rng(seed), np.random.default_rng(seed)
+        f = _area_weighted_faces(A, 50_000, ours)
+        np.testing.assert_array_equal(f, numpys.choice(len(A), size=50_000, p=A / A.sum()))
+        assert ours.random() == numpys.random()     # the generator is left in the same state
+    with pytest.raises(ValueError, match="no area"):
+        _area_weighted_faces(np.zeros(4), 10, rng)
+
+
 def test_z_order_visits_the_corners_of_a_cube_x_first_then_y_then_z():
     corners = np.array([[x, y, z] for z in (0.0, 2.0) for y in (0.0, 1.0) for x in (0.0, 3.0)])
     shuffled = np.random.default_rng(1).permutation(8)

@@ -126,6 +126,7 @@ def test_icosphere_mapped_by_itself_remeshes_to_a_closed_sphere():
     r = sphere_remesh(S, F, S, vertices=1500)
     facts = mesh_facts(r.V, r.F)
     assert is_sphere(facts) and facts["degenerate_faces"] == 0
+    assert r.facts == facts                                      # as its check found them
     assert len(r.V) == 1500
     assert np.all(triple_products(r.uv, r.F) > 0)                # outward on the sphere
     assert np.allclose(np.linalg.norm(r.uv, axis=1), 1.0, atol=1e-12)

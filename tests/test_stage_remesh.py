@@ -30,6 +30,7 @@ def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
     r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=3000, improve=improve), lms)
     q = remesh_quality(mesh.V, mesh.F, r.V, r.F, n_random=20000)
     assert q["is_disk"] and q["facts"]["degenerate_faces"] == 0
+    assert r.facts == q["facts"]                                  # the facts its check found
     assert abs(len(r.V) - 3000) <= 60
     assert on_surface(r.V, mesh) <= 1e-9                          # every vertex on the surface
     assert np.all(signed_double_areas(r.uv, r.F) > 0)              # a valid map to the disk

@@ -203,7 +203,7 @@ class PointLocator:
                                           float(self.origin[0]), float(self.origin[1]), cell)
             face, cx, cy = face[keep], cx[keep], cy[keep]
         cells = cy * self.shape[0] + cx
-        order = np.argsort(cells, kind="stable")
+        order = topo.sort_with_index(cells)[1]                          # stable
         self.cell_faces = face[order]
         self.cell_start = np.r_[0, np.cumsum(np.bincount(cells, minlength=int(np.prod(
             self.shape))))].astype(np.int64)

@@ -90,9 +90,14 @@ def total_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float
 
 def local_area_ratios(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
     """Local area ratio R(v) per vertex, eq. (29); 1 everywhere for an equiareal map."""
-    surface, image = _vertex_area_fractions(V, F, uv)
+    return _ratios(*_vertex_area_fractions(V, F, uv))
+
+
+def _ratios(surface_fractions: np.ndarray, image_fractions: np.ndarray) -> np.ndarray:
+    """R(v) of eq. (29) from the vertices' surface and image area fractions (inf or nan where
+    the image fraction is 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        return surface / image
+        return surface_fractions / image_fractions
 
 
 def face_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
@@ -101,14 +106,16 @@ def face_area_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
 
 
 def corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Interior angle (radians) at every corner of every face (m×3), for 2D or 3D points."""
-    out = np.empty((len(F), 3))
-    for c in range(3):
-        u = P[F[:, (c + 1) % 3]] - P[F[:, c]]
-        v = P[F[:, (c + 2) % 3]] - P[F[:, c]]
-        cos = np.einsum("ij,ij->i", u, v) / (np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1))
-        out[:, c] = np.arccos(np.clip(cos, -1.0, 1.0))
-    return out
+    """Interior angle (radians) at every corner of every face (m×3), for 2D or 3D points:
+    ``arccos(u·v / (|u| |v|))`` with ``u``, ``v`` the corner's two edge vectors, the cosines
+    from the compiled :func:`._kernels.corner_cosines` (2D points as 3D points with z = 0,
+    which adds exact zeros). A degenerate corner (a zero-length edge) gives nan."""
+    P = np.asarray(P, dtype=np.float64)
+    if P.shape[1] == 2:
+        P = np.column_stack([P, np.zeros(len(P))])
+    cos = _kernels.corner_cosines(np.ascontiguousarray(P),
+                                  np.ascontiguousarray(_as_faces(F), dtype=np.int64))
+    return np.arccos(np.clip(cos, -1.0, 1.0))
 
 
 def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -116,7 +123,8 @@ def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarr
     return np.degrees(np.abs(corner_angles(V, F) - corner_angles(uv, F)))
 
 
-def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
+def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
+                       surface_double_area: np.ndarray | None = None) -> np.ndarray:
     """Per face the dilatation ``K = σ₁/σ₂ ≥ 1`` of the affine map ``τ → f(τ)`` (its singular
     values; the same for the inverse map the remesh lifts through).
 
@@ -125,7 +133,8 @@ def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarr
     the disk lifts to an ellipse with axes ``r/σ₂`` and ``r/σ₁``: uniform disk samples have the
     right density on the surface but are ``K`` times farther apart along one direction than the
     other. Computed from the metric ``G = D⁻ᵀ EᵀE D⁻¹`` (``E``: the face's 3D edge vectors,
-    ``D``: its image's), ``K = √(λmax/λmin)``. Faces with zero image area get ``inf``."""
+    ``D``: its image's), ``K = √(λmax/λmin)``. Faces with zero image area get ``inf``.
+    ``surface_double_area``: :func:`.laplacian.face_double_areas` of ``(V, F)`` when known."""
     E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)     # m×3×2
     D = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)  # m×2×2
     det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
@@ -137,49 +146,60 @@ def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarr
     # without cancellation: tr² − 4 det G = (G₀₀ − G₁₁)² + 4 G₀₁², and det G = (2|τ| / det D)²
     root = np.hypot(G[:, 0, 0] - G[:, 1, 1], 2 * G[:, 0, 1])
     lmax = (G[:, 0, 0] + G[:, 1, 1] + root) / 2
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
     with np.errstate(divide="ignore", invalid="ignore"):
-        det_G = (face_double_areas(V, F) / det) ** 2
+        det_G = (A / det) ** 2
         K = lmax / np.sqrt(det_G)                              # = √(λmax/λmin), λmin = det/λmax
     K[~ok | ~np.isfinite(K)] = np.inf
     return np.maximum(K, 1.0)
 
 
-def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
-    """The smallest value whose cumulative weight (values ascending) reaches ``q`` of the total."""
+def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
+    """The smallest value whose cumulative weight (values ascending) reaches ``q`` of the total:
+    a float for a float ``q``, a list of floats for a sequence of them (one sort for all)."""
     order = np.argsort(values, kind="stable")
     cum = np.cumsum(weights[order])
-    return float(values[order][np.searchsorted(cum, q * cum[-1], side="left")])
+    picked = values[order][np.searchsorted(cum, np.multiply(q, cum[-1]), side="left")]
+    return float(picked) if np.ndim(q) == 0 else [float(x) for x in picked]
 
 
 ANISOTROPY_LIMIT = 10.0     # K above this: samples ≥ 10× farther apart along one direction
 
 
-def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
+def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
+                       surface_double_area: np.ndarray | None = None) -> dict:
     """Surface-area-weighted median and 90th percentile of :func:`stretch_anisotropy`, and the
-    share of the surface area where it exceeds ``ANISOTROPY_LIMIT``."""
-    K = stretch_anisotropy(V, F, uv)
-    A = face_double_areas(V, F)
-    return {"anisotropy_median": area_weighted_quantile(K, A, 0.5),
-            "anisotropy_p90": area_weighted_quantile(K, A, 0.9),
+    share of the surface area where it exceeds ``ANISOTROPY_LIMIT`` (``surface_double_area``:
+    :func:`.laplacian.face_double_areas` of ``(V, F)`` when known)."""
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
+    K = stretch_anisotropy(V, F, uv, A)
+    median, p90 = area_weighted_quantile(K, A, (0.5, 0.9))
+    return {"anisotropy_median": median, "anisotropy_p90": p90,
             "anisotropy_area_above_10": float(A[K > ANISOTROPY_LIMIT].sum() / A.sum())}
 
 
 def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
-    """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``."""
-    R = local_area_ratios(V, F, uv)
+    """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``
+    (the surface and image areas and their vertex sums computed once for all of them)."""
+    n = len(V)
+    A = face_double_areas(V, F)
+    a = signed_double_areas(uv, F)
+    surface = vertex_area_fractions(F, n, A)
+    R = _ratios(surface, vertex_area_fractions(F, n, np.abs(a)))
+    D28, D_face = area_distortions(F, n, A, a, surface)
     ang = angular_distortion(V, F, uv)
     R_finite = R[np.isfinite(R)]
     return {
-        "total_area_distortion_eq28": total_area_distortion(V, F, uv),
-        "face_area_distortion": face_area_distortion(V, F, uv),
+        "total_area_distortion_eq28": D28,
+        "face_area_distortion": D_face,
         "local_area_ratio_mean": float(R_finite.mean()),
         "local_area_ratio_sd": float(R_finite.std()),
         "angular_distortion_mean_deg": float(ang.mean()),
         "angular_distortion_sd_deg": float(ang.std()),
         "flipped_faces": int(len(flipped_faces(uv, F))),
-        "stretch_energy": stretch_energy(V, F, uv),
-        "energy_ratio": energy_ratio(V, F, uv),
-        "surface_area": float(face_double_areas(V, F).sum() / 2),
-        "image_area": float(np.abs(signed_double_areas(uv, F)).sum() / 2),
-        **anisotropy_summary(V, F, uv),
+        "stretch_energy": stretch_energy(V, F, uv, A),
+        "energy_ratio": energy_ratio(V, F, uv, A),
+        "surface_area": float(A.sum() / 2),
+        "image_area": float(np.abs(a).sum() / 2),
+        **anisotropy_summary(V, F, uv, A),
     }

@@ -75,7 +75,7 @@ def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
     return {
         "vertices": int(n),
         "faces": int(len(F)),
-        "unreferenced_vertices": int(n - len(np.unique(F))),
+        "unreferenced_vertices": int(n - _referenced_count(F, n)),
         "components": int(ncomp),
         "boundary_loops": None if loop_lengths is None else len(loop_lengths),
         "boundary_vertices": int(is_b.sum()),
@@ -87,6 +87,14 @@ def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
         "leaf_faces": int(len(topo.leaf_faces(F, is_b))),
         "degenerate_faces": int(len(degenerate_faces(V, F))),
     }
+
+
+def _referenced_count(F: np.ndarray, n: int) -> int:
+    """How many distinct indices ``F`` holds (through a mask of at least ``n`` entries:
+    cheaper than ``np.unique`` on 3m indices)."""
+    if F.size == 0:
+        return 0
+    return len(topo.distinct_indices(F.ravel(), max(n, int(F.max()) + 1)))
 
 
 def is_disk(facts: dict) -> bool:
@@ -284,15 +292,46 @@ def _structured_samples(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> np.ndarr
 
 
 def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> np.ndarray:
-    """``n_random`` points uniform by area (seeded)."""
+    """``n_random`` points uniform by area (seeded): a face drawn with probability
+    proportional to its area (:func:`_area_weighted_faces`), then a point uniform in it,
+    ``p0 + u (p1 − p0) + v (p2 − p0)`` with ``(u, v)`` uniform in the unit square and
+    reflected into the triangle (computed one coordinate at a time)."""
     rng = np.random.default_rng(seed)
-    A = face_double_areas(V, F)
-    f = rng.choice(len(F), size=n_random, p=A / A.sum())
+    f = _area_weighted_faces(face_double_areas(V, F), n_random, rng)
     u, v = rng.random(n_random), rng.random(n_random)
     flip = u + v > 1
-    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
-    T = V[F[f]]
-    return T[:, 0] + u[:, None] * (T[:, 1] - T[:, 0]) + v[:, None] * (T[:, 2] - T[:, 0])
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    T = F[f]
+    out = np.empty((n_random, 3))
+    for axis in range(3):
+        x = np.ascontiguousarray(V[:, axis])
+        x0 = x[T[:, 0]]
+        out[:, axis] = x0 + u * (x[T[:, 1]] - x0) + v * (x[T[:, 2]] - x0)
+    return out
+
+
+def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """``k`` indices into ``A`` (face areas) drawn with probability proportional to ``A``:
+    the draws of ``rng.choice(len(A), k, p=A / A.sum())``, the same indices from the same
+    state of ``rng`` (its normalised cumulative sums, then for each of ``k`` uniform draws
+    ``u`` the first index whose sum exceeds ``u``). Each search starts from a guide table
+    (for the ``m`` equal steps ``j / m`` of [0, 1), the first index whose sum exceeds
+    ``j / m``), at the step below the draw's own, which rounding cannot put past the answer,
+    and moves forward one index at a time, instead of bisecting the whole table per draw."""
+    total = A.sum()
+    if not total > 0:
+        raise ValueError("a surface with no area has no area-uniform samples")
+    cdf = (A / total).cumsum()
+    cdf /= cdf[-1]
+    u = rng.random(k)
+    m = len(cdf)
+    guide = cdf.searchsorted(np.arange(m) / m, side="right")
+    f = guide[np.maximum((u * m).astype(np.int64) - 1, 0)]
+    behind = np.arange(k)
+    while len(behind):
+        behind = behind[cdf[f[behind]] <= u[behind]]
+        f[behind] += 1
+    return f
 
 
 #: relative margin of the Lipschitz bound below which a structured sample is not queried:
@@ -395,9 +434,10 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
                    n_random: int = 200_000, seed: int = 0, distance: bool = True,
-                   reference: SampledSurface | None = None) -> dict:
+                   reference: SampledSurface | None = None, facts: dict | None = None) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
-    (``reference``: the input sampled for the distances, see :func:`surface_distance`).
+    (``reference``: the input sampled for the distances, see :func:`surface_distance`;
+    ``facts``: :func:`mesh_facts` of ``(V, F)`` when already computed).
 
     Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
@@ -405,7 +445,7 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
     with topo.kept_edge_groups():             # every measure below groups F's edges
-        facts = mesh_facts(V, F)
+        facts = mesh_facts(V, F) if facts is None else facts
         out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
                "triangles": triangle_quality(V, F),
                "valence": valence_stats(F, len(V))}

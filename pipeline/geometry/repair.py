@@ -98,7 +98,6 @@ from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
-from pipeline.geometry.sphere import signed_volume
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
            "weld_map", "zero_area_mask", "disk_blockers", "count_boundary_loops", "genus_of"]
@@ -686,6 +685,8 @@ def _orient_outward(M: _Mesh, report: dict, messages: list) -> None:
     """Reverse every face of a consistently oriented closed surface whose enclosed signed volume
     ``Σ det[v0, v1, v2] / 6`` is negative (faces pointing inward), so that its spherical map is
     positively oriented (:mod:`.sphere`)."""
+    from .sphere import signed_volume
+
     vol = signed_volume(M.V, M.F)
     if vol >= 0:
         return
@@ -718,6 +719,8 @@ def _final_checks(M: _Mesh, changed_topology: bool, closed: bool) -> np.ndarray:
     _ensure(np.array_equal(a[inner], b[twin[inner]]), "inconsistent orientation left")
     _ensure(np.all(np.bincount(F.ravel(), minlength=n) > 0), "unreferenced vertices left")
     if closed:
+        from .sphere import signed_volume
+
         _ensure(inner.all(), "boundary edges left on a closed surface")
         _ensure(topo.euler_characteristic(F, n) == 2, "Euler characteristic is not 2")
         _ensure(signed_volume(M.V, F) > 0, "faces not outward")

@@ -42,6 +42,7 @@ __all__ = [
     "euler_characteristic",
     "csr_rows",
     "distinct_indices",
+    "sort_with_index",
     "vertex_faces",
     "vertex_neighbours",
     "orient_faces_consistently",
@@ -93,7 +94,7 @@ def distinct_indices(idx: np.ndarray, size: int) -> np.ndarray:
     return np.flatnonzero(mark)
 
 
-def _sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sort_with_index(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(sorted_keys, order)`` for non-negative int64 keys.
 
     Packs ``key << bits | index`` into one int64 and uses ``np.sort`` (much faster than
@@ -153,7 +154,7 @@ def _group_halfedges(F: np.ndarray, n: int | None):
     """:func:`_halfedge_groups` computed: one sort of the half-edges' undirected keys."""
     n = _n_of(F, n)
     keys = _edge_keys(F, n)
-    sk, order = _sort_with_index(keys)
+    sk, order = sort_with_index(keys)
     m3 = len(sk)
     new = np.empty(m3, dtype=bool)
     if m3:

@@ -48,6 +48,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -55,12 +56,13 @@ from ..geometry.metrics import distortion_summary
 from ..geometry.repair import RepairedMesh
 from ..errors import UserError
 from ..geometry.sem import SEMOptions, SEMResult, stretch_energy_minimization
-from ..geometry.sphere import SphereResult, spherical_sem
-from ..geometry.sphere_metrics import sphere_distortion_summary
 from ..geometry.solvers import NotPositiveDefinite
 from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import write_obj
 from .stage import Context, Stage
+
+if TYPE_CHECKING:                  # the sphere's modules are imported when a sphere is mapped
+    from ..geometry.sphere import SphereResult
 
 
 class ParameterizationFailed(RuntimeError):
@@ -187,6 +189,9 @@ def sphere_options(options: SEMOptions) -> dict:
 def sphere_parameterization(mesh: RepairedMesh, options: SEMOptions) -> Parameterization:
     """The spherical SEM map of a closed genus-0 repaired mesh (outward faces) and its
     measures against the geodesic triangle areas."""
+    from ..geometry.sphere import spherical_sem
+    from ..geometry.sphere_metrics import sphere_distortion_summary
+
     kw = sphere_options(options)
     result = spherical_sem(mesh.V, mesh.F, **kw)
     if not np.array_equal(result.F, mesh.F):  # pragma: no cover - the repair orients outward

@@ -57,7 +57,6 @@ from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, read_landmarks,
                             resolve_landmarks)
 from ..io.meshio import read_mesh, write_obj
-from ..geometry.register_sphere import sphere_faces
 from .load import Intake, load_stage, sample_stage
 from .parameterize import ParameterizationFailed, parameterize_stage
 from .stage import Context, Section, Stage
@@ -642,7 +641,7 @@ def _domain_views(reg: Registration) -> dict:
 
     c = reg.uv_target[reg.pair.target.landmarks].mean(axis=0)
     c = c if np.linalg.norm(c) > 1e-9 else reg.uv_target[reg.pair.target.landmarks[0]]
-    from ..geometry.register_sphere import slerp
+    from ..geometry.register_sphere import slerp, sphere_faces
     from ..geometry.sphere import triple_products
 
     a, b = reg.alignment.S[reg.pair.source.landmarks], reg.uv_target[reg.pair.target.landmarks]

@@ -32,9 +32,7 @@ from pydantic import Field, field_validator, model_validator
 from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import signed_double_areas
-from ..geometry.sphere import folded_faces
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
-from ..geometry.remesh.sphere import sphere_remesh
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
@@ -121,14 +119,19 @@ class Remesh:
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)   # remesh_metrics.json, once written
+    facts: dict = field(default_factory=dict)     # mesh_facts of (V, F), as checked
 
 
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
     if uv.ndim != 2 or uv.shape[0] != len(mesh.V) or uv.shape[1] not in (2, 3):
         raise UserError(f"remesh: the map has shape {uv.shape}, expected {len(mesh.V)}×2 (a "
                         f"disk) or {len(mesh.V)}×3 (a sphere)")
-    flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0)) if uv.shape[1] == 2 \
-        else folded_faces(uv, _outward(mesh.F, uv))
+    if uv.shape[1] == 2:
+        flipped = int(np.count_nonzero(signed_double_areas(uv, mesh.F) <= 0))
+    else:
+        from ..geometry.sphere import folded_faces
+
+        flipped = folded_faces(uv, _outward(mesh.F, uv))
     if flipped:
         raise UserError(f"remesh: the {'disk' if uv.shape[1] == 2 else 'sphere'} map has "
                         f"{flipped} flipped faces; remeshing needs a bijective map "
@@ -163,6 +166,8 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
     F = mesh.F
     if uv.shape[1] == 3:
+        from ..geometry.remesh.sphere import sphere_remesh
+
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
@@ -181,7 +186,7 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
             **r.info, "attributes": lifted_attrs}
     return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted, r.landmarks,
-                  info, sec)
+                  info, sec, facts=r.facts)
 
 
 def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
@@ -268,6 +273,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
     """Measure the input and our remesh, and with ``compare`` the columns it is compared
     with: the plain lift before improvement (paper §8) and the baselines."""
     from ..geometry.remesh_quality import SampledSurface, remesh_quality
+    from ..geometry.topology import kept_edge_groups
     from ..report.remesh import Method
     from . import baselines
 
@@ -275,14 +281,16 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
         if progress:
             progress(msg)
 
-    reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+    with kept_edge_groups():               # the input's edges, grouped once for both
+        reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+        measured_input = remesh_quality(V_in, F_in, V_in, F_in, distance=False)
 
-    def quality(V, F):
-        return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference)
+    def quality(V, F, facts=None):
+        return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference,
+                              facts=facts)
 
     out: dict[str, Method] = {}
-    out["input"] = Method("input", V_in, F_in, None,
-                          remesh_quality(V_in, F_in, V_in, F_in, distance=False))
+    out["input"] = Method("input", V_in, F_in, None, measured_input)
     if compare:
         Xl, Fl = remesh.lifted
         say("measuring the lifted remesh")
@@ -292,7 +300,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
                                    quality(Xl, Fl))
     say("measuring the improved remesh")
     out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
-                        quality(remesh.V, remesh.F))
+                        quality(remesh.V, remesh.F, remesh.facts or None))
     if not compare:
         return out
 

@@ -76,6 +76,7 @@ from functools import partial
 
 import numpy as np
 
+from ..metrics import corner_angles
 from ..rows import norms
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
@@ -480,12 +481,8 @@ def sag_veto(S: RemeshState, tol: float, uv: np.ndarray, face: np.ndarray, bary:
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
     """The faces (indices) with a 3D angle below ``min_angle_deg`` (the angles of
-    :func:`..metrics.corner_angles`, their cosines compiled: the gathers were its cost)."""
-    from .._kernels import corner_cosines
-    cos = corner_cosines(np.ascontiguousarray(X, dtype=np.float64),
-                         np.ascontiguousarray(F, dtype=np.int64))
-    return np.flatnonzero(np.arccos(np.clip(cos, -1.0, 1.0)).min(axis=1)
-                          < np.radians(min_angle_deg))
+    :func:`..metrics.corner_angles`)."""
+    return np.flatnonzero(corner_angles(X, F).min(axis=1) < np.radians(min_angle_deg))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:

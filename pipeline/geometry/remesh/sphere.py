@@ -170,7 +170,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
-    check_topology(X, F_out, closed=True)
+    facts = check_topology(X, F_out, closed=True)
     carried = carry_landmarks(landmarks or {}, V, S_in, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -184,4 +184,5 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         "count_evaluations": 0,
         "improve": imp,
     }
-    return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+    return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
+                        facts)

@@ -57,6 +57,8 @@ class RemeshResult:
         Counts and spacings; ``info["improve"]``: the improvement's counts and seconds.
     seconds : dict
         Seconds per step: sample, delaunay, locate, lift, improve, landmarks.
+    facts : dict
+        The remesh's :func:`..remesh_quality.mesh_facts`, as :func:`check_topology` found them.
     """
 
     V: np.ndarray
@@ -69,6 +71,7 @@ class RemeshResult:
     landmarks: dict = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
+    facts: dict = field(default_factory=dict)
 
 
 def area_scale(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
@@ -154,7 +157,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)
-    check_topology(X, F_out)
+    facts = check_topology(X, F_out)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -167,7 +170,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "count_evaluations": samples.iterations,
         "improve": imp,
     }
-    return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds)
+    return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
+                        facts)
 
 
 def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndarray, *,
@@ -224,10 +228,11 @@ def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
                            f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
 
 
-def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> None:
+def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> dict:
     """Raise :class:`RemeshFailed` unless ``(X, F)`` is one manifold disk (one boundary loop,
     Euler characteristic 1) or, with ``closed``, one closed, manifold, consistently oriented
-    component with Euler characteristic 2 (a sphere)."""
+    component with Euler characteristic 2 (a sphere). Returns the facts it checked
+    (:func:`..remesh_quality.mesh_facts`), for the remesh's measures."""
     from ..remesh_quality import is_disk, is_sphere, mesh_facts
 
     f = mesh_facts(X, F)
@@ -235,6 +240,7 @@ def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> None:
         what = "sphere remesh is not a closed genus-0 manifold" if closed else \
             "remesh is not one manifold disk"
         raise RemeshFailed(f"remesh: the {what} ({f}); nothing is written")
+    return f
 
 
 def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
