@@ -77,6 +77,12 @@ def test_area_weighted_faces_are_the_draws_of_numpys_choice():
         f = _area_weighted_faces(A, 50_000, ours)
         np.testing.assert_array_equal(f, numpys.choice(len(A), size=50_000, p=A / A.sum()))
         assert ours.random() == numpys.random()     # the generator is left in the same state
+    # a run of faces far smaller than a guide step: their draws are bisected, same result
+    A = np.full(20_000, 1e-9)
+    A[-200:] = 1.0
+    ours, numpys = np.random.default_rng(5), np.random.default_rng(5)
+    np.testing.assert_array_equal(_area_weighted_faces(A, 200_000, ours),
+                                  numpys.choice(len(A), size=200_000, p=A / A.sum()))
     with pytest.raises(ValueError, match="no area"):
         _area_weighted_faces(np.zeros(4), 10, rng)
 

@@ -310,6 +310,10 @@ def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> n
     return out
 
 
+#: forward steps from the guide table before a draw's face is found by bisection instead
+GUIDE_WALK = 8
+
+
 def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
     """``k`` indices into ``A`` (face areas) drawn with probability proportional to ``A``:
     the draws of ``rng.choice(len(A), k, p=A / A.sum())``, the same indices from the same
@@ -317,7 +321,8 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
     ``u`` the first index whose sum exceeds ``u``). Each search starts from a guide table
     (for the ``m`` equal steps ``j / m`` of [0, 1), the first index whose sum exceeds
     ``j / m``), at the step below the draw's own, which rounding cannot put past the answer,
-    and moves forward one index at a time, instead of bisecting the whole table per draw."""
+    and moves forward one index at a time, instead of bisecting the whole table per draw; a
+    draw not found within ``GUIDE_WALK`` steps (faces far smaller than a step) is bisected."""
     total = A.sum()
     if not total > 0:
         raise ValueError("a surface with no area has no area-uniform samples")
@@ -328,9 +333,13 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
     guide = cdf.searchsorted(np.arange(m) / m, side="right")
     f = guide[np.maximum((u * m).astype(np.int64) - 1, 0)]
     behind = np.arange(k)
-    while len(behind):
+    for _ in range(GUIDE_WALK):
         behind = behind[cdf[f[behind]] <= u[behind]]
+        if len(behind) == 0:
+            return f
         f[behind] += 1
+    # draws among many faces far smaller than a step (slivers): bisect, as choice does
+    f[behind] = cdf.searchsorted(u[behind], side="right")
     return f
 
 
