@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -9,20 +11,22 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.fidelity import far_input_vertices, follow_input
+from pipeline.geometry.remesh.fidelity import far_input_points, follow_input, input_points
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
 from remesh_helpers import ccw_delaunay, coarse_state, disk_points
 
 
-def creased_disk(slope: float, x0: float = 0.1):
+def creased_disk(slope: float, x0: float = 0.1, rings: int = 40, on_crease: int = 159,
+                 clear: float = 0.01):
     """The unit disk folded along the line ``u = x0``: ``z = slope·|u − x0|``, its map the
-    ``uv`` coordinates. The ring points of :func:`remesh_helpers.disk_points` (40 rings) off
-    the line and 158 points on it, so that input edges run along the crease. Returns
+    ``uv`` coordinates. The ring points of :func:`remesh_helpers.disk_points` (``rings``
+    rings) farther than ``clear`` from the line and up to ``on_crease`` evenly spaced points on
+    it (158 by default), so that input edges run along the crease. Returns
     ``(uv_in, F_in, V_in, loop, locator)``."""
-    uv = disk_points(40, 6)
-    uv = uv[np.abs(uv[:, 0] - x0) > 0.01]
-    y = np.linspace(-1, 1, 161)[1:-1]
+    uv = disk_points(rings, 6)
+    uv = uv[np.abs(uv[:, 0] - x0) > clear]
+    y = np.linspace(-1, 1, on_crease + 2)[1:-1]
     y = y[np.abs(y) < np.sqrt(1 - x0 ** 2) - 0.02]
     uv = np.vstack([uv, np.column_stack([np.full(len(y), x0), y])])
     F = ccw_delaunay(uv)
@@ -37,24 +41,35 @@ def interior_distances(V_in, F_in, X, F):
     return MeshDistance(X, F)(V_in[inner])[0]
 
 
+def input_point_distances(S, X, F):
+    """The distance of every input point of :func:`input_points` from the mesh ``(X, F)``,
+    and how many of them are vertices."""
+    P, _, _, nv = input_points(S)
+    return MeshDistance(X, F)(P)[0], nv
+
+
 @pytest.mark.timeout(60)
-def test_follow_input_puts_a_locked_vertex_on_far_input_vertices_of_a_crease():
+def test_follow_input_puts_a_locked_vertex_on_far_input_points_of_a_crease():
     """A coarse remesh (85 vertices, 4 rings) of the disk creased at slope 1: it cuts across
-    the crease, 365 interior input vertices farther than 0.05 from it, the farthest 0.137.
-    After :func:`follow_input` (tolerance 0.05, gap 0.1) each vertex it returns is locked and
-    lies exactly on a far input vertex, none of the input vertices is farther than 0.05 any
-    more, and the remesh is still a counter-clockwise disk."""
+    the crease; of the input's 28,189 points (4,777 interior vertices, the midpoints of the
+    edges and the centroids of the faces off the rim) 2,200 are farther than 0.05 from it, 365
+    of them vertices, the farthest (a midpoint) 0.1369 — the same set whether or not the triangle bound
+    spares measuring a midpoint or centroid. After :func:`follow_input` (tolerance 0.05, gap
+    0.1) each vertex it returns is locked and lies exactly on a far point, no input point is
+    farther than 0.05, and the remesh is still a counter-clockwise disk."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
-    F_in, V_in = S.F_in, S.V_in
-    far = far_input_vertices(S, 0.05)
-    assert len(far) == 365
-    assert np.isclose(interior_distances(V_in, F_in, S.X, S.F).max(), 0.1366, atol=1e-4)
+    d, nv = input_point_distances(S, S.X, S.F)
+    assert (len(d), nv) == (28189, 4777)
+    assert np.count_nonzero(d > 0.05) == 2200 and np.count_nonzero(d[:nv] > 0.05) == 365
+    far, far_d = far_input_points(S, 0.05)
+    assert len(far) == 2200 and np.isclose(far_d[0], 0.1369, atol=1e-4)
+    np.testing.assert_array_equal(far_d, np.sort(d[d > 0.05])[::-1])
     v = follow_input(S, 0.05, min_gap=0.1)
     assert len(v) and S.locked[v].all()
-    on = np.linalg.norm(S.X[v][:, None] - V_in[far][None], axis=2).min(axis=1)
+    on = np.linalg.norm(S.uv[v][:, None] - far[None], axis=2).min(axis=1)
     assert np.all(on < 1e-12)
-    assert len(far_input_vertices(S, 0.05)) == 0
-    assert interior_distances(V_in, F_in, S.X, S.F).max() <= 0.05
+    assert len(far_input_points(S, 0.05)[0]) == 0
+    assert input_point_distances(S, S.X, S.F)[0].max() <= 0.05
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
 
 
@@ -73,4 +88,26 @@ def test_uniform_remesh_follows_a_sharp_crease():
         smallest[follow] = triangle_quality(r.V, r.F)["min_angle_deg"]
         assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
     assert far[0.0] > 0.3 and far[0.25] <= 0.25
+    assert smallest[0.25] >= smallest[0.0]
+
+
+@pytest.mark.timeout(120)
+def test_uniform_remesh_follows_the_edges_of_a_coarse_crease():
+    """An input far coarser than its remesh: the disk creased at slope 3 with 5 vertices on the
+    crease (127 in all) remeshed at 1500 vertices. Without ``follow_input`` every input vertex
+    is within 0.14 L of the remesh but the middle of a crease edge is 0.27 L away (the remesh
+    cuts across the crease between the input's vertices); with it every input point is within
+    0.25 L, with the same count, one disk, and no smaller smallest angle."""
+    uv_in, F_in, V_in, loop, _ = creased_disk(3.0, rings=6, on_crease=5, clear=0.03)
+    S = SimpleNamespace(V_in=V_in, F_in=F_in, uv_in=uv_in)
+    far_vertex, far_point, smallest = {}, {}, {}
+    for follow in (0.0, 0.25):
+        r = uniform_remesh(V_in, F_in, uv_in, loop, vertices=1500, follow_input=follow)
+        L = r.info["spacing_mesh_units"]
+        d, nv = input_point_distances(S, r.V, r.F)
+        far_vertex[follow], far_point[follow] = d[:nv].max() / L, d.max() / L
+        smallest[follow] = triangle_quality(r.V, r.F)["min_angle_deg"]
+        assert len(r.V) == 1500 and is_disk(mesh_facts(r.V, r.F))
+    assert far_vertex[0.0] < 0.14 and far_point[0.0] > 0.27
+    assert far_point[0.25] <= 0.25
     assert smallest[0.25] >= smallest[0.0]

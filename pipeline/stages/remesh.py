@@ -55,8 +55,9 @@ class ImproveConfig(Section):
     final_relax_iterations: int = Field(6, ge=0, le=50)   # relax + flips after the count
     pinned_relax_iterations: int = Field(2, ge=0, le=50)  # after the second sag refinement
     min_angle_deg: float = Field(20.0, ge=0.0, le=40.0)   # the last pass's minimum angle
-    follow_input: float = Field(0.25, ge=0.0)   # a vertex on input vertices farther than this
-                                                # × spacing from the remesh (0: none)
+    follow_input: float = Field(0.25, ge=0.0)   # a vertex on input points (vertices, edge and
+                                                # face middles) farther than this × spacing
+                                                # from the remesh (0: none)
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim

@@ -1,16 +1,21 @@
-"""The remesh follows the input: a vertex on each input vertex it has drifted too far from.
+"""The remesh follows the input: a vertex on each input point it has drifted too far from.
 
 The sag tests (:mod:`.sag`) look at the remesh's edges from the remesh's side: how far a
 straight edge leaves the surface under it. They do not see the input's own thin features —
 a crease or a fold narrower than the target length (a nostril's rim, a sulcus' lip, a lip's
 corner) — that the remesh cuts across between two vertices on either side: there the remesh
-is close to the surface everywhere along its edges, but an input vertex on the crease is far
-from it, and the input-to-remesh Hausdorff distance is decided at such vertices.
-:func:`follow_input` finds the interior input vertices farther from the remesh than a
-tolerance (exact point–triangle distances, :class:`..remesh_quality.MeshDistance`) and moves
-the nearest free remesh vertex exactly onto each (or inserts one there), locked
-(:func:`.corners.snap_vertices`), farthest first, no two closer than a gap on the surface. A
-snap next to a feature narrower than the remesh's edges (a spike, a sulcus) tilts the faces
+is close to the surface everywhere along its edges, but a point of the input on the crease is
+far from it, and the input-to-remesh Hausdorff distance is decided at such points. Where the
+input's triangles are larger than the remesh's (a coarse scan remeshed finely), that point is
+often not an input vertex but the middle of an input edge or face at the bottom of a fold.
+:func:`follow_input` finds the input points — interior vertices, midpoints of edges and
+centroids of faces away from the rim (:func:`input_points`) — farther from the remesh than a
+tolerance (exact point–triangle distances, :class:`..remesh_quality.MeshDistance`, for the
+points a vertex's distance does not already bound) and moves the nearest free remesh vertex
+exactly onto each (or inserts one there), locked (:func:`.corners.snap_vertices`), farthest
+first, no two closer than a gap on the surface. Each such point lies on the input surface, and
+the map is linear on an input face, so its disk position is the same average of its corners'.
+A snap next to a feature narrower than the remesh's edges (a spike, a sulcus) tilts the faces
 around it over the surface; those that leave an edge farther than the sag tolerance from the
 surface are undone (:func:`undo_sagging_snaps`). The counts go to the state's log as
 ``followed_snapped``, ``followed_inserted``, ``followed_too_close`` and
@@ -24,15 +29,54 @@ import numpy as np
 from .. import topology as topo
 from ..remesh_quality import MeshDistance
 from .corners import snap_vertices
+from .domain import project
 from .halfedge import double_areas, edge_table, touching
 from .refine import SAG_SAMPLES
 from .sag import edge_sag_along
 from .state import RemeshState
 
 
-def far_input_vertices(S: RemeshState, tol: float) -> np.ndarray:
-    """The interior input vertices farther than ``tol`` from the remesh ``(S.X, S.F)``,
-    farthest first.
+def input_points(S: RemeshState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The input's interior vertices, the midpoints of its edges and the centroids of its
+    faces that have no corner on the rim, on the surface and in the map's domain.
+
+    Parameters
+    ----------
+    S : RemeshState
+
+    Returns
+    -------
+    P : (k, 3) float
+        The points (the vertices first, then the midpoints, then the centroids).
+    P_uv : (k, 2) or (k, 3) float
+        Their domain positions: the same averages of the corners' ``uv_in`` (on the sphere
+        put back on it, :func:`.domain.project`).
+    corners : (k, 3) int
+        The input vertices each point averages (a vertex: itself three times; a midpoint: its
+        edge's two ends and the first again).
+    n_vertices : int
+        How many of the points are vertices.
+    """
+    is_rim = topo.boundary_vertices_mask(S.F_in, len(S.V_in))
+    inner = S.F_in[~is_rim[S.F_in].any(axis=1)]
+    _, a, b, _ = edge_table(inner)
+    v = np.flatnonzero(~is_rim)
+    corners = np.concatenate([np.repeat(v[:, None], 3, axis=1), np.column_stack([a, b, a]),
+                              inner])
+
+    def points(Y):
+        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[inner].mean(axis=1)])
+
+    return points(S.V_in), project(points(S.uv_in)), corners, len(v)
+
+
+def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The input points of :func:`input_points` farther than ``tol`` from the remesh
+    ``(S.X, S.F)``, farthest first.
+
+    The vertices are measured first; a midpoint or centroid is measured only if the bound
+    ``min over its corners (distance of the corner + distance from it)`` (the triangle
+    inequality) does not already put it within ``tol``.
 
     Parameters
     ----------
@@ -42,22 +86,33 @@ def far_input_vertices(S: RemeshState, tol: float) -> np.ndarray:
 
     Returns
     -------
-    (k,) int
-        Input vertex indices.
+    P_uv : (j, 2) float
+        Their disk positions.
+    distance : (j,) float
     """
-    d, _ = MeshDistance(S.X, S.F)(S.V_in)
-    d[topo.boundary_vertices_mask(S.F_in, len(S.V_in))] = 0.0
+    P, P_uv, corners, nv = input_points(S)
+    measure = MeshDistance(S.X, S.F)
+    d = np.zeros(len(P))
+    d[:nv] = measure(P[:nv])[0]
+    at = np.full(len(S.V_in), np.inf)
+    at[corners[:nv, 0]] = d[:nv]
+    rest = np.arange(nv, len(P))
+    bound = np.min(at[corners[rest]] + np.linalg.norm(S.V_in[corners[rest]] - P[rest, None],
+                                                      axis=2), axis=1)
+    ask = rest[bound > tol]
+    d[ask] = measure(P[ask])[0]
     far = np.flatnonzero(d > tol)
-    return far[np.argsort(-d[far], kind="stable")]
+    far = far[np.argsort(-d[far], kind="stable")]
+    return P_uv[far], d[far]
 
 
 def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
                  ) -> np.ndarray:
-    """Snap (or insert) a locked remesh vertex onto every interior input vertex farther than
-    ``tol`` from the remesh, farthest first, none within ``min_gap`` on the surface of one
-    snapped before or of a locked vertex (:func:`.corners.snap_vertices`); given
-    ``max_sag``, the snaps that leave an edge farther than that from the surface are undone
-    (:func:`undo_sagging_snaps`).
+    """Snap (or insert) a locked remesh vertex onto every input point of
+    :func:`far_input_points` (farther than ``tol`` from the remesh), farthest first, none
+    within ``min_gap`` on the surface of one snapped before or of a locked vertex
+    (:func:`.corners.snap_vertices`); given ``max_sag``, the snaps that leave an edge farther
+    than that from the surface are undone (:func:`undo_sagging_snaps`).
 
     Parameters
     ----------
@@ -73,13 +128,13 @@ def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | No
     (j,) int
         The snapped and inserted vertices that stay.
     """
-    far = far_input_vertices(S, tol)
-    S.tally("far_input_vertices", len(far))
+    far, _ = far_input_points(S, tol)
+    S.tally("far_input_points", len(far))
     if len(far) == 0:
         return np.zeros(0, np.int64)
     n0 = S.n
     old = S.uv.copy(), S.face.copy(), S.bary.copy(), S.X.copy()
-    v = snap_vertices(S, S.uv_in[far], min_gap=min_gap, counts="followed")
+    v = snap_vertices(S, far, min_gap=min_gap, counts="followed")
     if max_sag is not None:
         undone = undo_sagging_snaps(S, v[v < n0], old, max_sag)
         v = np.setdiff1d(v, undone)

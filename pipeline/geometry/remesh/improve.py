@@ -38,9 +38,10 @@ The schedule (:func:`improve_remesh`):
    leave them skinny — under a veto of every move that takes an edge farther from the
    surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not without
    ``relax_iterations``); then the remesh follows the input (:meth:`_Operations.follow`,
-   :mod:`.fidelity`): a vertex snapped (or inserted) and locked on every interior input
-   vertex farther than ``follow_input × L`` from the remesh — the sharp creases and thin
-   folds no sag test sees — no two closer than ``FOLLOW_GAP × L``, a snap undone where it
+   :mod:`.fidelity`): a vertex snapped (or inserted) and locked on every input point (an
+   interior vertex, the middle of an edge or a face away from the rim) farther than
+   ``follow_input × L`` from the remesh — the sharp creases and thin folds no sag test sees —
+   no two closer than ``FOLLOW_GAP × L``, a snap undone where it
    leaves an edge farther than the sag tolerance from the surface, flips, as many guarded
    collapses of the shortest edges as vertices were inserted, flips; after the smoothing,
    which would move the vertices next to them off the creases again, and locked until the
@@ -100,7 +101,7 @@ NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
-FOLLOW_GAP = 0.4      # vertices snapped onto far input vertices are this × L apart at least
+FOLLOW_GAP = 0.4      # vertices snapped onto far input points are this × L apart at least
 
 
 def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips: bool = True,
@@ -155,8 +156,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         of the triangles' shape; the sphere remesher floors the tolerance at ``refine_sag`` ×
         the input's own spacing (:func:`.sphere.sphere_remesh`).
     follow_input : float
-        At the end of step 7, a vertex goes onto every interior input vertex farther than this
-        × ``L`` from the remesh (0: none).
+        At the end of step 7, a vertex goes onto every input point (an interior vertex, the
+        middle of an edge or a face away from the rim) farther than this × ``L`` from the
+        remesh (0: none).
 
     Returns
     -------
@@ -299,11 +301,11 @@ class _Operations:
         self.flip()
 
     def follow(self, tol: float) -> None:
-        """Snap (or insert) a locked vertex onto every interior input vertex farther than
-        ``tol`` from the remesh, ``FOLLOW_GAP × L`` apart, no snap leaving an edge farther
-        than the sag tolerance from the surface (:func:`.fidelity.follow_input`), flips, as
-        many collapses of the shortest edges under the guards as vertices were inserted,
-        flips."""
+        """Snap (or insert) a locked vertex onto every input point farther than ``tol`` from
+        the remesh (an interior vertex, the middle of an edge or a face), ``FOLLOW_GAP × L``
+        apart, no snap leaving an edge farther than the sag tolerance from the surface
+        (:func:`.fidelity.follow_input`), flips, as many collapses of the shortest edges under
+        the guards as vertices were inserted, flips."""
         S = self.S
         n0 = S.n
         snap_far_input(S, tol, FOLLOW_GAP * self.L, self.tol)
