@@ -168,9 +168,9 @@ class GaussNewton:
         N = 2 * nI + nB
         indptr, indices, self.face_slots = face_pair_pattern(self.cols, N)
         self.n_upper = len(indices)
-        # the upper triangle is what the solvers factor (``upper=True``); rows sorted, so each
+        # H's upper triangle is what the solvers factor (``upper=True``); rows sorted, so each
         # row's diagonal entry comes first
-        self.H = sp.csr_matrix((np.empty(self.n_upper), indices, indptr), shape=(N, N))
+        self.H_upper = sp.csr_matrix((np.empty(self.n_upper), indices, indptr), shape=(N, N))
         self.diagonal = indptr[:-1].astype(np.int64)
         self.corner_flags = np.ascontiguousarray(
             np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
@@ -192,9 +192,9 @@ class GaussNewton:
         weight = self.inv_area
         if self.barrier > 0:
             residual, weight = barrier_terms(a2, residual, self.double_area, self.barrier)
-        N = self.H.shape[0]
+        N = self.H_upper.shape[0]
         g = np.empty(N)
-        H = self.H
+        H = self.H_upper
         disk_gauss_newton_terms(self.F, np.ascontiguousarray(f, dtype=np.complex128),
                                 np.ascontiguousarray(residual, dtype=np.float64), weight,
                                 self.cols, self.corner_flags, self.face_slots, H.data, g)
