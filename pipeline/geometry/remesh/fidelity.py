@@ -86,9 +86,10 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
 
     Returns
     -------
-    P_uv : (j, 2) float
-        Their disk positions.
+    P_uv : (j, 2) or (j, 3) float
+        Their domain positions.
     distance : (j,) float
+        In the mesh's units.
     """
     P, P_uv, corners, nv = input_points(S)
     measure = MeshDistance(S.X, S.F)
