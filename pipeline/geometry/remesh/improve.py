@@ -12,7 +12,8 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 
 The schedule (:func:`improve_remesh`):
 
-1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`);
+1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
+   first, none within ``CORNER_GAP × L`` of one kept before;
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
 3. refinement: split the rim edges that cut off an input boundary vertex by more than
    ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
@@ -91,7 +92,7 @@ from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
 from .state import RemeshState
 
-SLIVER = 0.2          # edges shorter than this × L are collapsed; no corner inserted closer
+SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
 ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
@@ -102,6 +103,9 @@ LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this �
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
 FOLLOW_GAP = 0.4      # vertices snapped onto far input points are this × L apart at least
+# a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
+# vertices that close make a face no later pass may change (on ICT faces: 0.3 L apart, 13°)
+CORNER_GAP = 0.4
 
 
 def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips: bool = True,
@@ -171,7 +175,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
     lap = Stopwatch(S.log, "seconds")
     if corners_uv is not None and len(corners_uv):
-        snap_vertices(S, corners_uv, min_gap=SLIVER * L)
+        snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
     ops.flip()
     lap("flips")
     for _ in range(relax_iterations):
