@@ -233,8 +233,9 @@ class PardisoSolver:
     """MKL PARDISO for SPD matrices (mtype 2) with the analysis kept per sparsity pattern.
 
     The first ``factorize`` of a pattern stores its upper triangle's CSR index arrays (zero-based,
-    ``iparm[34]``) and where each of their entries sits in the full matrix's ``data``, and runs
-    the analysis (phase 11, METIS nested dissection). Every call then gathers the upper
+    ``iparm[34]``) and where each of their entries sits in the full matrix's ``data`` (with
+    ``upper=True`` the matrix given is that triangle, taken as it is), and runs the analysis
+    (phase 11, METIS nested dissection). Every call then gathers the upper
     triangle's values and refactors numerically (phase 22); ``solve`` is phase 33 with iterative
     refinement off (``iparm[7] = 0``: the Cholesky factor of an SPD Laplacian is exact to
     rounding). A non-positive pivot makes phase 22 fail (error −4), reported as
@@ -266,6 +267,7 @@ class PardisoSolver:
         ip[34] = 1     # zero-based ia/ja
         self._key = None          # (indptr, indices) of the analysed full pattern
         self._upper = None        # positions of the upper triangle in the full data array
+        #                           (None: the analysed matrix was the upper triangle itself)
         self._ia = self._ja = None
         self._valid = False
         self.refactored = refactored
