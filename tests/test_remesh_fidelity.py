@@ -44,8 +44,8 @@ def interior_distances(V_in, F_in, X, F):
 def input_point_distances(S, X, F):
     """The distance of every input point of :func:`input_points` from the mesh ``(X, F)``,
     and how many of them are vertices."""
-    P, _, _, nv = input_points(S)
-    return MeshDistance(X, F)(P)[0], nv
+    pts = input_points(S)
+    return MeshDistance(X, F)(pts.P)[0], len(pts.vertices)
 
 
 @pytest.mark.timeout(60)

@@ -348,24 +348,48 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
 _BOUND_MARGIN = 1e-9
 
 
-def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
-                    known_max: float, distance: MeshDistance) -> float:
-    """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
-    (``E`` its edges, ``d_vertex`` its vertices' distances) and ``known_max``.
+def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Upper bounds of the distance to a surface of the edge midpoints and face centroids of
+    ``(V, F)`` from their corners' distances ``d_vertex`` (n): the distance is 1-Lipschitz, so
+    a point ``x`` is at most ``d(v) + |x − v|`` away for each corner ``v`` of its edge or face.
 
-    The distance to a surface is 1-Lipschitz, so a point ``x`` is at most ``d(v) + |x − v|``
-    away for each corner ``v`` of its edge or face; a midpoint or centroid whose bound is below
-    the largest distance known cannot raise the maximum and is not queried. The result is the
-    maximum over every sample, as if all had been queried (each queried point is the one
-    :func:`_structured_samples` makes)."""
-    best = max(known_max, float(d_vertex.max(initial=0.0)))
-    slack = _BOUND_MARGIN * bounding_box_diagonal(V)
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    E : (e, 2) int
+        Edges of ``(V, F)`` (any subset).
+    d_vertex : (n,) float
+
+    Returns
+    -------
+    mid_bound : (e,) float
+    centroids : (m, 3) float
+    centroid_bound : (m,) float
+    """
     a, b = E[:, 0], E[:, 1]
     mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
     corners = V[F]
     centroids = corners.mean(axis=1)
     to_corners = (centroids[:, None, :] - corners).reshape(-1, 3)
     centroid_bound = np.min(d_vertex[F] + norms(to_corners).reshape(F.shape), axis=1)
+    return mid_bound, centroids, centroid_bound
+
+
+def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
+                    known_max: float, distance: MeshDistance) -> float:
+    """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
+    (``E`` its edges, ``d_vertex`` its vertices' distances) and ``known_max``.
+
+    A midpoint or centroid whose bound (:func:`middle_bounds`) is below the largest distance
+    known cannot raise the maximum and is not queried. The result is the
+    maximum over every sample, as if all had been queried (each queried point is the one
+    :func:`_structured_samples` makes)."""
+    best = max(known_max, float(d_vertex.max(initial=0.0)))
+    slack = _BOUND_MARGIN * bounding_box_diagonal(V)
+    a, b = E[:, 0], E[:, 1]
+    mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
     mids = np.flatnonzero(mid_bound * (1 + _BOUND_MARGIN) + slack >= best)
     cents = np.flatnonzero(centroid_bound * (1 + _BOUND_MARGIN) + slack >= best)
     X = np.vstack([(V[a[mids]] + V[b[mids]]) / 2, centroids[cents]])

@@ -24,10 +24,12 @@ surface are undone (:func:`undo_sagging_snaps`). The counts go to the state's lo
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .. import topology as topo
-from ..remesh_quality import MeshDistance
+from ..remesh_quality import MeshDistance, middle_bounds
 from .corners import snap_vertices
 from .domain import project
 from .halfedge import double_areas, edge_table, touching
@@ -36,47 +38,42 @@ from .sag import edge_sag_along
 from .state import RemeshState
 
 
-def input_points(S: RemeshState) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+class InputPoints(NamedTuple):
+    """The input points the remesh follows (:func:`input_points`): ``P`` (k×3) and their
+    domain positions ``P_uv`` (k×2 or k×3), the ``vertices`` first, then the midpoints of the
+    ``edges`` (e×2), then the centroids of the ``faces`` (f×3) — input vertex indices."""
+
+    P: np.ndarray
+    P_uv: np.ndarray
+    vertices: np.ndarray
+    edges: np.ndarray
+    faces: np.ndarray
+
+
+def input_points(S: RemeshState) -> InputPoints:
     """The input's interior vertices, the midpoints of its edges and the centroids of its
-    faces that have no corner on the rim, on the surface and in the map's domain.
-
-    Parameters
-    ----------
-    S : RemeshState
-
-    Returns
-    -------
-    P : (k, 3) float
-        The points (the vertices first, then the midpoints, then the centroids).
-    P_uv : (k, 2) or (k, 3) float
-        Their domain positions: the same averages of the corners' ``uv_in`` (on the sphere
-        put back on it, :func:`.domain.project`).
-    corners : (k, 3) int
-        The input vertices each point averages (a vertex: itself three times; a midpoint: its
-        edge's two ends and the first again).
-    n_vertices : int
-        How many of the points are vertices.
-    """
+    faces that have no corner on the rim, on the surface and in the map's domain (there the
+    same averages of the corners' ``uv_in``; on the sphere put back on it,
+    :func:`.domain.project`)."""
     is_rim = topo.boundary_vertices_mask(S.F_in, len(S.V_in))
     inner = S.F_in[~is_rim[S.F_in].any(axis=1)]
     _, a, b, _ = edge_table(inner)
     v = np.flatnonzero(~is_rim)
-    corners = np.concatenate([np.repeat(v[:, None], 3, axis=1), np.column_stack([a, b, a]),
-                              inner])
 
     def points(Y):
         return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[inner].mean(axis=1)])
 
-    return points(S.V_in), project(points(S.uv_in)), corners, len(v)
+    return InputPoints(points(S.V_in), project(points(S.uv_in)), v, np.column_stack([a, b]),
+                       inner)
 
 
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """The input points of :func:`input_points` farther than ``tol`` from the remesh
     ``(S.X, S.F)``, farthest first.
 
-    The vertices are measured first; a midpoint or centroid is measured only if the bound
-    ``min over its corners (distance of the corner + distance from it)`` (the triangle
-    inequality) does not already put it within ``tol``.
+    The vertices are measured first; a midpoint or centroid is measured only if its corners'
+    distances do not already bound it within ``tol``
+    (:func:`..remesh_quality.middle_bounds`).
 
     Parameters
     ----------
@@ -91,20 +88,18 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     distance : (j,) float
         In the mesh's units.
     """
-    P, P_uv, corners, nv = input_points(S)
+    pts = input_points(S)
     measure = MeshDistance(S.X, S.F)
-    d = np.zeros(len(P))
-    d[:nv] = measure(P[:nv])[0]
-    at = np.full(len(S.V_in), np.inf)
-    at[corners[:nv, 0]] = d[:nv]
-    rest = np.arange(nv, len(P))
-    bound = np.min(at[corners[rest]] + np.linalg.norm(S.V_in[corners[rest]] - P[rest, None],
-                                                      axis=2), axis=1)
-    ask = rest[bound > tol]
-    d[ask] = measure(P[ask])[0]
+    nv = len(pts.vertices)
+    d_vertex = np.full(len(S.V_in), np.inf)
+    d_vertex[pts.vertices] = measure(pts.P[:nv])[0]
+    mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex)
+    d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
+    ask = nv + np.flatnonzero(d[nv:] > tol)
+    d[ask] = measure(pts.P[ask])[0]
     far = np.flatnonzero(d > tol)
     far = far[np.argsort(-d[far], kind="stable")]
-    return P_uv[far], d[far]
+    return pts.P_uv[far], d[far]
 
 
 def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
