@@ -185,9 +185,8 @@ class _Problem:
         ``a2`` if the image areas are already known."""
         if a2 is None:
             a2 = signed_double_areas(_as_uv(f), self.F)
-        E = float(0.5 * np.sum(a2 * a2 / self.A2))
-        area_f = np.abs(a2).sum() / 2
-        return E, E * self.area_M / area_f ** 2, int(np.count_nonzero(a2 <= 0)), a2
+        return (*_energy_and_ratio(a2, self.A2, self.area_M), int(np.count_nonzero(a2 <= 0)),
+                a2)
 
     def surface_energy(self, value) -> tuple[float, float]:
         """``(E_S, E_S/(|f(M)|²/|M|))`` of eq. (15) with the surface's own areas, from an
@@ -195,9 +194,7 @@ class _Problem:
         :func:`target_double_areas`)."""
         if not self.floored:
             return value[0], value[1]
-        a2 = value[3]
-        E = float(0.5 * np.sum(a2 * a2 / self.surface_A2))
-        return E, E * (self.surface_A2.sum() / 2) / (np.abs(a2).sum() / 2) ** 2
+        return _energy_and_ratio(value[3], self.surface_A2, self.surface_A2.sum() / 2)
 
     def distortions(self, a2):
         """``(D(f) eq. 28, face-based area distortion)`` from the image areas of a map,
@@ -227,6 +224,15 @@ class _Problem:
     def release(self):
         for s in (self.solver_I, self.solver_P, self.solver_B):
             s.release()
+
+
+def _energy_and_ratio(a2: np.ndarray, double_area: np.ndarray, area_M: float
+                      ) -> tuple[float, float]:
+    """``(E_S, E_S/(|f(M)|²/|M|))`` of eq. (15) from the signed double image areas ``a2``
+    (m,), the double face areas ``double_area`` (m,) they are measured against and their
+    surface area ``area_M``."""
+    E = float(0.5 * np.sum(a2 * a2 / double_area))
+    return E, E * area_M / (np.abs(a2).sum() / 2) ** 2
 
 
 #: A face whose area is below this share of the mean face area counts as having that area in
