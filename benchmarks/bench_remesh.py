@@ -115,12 +115,14 @@ def parameterize(mesh):
 
 
 def parameterize_with(mesh, how: str):
-    """The map for ``--compare``: ``paper`` (Algorithm 1, 10 steps), ``converged`` (the
-    default converged map) or an integer (converged mode, at most that many steps)."""
+    """The map for ``--compare``: ``paper`` (Algorithm 1, 10 steps), ``paperK`` (Algorithm 1,
+    K steps), ``converged`` (the default converged map) or an integer (converged mode, at most
+    that many steps)."""
     from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.parameterize import parameterize_stage
 
     opts = (SEMOptions(mode="paper") if how == "paper" else SEMOptions() if how == "converged"
+            else SEMOptions(mode="paper", max_iter=int(how[5:])) if how.startswith("paper")
             else SEMOptions(mode="converged", max_iter=int(how)))
     t = time.perf_counter()
     p = parameterize_stage(mesh, opts)

@@ -8,8 +8,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import (as_complex, boundary_loop, height_field, load_mesh, random_flip_free_maps,
-                      stretch_L)
+from conftest import (as_complex, boundary_loop, height_field, load_mesh, loop_from_angle_zero,
+                      polar_disk, random_flip_free_maps, stretch_L)
 from pipeline.geometry import metrics
 from pipeline.geometry.laplacian import laplacian_pattern
 from pipeline.geometry.repair import disk_blockers
@@ -416,3 +416,29 @@ def test_converged_mode_does_not_crawl_where_steps_fold_nearly_flat_faces():
     assert r.flipped_faces == 0 and len(metrics.flipped_faces(r.uv, F)) == 0
     assert metrics.face_area_distortion(V, F, r.uv) < 0.03
     assert r.status == "converged"
+
+
+def test_damping_floor_keeps_the_smooth_part_of_a_gauss_newton_step_on_a_fine_mesh():
+    """On a fine mesh, the Gauss–Newton step at the damping floor removes a smooth perturbation
+    of an equiareal map in one step: on a flat polar disk (80k vertices, 159k interior unknowns)
+    mapped to itself, whose interior is pushed out radially by 5 % of ``1 − |z|²``, one step
+    leaves less than 0.5 % of the excess energy ratio (0.13 % measured; at the old fixed floor
+    μ = 10⁻⁴, 6.6 %). Small systems keep the fixed floor."""
+    from pipeline.geometry.gauss_newton import GaussNewton
+    from pipeline.geometry.sem import GN_MU_MIN, damping_floor
+
+    P, F = polar_disk(200, 400)
+    b = loop_from_angle_zero(P, F)
+    V = np.column_stack([P, np.zeros(len(P))])
+    problem = _Problem(V, F, b, "auto")
+    z = P[:, 0] + 1j * P[:, 1]
+    f = z * (1 + 0.05 * (1 - np.abs(z) ** 2))
+    f[b] = z[b]
+    before = problem.evaluate(f)
+    gn = GaussNewton(F, len(V), problem.I, problem.A2, "auto", b)
+    gn.hold_boundary = True
+    unknowns = 2 * len(problem.I)
+    after = problem.evaluate(gn.step(f, before[3], damping_floor(unknowns)))
+    assert unknowns > 150_000 and after[2] == 0
+    assert (after[1] - 1) < 0.005 * (before[1] - 1)
+    assert damping_floor(10_000) == GN_MU_MIN and damping_floor(unknowns) == 1 / unknowns
