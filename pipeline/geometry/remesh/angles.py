@@ -490,7 +490,7 @@ class _Patch:
                                    np.tile(C, (len(M), 1))).reshape(len(M), d)
         score = each.min(axis=1)
         more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
-        score[~inside | more_below] = -1.0
+        score[~inside | more_below | ~star_shapes_ok(S.uv, M, star[:, 1:])] = -1.0
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
             if score[j] <= before:
@@ -560,6 +560,19 @@ class _BoundaryCorners:
             sa, span = sb, (sa - sb) % self.length
         d = (self.s - sa) % self.length
         return self.X[(d > 0) & (d < span)]
+
+
+def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
+    """For each candidate domain position ``M[j]`` of a vertex whose star's faces are
+    ``(v, B, C)`` (``BC``: d×2 vertex indices, counter-clockwise after ``v``), whether every
+    face of the star stays counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the
+    domain with ``v`` there (j bool): where the map's stretch changes fast, the position best
+    on the surface often folds a face on the domain, and the next best must be tried."""
+    j, d = len(M), len(BC)
+    U = np.vstack([M, uv[BC.ravel()]])
+    T = np.column_stack([np.repeat(np.arange(j), d), j + np.tile(2 * np.arange(d), j),
+                         j + np.tile(2 * np.arange(d) + 1, j)])
+    return (disk_shape(U, T) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
 
 
 def _rotate_to(f, v) -> list:
