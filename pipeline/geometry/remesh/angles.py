@@ -64,8 +64,8 @@ from .state import RemeshState
 
 SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
 MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation target
-PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
-PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
+PATTERN_DIRS = 16                       # and a pattern search around the vertex: directions,
+PATTERN_STEPS = (0.03, 0.1, 0.25, 0.5)  # steps × the shortest domain edge of its star
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
 
 
