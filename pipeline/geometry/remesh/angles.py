@@ -459,7 +459,9 @@ class _Patch:
 
     def move(self, v):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
-        raises the smallest angle of its star most, under the guards."""
+        raises the smallest angle of its star most, under the guards: the three best of those
+        that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
+        tried."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
