@@ -182,3 +182,15 @@ def test_sharp_input_vertices_close_together_keep_one_vertex_between_them():
     assert np.degrees(corner_angles(r.V, r.F)).min() >= 20.0
     assert r.info["improve"]["below_min_angle"]["faces"] == 0
     assert abs(len(r.V) - 20000) <= 0.02 * 20000 and is_disk(mesh_facts(r.V, r.F))
+
+
+def test_star_shapes_ok_drops_exactly_the_positions_that_fold_or_flatten_the_star():
+    """A vertex inside a unit square ring (4 faces, counter-clockwise): a position inside the
+    square keeps every face counter-clockwise; one past an edge folds the face on it; one on an
+    edge flattens that face to zero area (below ``DISK_SHAPE_MIN``)."""
+    from pipeline.geometry.remesh.angles import star_shapes_ok
+
+    ring = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])
+    BC = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
+    M = np.array([[0.0, 0.0], [0.3, 0.2], [0.6, 0.6], [0.5, 0.5], [-0.2, -0.7]])
+    assert star_shapes_ok(ring, M, BC).tolist() == [True, True, False, False, True]

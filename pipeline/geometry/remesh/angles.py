@@ -64,8 +64,8 @@ from .state import RemeshState
 
 SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag guard looks
 MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation target
-PATTERN_DIRS = 8                        # and a pattern search around the vertex: directions,
-PATTERN_STEPS = (0.1, 0.25, 0.5)        # steps × the shortest domain edge of its star
+PATTERN_DIRS = 16                       # and a pattern search around the vertex: directions,
+PATTERN_STEPS = (0.03, 0.1, 0.25, 0.5)  # steps × the shortest domain edge of its star
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
 
 
@@ -459,7 +459,9 @@ class _Patch:
 
     def move(self, v):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
-        raises the smallest angle of its star most, under the guards."""
+        raises the smallest angle of its star most, under the guards: the three best of those
+        that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
+        tried."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -490,7 +492,7 @@ class _Patch:
                                    np.tile(C, (len(M), 1))).reshape(len(M), d)
         score = each.min(axis=1)
         more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
-        score[~inside | more_below] = -1.0
+        score[~inside | more_below | ~star_shapes_ok(S.uv, M, star[:, 1:])] = -1.0
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
             if score[j] <= before:
@@ -560,6 +562,19 @@ class _BoundaryCorners:
             sa, span = sb, (sa - sb) % self.length
         d = (self.s - sa) % self.length
         return self.X[(d > 0) & (d < span)]
+
+
+def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
+    """For each candidate domain position ``M[j]`` of a vertex whose star's faces are
+    ``(v, B, C)`` (``BC``: d×2 vertex indices, counter-clockwise after ``v``), whether every
+    face of the star stays counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the
+    domain with ``v`` there (j bool): where the map's stretch changes fast, the position best
+    on the surface often folds a face on the domain, and the next best must be tried."""
+    j, d = len(M), len(BC)
+    U = np.vstack([M, uv[BC.ravel()]])
+    T = np.column_stack([np.repeat(np.arange(j), d), j + np.tile(2 * np.arange(d), j),
+                         j + np.tile(2 * np.arange(d) + 1, j)])
+    return (disk_shape(U, T) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
 
 
 def _rotate_to(f, v) -> list:
