@@ -24,7 +24,7 @@ from pipeline.geometry import sphere
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.metrics import corner_angles
 from pipeline.geometry.repair import repair_mesh
-from pipeline.geometry.sem import SEMOptions
+from pipeline.geometry.sem import REMESH_DISK_STEPS, SEMOptions
 from pipeline.geometry.sphere_metrics import (sphere_angular_distortion,
                                               sphere_distortion_summary,
                                               sphere_local_area_ratios,
@@ -124,7 +124,9 @@ def test_domain_resolution_and_its_messages():
 
 def test_auto_mode_is_paper_on_the_disk_and_converged_on_the_sphere():
     auto = SEMOptions(mode="auto", max_iter=None)
-    assert auto.for_domain("disk").mode == "paper" and auto.for_domain("disk").iterations() == 10
+    assert auto.for_domain("disk").mode == "paper"
+    assert auto.for_domain("disk").iterations() == REMESH_DISK_STEPS == 2
+    assert SEMOptions(mode="auto", max_iter=7).for_domain("disk").iterations() == 7   # asked
     assert auto.for_domain("sphere").mode == "converged"
     assert SEMOptions(mode="paper").for_domain("sphere").mode == "paper"   # asked: kept
     assert SEMOptions().for_domain("disk").mode == "converged"

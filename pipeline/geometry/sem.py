@@ -77,13 +77,23 @@ from .topology import vertex_faces
 from ._kernels import hold_rounds, stretch_weights
 from .solvers import NotPositiveDefinite, make_solver, solve_complex
 
+#: Algorithm 1's steps of ``mode: auto`` on the disk, the remesh's map. The first SEM steps
+#: remove most of the harmonic start's area distortion; the later ones remove the rest by
+#: stretching faces (the anisotropy of long thin parts grows with every step: c3d_alligator's
+#: tips, igl_camel_b's limbs), and the remesh, whose isotropic rounds even out the density on
+#: the surface anyway, works on the disk and is hurt by that stretch more than helped by the
+#: last percent of evenness (``benchmarks/bench_remesh.py --compare --maps paper paper2``).
+REMESH_DISK_STEPS = 2
+
+
 class SEMOptions(BaseModel):
     """SEM's settings; also the ``parameterize`` section of a run config (validated once, here).
 
     ``max_iter`` defaults to 10 steps in paper mode (Algorithm 1) and 1000 in converged mode.
-    ``mode: auto`` is the quick map for remeshing: paper mode on the disk, converged mode on the
-    sphere (whose Gauss–Newton map is as quick there and gives the better remesh);
-    :meth:`for_domain` resolves it.
+    ``mode: auto`` is the quick map for remeshing: on the disk paper mode with
+    ``REMESH_DISK_STEPS`` steps unless ``max_iter`` says otherwise, on the sphere converged mode
+    (whose Gauss–Newton map is as quick there and gives the better remesh); :meth:`for_domain`
+    resolves it.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -115,7 +125,10 @@ class SEMOptions(BaseModel):
         """These options with ``mode: auto`` resolved for ``domain`` ("disk" or "sphere")."""
         if self.mode != "auto":
             return self
-        return self.model_copy(update={"mode": "converged" if domain == "sphere" else "paper"})
+        if domain == "sphere":
+            return self.model_copy(update={"mode": "converged"})
+        steps = REMESH_DISK_STEPS if self.max_iter is None else self.max_iter
+        return self.model_copy(update={"mode": "paper", "max_iter": steps})
 
     def iterations(self) -> int:
         if self.max_iter is not None:
