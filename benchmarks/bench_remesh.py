@@ -12,7 +12,8 @@ the ICT ``*_disk`` faces, at 5k, 20k and 100k vertices), pymeshlab's isotropic e
 remeshing (10 iterations, target length solved for the count) and our remesh on each map of
 ``--maps``, in the same run and by the same evaluator: mean smallest angle, share of faces with
 an angle under 30°, smallest angle, area CV, Hausdorff and RMS distance (% of the bounding-box
-diagonal), one disk (``topo``: ``disk``, or ``χ=2`` for a closed genus-0 manifold), and seconds
+diagonal), one disk (``topo``: ``disk``, or ``χ=2`` for a closed genus-0 manifold; ``/N folds``
+after it: N faces turned over against the input), and seconds
 (ours: the map + the remesh stage; pymeshlab: its call). The row ``ours/cli`` is what a user
 gets: ``sem-pipeline remesh MESH --vertices N --no-compare --no-report`` run in a fresh
 interpreter, its written ``remeshed.obj`` measured, its wall seconds end to end (start,
@@ -199,7 +200,9 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
         vals["fraction_min_angle_below_30"] *= 100
         vals["hausdorff_rel"] *= 100
         vals["rms_rel"] *= 100
-        return vals, "disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else "NO"
+        shape = "disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else "NO"
+        folds = r["distance"]["turned_over_faces"]
+        return vals, shape if not folds else f"{shape}/{folds} folds"
 
     def line(name, n, method, nv, vals, disk, t_map, t_mesh, ref=None, total_mark=" ",
              tail=""):

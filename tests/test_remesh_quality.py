@@ -9,8 +9,8 @@ from conftest import require_data
 from pipeline.geometry.remesh_quality import (MeshDistance, SampledSurface,
                                               closest_points_on_triangles, is_disk,
                                               mesh_facts, point_mesh_distance, surface_distance,
-                                              surface_samples, triangle_quality, valence_stats,
-                                              z_order)
+                                              surface_samples, triangle_quality,
+                                              turned_over_faces, valence_stats, z_order)
 from pipeline.geometry.repair import repair_mesh
 from pipeline.geometry.sem import SEMOptions
 from pipeline.io.meshio import read_mesh
@@ -153,3 +153,22 @@ def test_hausdorff_agrees_with_meshlab():
                                        maxdist=pymeshlab.PercentageValue(50))["max"]
         # both are sampled lower bounds of the same maximum
         assert 0.85 * ml <= ours[key]["max"] <= 1.15 * ml
+
+
+def test_turned_over_faces_counts_the_faces_of_a_fold_exactly():
+    """A flat lattice (normals +z) against itself: none turned over. With one interior vertex
+    pushed across the edge opposite it in its ring (still in the plane), the faces whose
+    orientation the push reverses, and only those, are counted; the count is reported with
+    the distances."""
+    P, F = lattice_mesh(8)
+    reference = SampledSurface(P, F, 1000)
+    assert turned_over_faces(P, F, reference) == 0
+    v = 4 * 9 + 4                                   # an interior vertex of the 9×9 lattice
+    ring = F[np.any(F == v, axis=1)]
+    Q = P.copy()
+    Q[v, 1] += 2.2 * np.sqrt(3) / 2                 # two rows up, past its upper neighbours
+    n = np.cross(Q[ring[:, 1]] - Q[ring[:, 0]], Q[ring[:, 2]] - Q[ring[:, 0]])[:, 2]
+    expected = int(np.count_nonzero(n < 0))
+    assert expected >= 2
+    assert turned_over_faces(Q, F, reference) == expected
+    assert surface_distance(P, F, Q, F, n_random=1000)["turned_over_faces"] == expected

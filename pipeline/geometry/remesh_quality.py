@@ -21,6 +21,9 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
   sampled Hausdorff filter) and the two-sided RMS distance
   ``sqrt((mean_A d² + mean_B d²) / 2)`` over the area-uniform samples only (an area-weighted
   mean). Reported in the input's units and in % of the input's bounding-box diagonal.
+* **Turned-over faces** (:func:`turned_over_faces`): faces whose normal points against the
+  input's normal where they lie (the input face closest to their centroid): folds of the
+  surface, which neither the angles nor the distances show.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from .rows import norms
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
            "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
-           "surface_samples", "surface_distance", "remesh_quality",
+           "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
@@ -431,10 +434,29 @@ class SampledSurface:
         return largest, float(np.mean(d_random ** 2))
 
 
+def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -> int:
+    """The number of faces of ``(V, F)`` (m×3, oriented as the input) whose normal has a
+    negative dot product with the normal of the ``reference`` face closest to their centroid.
+
+    A surface that follows the input has every face's normal within a right angle of the
+    input's beneath it (the input is consistently oriented); a face turned over is a fold,
+    a wrinkle where the surface doubles back. A face across a crease sharper than a right
+    angle may also be counted, when the closest input face is on the crease's other side."""
+    if len(F) == 0:
+        return 0
+    P = V[F]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    _, closest = reference.distance(P.mean(axis=1))
+    R = reference.V[reference.F[closest]]
+    below = np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0])
+    return int(np.count_nonzero(np.einsum("ij,ij->i", normal, below) < 0))
+
+
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
                      n_random: int = 200_000, seed: int = 0, scale: float | None = None,
                      reference: SampledSurface | None = None) -> dict:
-    """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference.
+    """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference, and
+    the faces of ``(V, F)`` turned over against it (:func:`turned_over_faces`).
 
     ``scale`` (default: the reference's bounding-box diagonal) turns the distances into the
     ``*_rel`` fractions. ``reference``: the reference ``(V_ref, F_ref)`` already sampled with
@@ -461,7 +483,8 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
     h = max(out["output_to_input"]["max"], out["input_to_output"]["max"])
     rms = float(np.sqrt(np.mean(ms)))
     out.update({"hausdorff": h, "hausdorff_rel": h / scale, "rms": rms, "rms_rel": rms / scale,
-                "scale_bbox_diagonal": scale, "random_samples_per_side": int(n_random)})
+                "scale_bbox_diagonal": scale, "random_samples_per_side": int(n_random),
+                "turned_over_faces": turned_over_faces(V, F, reference)})
     return out
 
 

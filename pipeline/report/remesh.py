@@ -73,6 +73,8 @@ ROWS = [
      else f"no (χ = {q['facts']['euler_characteristic']}, {q['facts']['boundary_loops']} loops, "
      f"{q['facts']['components']} components)", None, 0, False),
     ("degenerate faces", "count", lambda q, m: q["facts"]["degenerate_faces"], "low", 0, False),
+    ("faces turned over against the input (folds)", "count",
+     lambda q, m: q.get("distance", {}).get("turned_over_faces"), "low", 0, False),
     ("smallest angle", "°", lambda q, m: q["triangles"]["min_angle_deg"], "high", 2, False),
     ("5th percentile of the faces' smallest angles", "°",
      lambda q, m: q["triangles"]["min_angle_p05_deg"], "high", 1, False),
@@ -344,6 +346,10 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
                    f"(median σ₁/σ₂ = {distortion['anisotropy_median']:.1f}): uniform samples "
                    f"of the map are that much farther apart along one direction there, so the "
                    f"lifted triangles are skewed before the improvement step")
+    folds = methods.get("sem", {}).get("distance", {}).get("turned_over_faces")
+    if folds:
+        out.append(f"{folds} faces of the remesh are turned over against the input (their "
+                   f"normals point against the input's where they lie): the remesh folds there")
     for key, m in methods.items():
         if str(m.get("note", "")).startswith("failed"):
             out.append(f"{m.get('label', key)} {m['note']}; its column is empty")
