@@ -22,8 +22,8 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
   ``sqrt((mean_A d² + mean_B d²) / 2)`` over the area-uniform samples only (an area-weighted
   mean). Reported in the input's units and in % of the input's bounding-box diagonal.
 * **Turned-over faces** (:func:`turned_over_faces`): faces whose normal points against the
-  input's normal where they lie (the input face closest to their centroid): folds of the
-  surface, which neither the angles nor the distances show.
+  input's normal where they lie (the input faces closest to their centroid and to each of their
+  corners): folds of the surface, which neither the angles nor the distances show.
 """
 
 from __future__ import annotations
@@ -435,21 +435,30 @@ class SampledSurface:
 
 
 def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -> int:
-    """The number of faces of ``(V, F)`` (m×3, oriented as the input) whose normal has a
-    negative dot product with the normal of the ``reference`` face closest to their centroid.
+    """The number of faces of ``(V, F)`` (m×3, oriented as the input) turned over against the
+    ``reference``: whose normal has a negative dot product with the normal of the reference face
+    closest to their centroid, and with those of the reference faces closest to each of their
+    three corners.
 
     A surface that follows the input has every face's normal within a right angle of the
-    input's beneath it (the input is consistently oriented); a face turned over is a fold,
-    a wrinkle where the surface doubles back. A face across a crease sharper than a right
-    angle may also be counted, when the closest input face is on the crease's other side."""
+    input's beneath it (the input is consistently oriented); a face turned over is a fold, a
+    wrinkle where the surface doubles back. The corners keep a face that spans a crease sharper
+    than a right angle from being counted (its centroid's closest input face may lie on the
+    crease's other side; its corners lie on both sides)."""
     if len(F) == 0:
         return 0
     P = V[F]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    _, closest = reference.distance(P.mean(axis=1))
-    R = reference.V[reference.F[closest]]
+    R = reference.V[reference.F]
     below = np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0])
-    return int(np.count_nonzero(np.einsum("ij,ij->i", normal, below) < 0))
+    _, closest = reference.distance(P.mean(axis=1))
+    suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[closest]) < 0)
+    if len(suspect) == 0:
+        return 0
+    _, at_corners = reference.distance(P[suspect].reshape(-1, 3))
+    corner_dots = np.einsum("ij,ikj->ik", normal[suspect],
+                            below[at_corners].reshape(len(suspect), 3, 3))
+    return int(np.count_nonzero(np.all(corner_dots < 0, axis=1)))
 
 
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
