@@ -51,7 +51,10 @@ The schedule (:func:`improve_remesh`):
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
    than ``RIM_FAN_MAX_DEG`` at a rim vertex is split — the caps a reflex input corner leaves),
-   flips;
+   flips; then the folds repaired (:meth:`_Operations.repair_folds`): an edge between interior
+   corners of every face turned over against the input (:func:`turned_over_faces`: where the
+   map stretches the surface most, a face counter-clockwise on the disk can lift to one that
+   doubles back over the surface) collapsed, under the sag and gap guards, then under none;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
     splits for the count and flips, then collapses under no guard but validity of an edge of
@@ -83,6 +86,7 @@ from ..rows import norms
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
+from .domain import project
 from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges
 from .halfedge import edge_table, touching
@@ -212,6 +216,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.flip()
     lap("rim_fans")
     S.locked = _at_points(S.X, corners)         # the followed vertices free again
+    ops.repair_folds(target)
+    lap("folds")
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg)
         lap("guarantee")
@@ -369,6 +375,27 @@ class _Operations:
                                  max_sag=tol)
         raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
 
+    def repair_folds(self, target: int, passes: int = 3) -> None:
+        """Collapse an edge between interior corners of every face turned over against the input
+        (:func:`turned_over_faces`), shortest first: under the sag and gap guards, then (the
+        folds left) under no guard but the result's validity, as the degenerate faces are; the
+        count given back by splits, then flips."""
+        S, tol = self.S, self.tol
+        for _ in range(passes):
+            bad = turned_over_faces(S)
+            if len(bad) == 0:
+                return
+            S.tally("folds_repaired", len(bad))
+            at = np.zeros(S.n, bool)
+            at[S.F[bad].ravel()] = True
+            at &= ~S.is_rim
+            collapse_short_edges(S, np.inf, np.inf, max_gap=tol, max_sag=tol, at=at)
+            if S.n < target:
+                split_long_edges(S, 0.0, budget=target - S.n)
+            self.flip()
+        self.collapse_unguarded(target, lambda: turned_over_faces(S), "folds_repaired",
+                                passes, rim=False)
+
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
         first, under no guard but the result's validity, the count given back by splits, then
@@ -449,6 +476,24 @@ def _at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
         return np.zeros(len(X), bool)
     key = {p.tobytes() for p in np.ascontiguousarray(P)}
     return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
+
+
+def turned_over_faces(S: RemeshState) -> np.ndarray:
+    """The faces (indices) of ``S`` whose surface normal points against the input's at each of
+    their corners (the normal of the input face each corner lies in) and where their domain
+    centroid lies in the input map: folds, where the remesh doubles back over the surface (the
+    definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
+    the map instead of by closest point)."""
+    P = S.X[S.F]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    input_normal = np.cross(S.V_in[S.F_in[:, 1]] - S.V_in[S.F_in[:, 0]],
+                            S.V_in[S.F_in[:, 2]] - S.V_in[S.F_in[:, 0]])
+    at_corners = np.einsum("ij,ikj->ik", normal, input_normal[S.face[S.F]])
+    suspect = np.flatnonzero(np.all(at_corners < 0, axis=1))
+    if len(suspect) == 0:
+        return suspect
+    under, _ = S.locator.locate(project(S.uv[S.F[suspect]].mean(axis=1)))
+    return suspect[np.einsum("ij,ij->i", normal[suspect], input_normal[under]) < 0]
 
 
 def degenerate_faces(S: RemeshState) -> np.ndarray:
