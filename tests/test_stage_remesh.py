@@ -330,17 +330,22 @@ def test_real_mesh_below_min_angle_is_what_the_definition_counts(remeshed_20k, r
     assert below["faces"] <= 0.02 * len(r.F)
 
 
+def _remesh_command_metrics(tmp_path, mesh: str, vertices: int) -> dict:
+    """``remesh_metrics.json`` of ``sem-pipeline remesh meshes/MESH.obj --vertices N
+    --no-compare --no-report`` (the command exits 0)."""
+    out = tmp_path / "o"
+    code, _, err = run_cli("remesh", require_data("meshes", f"{mesh}.obj"), "-o", out,
+                           "--vertices", vertices, "--no-compare", "--no-report")
+    assert code == 0, err
+    return json.loads((out / "remesh_metrics.json").read_text())
+
+
 def test_remesh_command_maps_the_disk_with_two_sem_steps_and_keeps_thin_tips_unstretched(
         tmp_path):
     """``sem-pipeline remesh`` maps a disk with ``REMESH_DISK_STEPS`` (2) steps of Algorithm 1
     (``mode: auto``). On c3d_alligator, whose thin tips 10 steps stretch until the remesh keeps a
     face of 0.05° there, every face of the 5,000-vertex remesh has all angles ≥ 20°."""
-    mesh_path = require_data("meshes", "c3d_alligator.obj")
-    out = tmp_path / "o"
-    code, _, err = run_cli("remesh", mesh_path, "-o", out, "--vertices", 5000, "--no-compare",
-                           "--no-report")
-    assert code == 0, err
-    m = json.loads((out / "remesh_metrics.json").read_text())
+    m = _remesh_command_metrics(tmp_path, "c3d_alligator", 5000)
     assert m["parameterization"]["mode"] == "paper" and m["parameterization"]["iterations"] == 2
     assert m["methods"]["sem"]["triangles"]["min_angle_deg"] >= 20.0
 
@@ -350,11 +355,6 @@ def test_remesh_command_leaves_no_face_turned_over_against_the_input(tmp_path):
     fold repair (:meth:`.improve._Operations.repair_folds`) four faces of the remesh were turned
     over against the input there; measured by the report's own definition
     (:func:`.remesh_quality.turned_over_faces`), none is."""
-    mesh_path = require_data("meshes", "igl_camel_b.obj")
-    out = tmp_path / "o"
-    code, _, err = run_cli("remesh", mesh_path, "-o", out, "--vertices", 5000, "--no-compare",
-                           "--no-report")
-    assert code == 0, err
-    m = json.loads((out / "remesh_metrics.json").read_text())
+    m = _remesh_command_metrics(tmp_path, "igl_camel_b", 5000)
     assert m["methods"]["sem"]["distance"]["turned_over_faces"] == 0
     assert m["remesh"]["improve"]["folds_repaired"] > 0
