@@ -160,7 +160,7 @@ def test_unguarded_collapses_remove_a_cap_and_keep_the_count():
     assert np.all(signed_double_areas(S.uv, S.F) > 0)
     assert len(skinny_faces(S.X, S.F, NEEDLE_DEG)) > 0
     ops = _Operations(S, 0.3, True, 20.0, 0.5, 0.0)
-    ops.collapse_unguarded(n0, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG), "needles", 3)
+    ops.collapse_at_faces(n0, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG), "needles", 3)
     assert len(skinny_faces(S.X, S.F, NEEDLE_DEG)) == 0 and S.log["needles"] >= 1
     assert S.n == n0 and np.all(signed_double_areas(S.uv, S.F) > 0)
     assert is_disk(mesh_facts(S.X, S.F))

@@ -412,12 +412,21 @@ class SampledSurface:
         self.E, _ = topo.edges_with_faces(F)
         self.random = _random_samples(V, F, n_random, seed)
         self._distance = None
+        self._normals = None
 
     @property
     def distance(self) -> MeshDistance:
         if self._distance is None:
             self._distance = MeshDistance(self.V, self.F)
         return self._distance
+
+    @property
+    def normals(self) -> np.ndarray:
+        """The faces' normals (m×3, twice their area long), made on first use."""
+        if self._normals is None:
+            R = self.V[self.F]
+            self._normals = np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0])
+        return self._normals
 
     @property
     def sample_count(self) -> int:
@@ -449,8 +458,7 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -
         return 0
     P = V[F]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    R = reference.V[reference.F]
-    below = np.cross(R[:, 1] - R[:, 0], R[:, 2] - R[:, 0])
+    below = reference.normals
     _, closest = reference.distance(P.mean(axis=1))
     suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[closest]) < 0)
     if len(suspect) == 0:

@@ -347,7 +347,7 @@ class _Operations:
         rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
         then the needles and caps left (an angle below ``NEEDLE_DEG``: vertices crowded onto a
         line where the map is most anisotropic, which no guarded collapse or flip removes) as
-        the degenerate faces are, between interior corners (:meth:`collapse_unguarded`: the
+        the degenerate faces are, between interior corners (:meth:`collapse_at_faces`: the
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
@@ -365,8 +365,8 @@ class _Operations:
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
-        self.collapse_unguarded(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
-                                "needles_collapsed", NEEDLE_PASSES, rim=False)
+        self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
+                               "needles_collapsed", NEEDLE_PASSES, rim=False)
         raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
         if S.n < target:
             split_for_count(S, target - S.n, min_angle_deg)
@@ -380,35 +380,24 @@ class _Operations:
         (:func:`turned_over_faces`), shortest first: under the sag and gap guards, then (the
         folds left) under no guard but the result's validity, as the degenerate faces are; the
         count given back by splits, then flips."""
-        S, tol = self.S, self.tol
-        for _ in range(passes):
-            bad = turned_over_faces(S)
-            if len(bad) == 0:
-                return
-            S.tally("folds_repaired", len(bad))
-            at = np.zeros(S.n, bool)
-            at[S.F[bad].ravel()] = True
-            at &= ~S.is_rim
-            collapse_short_edges(S, np.inf, np.inf, max_gap=tol, max_sag=tol, at=at)
-            if S.n < target:
-                split_long_edges(S, 0.0, budget=target - S.n)
-            self.flip()
-        self.collapse_unguarded(target, lambda: turned_over_faces(S), "folds_repaired",
-                                passes, rim=False)
+        folds = lambda: turned_over_faces(self.S)        # noqa: E731
+        self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False,
+                               guard=self.tol)
+        self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
         first, under no guard but the result's validity, the count given back by splits, then
         flips; the operations do not make such faces, so this normally finds none."""
-        self.collapse_unguarded(target, lambda: degenerate_faces(self.S), "degenerate_repaired",
-                                passes)
+        self.collapse_at_faces(target, lambda: degenerate_faces(self.S), "degenerate_repaired",
+                               passes)
 
-    def collapse_unguarded(self, target: int, faces, key: str, passes: int,
-                           rim: bool = True) -> None:
+    def collapse_at_faces(self, target: int, faces, key: str, passes: int, rim: bool = True,
+                          guard: float | None = None) -> None:
         """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives
-        (between interior corners unless ``rim``), shortest first, under no guard but the
-        result's validity, the count given back by splits, then flips; their number tallied
-        under ``key``."""
+        (between interior corners unless ``rim``), shortest first, under the sag and gap guards
+        at ``guard`` (None: under no guard but the result's validity), the count given back by
+        splits, then flips; their number tallied under ``key``."""
         S = self.S
         for _ in range(passes):
             bad = faces()
@@ -419,7 +408,7 @@ class _Operations:
             at[S.F[bad].ravel()] = True
             if not rim:
                 at &= ~S.is_rim
-            collapse_short_edges(S, np.inf, np.inf, at=at)
+            collapse_short_edges(S, np.inf, np.inf, max_gap=guard, max_sag=guard, at=at)
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
@@ -486,8 +475,7 @@ def turned_over_faces(S: RemeshState) -> np.ndarray:
     the map instead of by closest point)."""
     P = S.X[S.F]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    input_normal = np.cross(S.V_in[S.F_in[:, 1]] - S.V_in[S.F_in[:, 0]],
-                            S.V_in[S.F_in[:, 2]] - S.V_in[S.F_in[:, 0]])
+    input_normal = S.normals_in()
     at_corners = np.einsum("ij,ikj->ik", normal, input_normal[S.face[S.F]])
     suspect = np.flatnonzero(np.all(at_corners < 0, axis=1))
     if len(suspect) == 0:
