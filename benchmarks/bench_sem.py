@@ -10,7 +10,8 @@ distortion ``Σ_τ | |τ|/|M| − |f(τ)|/|f(M)| |`` of the 1000-iteration gradi
 ``benchmarks/outputs/sem_reference.json`` so it is computed once per mesh and solver), that of
 converged mode with its default options, their ratio, flipped faces and SEM seconds (wall
 clock, and the process's CPU time, which a loaded shared machine inflates less; SEM runs on
-one thread), and pass/fail against: ratio ≤ 1.05, 0 flips, SEM wall seconds ≤ 3 below 500k
+one thread below ``solvers.PARALLEL_ABOVE`` unknowns, and PARDISO on all of MKL's threads above,
+where CPU time exceeds wall time), and pass/fail against: ratio ≤ 1.05, 0 flips, SEM wall seconds ≤ 3 below 500k
 faces and ≤ 40 above. Mesh
 names are shared meshes, ``NAME_loopK`` for K Loop subdivisions (``trimesh``'s
 ``subdivide_loop``, cached under benchmarks/.cache/) and ``NAME_decN`` for the mesh decimated to

@@ -85,6 +85,49 @@ def test_upper_triangle_alone_factors_the_symmetric_matrix(kind, spd_block):
     s.release()
 
 
+def _grid_laplacian(k: int) -> sp.csr_matrix:
+    """The 5-point Laplacian of a k×k grid plus the identity (SPD, k² unknowns)."""
+    T = sp.diags([-np.ones(k - 1), 2 * np.ones(k), -np.ones(k - 1)], [-1, 0, 1])
+    return (sp.kron(T, sp.eye(k)) + sp.kron(sp.eye(k), T) + sp.eye(k * k)).tocsr()
+
+
+def test_pardiso_threads_follow_the_system_size():
+    """Systems from ``PARALLEL_ABOVE`` unknowns are factored on MKL's own thread count, smaller
+    ones on one thread; the factors agree to rounding, and ``threads=`` overrides the choice."""
+    _need("pardiso")
+    big = _grid_laplacian(int(np.ceil(np.sqrt(solvers.PARALLEL_ABOVE))))
+    small = _grid_laplacian(40)
+    b = np.random.default_rng(3).normal(size=(big.shape[0], 2))
+    chosen = {}
+    for A in (small, big):
+        s = make_solver("pardiso", refactored=True)
+        s.factorize(A)
+        chosen[A.shape[0]] = s._threads
+        s.release()
+    assert chosen == {small.shape[0]: 1, big.shape[0]: solvers.mkl_max_threads()}
+    X = {}
+    for threads in (1, 2):
+        s = solvers.PardisoSolver(refactored=True, threads=threads)
+        s.factorize(big)
+        assert s._threads == threads
+        X[threads] = s.solve(b)
+        s.release()
+    np.testing.assert_allclose(X[2], X[1], rtol=1e-10, atol=1e-12 * np.abs(X[1]).max())
+    np.testing.assert_allclose(big @ X[1], b, atol=1e-9)
+
+
+def test_mkl_thread_count_follows_mkl_num_threads():
+    """The experiment runner's pool workers set ``MKL_NUM_THREADS=1``: PARDISO then stays on
+    one thread at every size."""
+    _need("pardiso")
+    import subprocess
+    import sys
+    code = "from pipeline.geometry.solvers import mkl_max_threads; print(mkl_max_threads())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                         env={**os.environ, "MKL_NUM_THREADS": "1"}, check=True)
+    assert out.stdout.strip() == "1"
+
+
 def test_mkl_library_named_in_pypardiso_mkl_rt_is_the_only_candidate(monkeypatch):
     monkeypatch.setenv("PYPARDISO_MKL_RT", "/opt/intel/libmkl_rt.so.2")
     assert solvers._mkl_rt_paths() == ["/opt/intel/libmkl_rt.so.2"]

@@ -104,12 +104,16 @@ def _mkl_pardiso():
             try:
                 fn = lib.pardiso
                 set_threads = lib.MKL_Set_Num_Threads_Local
+                max_threads = lib.MKL_Get_Max_Threads
             except AttributeError:          # no library, or not MKL's
                 _MKL_PARDISO = False
             else:
                 set_threads.argtypes = [ctypes.c_int]
                 set_threads.restype = ctypes.c_int
                 fn.set_threads = set_threads
+                max_threads.argtypes = []
+                max_threads.restype = ctypes.c_int
+                fn.max_threads = max_threads
                 i32 = ctypes.POINTER(ctypes.c_int32)
                 fn.argtypes = [ctypes.POINTER(ctypes.c_int64), i32, i32, i32, i32, i32,
                                ctypes.c_void_p, i32, i32, i32, i32, i32, i32,
@@ -117,6 +121,21 @@ def _mkl_pardiso():
                 fn.restype = None
                 _MKL_PARDISO = fn
     return _MKL_PARDISO or None
+
+
+def mkl_max_threads() -> int:
+    """The threads MKL would use by itself (``MKL_Get_Max_Threads``): the cores this process may
+    run on, or ``MKL_NUM_THREADS``/``OMP_NUM_THREADS`` when set; 1 without MKL."""
+    fn = _mkl_pardiso()
+    return max(1, int(fn.max_threads())) if fn is not None else 1
+
+
+#: PARDISO factors systems with at least this many unknowns on :func:`mkl_max_threads`
+#: threads, smaller ones on one. On this project's 2-core machine two threads made a
+#: Gauss–Newton refactor + solve 1.5–1.6× faster on a quiet machine from 35k to 2.1M unknowns,
+#: but 1.7–3.5× slower when a second process did the same (MKL's threads wait for each other
+#: spinning); below this size a step takes a few hundredths of a second either way.
+PARALLEL_ABOVE = 50_000
 
 
 def pardiso_available() -> bool:
@@ -242,9 +261,11 @@ class PardisoSolver:
     ``NotPositiveDefinite``; a missing diagonal entry (``A_ii = 0``) is caught before the call.
 
     MKL runs on ``threads`` threads during these calls (``MKL_Set_Num_Threads_Local``, restored
-    after each call), one by default: on this project's 2-core machines shared with other
-    processes, MKL's OpenMP threads waiting for each other made a refactor + solve 5–50× slower
-    than one thread (3k–45k unknowns, ``benchmarks/bench_sem.py``).
+    after each call). By default that is one thread below ``PARALLEL_ABOVE`` unknowns and MKL's
+    own maximum above it (:func:`mkl_max_threads`: the usable cores, or fewer where
+    ``MKL_NUM_THREADS``/``OMP_NUM_THREADS`` say so, as the experiment runner's pool workers
+    do). The factor then differs from the one-thread factor by rounding only (about 1e-9 of a
+    Gauss–Newton step on choi_hand), and is the same from run to run.
     """
 
     name = "pardiso"
@@ -252,8 +273,9 @@ class PardisoSolver:
     #: so two PCG iterations already cost more than refactoring
     pcg_max_iter = 0
 
-    def __init__(self, refactored: bool = False, threads: int = 1):
-        self.threads = threads
+    def __init__(self, refactored: bool = False, threads: int | None = None):
+        self.threads = threads    # None: chosen per pattern by its size (PARALLEL_ABOVE)
+        self._threads = 1
         self._fn = _mkl_pardiso()
         if self._fn is None:
             raise UserError("solver 'pardiso' requested but pypardiso/MKL is not installed")
@@ -280,7 +302,7 @@ class PardisoSolver:
         X = None if B is None else np.zeros((n, nrhs), order="F")
         err = ctypes.c_int32(0)
         one = ctypes.c_int32(1)
-        previous = self._fn.set_threads(self.threads)
+        previous = self._fn.set_threads(self._threads)
         try:
             self._fn(self.pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)), ctypes.byref(one),
                      ctypes.byref(one), ctypes.byref(ctypes.c_int32(2)),
@@ -309,6 +331,7 @@ class PardisoSolver:
         self._ia, self._ja, self._upper = ia, ja, entries
         self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
         self._key = (A.indptr, A.indices)
+        self._threads = self.threads or (1 if n < PARALLEL_ABOVE else mkl_max_threads())
         if self._has_diagonal:
             err, _ = self._call(11, self._upper_values(A))
             if err:
