@@ -7,6 +7,7 @@ is ``benchmarks/bench_sphere.py``'s (seconds on a shared machine scatter too muc
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 
 from conftest import require_data
@@ -161,12 +162,16 @@ def test_gauss_newton_gradient_matches_finite_differences(kappa):
                                            F, kappa)
         eps = 1e-6
         assert g @ x == pytest.approx((phi(eps) - phi(-eps)) / (2 * eps), rel=1e-5)
-    H = gn.H.copy()
-    H.data = data
-    ev = np.linalg.eigvalsh(H.toarray())
+    ev = np.linalg.eigvalsh(_symmetric(gn.H, data))
     assert ev[0] > -1e-12 * ev[-1] and np.sum(ev < 1e-10 * ev[-1]) >= 3
-    H.data = damp
-    assert np.linalg.eigvalsh(H.toarray())[0] > 0
+    assert np.linalg.eigvalsh(_symmetric(gn.H, damp))[0] > 0
+
+
+def _symmetric(upper, data) -> np.ndarray:
+    """The dense symmetric matrix whose upper triangle has ``upper``'s pattern and ``data``."""
+    U = upper.copy()
+    U.data = data
+    return (U + sp.triu(U, 1).T).toarray()
 
 
 # -- genus ---------------------------------------------------------------------------------------

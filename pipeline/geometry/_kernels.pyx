@@ -868,21 +868,6 @@ def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
     return sa
 
 
-def row_positions(const int[::1] indptr, const int[::1] indices, const int64_t[::1] r,
-                  const int64_t[::1] s, int64_t[::1] out):
-    """``out[k]``: the position of entry ``(r[k], s[k])`` in a CSR pattern (``indptr``,
-    ``indices``) that holds it, found by a scan of row ``r[k]`` (a few entries on a mesh)."""
-    cdef Py_ssize_t k, p, row
-    cdef int col
-    for k in range(r.shape[0]):
-        row = r[k]
-        col = <int>s[k]
-        p = indptr[row]
-        while indices[p] != col:
-            p += 1
-        out[k] = p
-
-
 def disk_gauss_newton_terms(const int64_t[:, ::1] F, const double complex[::1] f,
                             const double[::1] residual, const double[::1] inv_area,
                             const int64_t[:, ::1] cols, const unsigned char[:, ::1] on_boundary,

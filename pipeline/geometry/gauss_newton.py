@@ -36,12 +36,10 @@ each step assembles that triangle and ``g`` in one compiled pass over the faces
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import scipy.sparse as sp
 
-from ._kernels import disk_gauss_newton_terms, face_pair_pattern, row_positions
+from ._kernels import disk_gauss_newton_terms, face_pair_pattern
 from .solvers import make_solver
 
 #: ``hold_boundary``: the boundary angles' diagonal is scaled by this, so their coupling to the
@@ -94,51 +92,6 @@ def barrier_terms(a2: np.ndarray, residual: np.ndarray, double_area: np.ndarray,
     push = beta * c * c * double_area / a
     weight = 1.0 / double_area + push / a
     return (residual / double_area - push) / weight, weight
-
-
-class SymmetricPattern(NamedTuple):
-    """Where the entries ``(r, s)`` of a symmetric N×N matrix land (:func:`symmetric_pattern`):
-    ``slot`` (k,) the upper-triangle entry of each, ``n_upper`` their number,
-    ``full_from_upper`` (nnz,) the upper entry of each stored entry of the full matrix ``H``
-    (CSR, sorted indices, values to be written), ``rows`` (nnz,) and ``diagonal`` the row of
-    each stored entry and the positions of the diagonal ones."""
-
-    slot: np.ndarray
-    n_upper: int
-    full_from_upper: np.ndarray
-    H: sp.csr_matrix
-    rows: np.ndarray
-    diagonal: np.ndarray
-
-
-def symmetric_pattern(r: np.ndarray, s: np.ndarray, N: int) -> SymmetricPattern:
-    """The sparsity pattern of a symmetric matrix with entries at ``(r, s)`` and ``(s, r)``
-    (int arrays of one shape, each pair once or many times), built once so that an assembly
-    is ``np.bincount(slot, weights)`` over the upper triangle and a gather into ``H.data``.
-    The upper triangle's distinct entries come from a COO → CSR conversion (linear time, no
-    global sort of the 21-per-face keys), each entry's slot from a scan of its CSR row."""
-    lo = np.minimum(r, s).ravel()
-    hi = np.maximum(r, s).ravel()
-    U = sp.csr_matrix((np.ones(len(lo)), (lo, hi)), shape=(N, N))
-    U.sum_duplicates()
-    n_upper = U.nnz
-    slot = np.empty(len(lo), dtype=np.int64)
-    row_positions(U.indptr.astype(np.int32, copy=False), U.indices.astype(np.int32, copy=False),
-                  np.ascontiguousarray(lo, dtype=np.int64), np.ascontiguousarray(hi, dtype=np.int64),
-                  slot)
-    U.data = np.arange(1, n_upper + 1, dtype=np.float64)
-    full_from_upper, H, rows, diagonal = full_pattern(U)
-    return SymmetricPattern(slot, n_upper, full_from_upper, H, rows, diagonal)
-
-
-def full_pattern(U: sp.csr_matrix):
-    """The full symmetric matrix of an upper triangle ``U`` (CSR, N×N) whose stored values are
-    its entries' numbers ``1 … nnz``: ``(full_from_upper, H, rows, diagonal)`` as in
-    :class:`SymmetricPattern`."""
-    full = (U + sp.triu(U, 1).T).tocsr()
-    full.sort_indices()
-    rows = np.repeat(np.arange(U.shape[0]), np.diff(full.indptr))
-    return full.data.astype(np.int64) - 1, full, rows, np.flatnonzero(full.indices == rows)
 
 
 class GaussNewton:

@@ -54,10 +54,11 @@ preconditioned gradient lack: they slow down on long limbs, whose image must mov
 A step ``t δ`` is tried for ``t = 1, ½, …`` (with the vertex-wise damping of
 :func:`.sphere_base.shrink_folding_steps` at faces it would fold) and kept if ``Φ`` falls; ``μ``
 shrinks after full steps and grows after short or failed ones. The unknowns are interleaved
-(``x_i, y_i`` adjacent); the pattern of ``H`` (2×2 blocks on the vertex adjacency) and where
-each face's 21 products land in its ``data`` are computed once, so a step is one compiled
-pass over the faces (:func:`._kernels.sphere_gauss_newton_terms`) and a refactorization on a
-kept analysis (supernodal, nested dissection; the system Jacobi-scaled first, since the barrier
+(``x_i, y_i`` adjacent); the pattern of ``H``'s upper triangle (2×2 blocks on the vertex
+adjacency) and where each face's 21 products land in its ``data`` are computed once
+(:func:`._kernels.face_pair_pattern`, as for the disk), so a step is one compiled pass over the
+faces (:func:`._kernels.sphere_gauss_newton_terms`) and a refactorization of that triangle as
+it is (the solvers' ``upper=True``) on a kept analysis (supernodal, nested dissection; the system Jacobi-scaled first, since the barrier
 weights span many orders of magnitude).
 """
 
@@ -70,7 +71,6 @@ import scipy.sparse as sp
 
 from . import _kernels
 from .laplacian import face_double_areas
-from .gauss_newton import symmetric_pattern
 from .solvers import CholmodSolver, NotPositiveDefinite, make_solver
 from .sphere_base import energy_ratio, shrink_folding_steps, triple_products
 
@@ -131,11 +131,13 @@ class SphereGaussNewton:
         self.cols = np.empty((len(F), 6), dtype=np.int64)
         self.cols[:, 0::2], self.cols[:, 1::2] = 2 * F, 2 * F + 1
         N = 2 * n
-        r, s = self.cols[:, _PAIRS[:, 0]], self.cols[:, _PAIRS[:, 1]]
-        pattern = symmetric_pattern(r, s, N)
-        self.slot, self.n_upper = pattern.slot, pattern.n_upper
-        self.full_from_upper, self.H = pattern.full_from_upper, pattern.H
-        self.rows, self.diagonal = pattern.rows, pattern.diagonal
+        # H's upper triangle (CSR, sorted rows, each row's diagonal entry first) is what the
+        # solvers factor (``upper=True``); ``slot`` says where each face's 21 products land
+        indptr, indices, slot = _kernels.face_pair_pattern(self.cols, N)
+        self.slot, self.n_upper = slot.ravel(), len(indices)
+        self.H = sp.csr_matrix((np.empty(self.n_upper), indices, indptr), shape=(N, N))
+        self.rows = np.repeat(np.arange(N), np.diff(indptr))
+        self.diagonal = indptr[:-1].astype(np.int64)
         # supernodal Cholesky on nested dissection: on the 2×2-block pattern, denser than a
         # Laplacian's, the simplicial factor of ``refactored=True`` is slower
         self.solver = make_solver(solver_kind, refactored=False)
@@ -145,8 +147,8 @@ class SphereGaussNewton:
         self._system = None
 
     def _assemble(self, local: np.ndarray) -> np.ndarray:
-        upper = np.bincount(self.slot, weights=local.ravel(), minlength=self.n_upper)
-        return upper[self.full_from_upper]
+        """The upper triangle's values from every face's 21 local products (m, 21)."""
+        return np.bincount(self.slot, weights=local.ravel(), minlength=self.n_upper)
 
     def linearize(self, S: np.ndarray, kappa: float) -> None:
         """Gradient, Gauss–Newton matrix and damping matrix of ``Φ_κ`` at ``S`` (fold free),
@@ -159,8 +161,7 @@ class SphereGaussNewton:
         g = np.zeros(2 * self.n)
         _kernels.sphere_gauss_newton_terms(S, self.F, e1, e2, self.A2, self.p, float(kappa),
                                            self.slot, _PAIR_TABLE, H_upper, D_upper, g)
-        self._system = (H_upper[self.full_from_upper], g, e1, e2,
-                        D_upper[self.full_from_upper])
+        self._system = (H_upper, g, e1, e2, D_upper)
 
     def _linearize_numpy(self, S: np.ndarray, kappa: float) -> None:
         """:meth:`linearize` in numpy (the formulas of the module docstring)."""
@@ -222,7 +223,7 @@ class SphereGaussNewton:
         d = 1.0 / np.sqrt(values[self.diagonal])
         self.H.data = values * d[self.rows] * d[self.H.indices]
         self.H.data[self.diagonal] += 1e-9
-        self.solver.factorize(self.H)
+        self.solver.factorize(self.H, upper=True)
         self.factorizations += 1
         x = -d * self.solver.solve(d * g)
         return x[0::2, None] * e1 + x[1::2, None] * e2
