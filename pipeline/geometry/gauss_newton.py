@@ -94,11 +94,57 @@ def barrier_terms(a2: np.ndarray, residual: np.ndarray, double_area: np.ndarray,
     return (residual / double_area - push) / weight, weight
 
 
+def block_ordering(interior_order: np.ndarray, cols: np.ndarray, nI: int, N: int) -> np.ndarray:
+    """A fill-reducing elimination order of the Gauss–Newton system from one of the interior
+    Laplacian ``L_II`` (the SEM solver's, already computed), instead of a new nested dissection
+    of the system's twice larger graph.
+
+    The system's graph is the interior vertex graph with every vertex split into its two
+    unknowns ``u_i`` (column ``i``) and ``v_i`` (``nI + i``), plus the boundary angles
+    (columns ``2 nI …``): each vertex's pair takes its place in ``interior_order``, and each
+    boundary angle comes right after the last of the interior vertices it shares a face with
+    (a boundary angle joins the separator of its latest neighbour; eliminated after all of
+    them, it adds no fill between branches; eliminated first, the angles along the rim chain
+    into each other's fill). On choi_hand the factor has 5 % fewer entries than with a nested
+    dissection of the whole system, and the analysis skips the ordering.
+
+    Parameters
+    ----------
+    interior_order : (nI,) int
+        A new-order list of ``L_II``'s unknowns: ``interior_order[k]`` is eliminated ``k``-th.
+    cols : (m, 6) int
+        Every face's unknowns as :class:`GaussNewton` numbers them (the first three: each
+        corner's ``u`` column, or its boundary angle's).
+    nI, N : int
+        Interior vertices and unknowns in all.
+
+    Returns
+    -------
+    (N,) int32
+        The same form for the system's unknowns.
+    """
+    position = np.empty(nI, dtype=np.int64)
+    position[interior_order] = np.arange(nI)
+    key = np.empty(N)
+    key[:nI] = 2 * position
+    key[nI:2 * nI] = 2 * position + 1
+    if N > 2 * nI:
+        c = cols[:, :3]
+        interior = (c >= 0) & (c < nI)
+        latest = np.where(interior, key[np.where(interior, c, 0)] + 1, -1.0).max(axis=1)
+        angle = c >= 2 * nI
+        after = np.full(N - 2 * nI, -1.0)
+        np.maximum.at(after, c[angle] - 2 * nI, np.broadcast_to(latest[:, None], c.shape)[angle])
+        key[2 * nI:] = after + 0.5
+    return np.argsort(key, kind="stable").astype(np.int32)
+
+
 class GaussNewton:
     """Levenberg–Marquardt steps on ``E_S`` for the interior of a disk map, boundary held."""
 
     def __init__(self, F: np.ndarray, n: int, interior: np.ndarray, double_area: np.ndarray,
-                 solver_kind: str, boundary: np.ndarray | None = None):
+                 solver_kind: str, boundary: np.ndarray | None = None,
+                 interior_order: np.ndarray | None = None):
         nI = len(interior)
         nB = 0 if boundary is None else len(boundary)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
@@ -129,6 +175,9 @@ class GaussNewton:
             np.zeros(F.shape, dtype=np.uint8) if self.on_boundary is None
             else self.on_boundary.astype(np.uint8))
         self.solver = make_solver(solver_kind, refactored=True)
+        if interior_order is not None and len(interior_order) == nI \
+                and hasattr(self.solver, "ordering"):
+            self.solver.ordering = block_ordering(interior_order, self.cols, nI, N)
         self.factorizations = 0
         self.hold_boundary = False
         self.barrier = 0.0            # β of barrier_terms (0: Gauss–Newton on E_S alone)

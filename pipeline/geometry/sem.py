@@ -679,8 +679,11 @@ def _converged_iterations(problem, f, value, opt, record):
     if it < max_iter and (not accepted or (prev[2] > 0 and prev[1] < value[1])):
         # plain SEM steps fold where they would gain: Algorithm 1's damped steps take over
         f, value, it = _damped_start(problem, f, value, opt, record, it, max_iter)
+    # the interior Laplacian's elimination order (PARDISO's, from the steps so far) orders the
+    # Gauss–Newton system too, so that its analysis needs no nested dissection of its own
     newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
-                         problem.B) if opt.descent == "gauss_newton" and it < max_iter else None
+                         problem.B, getattr(problem.solver_I, "permutation", None)
+                         ) if opt.descent == "gauss_newton" and it < max_iter else None
     try:
         if newton is None or not crowded(problem.A2, value[3]):
             return _descent(problem, newton, f, value, opt, record, it, max_iter)

@@ -254,7 +254,9 @@ class PardisoSolver:
     The first ``factorize`` of a pattern stores its upper triangle's CSR index arrays (zero-based,
     ``iparm[34]``) and where each of their entries sits in the full matrix's ``data`` (with
     ``upper=True`` the matrix given is that triangle, taken as it is), and runs the analysis
-    (phase 11, METIS nested dissection). Every call then gathers the upper
+    (phase 11, METIS nested dissection, whose elimination order it keeps in ``permutation``;
+    or the order given in ``ordering``, which saves METIS's time where the caller knows a
+    good one: see :func:`.gauss_newton.block_ordering`). Every call then gathers the upper
     triangle's values and refactors numerically (phase 22); ``solve`` is phase 33 with iterative
     refinement off (``iparm[7] = 0``: the Cholesky factor of an SPD Laplacian is exact to
     rounding). A non-positive pivot makes phase 22 fail (error −4), reported as
@@ -293,6 +295,13 @@ class PardisoSolver:
         self._ia = self._ja = None
         self._valid = False
         self.refactored = refactored
+        #: a fill-reducing order to analyse the next pattern with instead of METIS's (a
+        #: new-order list: row ``ordering[k]`` of the matrix is the ``k``-th eliminated)
+        self.ordering = None
+        #: the analysed pattern's elimination order (METIS's, or ``ordering``), same form
+        self.permutation = None
+        self._perm = None
+        self.factor_entries = 0     # entries of the analysed pattern's Cholesky factor
         self._finalizer = weakref.finalize(self, _pardiso_release, self.pt, self.iparm)
 
     def _call(self, phase: int, data: np.ndarray | None, B: np.ndarray | None = None):
@@ -308,7 +317,8 @@ class PardisoSolver:
                      ctypes.byref(one), ctypes.byref(ctypes.c_int32(2)),
                      ctypes.byref(ctypes.c_int32(phase)), ctypes.byref(ctypes.c_int32(n)),
                      None if data is None else data.ctypes.data,
-                     self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32), None,
+                     self._ia.ctypes.data_as(i32), self._ja.ctypes.data_as(i32),
+                     None if self._perm is None else self._perm.ctypes.data_as(i32),
                      ctypes.byref(ctypes.c_int32(nrhs)), self.iparm.ctypes.data_as(i32),
                      ctypes.byref(ctypes.c_int32(0)), None if B is None else B.ctypes.data,
                      None if X is None else X.ctypes.data, ctypes.byref(err))
@@ -332,10 +342,19 @@ class PardisoSolver:
         self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
         self._key = (A.indptr, A.indices)
         self._threads = self.threads or (1 if n < PARALLEL_ABOVE else mkl_max_threads())
+        given = self.ordering is not None and len(self.ordering) == n
+        # iparm[4]: 1 analyses with the order in perm, 2 returns METIS's order in it
+        self.iparm[4] = 1 if given else 2
+        self._perm = (np.array(self.ordering, dtype=np.int32) if given
+                      else np.zeros(n, dtype=np.int32))
+        self.permutation = None
+        self.iparm[17] = -1         # report the factor's entries (``factor_entries``)
         if self._has_diagonal:
             err, _ = self._call(11, self._upper_values(A))
             if err:
                 raise RuntimeError(f"PARDISO analysis failed with error {err}")
+            self.permutation = self._perm
+            self.factor_entries = int(self.iparm[17])
 
     def _upper_values(self, A: sp.csr_matrix) -> np.ndarray:
         """The values of the analysed upper triangle, from ``A``'s ``data``."""
