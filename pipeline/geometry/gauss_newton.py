@@ -105,8 +105,9 @@ def block_ordering(interior_order: np.ndarray, cols: np.ndarray, nI: int, N: int
     boundary angle comes right after the last of the interior vertices it shares a face with
     (a boundary angle joins the separator of its latest neighbour; eliminated after all of
     them, it adds no fill between branches; eliminated first, the angles along the rim chain
-    into each other's fill). On choi_hand the factor has 5 % fewer entries than with a nested
-    dissection of the whole system, and the analysis skips the ordering.
+    into each other's fill). The factor has as many entries as with PARDISO's own nested
+    dissection of the system (within 0.3 % on choi_hand and at 1M faces), and the analysis
+    skips the ordering (at 1M faces, 2.4 s of one thread).
 
     Parameters
     ----------
