@@ -16,7 +16,7 @@ int64 (``int`` only where SciPy's CSR arrays are int32).
 import numpy as np
 cimport cython
 from libc.math cimport fabs, sqrt
-from libc.stdint cimport int64_t
+from libc.stdint cimport int32_t, int64_t
 
 def signed_double_areas(const int64_t[:, ::1] F, const double complex[::1] z, double[::1] out):
     """``out[t]`` = twice the signed area of image face ``t`` (corners ``z[F[t]]``):
@@ -773,7 +773,7 @@ cdef inline double _sphere_face(const double[:, ::1] S, const int64_t[:, ::1] F,
 def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
                               const double[:, ::1] e1, const double[:, ::1] e2,
                               const double[::1] A2, const double[::1] p, double kappa,
-                              const int64_t[::1] slot, const int64_t[:, ::1] pair_index,
+                              const int32_t[::1] slot, const int64_t[:, ::1] pair_index,
                               double[::1] H_upper, double[::1] D_upper, double[::1] g):
     """The per-face sums of :meth:`pipeline.geometry.sphere_newton.SphereGaussNewton.linearize`
     (its numpy form, ``_linearize_numpy``, is the reference; this loop computes the same
@@ -871,7 +871,7 @@ def sphere_gauss_newton_terms(const double[:, ::1] S, const int64_t[:, ::1] F,
 def disk_gauss_newton_terms(const int64_t[:, ::1] F, const double complex[::1] f,
                             const double[::1] residual, const double[::1] inv_area,
                             const int64_t[:, ::1] cols, const unsigned char[:, ::1] on_boundary,
-                            const int64_t[:, ::1] slot, double[::1] H_upper, double[::1] g):
+                            const int32_t[:, ::1] slot, double[::1] H_upper, double[::1] g):
     """The per-face sums of :meth:`pipeline.geometry.gauss_newton.GaussNewton.step`: with
     ``d`` the six derivatives of a face's double area by its unknowns (``∂a/∂u_i = v_j − v_k``,
     ``∂a/∂v_i = u_k − u_j``; a boundary corner's ``u`` slot holds ``∂a/∂θ``), adds
@@ -937,7 +937,7 @@ def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
     """The upper triangle of the symmetric N×N pattern that the 21 unknown pairs ``p ≤ q`` of
     every face's six unknowns ``cols[t]`` (``< 0``: none) fill, and where each pair lands:
     returns ``(indptr, indices, slot)``, CSR arrays (int32, sorted rows, each entry once) and
-    ``slot`` (m, 21) int64, the entry of each pair (−1 where a pair has no unknown). Rows are
+    ``slot`` (m, 21) int32, the entry of each pair (−1 where a pair has no unknown). Rows are
     short on a mesh (one vertex's ring), so each is sorted by insertion."""
     cdef Py_ssize_t m = cols.shape[0], t, p, q, k, r, a, b, i, j, n_unique
     cdef int64_t lo, hi, x
@@ -969,8 +969,8 @@ def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
         indptr[r + 1] = <int>n_unique
     indices_arr = cand_arr[:n_unique].astype(np.int32)
     cdef int[::1] indices = indices_arr
-    slot_arr = np.full((m, 21), -1, dtype=np.int64)
-    cdef int64_t[:, ::1] slot = slot_arr
+    slot_arr = np.full((m, 21), -1, dtype=np.int32)
+    cdef int32_t[:, ::1] slot = slot_arr
     for t in range(m):
         k = 0
         for p in range(6):
@@ -981,6 +981,6 @@ def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
                     i = indptr[lo]
                     while indices[i] != hi:
                         i += 1
-                    slot[t, k] = i
+                    slot[t, k] = <int32_t>i
                 k += 1
     return indptr_arr, indices_arr, slot_arr
