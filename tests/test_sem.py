@@ -256,6 +256,17 @@ def test_converged_mode_stops_once_the_stretch_is_uniform_to_gn_cv():
     assert full.iterations > r.iterations and full.flipped_faces == r.flipped_faces == 0
 
 
+def _one_step_map(ddisk, solver: str):
+    """``(V, problem, f, a2)``: the height field over ``ddisk``, its SEM problem on ``solver``,
+    the map after one paper-mode step (complex) and its double image areas."""
+    P, F, b = ddisk
+    V = height_field(P)
+    problem = _Problem(V, F, b, solver)
+    f = stretch_energy_minimization(V, F, b, SEMOptions(mode="paper", max_iter=1)).uv
+    f = f[:, 0] + 1j * f[:, 1]
+    return V, problem, f, problem.evaluate(f)[3]
+
+
 def test_gauss_newton_step_turns_the_boundary_along_the_circle(ddisk):
     """With the boundary as unknowns (angles), a Gauss–Newton step keeps every boundary point on
     the unit circle, moves interior and boundary, and its direction lowers the area-matching
@@ -263,11 +274,7 @@ def test_gauss_newton_step_turns_the_boundary_along_the_circle(ddisk):
     from pipeline.geometry.gauss_newton import GaussNewton
 
     P, F, b = ddisk
-    V = height_field(P)
-    problem = _Problem(V, F, b, "scipy")
-    f = stretch_energy_minimization(V, F, b, SEMOptions(mode="paper", max_iter=1)).uv
-    f = f[:, 0] + 1j * f[:, 1]
-    a2 = problem.evaluate(f)[3]
+    V, problem, f, a2 = _one_step_map(ddisk, "scipy")
     gn = GaussNewton(F, len(V), problem.I, problem.A2, "scipy", b)
     g = gn.step(f, a2, 1e-3)
     np.testing.assert_allclose(np.abs(g[b]), 1, atol=1e-12)
@@ -489,11 +496,7 @@ def test_gauss_newton_step_on_the_laplacian_order_is_the_same_step(ddisk):
     if not pardiso_available():
         pytest.skip("PARDISO is not installed")
     P, F, b = ddisk
-    V = height_field(P)
-    problem = _Problem(V, F, b, "pardiso")
-    f = stretch_energy_minimization(V, F, b, SEMOptions(mode="paper", max_iter=1)).uv
-    f = f[:, 0] + 1j * f[:, 1]
-    a2 = problem.evaluate(f)[3]
+    V, problem, f, a2 = _one_step_map(ddisk, "pardiso")
     L_II = laplacian_blocks(problem.pattern, problem.weights(f))[0]
     problem.solver_I.factorize(L_II)
     order = problem.solver_I.permutation
