@@ -86,7 +86,8 @@ from ..rows import norms
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
-from .domain import project
+from .domain import on_sphere, project
+from .features import FEATURE_DEG, place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges
 from .halfedge import edge_table, touching
@@ -121,7 +122,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    final_relax_iterations: int = 6,
                    pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, sag_floor: float = 0.0,
-                   follow_input: float = 0.25) -> RemeshState:
+                   follow_input: float = 0.25,
+                   feature_angle_deg: float = FEATURE_DEG) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -167,6 +169,10 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         At the end of step 7, a vertex goes onto every input point (an interior vertex, the
         middle of an edge or a face away from the rim) farther than this × ``L`` from the
         remesh (0: none).
+    feature_angle_deg : float
+        Step 1 also locks vertices along the input's feature lines, the edges whose dihedral
+        angle exceeds this, and keeps the edges between them (:mod:`.features`; 0: none; on
+        the disk only).
 
     Returns
     -------
@@ -180,6 +186,11 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     lap = Stopwatch(S.log, "seconds")
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
+    ops.corners = S.X[S.locked].copy()
+    import os
+    features = feature_angle_deg > 0 and not on_sphere(S.uv)
+    if features and os.environ.get("PLACE", "1") == "1":
+        place_features(S, L, feature_angle_deg)
     ops.flip()
     lap("flips")
     for _ in range(relax_iterations):
@@ -196,6 +207,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         lap("isotropic")
     ops.restore_count(target)
     lap("count")
+    if features and os.environ.get("PLACE") == "6":
+        place_features(S, L, feature_angle_deg)
+        ops.flip()
     for _ in range(final_relax_iterations if relax_iterations > 0 else 0):
         ops.relax()
         ops.flip()
@@ -206,6 +220,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         for _ in range(RESHAPE_STEPS if relax_iterations > 0 else 0):
             ops.reshape(RESHAPE_DEG)
             lap("reshape")
+    if features and os.environ.get("PLACE") == "7":
+        place_features(S, L, feature_angle_deg)
+        ops.flip()
     corners = S.X[S.locked].copy()
     if follow_input > 0:
         ops.follow(follow_input * L)
@@ -237,6 +254,7 @@ class _Operations:
     relax_step: float
     refine_sag: float
     sag_floor: float = 0.0
+    corners: np.ndarray | None = None     # the locked input corners (k×3), never released
 
     @property
     def tol(self) -> float | None:
@@ -253,7 +271,7 @@ class _Operations:
         active = None if since is None else _corners_changed_since(S, since)
         twin = S.twins().copy()
         F, k, _ = flip_edges(S.X, S.F, S.uv, self.max_dihedral_deg, sag=partial(edge_sag, S),
-                             boundary=S.is_rim, active=active, twin=twin)
+                             boundary=S.is_rim, active=active, twin=twin, fixed=S.is_joined)
         S.set_faces(F, twin)
         S.tally("flips", k)
 
@@ -268,6 +286,15 @@ class _Operations:
             free if movable is None else free & movable, 1, self.relax_step, X=S.X,
             pullback=S.pullback(), veto=veto)
         S.tally("relaxed_vertex_moves", sum(moved))
+
+    def release(self, faces: np.ndarray) -> None:
+        """Free the feature vertices at the corners of ``faces`` (indices) for the repairs
+        and the minimum-angle pass (:func:`.features.release_features`); the input corners
+        stay locked."""
+        S = self.S
+        at = np.zeros(S.n, bool)
+        at[S.F[faces].ravel()] = True
+        S.tally("features_released", release_features(S, at, self.corners))
 
     def reshape(self, angle_deg: float) -> None:
         """A smoothing step of the corners of the faces with an angle below ``angle_deg``
@@ -357,6 +384,7 @@ class _Operations:
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
                 break
+            self.release(bad)
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
             at &= ~S.is_rim
@@ -367,13 +395,17 @@ class _Operations:
             self.flip()
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
-        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, tol, bad)
         if S.n < target:
             split_for_count(S, target - S.n, min_angle_deg)
         elif S.n > target:
             collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
                                  max_sag=tol)
-        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, tol, bad)
 
     def repair_folds(self, target: int, passes: int = 3) -> None:
         """Collapse an edge between interior corners of every face turned over against the input
@@ -404,6 +436,7 @@ class _Operations:
             if len(bad) == 0:
                 return
             S.tally(key, len(bad))
+            self.release(bad)
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
             if not rim:
