@@ -31,7 +31,7 @@ from .state import RemeshState, face_normals
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
-MIN_LENGTH = 2.0     # chains shorter than this × L are dropped
+MIN_LENGTH = 0.8     # chains shorter than this × L are dropped
 FEATURE_GAP = 0.5    # feature vertices are at least this × L apart on the surface
 MAX_STEP = 1.25      # consecutive feature points at most this × L apart along a chain, …
 BEND_TOL = 0.05      # … their chord within this × L of the chain's vertices between them
@@ -39,7 +39,8 @@ FLAT = 1e-3          # a face with 2·area ≤ this × its longest edge² is fla
                      # feature points): its longest edge is flipped
 
 
-def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG) -> np.ndarray:
+def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """The interior edges of ``(V, F)`` whose two faces' normals differ by more than
     ``angle_deg``, neither end on the boundary.
 
@@ -51,17 +52,19 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG) 
 
     Returns
     -------
-    (e, 2) int
+    E : (e, 2) int
         Vertex pairs.
+    angle : (e,) float
+        Their dihedral angles (radians).
     """
     h, a, b, twin = edge_table(F)
     inner = twin >= 0
     h, a, b, twin = h[inner], a[inner], b[inner], twin[inner]
     N = face_normals(V, F)
-    sharp = dots(N[h // 3], N[twin // 3]) < np.cos(np.radians(angle_deg))
+    cos = np.clip(dots(N[h // 3], N[twin // 3]), -1.0, 1.0)
     on_b = topo.boundary_vertices_mask(F, len(V))
-    keep = sharp & ~on_b[a] & ~on_b[b]
-    return np.column_stack([a[keep], b[keep]])
+    keep = (cos < np.cos(np.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
+    return np.column_stack([a[keep], b[keep]]), np.arccos(cos[keep])
 
 
 def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> list:
@@ -213,6 +216,26 @@ def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
     return np.asarray(stops)
 
 
+def chain_weights(V: np.ndarray, E: np.ndarray, angle: np.ndarray, chains: list
+                  ) -> np.ndarray:
+    """What each chain costs a remesh that cuts across it: the sum over its edges of length ×
+    dihedral angle² (the squared distance of a chord across a crease grows with the angle's
+    square), (c,) float; the heaviest chains claim remesh vertices first.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    E : (e, 2) int
+        The feature edges, ``angle`` (e,) their dihedral angles.
+    chains : list of (k,) int
+    """
+    key = {(min(a, b), max(a, b)): w for (a, b), w in
+           zip(E.tolist(), (norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2).tolist())}
+    return np.array([sum(key[(min(a, b), max(a, b))] for a, b in zip(c[:-1].tolist(),
+                                                                     c[1:].tolist()))
+                     for c in chains])
+
+
 def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> np.ndarray:
     """Lock a remesh vertex on every point of the input's feature chains (:func:`chain_points`
     at spacing ``L``; :func:`.corners.snap_vertices`, ``FEATURE_GAP × L`` apart) and join
@@ -232,12 +255,14 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
     (j, 2) int
         The pairs joined.
     """
-    chains = feature_chains(S.V_in, feature_edges(S.V_in, S.F_in, angle_deg), TURN_DEG)
+    E, angle = feature_edges(S.V_in, S.F_in, angle_deg)
+    chains = feature_chains(S.V_in, E, TURN_DEG)
     P, chain, rank = chain_points(S.V_in, S.uv_in, chains, L, MIN_LENGTH)
     S.tally("feature_points", len(P))
     if len(P) == 0:
         return np.zeros((0, 2), np.int64)
-    order = np.argsort(rank, kind="stable")
+    weight = chain_weights(S.V_in, E, angle, chains)
+    order = np.lexsort((rank, -weight[chain]))
     placed = snap_vertices(S, P[order], min_gap=FEATURE_GAP * L, counts="features")
     v = vertices_at(S.uv, P)
     got = np.flatnonzero(v >= 0)                  # consecutive points that got a vertex
