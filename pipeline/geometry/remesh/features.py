@@ -3,18 +3,26 @@
 Where the input surface folds sharply across an edge (a dihedral angle over ``FEATURE_DEG``), a
 remesh whose edges cut across the crease between vertices on either side leaves the surface by
 about the edge length times the fold, on both sides of every such crease: the RMS distance of a
-coarse, creased input is decided there. The input edges sharper than the threshold form
-**feature chains** (:func:`feature_chains`): runs of such edges through vertices where exactly
-two of them meet and the line does not turn by more than ``TURN_DEG``; chains shorter than
-``MIN_LENGTH × L`` are dropped (noise, and bits no remesh edge of length ``L`` could follow).
-Each chain is sampled at a spacing close to ``L`` along its 3D length
-(:func:`chain_points`); the map is affine on every input face, so a point a fraction ``t``
-along an input edge has its disk image ``t`` along the edge's image. A remesh vertex is snapped
-(or inserted) exactly onto each sample and locked (:func:`.corners.snap_vertices`, no two closer
-than a gap on the surface), and consecutive samples of a chain that both got a vertex are
+coarse, creased input is decided there. The input edges sharper than the threshold, none at
+the boundary (:func:`feature_edges`), form **chains** (:func:`feature_chains`): runs through
+vertices where exactly two of them meet and the line turns by at most ``TURN_DEG``; chains
+shorter than ``MIN_LENGTH × L`` are dropped. Each chain gets points (:func:`chain_points`):
+its own vertices where its chords would leave it by more than ``BEND_TOL × L``
+(:func:`chain_stops`), and evenly spaced points about ``L`` apart along its straight stretches.
+The map is affine on every input face, so a point a fraction along an input edge has its disk
+image the same fraction along the edge's image: a vertex there lifts (eq. 1) onto the crease.
+
+:func:`place_features` snaps (or inserts) a locked remesh vertex onto each point
+(:func:`.corners.snap_vertices`), the heaviest chains first (:func:`chain_weights`: length ×
+dihedral², what cutting across them costs), a chain's ends before its other points, none
+within ``FEATURE_GAP × L`` on the surface of one placed before (where creases run closer than
+that, the lighter one gives way); then consecutive points of a chain that got vertices are
 **joined**: the edge between them is made by flips on the disk where it is missing
-(:func:`join_edges`) and kept from then on (``RemeshState.joined``): flips do not remove it,
-splits do not split it, and its ends, locked, are neither moved nor collapsed.
+(:func:`join_edges`) and kept (``RemeshState.joined``): the flips do not remove it, the
+splits do not divide it, and its ends, locked, are neither moved nor collapsed. Faces flat on
+the surface (three points on one straight crease) have their long edge flipped first. Where
+the fold repair, the minimum-angle pass or the degenerate-face repair need a face with feature
+corners, those vertices are freed (:func:`release_features`).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ from .state import RemeshState, face_normals
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
 MIN_LENGTH = 0.8     # chains shorter than this × L are dropped
-FEATURE_GAP = 0.5    # feature vertices are at least this × L apart on the surface
+FEATURE_GAP = 0.6    # feature vertices are at least this × L apart on the surface
 MAX_STEP = 1.25      # consecutive feature points at most this × L apart along a chain, …
 BEND_TOL = 0.05      # … their chord within this × L of the chain's vertices between them
 FLAT = 1e-3          # a face with 2·area ≤ this × its longest edge² is flat (three collinear
@@ -83,45 +91,35 @@ def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> 
     list of (k,) int
         Vertex sequences along each chain (k ≥ 2).
     """
-    nbr = defaultdict(list)
+    nbr = defaultdict(list)                       # vertex → [(other end, edge), ...]
     for i, (a, b) in enumerate(E.tolist()):
         nbr[a].append((b, i))
         nbr[b].append((a, i))
     cos_turn = np.cos(np.radians(turn_deg))
 
-    def passes(v):
+    def passes(v) -> bool:
         if len(nbr[v]) != 2:
             return False
-        (p, _), (q, _) = nbr[v]
-        d1, d2 = V[v] - V[p], V[q] - V[v]
+        d1, d2 = V[v] - V[nbr[v][0][0]], V[nbr[v][1][0]] - V[v]
         return float(d1 @ d2) >= cos_turn * np.linalg.norm(d1) * np.linalg.norm(d2)
 
     through = {v: passes(v) for v in nbr}
     used = np.zeros(len(E), bool)
 
-    def walk(v, i):
+    def walk(v, i) -> np.ndarray:
         chain = [v]
-        while not used[i]:
+        while i is not None:
             used[i] = True
-            a, b = E[i]
-            v = int(b if a == v else a)
+            v = int(E[i, 1] if E[i, 0] == v else E[i, 0])
             chain.append(v)
-            if not through[v]:
-                break
-            i = next(j for w, j in nbr[v] if not used[j]) if any(
-                not used[j] for _, j in nbr[v]) else i
-        return chain
+            i = next((j for _, j in nbr[v] if not used[j]), None) if through[v] else None
+        return np.asarray(chain, np.int64)
 
-    chains = []
-    for v in nbr:
-        if not through[v]:
-            for _, i in nbr[v]:
-                if not used[i]:
-                    chains.append(walk(v, i))
+    chains = [walk(v, i) for v in nbr if not through[v] for _, i in nbr[v] if not used[i]]
     for i in range(len(E)):                       # closed runs: every vertex passes through
         if not used[i]:
             chains.append(walk(int(E[i, 0]), i))
-    return [np.asarray(c, np.int64) for c in chains]
+    return chains
 
 
 def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
@@ -181,9 +179,9 @@ def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
 
 def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
     """The chain vertices (indices into ``Q``, both ends included) kept as feature points:
-    from each one, the farthest vertex along the chain within ``MAX_STEP × L`` of arc length
-    whose chord passes within ``BEND_TOL × L`` of every vertex in between (the next vertex if
-    none is).
+    from each one, among the vertices along the chain within ``MAX_STEP × L`` of arc length
+    whose chord passes within ``BEND_TOL × L`` of every vertex in between, the one whose arc
+    length from it is nearest to ``L`` (the next vertex if none qualifies).
 
     Parameters
     ----------
@@ -210,7 +208,8 @@ def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
                                   np.repeat(Q[j:j + 1], len(mid), 0))
             if d.max() > BEND_TOL * L:
                 break
-            best = j
+            if abs(s[j] - s[i] - L) < abs(s[best] - s[i] - L):
+                best = j
         stops.append(best)
         i = best
     return np.asarray(stops)
@@ -399,16 +398,17 @@ def _flip(F, VF, uv, t, p, q) -> bool:
 
 def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None = None) -> int:
     """Free the feature vertices ``at`` marks (n bool): the kept edges at them dropped from
-    ``S.joined`` and the vertices unlocked, except those at one of the points ``corners``
-    (k×3: the input's sharp corners, which stay locked). Returns how many were freed."""
+    ``S.joined``, and they and the feature vertices left on no kept edge unlocked, except
+    those at one of the points ``corners`` (k×3: the input's sharp corners, which stay
+    locked). Returns how many were unlocked."""
     on = np.zeros(S.n, bool)
     on[S.joined.ravel()] = True
-    free = np.flatnonzero(at & on)
-    if len(free) == 0:
+    if not (at & on).any():
         return 0
-    mark = np.zeros(S.n, bool)
-    mark[free] = True
-    S.joined = S.joined[~mark[S.joined].any(axis=1)]
+    S.joined = S.joined[~(at & on)[S.joined].any(axis=1)]
+    still = np.zeros(S.n, bool)
+    still[S.joined.ravel()] = True
+    free = np.flatnonzero(on & ~still)
     if corners is not None and len(corners):
         key = {p.tobytes() for p in np.ascontiguousarray(corners)}
         free = free[[S.X[v].tobytes() not in key for v in free]]

@@ -13,7 +13,9 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
-   first, none within ``CORNER_GAP × L`` of one kept before;
+   first, none within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L``
+   apart along the input's feature lines (the edges folded more than ``feature_angle_deg``)
+   and the edges between consecutive ones kept until the repairs free them (:mod:`.features`);
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
 3. refinement: split the rim edges that cut off an input boundary vertex by more than
    ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
@@ -55,6 +57,8 @@ The schedule (:func:`improve_remesh`):
    corners of every face turned over against the input (:func:`turned_over_faces`: where the
    map stretches the surface most, a face counter-clockwise on the disk can lift to one that
    doubles back over the surface) collapsed, under the sag and gap guards, then under none;
+   here, in step 10 and in step 11 the feature vertices at the faces being repaired are freed
+   (:meth:`_Operations.release`) and their kept edges dropped;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
     splits for the count and flips, then collapses under no guard but validity of an edge of
@@ -187,9 +191,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
     ops.corners = S.X[S.locked].copy()
-    import os
-    features = feature_angle_deg > 0 and not on_sphere(S.uv)
-    if features and os.environ.get("PLACE", "1") == "1":
+    if feature_angle_deg > 0 and not on_sphere(S.uv):
         place_features(S, L, feature_angle_deg)
     ops.flip()
     lap("flips")
@@ -207,9 +209,6 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         lap("isotropic")
     ops.restore_count(target)
     lap("count")
-    if features and os.environ.get("PLACE") == "6":
-        place_features(S, L, feature_angle_deg)
-        ops.flip()
     for _ in range(final_relax_iterations if relax_iterations > 0 else 0):
         ops.relax()
         ops.flip()
@@ -220,9 +219,6 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         for _ in range(RESHAPE_STEPS if relax_iterations > 0 else 0):
             ops.reshape(RESHAPE_DEG)
             lap("reshape")
-    if features and os.environ.get("PLACE") == "7":
-        place_features(S, L, feature_angle_deg)
-        ops.flip()
     corners = S.X[S.locked].copy()
     if follow_input > 0:
         ops.follow(follow_input * L)
@@ -378,7 +374,8 @@ class _Operations:
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
-        again around the faces then below."""
+        again around the faces then below. The feature vertices of the faces each of these
+        works on are freed first (:meth:`release`)."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -426,8 +423,9 @@ class _Operations:
 
     def collapse_at_faces(self, target: int, faces, key: str, passes: int, rim: bool = True,
                           guard: float | None = None) -> None:
-        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives
-        (between interior corners unless ``rim``), shortest first, under the sag and gap guards
+        """Up to ``passes`` times: free the feature vertices of every face ``faces()``
+        (indices) gives (:meth:`release`) and collapse an edge of each (between interior
+        corners unless ``rim``), shortest first, under the sag and gap guards
         at ``guard`` (None: under no guard but the result's validity), the count given back by
         splits, then flips; their number tallied under ``key``."""
         S = self.S
