@@ -181,7 +181,8 @@ def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
     """The chain vertices (indices into ``Q``, both ends included) kept as feature points:
     from each one, among the vertices along the chain within ``MAX_STEP × L`` of arc length
     whose chord passes within ``BEND_TOL × L`` of every vertex in between, the one whose arc
-    length from it is nearest to ``L`` (the next vertex if none qualifies).
+    length from it is nearest to ``L`` — to the rest of the chain's length over the nearest
+    whole number of ``L`` — (the next vertex if none qualifies).
 
     Parameters
     ----------
@@ -200,6 +201,7 @@ def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
     stops, i, k = [0], 0, len(Q) - 1
     while i < k:
         best = i + 1
+        step = (s[k] - s[i]) / max(1, round((s[k] - s[i]) / L))   # even steps to the end
         for j in range(i + 2, k + 1):
             if s[j] - s[i] > MAX_STEP * L:
                 break
@@ -208,7 +210,7 @@ def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
                                   np.repeat(Q[j:j + 1], len(mid), 0))
             if d.max() > BEND_TOL * L:
                 break
-            if abs(s[j] - s[i] - L) < abs(s[best] - s[i] - L):
+            if abs(s[j] - s[i] - step) < abs(s[best] - s[i] - step):
                 best = j
         stops.append(best)
         i = best
@@ -318,10 +320,9 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
                 joined.append((a, b))
                 done.add((min(a, b), max(a, b)))
                 break
-            hit = _crossed_edge(F, VF, uv, a, b)
-            if hit is None or tuple(sorted(hit[1:3])) in done:
-                break
-            if not _flip(F, VF, uv, *hit):
+            hits = [h for h in _crossed_edges(F, VF, uv, a, b)
+                    if (min(h[1:]), max(h[1:])) not in done]
+            if not any(_flip(F, VF, uv, *h) for h in hits):
                 break
             changed = True
     if changed:
@@ -356,18 +357,43 @@ def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
     return flipped
 
 
-def _crossed_edge(F, VF, uv, a, b):
-    """The first edge of ``F`` the disk segment ``a → b`` crosses, leaving ``a``: ``(t, p, q)``
-    with ``t`` the face at ``a`` whose opposite edge ``p–q`` it crosses; None if none does."""
+def _crossed_edges(F, VF, uv, a, b) -> list:
+    """The edges of ``F`` the disk segment ``a → b`` crosses, from ``a``: ``(t, p, q)`` with
+    ``t`` the face ``[x, p, q]`` (counter-clockwise) on ``a``'s side of edge ``p–q``; empty if
+    the segment leaves ``a`` through no face (or runs through a vertex)."""
     A, B = uv[a], uv[b]
-    for t in VF[a]:
-        f = F[t].tolist()
-        i = f.index(a)
-        p, q = f[(i + 1) % 3], f[(i + 2) % 3]
-        if _cross2(B - A, uv[p] - A) <= 0 and _cross2(B - A, uv[q] - A) >= 0:
-            if _cross2(uv[q] - uv[p], B - uv[p]) < 0:        # b beyond p–q
-                return t, p, q
-    return None
+    d = B - A
+    t = next((t for t in VF[a] if _between(F, uv, t, a, A, d)), None)
+    if t is None:
+        return []
+    f = F[t].tolist()
+    i = f.index(a)
+    p, q = f[(i + 1) % 3], f[(i + 2) % 3]
+    out = []
+    for _ in range(len(F)):
+        if _cross2(uv[q] - uv[p], B - uv[p]) >= 0:       # b not beyond p–q: no crossing
+            return out
+        out.append((t, p, q))
+        g = next((g for g in VF[p] & VF[q] if g != t), None)
+        if g is None:
+            return out
+        y = next(v for v in F[g].tolist() if v not in (p, q))
+        if y == b:
+            return out
+        side = _cross2(d, uv[y] - A)
+        if side == 0:
+            return out
+        t, p, q = (g, p, y) if side > 0 else (g, y, q)
+    return out
+
+
+def _between(F, uv, t, a, A, d) -> bool:
+    """Whether the direction ``d`` from ``a`` (at ``A``) points into face ``t`` at corner
+    ``a``."""
+    f = F[t].tolist()
+    i = f.index(a)
+    p, q = f[(i + 1) % 3], f[(i + 2) % 3]
+    return _cross2(d, uv[p] - A) <= 0 and _cross2(d, uv[q] - A) >= 0
 
 
 def _cross2(u, v) -> float:
