@@ -91,7 +91,7 @@ from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
-from .features import FEATURE_DEG, place_features, release_features
+from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges
 from .halfedge import edge_table, touching
@@ -127,7 +127,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, sag_floor: float = 0.0,
                    follow_input: float = 0.25,
-                   feature_angle_deg: float = FEATURE_DEG) -> RemeshState:
+                   feature_angle_deg: float = 0.0) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -175,8 +175,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         remesh (0: none).
     feature_angle_deg : float
         Step 1 also locks vertices along the input's feature lines, the edges whose dihedral
-        angle exceeds this, and keeps the edges between them (:mod:`.features`; 0: none; on
-        the disk only).
+        angle exceeds this, and keeps the edges between them (:mod:`.features`; on the disk
+        only; default 0: none — :data:`.features.FEATURE_DEG` is the threshold measured).
 
     Returns
     -------

@@ -89,7 +89,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, follow_input: float = 0.25,
-                   feature_angle_deg: float = 30.0, landmarks: dict | None = None) -> RemeshResult:
+                   feature_angle_deg: float = 0.0, landmarks: dict | None = None) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
