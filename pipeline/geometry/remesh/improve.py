@@ -288,6 +288,8 @@ class _Operations:
         and the minimum-angle pass (:func:`.features.release_features`); the input corners
         stay locked."""
         S = self.S
+        if len(S.joined) == 0:
+            return
         at = np.zeros(S.n, bool)
         at[S.F[faces].ravel()] = True
         S.tally("features_released", release_features(S, at, self.corners))
