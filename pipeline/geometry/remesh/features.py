@@ -34,7 +34,7 @@ import numpy as np
 from .. import topology as topo
 from ..rows import dots, norms
 from .corners import snap_vertices
-from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
 from .state import RemeshState, face_normals
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
@@ -288,10 +288,11 @@ def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
 
 
 def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndarray:
-    """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, the edges its disk
-    segment crosses (each flip only if its quad is strictly convex on the disk and both new
-    faces keep a disk shape of at least ``DISK_SHAPE_MIN``; at most ``max_flips`` per pair, no
-    flip of a pair joined before); returns the pairs that are edges at the end.
+    """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
+    segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
+    the disk and both new faces keep a disk shape of at least ``DISK_SHAPE_MIN``; at most
+    ``max_flips`` per pair, never of a pair joined before); first the long edge of every flat
+    face is flipped (:func:`_flip_thin`). Returns the pairs that are edges at the end.
 
     Parameters
     ----------
@@ -322,7 +323,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
                 break
             hits = [h for h in _crossed_edges(F, VF, uv, a, b)
                     if (min(h[1:]), max(h[1:])) not in done]
-            if not any(_flip(F, VF, uv, *h) for h in hits):
+            if not any(_flip(F, VF, uv, *h) is not None for h in hits):
                 break
             changed = True
     if changed:
@@ -343,16 +344,18 @@ def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
         l2 = (E ** 2).sum(axis=2)
         thin = (disk_shape(uv, F) < DISK_SHAPE_MIN) | (face_double_areas(X, F)
                                                       <= FLAT * l2.max(axis=1))
-        now = False
+        touched = set()                                     # faces rewritten this pass
         for t in np.flatnonzero(thin).tolist():
             f = F[t].tolist()
             c = int(np.argmax(l2[t]))
             p, q = f[(c + 1) % 3], f[(c + 2) % 3]
-            if f[c] != F[t, c] or (min(p, q), max(p, q)) in done:
+            if t in touched or (min(p, q), max(p, q)) in done:
                 continue
-            now |= _flip(F, VF, uv, t, p, q)
-        flipped |= now
-        if not now:
+            g = _flip(F, VF, uv, t, p, q)
+            if g is not None:
+                touched |= {t, g}
+        flipped |= bool(touched)
+        if not touched:
             break
     return flipped
 
@@ -397,21 +400,24 @@ def _between(F, uv, t, a, A, d) -> bool:
 
 
 def _cross2(u, v) -> float:
+    """The 2D cross product ``u × v`` (positive when ``v`` turns left of ``u``)."""
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def _flip(F, VF, uv, t, p, q) -> bool:
+def _flip(F, VF, uv, t, p, q) -> int | None:
     """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
-    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk."""
+    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk
+    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or
+    None where no flip is made."""
     g = next((s for s in VF[p] & VF[q] if s != t), None)
     if g is None:
-        return False
+        return None
     f = F[t].tolist()
     x = f[(f.index(p) + 2) % 3]
     y = next(v for v in F[g].tolist() if v not in (p, q))
     new = np.array([[x, p, y], [x, y, q]])
     if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
-        return False
+        return None
     F[t], F[g] = new
     for v in (x, p, q, y):
         VF[v].discard(t)
@@ -419,7 +425,7 @@ def _flip(F, VF, uv, t, p, q) -> bool:
     for s, row in ((t, new[0]), (g, new[1])):
         for v in row.tolist():
             VF[v].add(s)
-    return True
+    return g
 
 
 def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None = None) -> int:

@@ -177,7 +177,8 @@ class RemeshState:
 
     def keep_vertices(self, alive: np.ndarray) -> None:
         """Drop the vertices where ``alive`` (n bool) is False, none of which a face uses; the
-        others keep their order, and ``F`` is renumbered."""
+        others keep their order, and ``F`` and ``joined`` are renumbered (a pair with a dropped
+        end is dropped)."""
         new = np.cumsum(alive) - 1
         self.F = new[self.F]
         self.joined = new[self.joined[alive[self.joined].all(axis=1)]]
