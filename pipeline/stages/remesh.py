@@ -59,7 +59,8 @@ class ImproveConfig(Section):
                                                 # face middles) farther than this × spacing
                                                 # from the remesh (0: none)
     feature_angle_deg: float = Field(0.0, ge=0.0, le=180.0)   # vertices and edges kept along
-                                                # input edges folded more than this (0: none)
+                                                # input edges folded more than this (0: none;
+                                                # disk maps only)
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim
