@@ -76,3 +76,21 @@ def coarse_state(uv_in, F_in, V_in, loop, locator, rings: int):
     S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
                     face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
     return S, ring
+
+
+def creased_disk(slope: float, x0: float = 0.1, rings: int = 40, on_crease: int = 159,
+                 clear: float = 0.01):
+    """The unit disk folded along the line ``u = x0``: ``z = slope·|u − x0|``, its map the
+    ``uv`` coordinates. The ring points of :func:`disk_points` (``rings``
+    rings) farther than ``clear`` from the line and up to ``on_crease`` evenly spaced points on
+    it (158 by default), so that input edges run along the crease. Returns
+    ``(uv_in, F_in, V_in, loop, locator)``."""
+    uv = disk_points(rings, 6)
+    uv = uv[np.abs(uv[:, 0] - x0) > clear]
+    y = np.linspace(-1, 1, on_crease + 2)[1:-1]
+    y = y[np.abs(y) < np.sqrt(1 - x0 ** 2) - 0.02]
+    uv = np.vstack([uv, np.column_stack([np.full(len(y), x0), y])])
+    F = ccw_delaunay(uv)
+    V = np.column_stack([uv, slope * np.abs(uv[:, 0] - x0)])
+    loop = topo.boundary_loops(F)[0]
+    return uv, F, V, loop, PointLocator(uv, F, loop)

@@ -58,6 +58,9 @@ class ImproveConfig(Section):
     follow_input: float = Field(0.25, ge=0.0)   # a vertex on input points (vertices, edge and
                                                 # face middles) farther than this × spacing
                                                 # from the remesh (0: none)
+    feature_angle_deg: float = Field(0.0, ge=0.0, le=180.0)   # vertices and edges kept along
+                                                # input edges folded more than this (0: none;
+                                                # disk maps only)
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim

@@ -374,10 +374,11 @@ class _Patch:
             yield self.move(v)
 
     def flip(self, a, b):
-        """Flip the edge ``a–b`` (both faces in the patch, all four corners inner)."""
+        """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
+        edge, ``S.joined``)."""
         S = self.S
         tf = self.edge_faces(a, b)
-        if len(tf) != 2 or not all(self.inner[[a, b]]):
+        if len(tf) != 2 or not all(self.inner[[a, b]]) or S.is_joined([a], [b])[0]:
             return None
         f, g = (self.faces[t] for t in tf)
         p = next(v for v in f if v not in (a, b))

@@ -18,7 +18,7 @@ from .. import topology as topo
 from ..locate import lift
 from ..metrics import corner_angles
 from .domain import locator, on_sphere
-from .halfedge import double_areas, independent_by_faces, touching, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by_faces, touching, vertex_faces
 from .refine import split_edges, split_faces
 from .state import RemeshState
 
@@ -116,7 +116,8 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0,
                   counts: str = "corners") -> np.ndarray:
     """Move an interior vertex exactly onto each target (the disk image of a sharp input
     vertex) and lock it: for each target in the given order (sharpest first), the nearest of
-    its 4 nearest free vertices on the disk whose faces stay counter-clockwise there; a target
+    its 4 nearest free vertices on the disk whose faces stay counter-clockwise there, none
+    thinner than ``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`); a target
     none of them can take gets a new vertex (:func:`insert_vertices`) unless one of them is
     within ``min_gap`` of it on the surface (a new edge that short would be a sliver). A target
     within ``min_gap`` on the surface of a sharper one or of a vertex locked already is
@@ -161,7 +162,7 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0,
             old = S.uv[v].copy()
             S.uv[v] = t
             Ff = S.F[faces]
-            if np.all(double_areas(S.uv, Ff) > 0):
+            if np.all(disk_shape(S.uv, Ff) >= DISK_SHAPE_MIN):
                 taken[v] = True
                 snapped.append(v)
                 break

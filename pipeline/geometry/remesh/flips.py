@@ -32,7 +32,7 @@ def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: float = 20.0,
                max_rounds: int = 12, eps: float = 1e-9, sag=None,
                boundary: np.ndarray | None = None, active: np.ndarray | None = None,
-               twin: np.ndarray | None = None) -> tuple[np.ndarray, int, int]:
+               twin: np.ndarray | None = None, fixed=None) -> tuple[np.ndarray, int, int]:
     """Flip interior edges towards the Delaunay triangulation of the lifted surface.
 
     The criterion ``α + β > π`` for the angles opposite an edge is tested as
@@ -65,6 +65,8 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         change), and the cotangents are computed only for the faces the rounds reach.
     twin : (3m,) int, optional
         The half-edge twins of ``F``; updated in place to those of the result.
+    fixed : callable ``fixed(a, b) -> (k,) bool``, optional
+        The edges ``a–b`` never flipped (:meth:`.state.RemeshState.is_joined`).
 
     Returns
     -------
@@ -116,6 +118,8 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
                 both = sag(np.r_[p[folded], a[folded]], np.r_[q[folded], b[folded]])
                 ok[folded] = both[:k] <= both[k:]
         ok &= valid
+        if fixed is not None:
+            ok[ok] = ~fixed(a[ok], b[ok])
         ok[ok] = _shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])
         sel = np.flatnonzero(ok)
         if len(sel) == 0:

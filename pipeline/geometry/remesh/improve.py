@@ -13,7 +13,9 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
-   first, none within ``CORNER_GAP × L`` of one kept before;
+   first, none within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L``
+   apart along the input's feature lines (the edges folded more than ``feature_angle_deg``)
+   and the edges between consecutive ones kept until the repairs free them (:mod:`.features`);
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
 3. refinement: split the rim edges that cut off an input boundary vertex by more than
    ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
@@ -55,6 +57,8 @@ The schedule (:func:`improve_remesh`):
    corners of every face turned over against the input (:func:`turned_over_faces`: where the
    map stretches the surface most, a face counter-clockwise on the disk can lift to one that
    doubles back over the surface) collapsed, under the sag and gap guards, then under none;
+   here, in step 10 and in step 11 the feature vertices at the faces being repaired are freed
+   (:meth:`_Operations.release`) and their kept edges dropped;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
     faces with a 3D angle below ``min_angle_deg``, guarded, then less so, each followed by
     splits for the count and flips, then collapses under no guard but validity of an edge of
@@ -86,7 +90,8 @@ from ..rows import norms
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
-from .domain import project
+from .domain import on_sphere, project
+from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges
 from .halfedge import edge_table, touching
@@ -121,7 +126,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    final_relax_iterations: int = 6,
                    pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, sag_floor: float = 0.0,
-                   follow_input: float = 0.25) -> RemeshState:
+                   follow_input: float = 0.25,
+                   feature_angle_deg: float = 0.0) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -167,6 +173,10 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         At the end of step 7, a vertex goes onto every input point (an interior vertex, the
         middle of an edge or a face away from the rim) farther than this × ``L`` from the
         remesh (0: none).
+    feature_angle_deg : float
+        Step 1 also locks vertices along the input's feature lines, the edges whose dihedral
+        angle exceeds this, and keeps the edges between them (:mod:`.features`; on the disk
+        only; default 0: none — :data:`.features.FEATURE_DEG` is the threshold measured).
 
     Returns
     -------
@@ -180,6 +190,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     lap = Stopwatch(S.log, "seconds")
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
+    ops.corners = S.X[S.locked].copy()
+    if feature_angle_deg > 0 and not on_sphere(S.uv):
+        place_features(S, L, feature_angle_deg)
     ops.flip()
     lap("flips")
     for _ in range(relax_iterations):
@@ -237,6 +250,7 @@ class _Operations:
     relax_step: float
     refine_sag: float
     sag_floor: float = 0.0
+    corners: np.ndarray | None = None     # the locked input corners (k×3), never released
 
     @property
     def tol(self) -> float | None:
@@ -253,7 +267,7 @@ class _Operations:
         active = None if since is None else _corners_changed_since(S, since)
         twin = S.twins().copy()
         F, k, _ = flip_edges(S.X, S.F, S.uv, self.max_dihedral_deg, sag=partial(edge_sag, S),
-                             boundary=S.is_rim, active=active, twin=twin)
+                             boundary=S.is_rim, active=active, twin=twin, fixed=S.is_joined)
         S.set_faces(F, twin)
         S.tally("flips", k)
 
@@ -268,6 +282,17 @@ class _Operations:
             free if movable is None else free & movable, 1, self.relax_step, X=S.X,
             pullback=S.pullback(), veto=veto)
         S.tally("relaxed_vertex_moves", sum(moved))
+
+    def release(self, faces: np.ndarray) -> None:
+        """Free the feature vertices at the corners of ``faces`` (indices) for the repairs
+        and the minimum-angle pass (:func:`.features.release_features`); the input corners
+        stay locked."""
+        S = self.S
+        if len(S.joined) == 0:
+            return
+        at = np.zeros(S.n, bool)
+        at[S.F[faces].ravel()] = True
+        S.tally("features_released", release_features(S, at, self.corners))
 
     def reshape(self, angle_deg: float) -> None:
         """A smoothing step of the corners of the faces with an angle below ``angle_deg``
@@ -351,12 +376,14 @@ class _Operations:
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
-        again around the faces then below."""
+        again around the faces then below. The feature vertices of the faces each of these
+        works on are freed first (:meth:`release`)."""
         S, L, tol = self.S, self.L, self.tol
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
                 break
+            self.release(bad)
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
             at &= ~S.is_rim
@@ -367,13 +394,17 @@ class _Operations:
             self.flip()
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
-        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, tol, bad)
         if S.n < target:
             split_for_count(S, target - S.n, min_angle_deg)
         elif S.n > target:
             collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
                                  max_sag=tol)
-        raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, tol, bad)
 
     def repair_folds(self, target: int, passes: int = 3) -> None:
         """Collapse an edge between interior corners of every face turned over against the input
@@ -394,8 +425,9 @@ class _Operations:
 
     def collapse_at_faces(self, target: int, faces, key: str, passes: int, rim: bool = True,
                           guard: float | None = None) -> None:
-        """Up to ``passes`` times: collapse an edge of every face ``faces()`` (indices) gives
-        (between interior corners unless ``rim``), shortest first, under the sag and gap guards
+        """Up to ``passes`` times: free the feature vertices of every face ``faces()``
+        (indices) gives (:meth:`release`) and collapse an edge of each (between interior
+        corners unless ``rim``), shortest first, under the sag and gap guards
         at ``guard`` (None: under no guard but the result's validity), the count given back by
         splits, then flips; their number tallied under ``key``."""
         S = self.S
@@ -404,6 +436,7 @@ class _Operations:
             if len(bad) == 0:
                 return
             S.tally(key, len(bad))
+            self.release(bad)
             at = np.zeros(S.n, bool)
             at[S.F[bad].ravel()] = True
             if not rim:

@@ -119,7 +119,9 @@ def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     """Which splits of :func:`split_edges` (same arguments; a bool mask) make only faces with a
     disk shape (:func:`.halfedge.disk_shape`) of at least ``DISK_SHAPE_MIN``. Halving the
     short disk edge of a face the map squeezes thin halves its shape; without this test,
-    repeated splits drive it to rounding level, where the next split lands on a corner."""
+    repeated splits drive it to rounding level, where the next split lands on a corner. A
+    kept edge (``S.joined``, a feature line's) is never split: its new vertex would leave the
+    line."""
     if len(h) == 0:
         return np.zeros(0, bool)
     F = S.F
@@ -134,7 +136,7 @@ def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     new = np.column_stack([a, w, p, w, b, p, b, w, q, w, a, q]).reshape(-1, 3)
     shape = disk_shape(uv, new).reshape(-1, 4)
     shape[on_b, 2:] = np.inf                     # a boundary edge has no face across
-    return shape.min(axis=1) >= DISK_SHAPE_MIN
+    return (shape.min(axis=1) >= DISK_SHAPE_MIN) & ~S.is_joined(a, b)
 
 
 def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:

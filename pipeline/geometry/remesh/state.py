@@ -84,6 +84,9 @@ class RemeshState:
         The image polygon ``uv_in[boundary]``.
     locked : (n,) bool
         Vertices never moved or removed (snapped corners); none by default.
+    joined : (k, 2) int
+        Vertex pairs whose edge is kept (the input's feature lines, :mod:`.features`): no flip
+        removes it and no split divides it; their ends are locked. None by default.
     log : dict
         Operation counts (:meth:`tally`) and, from the improvement pass, seconds per step.
     surface_middles : bool
@@ -107,6 +110,7 @@ class RemeshState:
     locator: PointLocator
     polygon: np.ndarray
     locked: np.ndarray | None = None
+    joined: np.ndarray | None = None
     log: dict = field(default_factory=dict)
     surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
@@ -116,6 +120,8 @@ class RemeshState:
     def __post_init__(self):
         if self.locked is None:
             self.locked = np.zeros(len(self.uv), bool)
+        if self.joined is None:
+            self.joined = np.zeros((0, 2), np.int64)
 
     @property
     def n(self) -> int:
@@ -171,10 +177,25 @@ class RemeshState:
 
     def keep_vertices(self, alive: np.ndarray) -> None:
         """Drop the vertices where ``alive`` (n bool) is False, none of which a face uses; the
-        others keep their order, and ``F`` is renumbered."""
-        self.F = (np.cumsum(alive) - 1)[self.F]
+        others keep their order, and ``F`` and ``joined`` are renumbered (a pair with a dropped
+        end is dropped)."""
+        new = np.cumsum(alive) - 1
+        self.F = new[self.F]
+        self.joined = new[self.joined[alive[self.joined].all(axis=1)]]
         self.uv, self.X, self.face, self.bary, self.is_rim, self.locked = (
             x[alive] for x in (self.uv, self.X, self.face, self.bary, self.is_rim, self.locked))
+
+    def is_joined(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Which edges ``a–b`` (k int each) are kept ones (``joined``, either way round);
+        k bool."""
+        if len(self.joined) == 0:
+            return np.zeros(len(a), bool)
+        key = np.sort(self.joined, axis=1)
+        key = np.unique(key[:, 0] * (self.n + 1) + key[:, 1])
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        q = lo * (self.n + 1) + hi
+        i = np.minimum(np.searchsorted(key, q), len(key) - 1)
+        return key[i] == q
 
     # ------------------------------------------------------------------------------------ log
 

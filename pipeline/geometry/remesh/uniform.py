@@ -89,7 +89,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, follow_input: float = 0.25,
-                   landmarks: dict | None = None) -> RemeshResult:
+                   feature_angle_deg: float = 0.0, landmarks: dict | None = None) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -113,7 +113,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         For ``jittered`` and ``blue_noise``.
     improve : bool
         Run the improvement pass; ``flips`` … ``refine_budget`` and ``isotropic_iterations``
-        … ``follow_input`` are its parameters (:func:`.improve.improve_remesh`).
+        … ``feature_angle_deg`` are its parameters (:func:`.improve.improve_remesh`).
     corner_angle_deg : float
         Input corners sharper than this keep a vertex (0: none).
     landmarks : dict, optional
@@ -153,7 +153,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
             isotropic_iterations=isotropic_iterations,
             final_relax_iterations=final_relax_iterations,
             pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg,
-            follow_input=follow_input))
+            follow_input=follow_input, feature_angle_deg=feature_angle_deg))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
     lap("improve")
     check_remesh(X, F_out, uv_out)

@@ -1,0 +1,448 @@
+"""Feature lines of the input: creases the remesh puts vertices on and keeps edges along.
+
+Where the input surface folds sharply across an edge (a dihedral angle over ``FEATURE_DEG``), a
+remesh whose edges cut across the crease between vertices on either side leaves the surface by
+about the edge length times the fold, on both sides of every such crease: the RMS distance of a
+coarse, creased input is decided there. The input edges sharper than the threshold, none at
+the boundary (:func:`feature_edges`), form **chains** (:func:`feature_chains`): runs through
+vertices where exactly two of them meet and the line turns by at most ``TURN_DEG``; chains
+shorter than ``MIN_LENGTH × L`` are dropped. Each chain gets points (:func:`chain_points`):
+its own vertices where its chords would leave it by more than ``BEND_TOL × L``
+(:func:`chain_stops`), and evenly spaced points about ``L`` apart along its straight stretches.
+The map is affine on every input face, so a point a fraction along an input edge has its disk
+image the same fraction along the edge's image: a vertex there lifts (eq. 1) onto the crease.
+
+:func:`place_features` snaps (or inserts) a locked remesh vertex onto each point
+(:func:`.corners.snap_vertices`), the heaviest chains first (:func:`chain_weights`: length ×
+dihedral², what cutting across them costs), a chain's ends before its other points, none
+within ``FEATURE_GAP × L`` on the surface of one placed before (where creases run closer than
+that, the lighter one gives way); then consecutive points of a chain that got vertices are
+**joined**: the edge between them is made by flips on the disk where it is missing
+(:func:`join_edges`) and kept (``RemeshState.joined``): the flips do not remove it, the
+splits do not divide it, and its ends, locked, are neither moved nor collapsed. Faces flat on
+the surface (three points on one straight crease) have their long edge flipped first. Where
+the fold repair, the minimum-angle pass or the degenerate-face repair need a face with feature
+corners, those vertices are freed (:func:`release_features`).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+import numpy as np
+
+from .. import topology as topo
+from ..rows import dots, norms
+from .corners import snap_vertices
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
+from .state import RemeshState, face_normals
+
+FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
+TURN_DEG = 60.0      # a chain ends where its line turns by more than this
+MIN_LENGTH = 0.8     # chains shorter than this × L are dropped
+FEATURE_GAP = 0.6    # feature vertices are at least this × L apart on the surface
+MAX_STEP = 1.25      # consecutive feature points at most this × L apart along a chain, …
+BEND_TOL = 0.05      # … their chord within this × L of the chain's vertices between them
+FLAT = 1e-3          # a face with 2·area ≤ this × its longest edge² is flat (three collinear
+                     # feature points): its longest edge is flipped
+
+
+def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The interior edges of ``(V, F)`` whose two faces' normals differ by more than
+    ``angle_deg``, neither end on the boundary.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    angle_deg : float
+
+    Returns
+    -------
+    E : (e, 2) int
+        Vertex pairs.
+    angle : (e,) float
+        Their dihedral angles (radians).
+    """
+    h, a, b, twin = edge_table(F)
+    inner = twin >= 0
+    h, a, b, twin = h[inner], a[inner], b[inner], twin[inner]
+    N = face_normals(V, F)
+    cos = np.clip(dots(N[h // 3], N[twin // 3]), -1.0, 1.0)
+    on_b = topo.boundary_vertices_mask(F, len(V))
+    keep = (cos < np.cos(np.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
+    return np.column_stack([a[keep], b[keep]]), np.arccos(cos[keep])
+
+
+def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> list:
+    """The feature edges ``E`` cut into chains: maximal runs through vertices where exactly
+    two of them meet at a turn of at most ``turn_deg``; a closed run starts and ends at one
+    vertex.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    E : (e, 2) int
+    turn_deg : float
+
+    Returns
+    -------
+    list of (k,) int
+        Vertex sequences along each chain (k ≥ 2).
+    """
+    nbr = defaultdict(list)                       # vertex → [(other end, edge), ...]
+    for i, (a, b) in enumerate(E.tolist()):
+        nbr[a].append((b, i))
+        nbr[b].append((a, i))
+    cos_turn = np.cos(np.radians(turn_deg))
+
+    def passes(v) -> bool:
+        if len(nbr[v]) != 2:
+            return False
+        d1, d2 = V[v] - V[nbr[v][0][0]], V[nbr[v][1][0]] - V[v]
+        return float(d1 @ d2) >= cos_turn * np.linalg.norm(d1) * np.linalg.norm(d2)
+
+    through = {v: passes(v) for v in nbr}
+    used = np.zeros(len(E), bool)
+
+    def walk(v, i) -> np.ndarray:
+        chain = [v]
+        while i is not None:
+            used[i] = True
+            v = int(E[i, 1] if E[i, 0] == v else E[i, 0])
+            chain.append(v)
+            i = next((j for _, j in nbr[v] if not used[j]), None) if through[v] else None
+        return np.asarray(chain, np.int64)
+
+    chains = [walk(v, i) for v in nbr if not through[v] for _, i in nbr[v] if not used[i]]
+    for i in range(len(E)):                       # closed runs: every vertex passes through
+        if not used[i]:
+            chains.append(walk(int(E[i, 0]), i))
+    return chains
+
+
+def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
+                 min_length: float = MIN_LENGTH) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points along each chain, about ``L`` apart, whose chords follow it: the chain's own
+    vertices where it bends (:func:`chain_stops`), and on a stretch longer than ``MAX_STEP × L``
+    between two of them, evenly spaced points at about ``L``. Chains shorter than
+    ``min_length × L`` are left out.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    uv : (n, 2) float
+        The disk map.
+    chains : list of (k,) int
+    L : float
+    min_length : float
+
+    Returns
+    -------
+    P_uv : (p, 2) float
+        The points' disk images (the map is affine on an input edge: a point a fraction along
+        it has its image the same fraction along the edge's image).
+    chain : (p,) int
+        The chain each belongs to, in order along it.
+    rank : (p,) int
+        0 for a chain's ends, 1 for its other vertices, 2 for points between them: the order
+        in which they claim a remesh vertex.
+    """
+    P, which, rank = [], [], []
+    for c, vs in enumerate(chains):
+        seg = norms(V[vs[1:]] - V[vs[:-1]])
+        s = np.r_[0.0, np.cumsum(seg)]
+        if s[-1] < min_length * L:
+            continue
+        stops = chain_stops(V[vs], s, L)
+        t, r = [], []
+        for i, j in zip(stops[:-1], stops[1:]):
+            k = max(1, int(round((s[j] - s[i]) / L))) if s[j] - s[i] > MAX_STEP * L else 1
+            t.append(np.linspace(s[i], s[j], k + 1)[:-1])
+            r.append(np.r_[1, np.full(k - 1, 2)])
+        t.append(s[-1:])
+        r.append([1])
+        t, r = np.concatenate(t), np.concatenate(r)
+        r[0] = r[-1] = 0
+        if vs[0] == vs[-1]:
+            t, r = t[:-1], r[:-1]                 # a closed chain: its start once
+        e = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
+        f = np.clip((t - s[e]) / np.maximum(seg[e], 1e-300), 0.0, 1.0)[:, None]
+        P.append((1.0 - f) * uv[vs[e]] + f * uv[vs[e + 1]])
+        which.append(np.full(len(t), c))
+        rank.append(r)
+    if not P:
+        return np.zeros((0, uv.shape[1])), np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.vstack(P), np.concatenate(which), np.concatenate(rank)
+
+
+def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
+    """The chain vertices (indices into ``Q``, both ends included) kept as feature points:
+    from each one, among the vertices along the chain within ``MAX_STEP × L`` of arc length
+    whose chord passes within ``BEND_TOL × L`` of every vertex in between, the one whose arc
+    length from it is nearest to ``L`` — to the rest of the chain's length over the nearest
+    whole number of ``L`` — (the next vertex if none qualifies).
+
+    Parameters
+    ----------
+    Q : (k, 3) float
+        The chain's vertices.
+    s : (k,) float
+        Their arc lengths.
+    L : float
+
+    Returns
+    -------
+    (j,) int
+    """
+    from .rim import segment_distances
+
+    stops, i, k = [0], 0, len(Q) - 1
+    while i < k:
+        best = i + 1
+        step = (s[k] - s[i]) / max(1, round((s[k] - s[i]) / L))   # even steps to the end
+        for j in range(i + 2, k + 1):
+            if s[j] - s[i] > MAX_STEP * L:
+                break
+            mid = Q[i + 1:j]
+            d = segment_distances(mid, np.repeat(Q[i:i + 1], len(mid), 0),
+                                  np.repeat(Q[j:j + 1], len(mid), 0))
+            if d.max() > BEND_TOL * L:
+                break
+            if abs(s[j] - s[i] - step) < abs(s[best] - s[i] - step):
+                best = j
+        stops.append(best)
+        i = best
+    return np.asarray(stops)
+
+
+def chain_weights(V: np.ndarray, E: np.ndarray, angle: np.ndarray, chains: list
+                  ) -> np.ndarray:
+    """What each chain costs a remesh that cuts across it: the sum over its edges of length ×
+    dihedral angle² (the squared distance of a chord across a crease grows with the angle's
+    square), (c,) float; the heaviest chains claim remesh vertices first.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    E : (e, 2) int
+        The feature edges, ``angle`` (e,) their dihedral angles.
+    chains : list of (k,) int
+    """
+    key = {(min(a, b), max(a, b)): w for (a, b), w in
+           zip(E.tolist(), (norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2).tolist())}
+    return np.array([sum(key[(min(a, b), max(a, b))] for a, b in zip(c[:-1].tolist(),
+                                                                     c[1:].tolist()))
+                     for c in chains])
+
+
+def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> np.ndarray:
+    """Lock a remesh vertex on every point of the input's feature chains (:func:`chain_points`
+    at spacing ``L``; :func:`.corners.snap_vertices`, ``FEATURE_GAP × L`` apart) and join
+    consecutive ones (:func:`join_edges`); the joined pairs are added to ``S.joined``.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place; counts under ``features_*`` in its log.
+    L : float
+        Target edge length, in the mesh's units.
+    angle_deg : float
+        The crease threshold (:func:`feature_edges`).
+
+    Returns
+    -------
+    (j, 2) int
+        The pairs joined.
+    """
+    E, angle = feature_edges(S.V_in, S.F_in, angle_deg)
+    chains = feature_chains(S.V_in, E, TURN_DEG)
+    P, chain, rank = chain_points(S.V_in, S.uv_in, chains, L, MIN_LENGTH)
+    S.tally("feature_points", len(P))
+    if len(P) == 0:
+        return np.zeros((0, 2), np.int64)
+    weight = chain_weights(S.V_in, E, angle, chains)
+    order = np.lexsort((rank, -weight[chain]))
+    placed = snap_vertices(S, P[order], min_gap=FEATURE_GAP * L, counts="features")
+    v = vertices_at(S.uv, P)
+    got = np.flatnonzero(v >= 0)                  # consecutive points that got a vertex
+    v, chain = v[got], chain[got]
+    pairs = np.column_stack([v[:-1], v[1:]])[(chain[1:] == chain[:-1])]
+    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    S.tally("feature_pairs", len(pairs))
+    pairs = join_edges(S, pairs)
+    S.joined = np.vstack([S.joined, pairs])
+    S.locked[np.setdiff1d(placed, pairs)] = False       # a point on no kept edge: a start
+    S.tally("features_joined", len(pairs))
+    return pairs
+
+
+def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """The vertex at each domain point ``P`` (p×2): the nearest row of ``uv`` within ``tol``,
+    −1 where there is none."""
+    from scipy.spatial import cKDTree
+
+    d, j = cKDTree(uv).query(P)
+    return np.where(d <= tol, j, -1)
+
+
+def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndarray:
+    """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
+    segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
+    the disk and both new faces keep a disk shape of at least ``DISK_SHAPE_MIN``; at most
+    ``max_flips`` per pair, never of a pair joined before); first the long edge of every flat
+    face is flipped (:func:`_flip_thin`). Returns the pairs that are edges at the end.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Its faces changed in place.
+    pairs : (k, 2) int
+
+    Returns
+    -------
+    (j, 2) int
+    """
+    if len(pairs) == 0:
+        return pairs
+    F = S.F.copy()
+    VF = {}
+    for t, f in enumerate(F.tolist()):
+        for v in f:
+            VF.setdefault(v, set()).add(t)
+    done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
+    joined = []
+    uv = S.uv
+    changed = _flip_thin(F, VF, uv, S.X, done)
+    for a, b in pairs.tolist():
+        for _ in range(max_flips + 1):
+            if VF[a] & VF[b]:
+                joined.append((a, b))
+                done.add((min(a, b), max(a, b)))
+                break
+            hits = [h for h in _crossed_edges(F, VF, uv, a, b)
+                    if (min(h[1:]), max(h[1:])) not in done]
+            if not any(_flip(F, VF, uv, *h) is not None for h in hits):
+                break
+            changed = True
+    if changed:
+        S.F = F
+    return np.asarray(joined, np.int64).reshape(-1, 2)
+
+
+def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
+    """Flip the longest edge of every face of ``F`` flat on the surface (twice its area at most
+    ``FLAT × `` its longest edge squared) or thinner than ``DISK_SHAPE_MIN`` on the disk —
+    feature points snapped onto one straight crease — where :func:`_flip` allows it and the
+    edge is not in ``done``; whether any was flipped."""
+    from ..laplacian import face_double_areas
+
+    flipped = False
+    for _ in range(passes):
+        E = X[F[:, [2, 0, 1]]] - X[F[:, [1, 2, 0]]]          # the edge opposite each corner
+        l2 = (E ** 2).sum(axis=2)
+        thin = (disk_shape(uv, F) < DISK_SHAPE_MIN) | (face_double_areas(X, F)
+                                                      <= FLAT * l2.max(axis=1))
+        touched = set()                                     # faces rewritten this pass
+        for t in np.flatnonzero(thin).tolist():
+            f = F[t].tolist()
+            c = int(np.argmax(l2[t]))
+            p, q = f[(c + 1) % 3], f[(c + 2) % 3]
+            if t in touched or (min(p, q), max(p, q)) in done:
+                continue
+            g = _flip(F, VF, uv, t, p, q)
+            if g is not None:
+                touched |= {t, g}
+        flipped |= bool(touched)
+        if not touched:
+            break
+    return flipped
+
+
+def _crossed_edges(F, VF, uv, a, b) -> list:
+    """The edges of ``F`` the disk segment ``a → b`` crosses, from ``a``: ``(t, p, q)`` with
+    ``t`` the face ``[x, p, q]`` (counter-clockwise) on ``a``'s side of edge ``p–q``; empty if
+    the segment leaves ``a`` through no face (or runs through a vertex)."""
+    A, B = uv[a], uv[b]
+    d = B - A
+    t = next((t for t in VF[a] if _between(F, uv, t, a, A, d)), None)
+    if t is None:
+        return []
+    f = F[t].tolist()
+    i = f.index(a)
+    p, q = f[(i + 1) % 3], f[(i + 2) % 3]
+    out = []
+    for _ in range(len(F)):
+        if _cross2(uv[q] - uv[p], B - uv[p]) >= 0:       # b not beyond p–q: no crossing
+            return out
+        out.append((t, p, q))
+        g = next((g for g in VF[p] & VF[q] if g != t), None)
+        if g is None:
+            return out
+        y = next(v for v in F[g].tolist() if v not in (p, q))
+        if y == b:
+            return out
+        side = _cross2(d, uv[y] - A)
+        if side == 0:
+            return out
+        t, p, q = (g, p, y) if side > 0 else (g, y, q)
+    return out
+
+
+def _between(F, uv, t, a, A, d) -> bool:
+    """Whether the direction ``d`` from ``a`` (at ``A``) points into face ``t`` at corner
+    ``a``."""
+    f = F[t].tolist()
+    i = f.index(a)
+    p, q = f[(i + 1) % 3], f[(i + 2) % 3]
+    return _cross2(d, uv[p] - A) <= 0 and _cross2(d, uv[q] - A) >= 0
+
+
+def _cross2(u, v) -> float:
+    """The 2D cross product ``u × v`` (positive when ``v`` turns left of ``u``)."""
+    return float(u[0] * v[1] - u[1] * v[0])
+
+
+def _flip(F, VF, uv, t, p, q) -> int | None:
+    """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
+    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk
+    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or
+    None where no flip is made."""
+    g = next((s for s in VF[p] & VF[q] if s != t), None)
+    if g is None:
+        return None
+    f = F[t].tolist()
+    x = f[(f.index(p) + 2) % 3]
+    y = next(v for v in F[g].tolist() if v not in (p, q))
+    new = np.array([[x, p, y], [x, y, q]])
+    if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
+        return None
+    F[t], F[g] = new
+    for v in (x, p, q, y):
+        VF[v].discard(t)
+        VF[v].discard(g)
+    for s, row in ((t, new[0]), (g, new[1])):
+        for v in row.tolist():
+            VF[v].add(s)
+    return g
+
+
+def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None = None) -> int:
+    """Free the feature vertices ``at`` marks (n bool): the kept edges at them dropped from
+    ``S.joined``, and they and the feature vertices left on no kept edge unlocked, except
+    those at one of the points ``corners`` (k×3: the input's sharp corners, which stay
+    locked). Returns how many were unlocked."""
+    on = np.zeros(S.n, bool)
+    on[S.joined.ravel()] = True
+    if not (at & on).any():
+        return 0
+    S.joined = S.joined[~(at & on)[S.joined].any(axis=1)]
+    still = np.zeros(S.n, bool)
+    still[S.joined.ravel()] = True
+    free = np.flatnonzero(on & ~still)
+    if corners is not None and len(corners):
+        key = {p.tobytes() for p in np.ascontiguousarray(corners)}
+        free = free[[S.X[v].tobytes() not in key for v in free]]
+    S.locked[free] = False
+    return len(free)

@@ -1,0 +1,135 @@
+"""Feature lines: remesh vertices on the input's creases, the edges between them kept
+(pipeline.geometry.remesh.features)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.geometry.metrics import signed_double_areas
+from pipeline.geometry.remesh import uniform_remesh
+from pipeline.geometry.remesh.features import (chain_points, feature_chains, feature_edges,
+                                               join_edges, release_features)
+from pipeline.geometry.remesh.flips import flip_edges
+from pipeline.geometry.remesh.halfedge import edge_table
+from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
+                                              triangle_quality)
+from remesh_helpers import coarse_state, creased_disk
+
+X0 = 0.1          # creased_disk folds the unit disk along u = X0
+
+
+def on_crease(uv: np.ndarray) -> np.ndarray:
+    """The points (indices) exactly on the crease line, in order along it."""
+    on = np.flatnonzero(np.abs(uv[:, 0] - X0) < 1e-12)
+    return on[np.argsort(uv[on, 1])]
+
+
+def edge_set(F: np.ndarray) -> set:
+    """Every edge of ``F`` as a sorted vertex pair."""
+    _, a, b, _ = edge_table(F)
+    return set(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist()))
+
+
+def test_the_crease_of_a_folded_disk_is_one_chain_in_order():
+    """The disk folded at slope 2 (a 126.87° dihedral) with 155 input vertices on the crease:
+    the feature edges at 30° are the 154 crease edges and 3 edges of one face cut off at the
+    crease's lower end (82.6–86.6°); the crease is one chain through its 155 vertices in order,
+    and its points lie on the crease, the first and last at its ends."""
+    uv, F, V, _, _ = creased_disk(2.0)
+    crease = on_crease(uv)
+    E, angle = feature_edges(V, F, 30.0)
+    assert len(E) == 157 and len(crease) == 155
+    along = np.all(np.abs(uv[E, 0] - X0) < 1e-12, axis=1)
+    assert along.sum() == 154
+    np.testing.assert_allclose(np.degrees(angle[along]), 2 * np.degrees(np.arctan(2.0)))
+    chains = feature_chains(V, E)
+    c = int(np.argmax([len(ch) for ch in chains]))
+    longest = chains[c]
+    assert sorted(map(len, chains)) == [2, 2, 2, 155]
+    assert longest.tolist() in (crease.tolist(), crease[::-1].tolist())
+    L = 0.1
+    P, chain, rank = chain_points(V, uv, chains, L, min_length=0.8)
+    mine = chain == c
+    assert np.all(np.abs(P[mine, 0] - X0) < 1e-12)
+    ends = P[mine][[0, -1], 1]
+    assert set(np.round(ends, 12)) == set(np.round(uv[crease[[0, -1]], 1], 12))
+    steps = np.abs(np.diff(P[mine, 1]))                     # the crease is straight along v
+    assert steps.max() <= 1.25 * L and steps.min() >= 0.75 * L
+    assert rank[mine][0] == 0 and rank[mine][-1] == 0
+    assert len(P) == mine.sum()                             # the cut-off edges are too short
+
+
+@pytest.mark.timeout(60)
+def test_remesh_puts_vertices_on_the_crease_and_keeps_the_edges_between_them():
+    """The folded disk (slope 2) remeshed at 1000 vertices, ``follow_input`` off: without
+    feature lines two remesh vertices lie on the crease and an input vertex of it is 0.35 L
+    from the remesh; with them (30°) 22 do, every two consecutive ones are joined by an edge,
+    and every input vertex of the crease lies on the remesh (to rounding), with the count, one
+    disk and the smallest angle still at least 20°."""
+    uv, F, V, loop, _ = creased_disk(2.0)
+    crease = on_crease(uv)
+    facts = {}
+    for angle in (0.0, 30.0):
+        r = uniform_remesh(V, F, uv, loop, vertices=1000, follow_input=0.0,
+                           feature_angle_deg=angle)
+        L = r.info["spacing_mesh_units"]
+        on = on_crease(r.uv)
+        joined = [tuple(sorted(p)) for p in zip(on[:-1].tolist(), on[1:].tolist())]
+        facts[angle] = (len(on), sum(p in edge_set(r.F) for p in joined),
+                        MeshDistance(r.V, r.F)(V[crease])[0].max() / L)
+        assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
+        assert triangle_quality(r.V, r.F)["min_angle_deg"] >= 20.0
+    assert facts[0.0][0] == 2 and facts[0.0][2] > 0.35
+    assert facts[30.0][:2] == (22, 21) and facts[30.0][2] < 1e-12
+
+
+def test_joined_edges_survive_flips_and_are_released():
+    """On a coarse remesh (4 rings) of the folded disk: the far corners of an interior quad
+    are joined by one flip (:func:`join_edges`); the Delaunay flips take that edge back out
+    unless it is kept (``fixed``: :meth:`.state.RemeshState.is_joined`, either way round), and
+    freeing one end (:func:`release_features`) drops it and unlocks both ends, on no other
+    kept edge."""
+    S, _ = coarse_state(*creased_disk(2.0), 4)
+    h, a, b, twin = edge_table(S.F)
+    for k in np.flatnonzero((twin >= 0) & ~S.is_rim[a] & ~S.is_rim[b]):
+        p = S.F[h[k] // 3, (h[k] % 3 + 2) % 3]
+        q = S.F[twin[k] // 3, (twin[k] % 3 + 2) % 3]
+        pair = join_edges(S, np.array([[p, q]]))
+        if len(pair):
+            break
+    assert pair.tolist() == [[p, q]] and (min(p, q), max(p, q)) in edge_set(S.F)
+    assert (min(a[k], b[k]), max(a[k], b[k])) not in edge_set(S.F)
+    assert (signed_double_areas(S.uv, S.F) > 0).all()
+    S.joined = pair
+    S.locked[[p, q]] = True
+    F_free, _, _ = flip_edges(S.X, S.F, S.uv, 90.0)
+    F_kept, _, _ = flip_edges(S.X, S.F, S.uv, 90.0, fixed=S.is_joined)
+    assert (min(p, q), max(p, q)) not in edge_set(F_free)
+    assert (min(p, q), max(p, q)) in edge_set(F_kept)
+    assert S.is_joined(np.array([q, p, a[k]]), np.array([p, q, b[k]])).tolist() == [True, True,
+                                                                                    False]
+    at = np.zeros(S.n, bool)
+    at[p] = True
+    assert release_features(S, at) == 2
+    assert len(S.joined) == 0 and not S.locked[[p, q]].any()
+
+
+def test_placed_feature_points_are_joined_with_no_flat_face():
+    """On a coarse remesh (6 rings) of the folded disk with 155 input vertices on the straight
+    crease: every feature point gets a locked vertex exactly on the crease, consecutive ones
+    are joined by edges, and no face is left thinner than ``DISK_SHAPE_MIN`` on the disk (three
+    snapped points on one straight crease would make one)."""
+    from pipeline.geometry.remesh.features import place_features
+    from pipeline.geometry.remesh.halfedge import DISK_SHAPE_MIN, disk_shape
+
+    S, _ = coarse_state(*creased_disk(2.0), 6)
+    L = 0.3
+    pairs = place_features(S, L)
+    on = on_crease(S.uv)
+    assert len(on) == S.log["feature_points"] - S.log["features_too_close"]
+    assert S.locked[on].all()
+    assert len(pairs) == len(on) - 1 == S.log["features_joined"]
+    kept = edge_set(S.F)
+    assert all((min(p, q), max(p, q)) in kept for p, q in zip(on[:-1], on[1:]))
+    assert disk_shape(S.uv, S.F).min() >= DISK_SHAPE_MIN
