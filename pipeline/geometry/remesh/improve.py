@@ -46,7 +46,8 @@ The schedule (:func:`improve_remesh`):
    leaves an edge farther than the sag tolerance from the surface, flips, as many guarded
    collapses of the shortest edges as vertices were inserted, flips; after the smoothing,
    which would move the vertices next to them off the creases again, and locked until the
-   minimum-angle pass (step 10), which may move them;
+   minimum-angle pass (step 10), whose collapses keep them and whose later operations may
+   move them;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
@@ -215,11 +216,12 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if open_rim_fans(S):
         ops.flip()
     lap("rim_fans")
+    followed = S.X[S.locked].copy()
     S.locked = _at_points(S.X, corners)         # the followed vertices free again
     ops.repair_folds(target)
     lap("folds")
     if min_angle_deg > 0:
-        ops.guarantee(target, min_angle_deg)
+        ops.guarantee(target, min_angle_deg, kept=(followed, corners))
         lap("guarantee")
     ops.repair_degenerate(target)
     lap("repair")
@@ -341,7 +343,8 @@ class _Operations:
             self.flip()
         S.locked = _at_points(S.X, corners)
 
-    def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
+    def guarantee(self, target: int, min_angle_deg: float, passes: int = 4,
+                  kept: tuple | None = None) -> None:
         """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
         below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
         rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
@@ -351,8 +354,13 @@ class _Operations:
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
-        again around the faces then below."""
+        again around the faces then below. Given ``kept`` (``(P, Q)``, k×3 and l×3 points),
+        the vertices at ``P`` are locked for the first collapses (they remove none of them:
+        a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
+        the rest."""
         S, L, tol = self.S, self.L, self.tol
+        if kept is not None:
+            S.locked = _at_points(S.X, kept[0])
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
@@ -365,6 +373,8 @@ class _Operations:
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
+        if kept is not None:
+            S.locked = _at_points(S.X, kept[1])
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
         raise_min_angles(S, min_angle_deg, tol, skinny_faces(S.X, S.F, min_angle_deg))
