@@ -745,37 +745,33 @@ def area_equalizing_steps(const double[:, ::1] X, const int64_t[:, ::1] F,
     cdef double h00, h01, h02, h11, h12, h22, r0, r1, r2
     cnt_arr = np.zeros(n, dtype=np.float64)
     area_arr = np.zeros(n, dtype=np.float64)
+    N_arr = np.empty((m, 3), dtype=np.float64)
+    A2_arr = np.empty(m, dtype=np.float64)
     H_arr = np.zeros((n, 6), dtype=np.float64)
     R_arr = np.zeros((n, 3), dtype=np.float64)
     out_arr = np.zeros((k, 3), dtype=np.float64)
-    cdef double[::1] cnt = cnt_arr, area = area_arr
-    cdef double[:, ::1] H = H_arr, R = R_arr, out = out_arr
+    cdef double[::1] cnt = cnt_arr, area = area_arr, A2s = A2_arr
+    cdef double[:, ::1] H = H_arr, R = R_arr, out = out_arr, N = N_arr
     for t in range(m):
         for j in range(3):
             e1[j] = X[F[t, 1], j] - X[F[t, 0], j]
             e2[j] = X[F[t, 2], j] - X[F[t, 0], j]
-        nf[0] = e1[1] * e2[2] - e1[2] * e2[1]
-        nf[1] = e1[2] * e2[0] - e1[0] * e2[2]
-        nf[2] = e1[0] * e2[1] - e1[1] * e2[0]
-        A2 = sqrt(_dot3(nf, nf))
+        N[t, 0] = e1[1] * e2[2] - e1[2] * e2[1]
+        N[t, 1] = e1[2] * e2[0] - e1[0] * e2[2]
+        N[t, 2] = e1[0] * e2[1] - e1[1] * e2[0]
+        A2s[t] = sqrt(N[t, 0] * N[t, 0] + N[t, 1] * N[t, 1] + N[t, 2] * N[t, 2])
         for c in range(3):
             cnt[F[t, c]] += 1.0
-            area[F[t, c]] += 0.5 * A2
+            area[F[t, c]] += 0.5 * A2s[t]
     for v in range(n):
         if cnt[v] > 0:
             area[v] /= cnt[v]                         # the mean area of the vertex's faces
     for t in range(m):
-        for j in range(3):
-            e1[j] = X[F[t, 1], j] - X[F[t, 0], j]
-            e2[j] = X[F[t, 2], j] - X[F[t, 0], j]
-        nf[0] = e1[1] * e2[2] - e1[2] * e2[1]
-        nf[1] = e1[2] * e2[0] - e1[0] * e2[2]
-        nf[2] = e1[0] * e2[1] - e1[1] * e2[0]
-        A2 = sqrt(_dot3(nf, nf))
+        A2 = A2s[t]
         if A2 <= 0:
             continue
         for j in range(3):
-            nf[j] /= A2
+            nf[j] = N[t, j] / A2
         for c in range(3):
             v, a, b = F[t, c], F[t, (c + 1) % 3], F[t, (c + 2) % 3]
             if area[v] <= 0:
