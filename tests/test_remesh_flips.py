@@ -102,3 +102,31 @@ def test_folded_quad_flips_only_when_the_new_edge_is_closer_to_the_surface():
     assert np.all(signed_double_areas(uv, F1) > 0) and is_disk(mesh_facts(X, F1))
     F2, _, _ = flip_edges(X, F, uv, sag=sag(False))
     assert _has_edge(F2, a, b) and not _has_edge(F2, p, q)
+
+
+def test_valence_flips_undo_a_flip_in_a_regular_lattice():
+    """An equilateral lattice on a hexagon (every interior vertex of valence 6) with one
+    interior edge flipped (two vertices of valence 5, two of 7; faces of 30°): the valence
+    flips flip it back, and only it — the result is the lattice again."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh.flips import valence_flips
+    from remesh_helpers import ccw_delaunay
+
+    ij = np.array([(i, j) for i in range(-4, 5) for j in range(-4, 5) if abs(i + j) <= 4])
+    uv = np.column_stack([ij[:, 0] + 0.5 * ij[:, 1], np.sqrt(3) / 2 * ij[:, 1]])
+    F0 = ccw_delaunay(uv)
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    rim = topo.boundary_vertices_mask(F0, len(uv))
+    twin = topo.interior_edge_twins(F0)
+    h = next(h for h in range(3 * len(F0)) if twin[h] > h
+             and not rim[F0[h // 3]].any() and not rim[F0[twin[h] // 3]].any())
+    f, c, g, d = h // 3, h % 3, twin[h] // 3, twin[h] % 3
+    a, b, p, q = F0[f, c], F0[f, (c + 1) % 3], F0[f, (c + 2) % 3], F0[g, (d + 2) % 3]
+    F1 = F0.copy()
+    F1[f], F1[g] = [p, a, q], [q, b, p]
+    assert sorted(np.bincount(F1.ravel())[[a, b, p, q]]) == [5, 5, 7, 7]
+    assert np.degrees(corner_angles(X, F1)).min() < 31
+    F2, flips = valence_flips(X, F1, uv, rim)
+    assert flips == 1
+    assert {tuple(sorted(t)) for t in F2.tolist()} == {tuple(sorted(t)) for t in F0.tolist()}
+    assert np.all(signed_double_areas(uv, F2) > 0)

@@ -133,7 +133,10 @@ def test_icosphere_mapped_by_itself_remeshes_to_a_closed_sphere():
     assert np.array_equal(lift(S, F, r.face, r.bary), r.V)       # every vertex lifted, eq. (1)
     # on the surface: each vertex in the chordal triangle of its face
     assert np.allclose(project(r.V), r.uv, atol=1e-12)
-    assert remesh_quality(S, F, r.V, r.F, 5000)["triangles"]["mean_min_angle_deg"] > 50
+    # even areas (the final smoothing's area term: 0.11 with the centroid steps alone) for a
+    # little of the mean smallest angle (50.0° then)
+    t = remesh_quality(S, F, r.V, r.F, 5000)["triangles"]
+    assert t["mean_min_angle_deg"] > 48.5 and t["area_cv"] < 0.08 and t["min_angle_deg"] > 35
 
 
 def test_surface_middles_balance_the_split_on_the_surface():

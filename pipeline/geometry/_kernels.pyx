@@ -727,6 +727,93 @@ def ring_sums(const double[:, ::1] X, const int64_t[:, ::1] F, int64_t n):
 
 
 @cython.cdivision(True)
+def area_equalizing_steps(const double[:, ::1] X, const int64_t[:, ::1] F,
+                          const int64_t[::1] mov, const double[:, ::1] D, double mu,
+                          double share):
+    """The steps of the vertices ``mov`` that even out the areas of their faces while keeping
+    close to the centroid steps ``D`` (k×3), for ``remesh.relax.area_equalizing_steps`` (its
+    docstring has the formula): per vertex ``H = Σ g gᵀ`` and ``b = Σ g r`` over its faces
+    (``g = ∇A_f / Ā``, ``r = share (A_f / Ā − 1)``), then ``(H + β I) d = β D − b`` with
+    ``β = μ tr(H) / 2``, solved by Cramer's rule."""
+    cdef Py_ssize_t t, c, j, i, k = mov.shape[0], m = F.shape[0], n = X.shape[0]
+    cdef int64_t v, a, b
+    cdef double e1[3]
+    cdef double e2[3]
+    cdef double nf[3]
+    cdef double g[3]
+    cdef double A2, r, inv, beta, det
+    cdef double h00, h01, h02, h11, h12, h22, r0, r1, r2
+    cnt_arr = np.zeros(n, dtype=np.float64)
+    area_arr = np.zeros(n, dtype=np.float64)
+    N_arr = np.empty((m, 3), dtype=np.float64)
+    A2_arr = np.empty(m, dtype=np.float64)
+    H_arr = np.zeros((n, 6), dtype=np.float64)
+    R_arr = np.zeros((n, 3), dtype=np.float64)
+    out_arr = np.zeros((k, 3), dtype=np.float64)
+    cdef double[::1] cnt = cnt_arr, area = area_arr, A2s = A2_arr
+    cdef double[:, ::1] H = H_arr, R = R_arr, out = out_arr, N = N_arr
+    for t in range(m):
+        for j in range(3):
+            e1[j] = X[F[t, 1], j] - X[F[t, 0], j]
+            e2[j] = X[F[t, 2], j] - X[F[t, 0], j]
+        N[t, 0] = e1[1] * e2[2] - e1[2] * e2[1]
+        N[t, 1] = e1[2] * e2[0] - e1[0] * e2[2]
+        N[t, 2] = e1[0] * e2[1] - e1[1] * e2[0]
+        A2s[t] = sqrt(N[t, 0] * N[t, 0] + N[t, 1] * N[t, 1] + N[t, 2] * N[t, 2])
+        for c in range(3):
+            cnt[F[t, c]] += 1.0
+            area[F[t, c]] += 0.5 * A2s[t]
+    for v in range(n):
+        if cnt[v] > 0:
+            area[v] /= cnt[v]                         # the mean area of the vertex's faces
+    for t in range(m):
+        A2 = A2s[t]
+        if A2 <= 0:
+            continue
+        for j in range(3):
+            nf[j] = N[t, j] / A2
+        for c in range(3):
+            v, a, b = F[t, c], F[t, (c + 1) % 3], F[t, (c + 2) % 3]
+            if area[v] <= 0:
+                continue
+            inv = 1.0 / area[v]
+            # g = ½ n × (x_b − x_a) / Ā: the gradient of the face's area at v, scaled
+            for j in range(3):
+                e1[j] = X[b, j] - X[a, j]
+            g[0] = 0.5 * (nf[1] * e1[2] - nf[2] * e1[1]) * inv
+            g[1] = 0.5 * (nf[2] * e1[0] - nf[0] * e1[2]) * inv
+            g[2] = 0.5 * (nf[0] * e1[1] - nf[1] * e1[0]) * inv
+            r = share * (0.5 * A2 * inv - 1.0)
+            H[v, 0] += g[0] * g[0]
+            H[v, 1] += g[0] * g[1]
+            H[v, 2] += g[0] * g[2]
+            H[v, 3] += g[1] * g[1]
+            H[v, 4] += g[1] * g[2]
+            H[v, 5] += g[2] * g[2]
+            for j in range(3):
+                R[v, j] += g[j] * r
+    for i in range(k):
+        v = mov[i]
+        beta = mu * 0.5 * (H[v, 0] + H[v, 3] + H[v, 5])
+        if beta <= 0:
+            for j in range(3):
+                out[i, j] = D[i, j]
+            continue
+        h00, h01, h02 = H[v, 0] + beta, H[v, 1], H[v, 2]
+        h11, h12, h22 = H[v, 3] + beta, H[v, 4], H[v, 5] + beta
+        r0, r1, r2 = beta * D[i, 0] - R[v, 0], beta * D[i, 1] - R[v, 1], beta * D[i, 2] - R[v, 2]
+        det = (h00 * (h11 * h22 - h12 * h12) - h01 * (h01 * h22 - h12 * h02)
+               + h02 * (h01 * h12 - h11 * h02))
+        out[i, 0] = (r0 * (h11 * h22 - h12 * h12) - h01 * (r1 * h22 - h12 * r2)
+                     + h02 * (r1 * h12 - h11 * r2)) / det
+        out[i, 1] = (h00 * (r1 * h22 - h12 * r2) - r0 * (h01 * h22 - h12 * h02)
+                     + h02 * (h01 * r2 - r1 * h02)) / det
+        out[i, 2] = (h00 * (h11 * r2 - r1 * h12) - h01 * (h01 * r2 - r1 * h02)
+                     + r0 * (h01 * h12 - h11 * h02)) / det
+    return out_arr
+
+
+@cython.cdivision(True)
 def corner_cosines(const double[:, ::1] X, const int64_t[:, ::1] F):
     """The cosine of the angle at every corner of every face (m×3), bit for bit
     :func:`..metrics.corner_angles`' ``u·v / (|u| |v|)`` before its ``arccos``: the dot

@@ -10,6 +10,10 @@ below ``max_dihedral_deg``), so the surface changes by no more than a shallow fo
 a ``sag`` measure (:func:`.sag.edge_sag`) — the new edge is no farther from the input surface
 than the old one. The second rule lets the caps and needles that the map's angle distortion
 leaves on curved regions (noses, lips, fingers, sulci) flip.
+
+:func:`valence_flips` flips towards regular valences instead (Botsch & Kobbelt 2004: 6 inside,
+4 on the rim), under the same checks for nearly planar quads, and only where the new faces'
+smallest 3D angle is at least the old faces' or ``min_angle_deg``.
 """
 
 from __future__ import annotations
@@ -18,7 +22,8 @@ import numpy as np
 
 from .. import topology as topo
 from .._kernels import flip_checks, opposite_cots
-from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by_faces, touching
+from ..metrics import corner_angles
+from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by, independent_by_faces, touching
 
 
 def _opposite_cots(X: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -149,6 +154,73 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         total += len(win)
         h = _interior_edges_of(changed, twin, m)          # next round: the changed faces' edges
     return F, total, rounds
+
+
+VALENCE_ROUNDS = 2      # valence flips: at most this many rounds (a third finds almost none)
+
+
+def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray,
+                  max_dihedral_deg: float = 20.0, min_angle_deg: float = 35.0,
+                  max_rounds: int = VALENCE_ROUNDS) -> tuple[np.ndarray, int]:
+    """Flip interior edges that bring the valences of the quad's four corners closer to the
+    regular ones (Botsch & Kobbelt 2004).
+
+    An edge ``a–b`` with opposite corners ``p``, ``q`` flips when it lowers
+    ``Σ (valence − target)²`` over ``a, b, p, q`` (target 6 inside, 4 on the boundary), the
+    quad is folded less than ``max_dihedral_deg``, the flip is valid (:func:`flip_edges`'
+    checks) and the new faces' smallest 3D angle is at least ``min(old faces' smallest,
+    min_angle_deg)``. Each round flips a set of such edges no two of which share a corner,
+    the largest gain first.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+        Lifted positions.
+    F : (m, 3) int
+        Faces, counter-clockwise on the disk; not modified.
+    uv : (n, 2) float
+        Disk positions.
+    boundary : (n,) bool
+        The boundary vertices.
+    max_dihedral_deg, min_angle_deg : float
+    max_rounds : int
+
+    Returns
+    -------
+    F : (m, 3) int
+        The flipped faces (a new array; still counter-clockwise on the disk).
+    flips : int
+    """
+    F = np.array(F, dtype=np.int64, copy=True)
+    X, uv = np.ascontiguousarray(X, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64)
+    n, m = len(X), len(F)
+    is_b = np.ascontiguousarray(boundary, dtype=bool).view(np.uint8)
+    target = np.where(boundary, 4, 6)
+    cos_max, floor = np.cos(np.radians(max_dihedral_deg)), np.radians(min_angle_deg)
+    total = 0
+    for _ in range(max_rounds):
+        twin = topo.interior_edge_twins(F)
+        h = np.flatnonzero(twin > np.arange(3 * m))
+        f, c, t = h // 3, h % 3, twin[h]
+        dev = np.bincount(F.ravel(), minlength=n) - target
+        gain = 2 * (dev[F[f, c]] + dev[F[f, (c + 1) % 3]] - dev[F[f, (c + 2) % 3]]
+                    - dev[F[t // 3, (t % 3 + 2) % 3]]) - 4      # Σ dev² before − after
+        h, gain = h[gain > 0], gain[gain > 0]
+        (a, b, p, q), flat, valid = flip_checks(X, uv, is_b, F, h, twin, cos_max)
+        ok = np.flatnonzero(flat & valid)
+        ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
+        old = corner_angles(X, np.column_stack([a, b, p, b, a, q])[ok].reshape(-1, 3))
+        new = corner_angles(X, np.column_stack([p, a, q, q, b, p])[ok].reshape(-1, 3))
+        old, new = old.reshape(-1, 6).min(axis=1), new.reshape(-1, 6).min(axis=1)
+        ok = ok[new >= np.minimum(old, floor)]
+        if len(ok) == 0:
+            break
+        win = ok[independent_by(n, (a[ok], b[ok], p[ok], q[ok]), -gain[ok])]
+        f, g = h[win] // 3, twin[h[win]] // 3
+        F[f] = np.column_stack([p[win], a[win], q[win]])
+        F[g] = np.column_stack([q[win], b[win], p[win]])
+        total += len(win)
+    return F, total
 
 
 def _shapes_kept(uv: np.ndarray, p, a, q, b) -> np.ndarray:

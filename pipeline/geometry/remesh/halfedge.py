@@ -104,7 +104,7 @@ def independent_by_faces(m: int, f1: np.ndarray, f2: np.ndarray, priority: np.nd
                          ) -> np.ndarray:
     """Candidates chosen so that no face has two: a candidate (touching faces ``f1``, ``f2``;
     equal for a boundary edge) is taken when it has the best (smallest) ``priority`` of both
-    its faces, ties broken by position.
+    its faces, ties broken by position (:func:`independent_by`).
 
     Parameters
     ----------
@@ -117,13 +117,37 @@ def independent_by_faces(m: int, f1: np.ndarray, f2: np.ndarray, priority: np.nd
     (j,) int
         Indices into the candidates, increasing.
     """
-    k = len(f1)
+    return independent_by(m, (f1, f2), priority)
+
+
+def independent_by(m: int, keys, priority: np.ndarray) -> np.ndarray:
+    """Candidates chosen so that no key (a face, a vertex; ``0 … m−1``) has two: a candidate
+    is taken when it has the best (smallest) ``priority`` at each of its keys, ties broken by
+    position.
+
+    Parameters
+    ----------
+    m : int
+        The number of keys.
+    keys : sequence of (k,) int
+        Per candidate, its keys (repeats allowed).
+    priority : (k,)
+
+    Returns
+    -------
+    (j,) int
+        Indices into the candidates, increasing.
+    """
+    k = len(priority)
     rank = np.empty(k, np.int64)
     rank[np.argsort(priority, kind="stable")] = np.arange(k)
     best = np.full(m, k, np.int64)
-    np.minimum.at(best, f1, rank)
-    np.minimum.at(best, f2, rank)
-    return np.flatnonzero((best[f1] == rank) & (best[f2] == rank))
+    for key in keys:
+        np.minimum.at(best, key, rank)
+    ok = np.ones(k, bool)
+    for key in keys:
+        ok &= best[key] == rank
+    return np.flatnonzero(ok)
 
 
 def independent_edges(m: int, h: np.ndarray, twin: np.ndarray, priority: np.ndarray

@@ -25,22 +25,30 @@ The schedule (:func:`improve_remesh`):
    what the rounds left (they can run out where a steep wall is squeezed against the rim),
    flips;
 4. ``isotropic_iterations`` rounds of isotropic remeshing on the surface
-   (:meth:`_Operations.isotropic_step`: split edges longer than ``ISO_LONG × L``, collapse
-   those shorter than ``ISO_SHORT × L`` under the guards, flips, a smoothing step, flips) —
-   the equiareal samples give the density, these rounds the shape;
+   (:meth:`_Operations.isotropic_step`: split edges longer than ``ISO_LONG × ℓ``, collapse
+   those shorter than ``ISO_SHORT × ℓ`` under the guards, flips, a smoothing step, flips) —
+   the equiareal samples give the density, these rounds the shape. The rounds' length ``ℓ``
+   starts at ``L`` and is scaled by ``√(n / target)`` after each, so that they end near the
+   target count: the rounds settle at a count of their own (about 20 % above the target at
+   ``ℓ = L``), and the collapses that gave the rest back in step 5 left the mesh irregular
+   and its density uneven;
 5. count correction: collapse the shortest edges (slivers shorter than ``SLIVER × L`` and as
    many more as the refinement added) under the gap and sag guards at ``refine_sag × L``, so
    that they do not undo the refinement; without the sag guard if it leaves the count above
    the target; split the longest edges if below;
-6. ``final_relax_iterations`` × (smoothing step, flips): the area-weighted centroid steps
-   even out the face areas;
+6. ``final_relax_iterations`` × (smoothing step, valence flips): each step also evens out
+   the areas of every vertex's faces (:func:`.relax.area_equalizing_steps`, weight
+   ``AREA_EQUALIZE``), which the connectivity limits (a valence-5 or -7 vertex's faces cannot
+   be both equilateral and as large as the others); the flips make the valences regular
+   (:func:`.flips.valence_flips`, no new angle below ``VALENCE_MIN_DEG`` or the old faces'),
+   which the smoothing then shapes;
 7. the sag refinement again (the smoothing moves vertices off the folds the first one
-   caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and flips with
-   the new sag vertices pinned; then ``RESHAPE_STEPS`` × (a smoothing step of the vertices
-   around the faces with an angle below ``RESHAPE_DEG`` — the splits and collapses just made
-   leave them skinny — under a veto of every move that takes an edge farther from the
-   surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not without
-   ``relax_iterations``); then the remesh follows the input (:meth:`_Operations.follow`,
+   caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and valence
+   flips as in step 6 with the new sag vertices pinned; then ``RESHAPE_STEPS`` × (a smoothing
+   step of the vertices around the faces with an angle below ``RESHAPE_DEG`` — the splits
+   and collapses just made leave them skinny — under a veto of every move that takes an edge
+   farther from the surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not
+   without ``relax_iterations``); then the remesh follows the input (:meth:`_Operations.follow`,
    :mod:`.fidelity`): a vertex snapped (or inserted) and locked on every input point (an
    interior vertex, the middle of an edge or a face away from the rim) farther than
    ``follow_input × L`` from the remesh — the sharp creases and thin folds no sag test sees —
@@ -48,7 +56,8 @@ The schedule (:func:`improve_remesh`):
    leaves an edge farther than the sag tolerance from the surface, flips, as many guarded
    collapses of the shortest edges as vertices were inserted, flips; after the smoothing,
    which would move the vertices next to them off the creases again, and locked until the
-   minimum-angle pass (step 10), which may move them;
+   minimum-angle pass (step 10), whose collapses keep them and whose later operations may
+   move them;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
@@ -93,7 +102,7 @@ from .corners import snap_vertices
 from .domain import on_sphere, project
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
-from .flips import flip_edges
+from .flips import flip_edges, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
@@ -104,7 +113,9 @@ from .state import RemeshState
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
-ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× L)
+ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× ℓ)
+AREA_EQUALIZE = 0.3   # the final smoothing's weight of the centroid step against even areas
+VALENCE_MIN_DEG = 35.0   # its valence flips keep the new faces' angles above this (or the old)
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
 NEEDLE_DEG = 5.0      # the minimum-angle pass ends with unguarded collapses below this angle,
 NEEDLE_PASSES = 3     # at most this many
@@ -204,14 +215,15 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.refine(budget=int(refine_budget * S.n))
         lap("refine")
     target = S.n if target_vertices is None else int(target_vertices)
+    scale = 1.0
     for _ in range(isotropic_iterations):
-        ops.isotropic_step()
+        ops.isotropic_step(scale)
+        scale *= np.sqrt(S.n / target)
         lap("isotropic")
     ops.restore_count(target)
     lap("count")
     for _ in range(final_relax_iterations if relax_iterations > 0 else 0):
-        ops.relax()
-        ops.flip()
+        ops.smooth()
         lap("smoothing")
     if refine_sag > 0:
         ops.refine_pinned(target, int(refine_budget * S.n), pinned_relax_iterations)
@@ -228,11 +240,12 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if open_rim_fans(S):
         ops.flip()
     lap("rim_fans")
+    followed = S.X[S.locked].copy()
     S.locked = _at_points(S.X, corners)         # the followed vertices free again
     ops.repair_folds(target)
     lap("folds")
     if min_angle_deg > 0:
-        ops.guarantee(target, min_angle_deg)
+        ops.guarantee(target, min_angle_deg, kept=(followed, corners))
         lap("guarantee")
     ops.repair_degenerate(target)
     lap("repair")
@@ -271,16 +284,34 @@ class _Operations:
         S.set_faces(F, twin)
         S.tally("flips", k)
 
-    def relax(self, movable: np.ndarray | None = None, veto=None) -> None:
+    def smooth(self) -> None:
+        """A smoothing step that also evens out the areas of every vertex's faces (weight
+        ``AREA_EQUALIZE``), then flips towards regular valences (:meth:`flip_valence`)."""
+        self.relax(equalize=AREA_EQUALIZE)
+        self.flip_valence()
+
+    def flip_valence(self) -> None:
+        """Flips towards regular valences (:func:`.flips.valence_flips`), the new faces'
+        smallest angle at least ``VALENCE_MIN_DEG`` or the old faces'."""
+        if not self.flips:
+            return
+        S = self.S
+        F, k = valence_flips(S.X, S.F, S.uv, S.is_rim, self.max_dihedral_deg, VALENCE_MIN_DEG)
+        S.set_faces(F)
+        S.tally("valence_flips", k)
+
+    def relax(self, movable: np.ndarray | None = None, veto=None,
+              equalize: float | None = None) -> None:
         """One tangential smoothing step of every vertex not on the rim and not locked (and
-        ``movable``, n bool, if given), without the moves ``veto`` drops
+        ``movable``, n bool, if given), without the moves ``veto`` drops, evening out the
+        areas of each vertex's faces with the weight ``equalize`` if given
         (:func:`.relax.tangential_smoothing`)."""
         S = self.S
         free = ~S.is_rim & ~S.locked
         S.uv, S.face, S.bary, S.X, moved = tangential_smoothing(
             S.V_in, S.F_in, S.uv_in, S.locator, S.uv, S.F, S.face, S.bary,
             free if movable is None else free & movable, 1, self.relax_step, X=S.X,
-            pullback=S.pullback(), veto=veto)
+            pullback=S.pullback(), veto=veto, equalize=equalize)
         S.tally("relaxed_vertex_moves", sum(moved))
 
     def release(self, faces: np.ndarray) -> None:
@@ -324,11 +355,12 @@ class _Operations:
         refine_by_sag(S, self.tol, budget - done, active=active)
         self.flip(since=F1)
 
-    def isotropic_step(self) -> None:
+    def isotropic_step(self, scale: float = 1.0) -> None:
         """One round of isotropic remeshing on the surface (Botsch & Kobbelt 2004), made on
-        the disk: split edges longer than ``ISO_LONG × L``, collapse those shorter than
-        ``ISO_SHORT × L`` under the guards, flips, a relaxation step, flips."""
-        S, L, tol = self.S, self.L, self.tol
+        the disk, at the length ``scale × L``: split edges longer than ``ISO_LONG`` times it,
+        collapse those shorter than ``ISO_SHORT`` times it under the guards, flips, a
+        relaxation step, flips."""
+        S, L, tol = self.S, scale * self.L, self.tol
         split_long_edges(S, ISO_LONG * L)
         collapse_short_edges(S, ISO_SHORT * L, ISO_LONG * L, max_gap=tol, max_sag=tol)
         self.flip()
@@ -353,7 +385,7 @@ class _Operations:
     def refine_pinned(self, target: int, budget: int, relax_iterations: int) -> None:
         """Sag refinement again after the relaxation (which moves vertices off the folds the
         first one caught), the count restored by guarded collapses, then ``relax_iterations``
-        relaxation steps and flips with the new sag vertices pinned where they catch the
+        smoothing steps (:meth:`smooth`) with the new sag vertices pinned where they catch the
         surface."""
         S = self.S
         corners = S.X[S.locked].copy()
@@ -362,11 +394,11 @@ class _Operations:
         S.locked[n0:] = True
         self.restore_count(target)
         for _ in range(relax_iterations):
-            self.relax()
-            self.flip()
+            self.smooth()
         S.locked = _at_points(S.X, corners)
 
-    def guarantee(self, target: int, min_angle_deg: float, passes: int = 4) -> None:
+    def guarantee(self, target: int, min_angle_deg: float, passes: int = 4,
+                  kept: tuple | None = None) -> None:
         """Collapse the edges shorter than ``L`` between interior corners of faces with a 3D angle
         below ``min_angle_deg`` (the first half of the passes under the sag and gap guards, the
         rest under guards ``LOOSE`` times looser), the count given back by splits, then flips;
@@ -376,9 +408,14 @@ class _Operations:
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
-        again around the faces then below. The feature vertices of the faces each of these
-        works on are freed first (:meth:`release`)."""
+        again around the faces then below. Given ``kept`` (``(P, Q)``, k×3 and l×3 points),
+        the vertices at ``P`` are locked for the first collapses (they remove none of them:
+        a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
+        the rest. The feature vertices of the faces each of these works on are freed first
+        (:meth:`release`)."""
         S, L, tol = self.S, self.L, self.tol
+        if kept is not None:
+            S.locked = _at_points(S.X, kept[0])
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
@@ -392,6 +429,8 @@ class _Operations:
             if S.n < target:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
+        if kept is not None:
+            S.locked = _at_points(S.X, kept[1])
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
         bad = skinny_faces(S.X, S.F, min_angle_deg)

@@ -2,7 +2,9 @@
 
 Every movable vertex moves part of the way towards the area-weighted centroid of its 1-ring
 (the centroids of its faces weighted by their areas, in 3D), with the displacement projected
-onto the tangent plane (the area-weighted normal of its faces). The move is made **on the
+onto the tangent plane (the area-weighted normal of its faces). With an ``equalize`` weight the
+step also evens out the areas of the vertex's faces (:func:`area_equalizing_steps`: a
+Gauss–Newton step on their spread, regularised towards the centroid step). The move is made **on the
 disk**: the 3D displacement ``d`` is pulled back through the Jacobian ``J`` (3×2) of the input
 face under the vertex, ``Δu = J⁺ d`` (:func:`.state.pullback_matrices`), and the vertex is
 re-located and lifted by eq. (1), so it stays on the input surface. Moves that would flip a
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import area_equalizing_steps as kernel_steps
 from .._kernels import ring_sums, thin_faces
 from ..locate import PointLocator, lift
 from ..rows import norms
@@ -31,7 +34,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
                          locator: PointLocator, uv: np.ndarray, F: np.ndarray,
                          face: np.ndarray, bary: np.ndarray, movable: np.ndarray,
                          iterations: int = 3, step: float = 0.5, X: np.ndarray | None = None,
-                         pullback: np.ndarray | None = None, veto=None):
+                         pullback: np.ndarray | None = None, veto=None,
+                         equalize: float | None = None):
     """Tangential smoothing of the remesh ``(uv, F)`` lifted onto the input map.
 
     Parameters
@@ -58,6 +62,9 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     veto : callable ``veto(uv, face, bary, X) -> (n,) bool``, optional
         Given the remesh with every move made (arrays as above), the vertices whose moves are
         dropped (:func:`.improve.sag_veto`: those that would make an edge leave the surface).
+    equalize : float, optional
+        The weight ``μ`` of the centroid step against evening out the areas of each vertex's
+        faces (:func:`area_equalizing_steps`); None: the centroid step alone.
 
     Returns
     -------
@@ -80,6 +87,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         W, G, N = ring_sums(np.ascontiguousarray(X, dtype=np.float64), F64, n)
         N /= np.maximum(norms(N)[:, None], 1e-300)
         D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+        if equalize is not None:
+            D = area_equalizing_steps(X, F64, mov, D, equalize)
         D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
         du = np.zeros_like(uv)
         du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
@@ -112,6 +121,52 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         uv[go], face[go], bary[go], X[go] = uv_go[keep], f2[keep], b2[keep], X_go[keep]
         moved_counts.append(int(len(go)))
     return uv, face, bary, X, moved_counts
+
+
+AREA_SHARE = 1.0 / 3.0   # the part of a face's area error each of its three corners corrects
+
+
+def area_equalizing_steps(X: np.ndarray, F: np.ndarray, mov: np.ndarray, D: np.ndarray,
+                          mu: float) -> np.ndarray:
+    """The steps of the vertices ``mov`` that even out the areas of their faces while keeping
+    close to the centroid steps ``D``.
+
+    For a vertex ``i`` with faces ``f`` (areas ``A_f``, their mean ``Ā``, gradients
+    ``∇A_f = ½ n_f × (x_k − x_j)`` for ``f = (i, j, k)`` counter-clockwise, ``n_f`` its unit
+    normal), the step ``d`` minimises the linearised spread plus a pull towards ``D_i``::
+
+        Σ_f (s (A_f − Ā) + ∇A_f · d)² / Ā²  +  β |d − D_i|²,    β = μ tr(H) / 2,
+
+    ``H = Σ_f ∇A_f ∇A_fᵀ / Ā²``: ``(H + β I) d = β D_i − s Σ_f ∇A_f (A_f − Ā) / Ā²``, one
+    Gauss–Newton step; ``s = AREA_SHARE``, as every corner of a face moves at once. Moving
+    one vertex inside its ring leaves the ring's area as it is, so this evens out the faces
+    around it, not the density over larger distances.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+        Positions.
+    F : (m, 3) int
+        Faces.
+    mov : (k,) int
+        The moving vertices.
+    D : (k, 3) float
+        Their centroid steps.
+    mu : float
+        The weight of the centroid step, > 0 (large: ``D``; small: the area term).
+
+    Returns
+    -------
+    (k, 3) float
+
+    Notes
+    -----
+    Compiled (:func:`.._kernels.area_equalizing_steps`).
+    """
+    return kernel_steps(np.ascontiguousarray(X, dtype=np.float64),
+                        np.ascontiguousarray(F, dtype=np.int64),
+                        np.ascontiguousarray(mov, dtype=np.int64),
+                        np.ascontiguousarray(D, dtype=np.float64), float(mu), AREA_SHARE)
 
 
 def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray, moving: np.ndarray
