@@ -107,7 +107,9 @@ def block_ordering(interior_order: np.ndarray, cols: np.ndarray, nI: int, N: int
     them, it adds no fill between branches; eliminated first, the angles along the rim chain
     into each other's fill). The factor has as many entries as with PARDISO's own nested
     dissection of the system (within 0.3 % on choi_hand and at 1M faces), and the analysis
-    skips the ordering (at 1M faces, 2.4 s of one thread).
+    skips the ordering (at 1M faces, 2.4 s of one thread). :class:`GaussNewton` gives it to
+    PARDISO on one thread only (a given order makes its solves sequential, see
+    :class:`.solvers.PardisoSolver`).
 
     Parameters
     ----------
@@ -177,7 +179,8 @@ class GaussNewton:
             else self.on_boundary.astype(np.uint8))
         self.solver = make_solver(solver_kind, refactored=True)
         if interior_order is not None and len(interior_order) == nI \
-                and hasattr(self.solver, "ordering"):
+                and hasattr(self.solver, "ordering") and self.solver.threads_for(N) == 1:
+            # (on more threads PARDISO's own parallel ordering keeps the ~20 solves parallel)
             self.solver.ordering = block_ordering(interior_order, self.cols, nI, N)
         self.factorizations = 0
         self.hold_boundary = False

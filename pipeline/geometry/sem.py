@@ -316,6 +316,10 @@ def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks,
     I, B = problem.I, problem.B
     grad = L_II @ f[I] + L_IB @ f[B]
     if refactor:
+        if hasattr(problem.solver_P, "ordering"):
+            # L_II's pattern: its order, as analysed (a step or two per factorization: the
+            # solves, sequential with a given order, cost less than a second nested dissection)
+            problem.solver_P.ordering = getattr(problem.solver_I, "permutation", None)
         problem.solver_P.factorize(laplacian_blocks(problem.pattern, clamp_positive(w))[0])
     X = problem.solver_P.solve(np.column_stack([grad.real, grad.imag]))
     g = f.copy()
@@ -680,7 +684,8 @@ def _converged_iterations(problem, f, value, opt, record):
         # plain SEM steps fold where they would gain: Algorithm 1's damped steps take over
         f, value, it = _damped_start(problem, f, value, opt, record, it, max_iter)
     # the interior Laplacian's elimination order (PARDISO's, from the steps so far) orders the
-    # Gauss–Newton system too, so that its analysis needs no nested dissection of its own
+    # Gauss–Newton system too, so that its analysis needs no nested dissection of its own (on
+    # one thread: see GaussNewton)
     newton = GaussNewton(problem.F, len(problem.V), problem.I, problem.A2, opt.solver,
                          problem.B, getattr(problem.solver_I, "permutation", None)
                          ) if opt.descent == "gauss_newton" and it < max_iter else None
