@@ -35,7 +35,7 @@ from .. import topology as topo
 from ..rows import dots, norms
 from .corners import snap_vertices
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
-from .state import RemeshState, face_normals
+from .state import RemeshState, at_points, face_normals
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
@@ -441,8 +441,7 @@ def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None 
     still = np.zeros(S.n, bool)
     still[S.joined.ravel()] = True
     free = np.flatnonzero(on & ~still)
-    if corners is not None and len(corners):
-        key = {p.tobytes() for p in np.ascontiguousarray(corners)}
-        free = free[[S.X[v].tobytes() not in key for v in free]]
+    if corners is not None:
+        free = free[~at_points(S.X[free], corners)]
     S.locked[free] = False
     return len(free)

@@ -108,7 +108,7 @@ from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
-from .state import RemeshState
+from .state import RemeshState, at_points
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -241,7 +241,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.flip()
     lap("rim_fans")
     followed = S.X[S.locked].copy()
-    S.locked = _at_points(S.X, corners)         # the followed vertices free again
+    S.locked = at_points(S.X, corners)         # the followed vertices free again
     ops.repair_folds(target)
     lap("folds")
     if min_angle_deg > 0:
@@ -395,7 +395,7 @@ class _Operations:
         self.restore_count(target)
         for _ in range(relax_iterations):
             self.smooth()
-        S.locked = _at_points(S.X, corners)
+        S.locked = at_points(S.X, corners)
 
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4,
                   kept: tuple | None = None) -> None:
@@ -415,7 +415,7 @@ class _Operations:
         (:meth:`release`)."""
         S, L, tol = self.S, self.L, self.tol
         if kept is not None:
-            S.locked = _at_points(S.X, kept[0])
+            S.locked = at_points(S.X, kept[0])
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
@@ -430,7 +430,7 @@ class _Operations:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
         if kept is not None:
-            S.locked = _at_points(S.X, kept[1])
+            S.locked = at_points(S.X, kept[1])
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
         bad = skinny_faces(S.X, S.F, min_angle_deg)
@@ -529,14 +529,6 @@ class Stopwatch:
         seconds = self.log if self.within is None else self.log.setdefault(self.within, {})
         seconds[key] = seconds.get(key, 0.0) + now - self.tick
         self.tick = now
-
-
-def _at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Which rows of ``X`` (n bool) are exactly one of the points ``P``."""
-    if len(P) == 0:
-        return np.zeros(len(X), bool)
-    key = {p.tobytes() for p in np.ascontiguousarray(P)}
-    return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
 
 
 def turned_over_faces(S: RemeshState) -> np.ndarray:

@@ -19,6 +19,16 @@ from ..locate import PointLocator, lift
 from ..rows import cross, dots, norms
 
 
+def at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Which rows of ``X`` (n bool) are exactly one of the points ``P`` (k×3): how locks are
+    carried through operations that renumber the vertices (a locked vertex keeps its
+    position)."""
+    if len(P) == 0:
+        return np.zeros(len(X), bool)
+    key = {p.tobytes() for p in np.ascontiguousarray(P)}
+    return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
+
+
 def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Unit normals (m×3) of the faces ``F`` (m×3) of ``V`` (n×3); zero for a degenerate face."""
     N = cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
