@@ -510,3 +510,28 @@ def test_gauss_newton_step_on_the_laplacian_order_is_the_same_step(ddisk):
                           block_ordering(order, given.cols, len(problem.I), N))
     for gn in (own, given):
         gn.release()
+
+
+def test_gauss_newton_system_factored_in_single_precision_from_its_size(ddisk, monkeypatch):
+    """From ``SINGLE_ABOVE`` unknowns PARDISO factors the Gauss–Newton system in single
+    precision and solves the step to ``STEP_RTOL``: the step agrees with the double-precision
+    one to within that inexactness; below it the system stays in double precision."""
+    from pipeline.geometry import gauss_newton
+    from pipeline.geometry.gauss_newton import GaussNewton
+    from pipeline.geometry.solvers import pardiso_available
+
+    if not pardiso_available():
+        pytest.skip("PARDISO is not installed")
+    P, F, b = ddisk
+    V, problem, f, a2 = _one_step_map(ddisk, "pardiso")
+    double = GaussNewton(F, len(V), problem.I, problem.A2, "pardiso", b)
+    monkeypatch.setattr(gauss_newton, "SINGLE_ABOVE", 0)
+    single = GaussNewton(F, len(V), problem.I, problem.A2, "pardiso", b)
+    assert not double.solver.single and single.solver.single
+    assert single.solver.rtol == gauss_newton.STEP_RTOL
+    g_double, g_single = (gn.step(f, a2, 1e-3) for gn in (double, single))
+    assert single.solver.iparm[27] == 1 and double.solver.iparm[27] == 0
+    move = np.abs(g_double - f).max()
+    assert 0 < np.abs(g_single - g_double).max() <= 1e-3 * move
+    for gn in (double, single):
+        gn.release()

@@ -143,6 +143,52 @@ def test_pardiso_keeps_its_ordering_and_analyses_with_a_given_one():
         s.release()
 
 
+@pytest.mark.parametrize("upper", [False, True])
+def test_pardiso_single_precision_factor_is_refined_to_rtol(upper):
+    """``single=True`` factors in single precision (``iparm[27]``) and refines each solve in
+    double precision until ``‖b − A x‖ ≤ rtol ‖b‖``: a single-precision solve alone misses
+    1e-10, one refinement per column is counted, and no double-precision fallback is needed."""
+    _need("pardiso")
+    A = _grid_laplacian(60) * 1e3 + sp.eye(3600) * 1e-2        # κ ≈ 8e5
+    M = sp.triu(A).tocsr() if upper else A
+    b = np.random.default_rng(5).normal(size=(A.shape[0], 2))
+    s = solvers.PardisoSolver(single=True, rtol=1e-10)
+    s.factorize(M, upper=upper)
+    assert s.iparm[27] == 1 and s._data.dtype == np.float32
+    rough = s._solve_factor(b)
+    assert np.linalg.norm(b - A @ rough) > 1e-10 * np.linalg.norm(b)
+    X = s.solve(b)
+    assert np.all(np.linalg.norm(b - A @ X, axis=0) <= 1e-10 * np.linalg.norm(b, axis=0))
+    assert s.refinement_stats["refinements"] >= 1
+    assert s.refinement_stats["double_fallbacks"] == 0
+    x = s.solve(b[:, 0])
+    assert x.shape == (A.shape[0],) and x.dtype == np.float64
+    s.release()
+
+
+def test_pardiso_single_precision_falls_back_to_double_where_refinement_stalls():
+    """A residual the refinement cannot reach (below double rounding) makes the solver factor
+    the matrix in double precision once and return that solution."""
+    _need("pardiso")
+    A = _grid_laplacian(40)
+    b = np.random.default_rng(6).normal(size=(A.shape[0], 2))
+    s = solvers.PardisoSolver(single=True, rtol=1e-30)
+    s.factorize(A)
+    X = s.solve(b)
+    assert s.refinement_stats == {"refinements": solvers.PardisoSolver.REFINE_STEPS,
+                                  "double_fallbacks": 1}
+    assert s._double.iparm[27] == 0
+    np.testing.assert_allclose(X, np.linalg.solve(A.toarray(), b), rtol=1e-10)
+    s.release()
+
+
+def test_symmetric_product_of_the_upper_triangle_equals_the_full_product():
+    A = _grid_laplacian(12) + sp.diags(np.arange(144.0))
+    X = np.random.default_rng(7).normal(size=(144, 3))
+    np.testing.assert_allclose(solvers.symmetric_product(sp.triu(A).tocsr(), X, full=False),
+                               A @ X, rtol=1e-14, atol=1e-12)
+
+
 def test_mkl_thread_count_follows_mkl_num_threads():
     """The experiment runner's pool workers set ``MKL_NUM_THREADS=1``: PARDISO then stays on
     one thread at every size."""

@@ -191,7 +191,7 @@ class _Problem:
         self.solver_I = make_solver(solver_kind, refactored=True)
         self.solver_P = make_solver(solver_kind, refactored=True)
         self.solver_B = make_solver(solver_kind, refactored=True)
-        self.gn_factorizations = None     # Gauss–Newton factorizations, once phase B ran them
+        self.gn_stats = None     # Gauss–Newton factorizations (and refinements), once run
 
     def evaluate(self, f, a2=None):
         """``(E_S, E_S/(|f(M)|²/|M|), flipped faces, 2·signed image areas)`` of ``f`` (eq. 15);
@@ -436,8 +436,8 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
     solver_stats = {name: getattr(sv, "stats", {}) for name, sv in
                     (("interior", problem.solver_I), ("preconditioner", problem.solver_P),
                      ("boundary", problem.solver_B))}
-    if problem.gn_factorizations is not None:
-        solver_stats["gauss_newton"] = {"factorizations": problem.gn_factorizations}
+    if problem.gn_stats is not None:
+        solver_stats["gauss_newton"] = problem.gn_stats
     problem.release()
     return SEMResult(uv=_as_uv(f).copy(), status=status, iterations=it, flipped_faces=value[2],
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
@@ -702,7 +702,7 @@ def _converged_iterations(problem, f, value, opt, record):
         return f, value, it, status, reason
     finally:
         if newton is not None:
-            problem.gn_factorizations = newton.factorizations
+            problem.gn_stats = newton.stats()
             newton.release()
 
 
