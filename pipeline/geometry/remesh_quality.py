@@ -38,9 +38,16 @@ from .rows import norms
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
            "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
            "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
-           "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere"]
+           "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere",
+           "DISTANCE_SAMPLES"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
+
+#: area-uniform samples per surface for the distances: the two-sided RMS distance's sampling
+#: error is below 0.5 ‰ of its value at this count, and the Hausdorff distance's spread over
+#: seeds is the same as at twice as many (the samples that decide it are the structured ones
+#: and the few random ones near the farthest place)
+DISTANCE_SAMPLES = 100_000
 
 
 def bounding_box_diagonal(V: np.ndarray) -> float:
@@ -470,7 +477,7 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -
 
 
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
-                     n_random: int = 200_000, seed: int = 0, scale: float | None = None,
+                     n_random: int = DISTANCE_SAMPLES, seed: int = 0, scale: float | None = None,
                      reference: SampledSurface | None = None) -> dict:
     """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference, and
     the faces of ``(V, F)`` turned over against it (:func:`turned_over_faces`).
@@ -506,7 +513,7 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
 
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
-                   n_random: int = 200_000, seed: int = 0, distance: bool = True,
+                   n_random: int = DISTANCE_SAMPLES, seed: int = 0, distance: bool = True,
                    reference: SampledSurface | None = None, facts: dict | None = None) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
     (``reference``: the input sampled for the distances, see :func:`surface_distance`;
