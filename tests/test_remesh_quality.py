@@ -56,6 +56,51 @@ def test_point_triangle_distance_is_exact():
         assert ours <= dense + 1e-12 and ours >= dense - 2e-2
 
 
+def test_compiled_face_distances_are_those_of_the_closest_points():
+    """face_distances: per point, the least distance to its listed faces (−1 skipped, none:
+    inf), each the distance to closest_points_on_triangles' point, degenerate faces (a
+    repeated corner, coincident corners) included."""
+    from pipeline.geometry._kernels import face_distances
+
+    rng = np.random.default_rng(0)
+    V = rng.normal(size=(300, 3))
+    F = rng.integers(0, 300, size=(400, 3))
+    F[:5, 1] = F[:5, 0]
+    V[F[5:8, 2]] = V[F[5:8, 0]]
+    P = rng.normal(size=(2000, 3)) * 2
+    faces = rng.integers(-1, 400, size=(2000, 3))
+    faces[0] = -1
+    faces[1:40, 0] = np.arange(39) % 8                   # the degenerate ones
+    expected = np.full(len(P), np.inf)
+    for j in range(3):
+        ok = faces[:, j] >= 0
+        T = V[F[faces[ok, j]]]
+        Q = closest_points_on_triangles(P[ok], T[:, 0], T[:, 1], T[:, 2])
+        expected[ok] = np.minimum(expected[ok], np.linalg.norm(Q - P[ok], axis=1))
+    np.testing.assert_allclose(face_distances(P, V, F, faces), expected, rtol=1e-14, atol=0)
+
+
+def test_face_bounds_bound_the_distance_and_are_exact_on_the_corners_faces():
+    """face_bounds: never below the distance; equal to it where the point's closest face is
+    one of its corners' closest faces; above it elsewhere (but for ties, a foot on an edge
+    or corner shared with a corner's face)."""
+    from pipeline.geometry.remesh_quality import face_bounds
+
+    V, F = lattice_mesh(10)
+    V[:, 2] = 0.3 * np.sin(V[:, 0]) * np.cos(V[:, 1])
+    distance = MeshDistance(V, F)
+    W = V + np.array([0.1, 0.2, 0.3])                     # a shifted copy
+    _, corner_face = distance(W)
+    pairs = np.random.default_rng(1).integers(0, len(W), size=(2000, 2))
+    P = (W[pairs[:, 0]] + W[pairs[:, 1]]) / 2
+    bound = face_bounds(P, pairs, corner_face, distance)
+    exact, closest = distance(P)
+    assert np.all(bound >= exact * (1 - 1e-12))
+    same = np.any(corner_face[pairs] == closest[:, None], axis=1)
+    assert same.sum() > 50 and np.mean(bound[~same] > exact[~same]) > 0.9
+    np.testing.assert_allclose(bound[same], exact[same], rtol=1e-12)
+
+
 def test_surface_distance_of_a_shifted_plane_is_the_shift():
     V, F = lattice_mesh(10)
     W = V + np.array([0.0, 0.0, 0.25])
