@@ -119,6 +119,32 @@ def test_a_baseline_that_fails_costs_its_column_not_the_remesh(face_map, monkeyp
         "empty"]
 
 
+def test_without_compare_the_remesh_is_measured_once(face_map, monkeypatch):
+    """``compare: false``: the input's shape measures and one distance measure, ours (the
+    input's samples and tree made once: two trees, the input's and ours)."""
+    from pipeline.geometry import remesh_quality as rq
+    from pipeline.stages.remesh import compare_methods
+
+    _, mesh, p = face_map
+    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=800))
+    calls = {"surface_distance": 0, "trees": 0}
+    measure, build = rq.surface_distance, rq.MeshDistance.__init__
+
+    def counted_measure(*args, **kwargs):
+        calls["surface_distance"] += 1
+        return measure(*args, **kwargs)
+
+    def counted_build(self, *args, **kwargs):
+        calls["trees"] += 1
+        build(self, *args, **kwargs)
+
+    monkeypatch.setattr(rq, "surface_distance", counted_measure)
+    monkeypatch.setattr(rq.MeshDistance, "__init__", counted_build)
+    methods = compare_methods(mesh.V, mesh.F, r, 800, compare=False, n_random=20_000)
+    assert set(methods) == {"input", "sem"} and "distance" not in methods["input"].quality
+    assert calls == {"surface_distance": 1, "trees": 2}
+
+
 @pytest.fixture(scope="module")
 def small_face_file(tmp_path_factory):
     d = tmp_path_factory.mktemp("remesh_face")

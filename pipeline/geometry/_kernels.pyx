@@ -15,7 +15,7 @@ int64 (``int`` only where SciPy's CSR arrays are int32).
 
 import numpy as np
 cimport cython
-from libc.math cimport fabs, sqrt
+from libc.math cimport INFINITY, fabs, sqrt
 from libc.stdint cimport int32_t, int64_t
 
 def signed_double_areas(const int64_t[:, ::1] F, const double complex[::1] z, double[::1] out):
@@ -1071,3 +1071,97 @@ def face_pair_pattern(const int64_t[:, ::1] cols, int64_t N):
                     slot[t, k] = <int32_t>i
                 k += 1
     return indptr_arr, indices_arr, slot_arr
+
+
+def face_distances(const double[:, ::1] P, const double[:, ::1] V, const int64_t[:, ::1] F,
+                   const int64_t[:, ::1] faces):
+    """For each point ``P[i]``, the smallest Euclidean distance to the triangles
+    ``F[faces[i, j]]`` of ``V`` (a row's −1 entries are skipped; none at all: inf): the
+    closest point of each triangle by the Voronoi-region cases of Ericson, *Real-Time
+    Collision Detection* §5.1.5, as
+    :func:`pipeline.geometry.remesh_quality.closest_points_on_triangles` finds it; a
+    degenerate triangle's nearest corner. Each value is a distance to a point of the
+    surface, so it bounds the distance to the whole surface from above."""
+    cdef Py_ssize_t i, j, c, k = P.shape[0]
+    cdef int64_t t
+    cdef double best, d
+    out_arr = np.empty(k, dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for i in range(k):
+        best = INFINITY
+        for j in range(faces.shape[1]):
+            t = faces[i, j]
+            if t < 0:
+                continue
+            d = _point_triangle(&P[i, 0], &V[F[t, 0], 0], &V[F[t, 1], 0], &V[F[t, 2], 0])
+            if not (d == d and d < INFINITY):            # degenerate: the nearest corner
+                d = INFINITY
+                for c in range(3):
+                    d = min(d, _point_point(&P[i, 0], &V[F[t, c], 0]))
+            best = min(best, d)
+        out[i] = best
+    return out_arr
+
+
+cdef inline double _point_point(const double* p, const double* q) noexcept nogil:
+    return sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+
+
+cdef inline double _point_along(const double* p, const double* o, const double* e,
+                               double t) noexcept nogil:
+    """Distance from ``p`` to the point ``o + t·e``."""
+    cdef double q[3]
+    cdef int x
+    for x in range(3):
+        q[x] = o[x] + t * e[x]
+    return _point_point(p, q)
+
+
+@cython.cdivision(True)
+cdef double _point_triangle(const double* p, const double* a, const double* b,
+                            const double* c) noexcept nogil:
+    """Distance from ``p`` to the triangle ``(a, b, c)`` (3-vectors); NaN or inf for a
+    degenerate triangle whose face-interior case divides by zero."""
+    cdef double ab[3]
+    cdef double ac[3]
+    cdef double ap[3]
+    cdef double bp[3]
+    cdef double cp[3]
+    cdef double bc[3]
+    cdef double q[3]
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, v, w, denom
+    cdef int x
+    for x in range(3):
+        ab[x] = b[x] - a[x]
+        ac[x] = c[x] - a[x]
+        ap[x] = p[x] - a[x]
+        bp[x] = p[x] - b[x]
+        cp[x] = p[x] - c[x]
+    d1, d2 = _dot3(ab, ap), _dot3(ac, ap)
+    d3, d4 = _dot3(ab, bp), _dot3(ac, bp)
+    d5, d6 = _dot3(ab, cp), _dot3(ac, cp)
+    # the regions in the order of closest_points_on_triangles' priority: the corners a, b,
+    # c, then the edges ab, ac, bc, then the face's interior
+    if d1 <= 0 and d2 <= 0:
+        return _point_point(p, a)
+    if d3 >= 0 and d4 <= d3:
+        return _point_point(p, b)
+    if d6 >= 0 and d5 <= d6:
+        return _point_point(p, c)
+    vc = d1 * d4 - d3 * d2
+    vb = d5 * d2 - d1 * d6
+    va = d3 * d6 - d5 * d4
+    if vc <= 0 and d1 >= 0 and d3 <= 0:
+        return _point_along(p, a, ab, d1 / (d1 - d3))
+    if vb <= 0 and d2 >= 0 and d6 <= 0:
+        return _point_along(p, a, ac, d2 / (d2 - d6))
+    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        for x in range(3):
+            bc[x] = c[x] - b[x]
+        return _point_along(p, b, bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)))
+    denom = va + vb + vc
+    v = vb / denom
+    w = vc / denom
+    for x in range(3):
+        q[x] = a[x] + ab[x] * v + ac[x] * w
+    return _point_point(p, q)

@@ -48,6 +48,7 @@ import numpy as np
 
 from . import topology as topo
 from ._kernels import cells_touch_faces, lift_rows, walk_to_faces
+from .rows import row_min
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -238,7 +239,7 @@ class PointLocator:
         tri = self.F[cand]
         uv = self.uv
         lam = barycentric_coordinates(P[pt], uv[tri[:, 0]], uv[tri[:, 1]], uv[tri[:, 2]])
-        sc = lam.min(axis=1)
+        sc = row_min(lam)
         sc[~np.isfinite(sc)] = -np.inf                               # degenerate image faces
         seg_start = np.cumsum(c) - c
         best = np.maximum.reduceat(sc, seg_start)

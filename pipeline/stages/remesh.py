@@ -33,6 +33,7 @@ from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
+from ..geometry.remesh_quality import DISTANCE_SAMPLES
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
@@ -87,8 +88,8 @@ class RemeshConfig(Section):
     landmarks: Optional[str] = Field(
         None, description="JSON {\"landmarks\": {name: input vertex index}} carried to the "
                           "remesh")
-    distance_samples: int = Field(200_000, ge=1000, description="random samples per surface "
-                                                                "for the distances")
+    distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
+                                  description="random samples per surface for the distances")
 
     @field_validator("improve", mode="before")
     @classmethod
@@ -272,7 +273,7 @@ def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> 
 
 
 def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
-                    compare: bool = True, n_random: int = 200_000, seed: int = 0,
+                    compare: bool = True, n_random: int = DISTANCE_SAMPLES, seed: int = 0,
                     progress=None) -> dict[str, Method]:
     """Measure the input and our remesh, and with ``compare`` the columns it is compared
     with: the plain lift before improvement (paper §8) and the baselines."""
@@ -340,7 +341,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
 
 def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | None = None,
                    compare: bool = True, report: bool = True, figures: bool = True,
-                   n_random: int = 200_000, progress=None):
+                   n_random: int = DISTANCE_SAMPLES, progress=None):
     """Measure, compare and write everything of the remesh stage into ``out_dir``; returns
     ``(files, metrics)``."""
     from ..geometry.remesh_quality import bounding_box_diagonal

@@ -23,6 +23,7 @@ import numpy as np
 from .. import topology as topo
 from .._kernels import flip_checks, opposite_cots
 from ..metrics import corner_angles
+from ..rows import row_min
 from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by, independent_by_faces, touching
 
 
@@ -211,7 +212,7 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
         ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
         old = corner_angles(X, np.column_stack([a, b, p, b, a, q])[ok].reshape(-1, 3))
         new = corner_angles(X, np.column_stack([p, a, q, q, b, p])[ok].reshape(-1, 3))
-        old, new = old.reshape(-1, 6).min(axis=1), new.reshape(-1, 6).min(axis=1)
+        old, new = row_min(old.reshape(-1, 6)), row_min(new.reshape(-1, 6))
         ok = ok[new >= np.minimum(old, floor)]
         if len(ok) == 0:
             break
@@ -229,7 +230,7 @@ def _shapes_kept(uv: np.ndarray, p, a, q, b) -> np.ndarray:
     if len(p) == 0:
         return np.zeros(0, bool)
     shape = disk_shape(uv, np.column_stack([p, a, q, q, b, p]).reshape(-1, 3)).reshape(-1, 2)
-    return shape.min(axis=1) >= DISK_SHAPE_MIN
+    return row_min(shape) >= DISK_SHAPE_MIN
 
 
 def _interior_edges_of(faces: np.ndarray, twin: np.ndarray, m: int) -> np.ndarray:

@@ -95,7 +95,7 @@ from functools import partial
 import numpy as np
 
 from ..metrics import corner_angles
-from ..rows import norms
+from ..rows import norms, row_min
 from .angles import raise_min_angles, split_for_count
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
@@ -585,7 +585,7 @@ def sag_veto(S: RemeshState, tol: float, uv: np.ndarray, face: np.ndarray, bary:
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
     """The faces (indices) with a 3D angle below ``min_angle_deg`` (the angles of
     :func:`..metrics.corner_angles`)."""
-    return np.flatnonzero(corner_angles(X, F).min(axis=1) < np.radians(min_angle_deg))
+    return np.flatnonzero(row_min(corner_angles(X, F)) < np.radians(min_angle_deg))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:

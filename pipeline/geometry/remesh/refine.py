@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import _closest_on_segments
-from ..rows import dots, norms
+from ..rows import dots, norms, row_min
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
 from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
@@ -136,7 +136,7 @@ def split_keeps_shape(S: RemeshState, h: np.ndarray, twin: np.ndarray,
     new = np.column_stack([a, w, p, w, b, p, b, w, q, w, a, q]).reshape(-1, 3)
     shape = disk_shape(uv, new).reshape(-1, 4)
     shape[on_b, 2:] = np.inf                     # a boundary edge has no face across
-    return (shape.min(axis=1) >= DISK_SHAPE_MIN) & ~S.is_joined(a, b)
+    return (row_min(shape) >= DISK_SHAPE_MIN) & ~S.is_joined(a, b)
 
 
 def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:

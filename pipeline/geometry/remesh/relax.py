@@ -24,7 +24,7 @@ import numpy as np
 from .._kernels import area_equalizing_steps as kernel_steps
 from .._kernels import ring_sums, thin_faces
 from ..locate import PointLocator, lift
-from ..rows import norms
+from ..rows import nonzero_rows, norms
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
@@ -97,12 +97,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
         # keeps its shape, and halving or dropping its corners' zero moves changes nothing)
         for _halving in range(7):
             new = uv + du
-            bad = _too_thin(new, F, area_floor, np.any(du != 0, axis=1))
+            bad = _too_thin(new, F, area_floor, nonzero_rows(du))
             if len(bad) == 0:
                 break
             verts = np.unique(F[bad].ravel())
             du[verts] *= 0.0 if _halving == 6 else 0.5
-        go = np.flatnonzero(np.any(du != 0, axis=1))
+        go = np.flatnonzero(nonzero_rows(du))
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
         go, f2, b2 = go[inside], f2[inside], b2[inside]
@@ -112,11 +112,11 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
             uv2[go], face2[go], bary2[go], X2[go] = uv_go, f2, b2, X_go
             du[veto(uv2, face2, bary2, X2)] = 0.0
         while True:                              # dropping moves can flip a face: drop more
-            bad = _too_thin(uv + du, F, area_floor, np.any(du != 0, axis=1))
+            bad = _too_thin(uv + du, F, area_floor, nonzero_rows(du))
             if len(bad) == 0:
                 break
             du[F[bad].ravel()] = 0.0
-        keep = np.any(du[go] != 0, axis=1)
+        keep = nonzero_rows(du[go])
         go = go[keep]
         uv[go], face[go], bary[go], X[go] = uv_go[keep], f2[keep], b2[keep], X_go[keep]
         moved_counts.append(int(len(go)))
