@@ -30,21 +30,38 @@ def input_point_distances(S, X, F):
     return MeshDistance(X, F)(pts.P)[0], len(pts.vertices)
 
 
+def test_input_points_take_the_interior_edges_and_faces_at_the_rim():
+    """A square folded along its diagonal (two faces, four rim vertices, no interior vertex):
+    the input points are the middle of the diagonal — an interior edge between two rim
+    vertices — and the two centroids, on the surface and at the same averages on the disk;
+    the rim edges' midpoints are not among them."""
+    V = np.array([[0.0, 0, 0], [1, 0, 0.5], [1, 1, 0], [0, 1, 0.5]])
+    uv = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    pts = input_points(SimpleNamespace(V_in=V, F_in=F, uv_in=uv))
+    assert len(pts.vertices) == 0 and len(pts.faces) == 2
+    assert sorted(pts.edges[0].tolist()) == [0, 2] and len(pts.edges) == 1
+    np.testing.assert_allclose(pts.P, [[0.5, 0.5, 0], V[F[0]].mean(0), V[F[1]].mean(0)])
+    np.testing.assert_allclose(pts.P_uv, [[0, 0], uv[F[0]].mean(0), uv[F[1]].mean(0)])
+
+
 @pytest.mark.timeout(60)
 def test_follow_input_puts_a_locked_vertex_on_far_input_points_of_a_crease():
     """A coarse remesh (85 vertices, 4 rings) of the disk creased at slope 1: it cuts across
-    the crease; of the input's 28,189 points (4,777 interior vertices, the midpoints of the
-    edges and the centroids of the faces off the rim) 2,200 are farther than 0.05 from it, 365
-    of them vertices, the farthest (a midpoint) 0.1369 — the same set whether or not the triangle bound
-    spares measuring a midpoint or centroid. After :func:`follow_input` (tolerance 0.05, gap
+    the crease; of the input's 29,135 points (its 4,777 interior vertices, the midpoints of its
+    14,567 interior edges — the 239 rim edges left out — and the centroids of its 9,791 faces)
+    2,207 are farther than 0.05 from it, 365 of them vertices, the farthest (a midpoint)
+    0.1369 — the same set whether or not the triangle bound spares measuring a midpoint or
+    centroid. After :func:`follow_input` (tolerance 0.05, gap
     0.1) each vertex it returns is locked and lies exactly on a far point, no input point is
     farther than 0.05, and the remesh is still a counter-clockwise disk."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
     d, nv = input_point_distances(S, S.X, S.F)
-    assert (len(d), nv) == (28189, 4777)
-    assert np.count_nonzero(d > 0.05) == 2200 and np.count_nonzero(d[:nv] > 0.05) == 365
+    assert (len(d), nv, len(S.F_in)) == (29135, 4777, 9791)
+    assert len(S.V_in) + len(S.F_in) - 1 - 239 == 14567          # Euler: the interior edges
+    assert np.count_nonzero(d > 0.05) == 2207 and np.count_nonzero(d[:nv] > 0.05) == 365
     far, far_d = far_input_points(S, 0.05)
-    assert len(far) == 2200 and np.isclose(far_d[0], 0.1369, atol=1e-4)
+    assert len(far) == 2207 and np.isclose(far_d[0], 0.1369, atol=1e-4)
     np.testing.assert_array_equal(far_d, np.sort(d[d > 0.05])[::-1])
     v = follow_input(S, 0.05, min_gap=0.1)
     assert len(v) and S.locked[v].all()
