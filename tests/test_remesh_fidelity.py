@@ -30,21 +30,38 @@ def input_point_distances(S, X, F):
     return MeshDistance(X, F)(pts.P)[0], len(pts.vertices)
 
 
+def test_input_points_take_the_interior_edges_and_faces_at_the_rim():
+    """A square folded along its diagonal (two faces, four rim vertices, no interior vertex):
+    the input points are the middle of the diagonal — an interior edge between two rim
+    vertices — and the two centroids, on the surface and at the same averages on the disk;
+    the rim edges' midpoints are not among them."""
+    V = np.array([[0.0, 0, 0], [1, 0, 0.5], [1, 1, 0], [0, 1, 0.5]])
+    uv = np.array([[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    pts = input_points(SimpleNamespace(V_in=V, F_in=F, uv_in=uv))
+    assert len(pts.vertices) == 0 and len(pts.faces) == 2
+    assert sorted(pts.edges[0].tolist()) == [0, 2] and len(pts.edges) == 1
+    np.testing.assert_allclose(pts.P, [[0.5, 0.5, 0], V[F[0]].mean(0), V[F[1]].mean(0)])
+    np.testing.assert_allclose(pts.P_uv, [[0, 0], uv[F[0]].mean(0), uv[F[1]].mean(0)])
+
+
 @pytest.mark.timeout(60)
 def test_follow_input_puts_a_locked_vertex_on_far_input_points_of_a_crease():
     """A coarse remesh (85 vertices, 4 rings) of the disk creased at slope 1: it cuts across
-    the crease; of the input's 28,189 points (4,777 interior vertices, the midpoints of the
-    edges and the centroids of the faces off the rim) 2,200 are farther than 0.05 from it, 365
-    of them vertices, the farthest (a midpoint) 0.1369 — the same set whether or not the triangle bound
-    spares measuring a midpoint or centroid. After :func:`follow_input` (tolerance 0.05, gap
+    the crease; of the input's 29,135 points (its 4,777 interior vertices, the midpoints of its
+    14,567 interior edges — the 239 rim edges left out — and the centroids of its 9,791 faces)
+    2,207 are farther than 0.05 from it, 365 of them vertices, the farthest (a midpoint)
+    0.1369 — the same set whether or not the triangle bound spares measuring a midpoint or
+    centroid. After :func:`follow_input` (tolerance 0.05, gap
     0.1) each vertex it returns is locked and lies exactly on a far point, no input point is
     farther than 0.05, and the remesh is still a counter-clockwise disk."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
     d, nv = input_point_distances(S, S.X, S.F)
-    assert (len(d), nv) == (28189, 4777)
-    assert np.count_nonzero(d > 0.05) == 2200 and np.count_nonzero(d[:nv] > 0.05) == 365
+    assert (len(d), nv, len(S.F_in)) == (29135, 4777, 9791)
+    assert len(S.V_in) + len(S.F_in) - 1 - 239 == 14567          # Euler: the interior edges
+    assert np.count_nonzero(d > 0.05) == 2207 and np.count_nonzero(d[:nv] > 0.05) == 365
     far, far_d = far_input_points(S, 0.05)
-    assert len(far) == 2200 and np.isclose(far_d[0], 0.1369, atol=1e-4)
+    assert len(far) == 2207 and np.isclose(far_d[0], 0.1369, atol=1e-4)
     np.testing.assert_array_equal(far_d, np.sort(d[d > 0.05])[::-1])
     v = follow_input(S, 0.05, min_gap=0.1)
     assert len(v) and S.locked[v].all()
@@ -93,3 +110,26 @@ def test_uniform_remesh_follows_the_edges_of_a_coarse_crease():
     assert far_vertex[0.0] < 0.14 and far_point[0.0] > 0.27
     assert far_point[0.25] <= 0.25
     assert smallest[0.25] >= 20.0
+
+
+@pytest.mark.timeout(300)
+def test_the_human_face_remesh_follows_the_input_between_its_snapped_points():
+    """choi_human_face (34,144 faces) through its 2-step paper map, remeshed at 20,000
+    vertices: every input point (interior vertex, middle of an interior edge or of a face) is
+    within 0.35 L of the remesh (0.29 L measured). The follow step's second round, 0.2 L
+    apart, snaps the points the first one (0.4 L apart) left between its snapped ones on the
+    nostrils' and lips' creases; with the first alone the farthest is 0.59 L away."""
+    from conftest import require_data
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = load_stage(require_data("meshes", "choi_human_face.obj")).mesh
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=20000))
+    L = r.info["improve"]["target_edge_length"]
+    d, _ = input_point_distances(SimpleNamespace(V_in=mesh.V, F_in=mesh.F, uv_in=p.image),
+                                 r.V, r.F)
+    assert d.max() <= 0.35 * L
+    assert abs(len(r.V) - 20000) <= 400 and is_disk(mesh_facts(r.V, r.F))

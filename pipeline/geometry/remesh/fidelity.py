@@ -8,8 +8,8 @@ is close to the surface everywhere along its edges, but a point of the input on 
 far from it, and the input-to-remesh Hausdorff distance is decided at such points. Where the
 input's triangles are larger than the remesh's (a coarse scan remeshed finely), that point is
 often not an input vertex but the middle of an input edge or face at the bottom of a fold.
-:func:`follow_input` finds the input points — interior vertices, midpoints of edges and
-centroids of faces away from the rim (:func:`input_points`) — farther from the remesh than a
+:func:`follow_input` finds the input points — interior vertices, midpoints of interior edges
+and centroids of faces (:func:`input_points`) — farther from the remesh than a
 tolerance (exact point–triangle distances, :class:`..remesh_quality.MeshDistance`, for the
 points a vertex's distance does not already bound) and moves the nearest free remesh vertex
 exactly onto each (or inserts one there), locked (:func:`.corners.snap_vertices`), farthest
@@ -51,20 +51,22 @@ class InputPoints(NamedTuple):
 
 
 def input_points(S: RemeshState) -> InputPoints:
-    """The input's interior vertices, the midpoints of its edges and the centroids of its
-    faces that have no corner on the rim, on the surface and in the map's domain (there the
-    same averages of the corners' ``uv_in``; on the sphere put back on it,
-    :func:`.domain.project`)."""
+    """The input's interior vertices, the midpoints of its interior edges and the centroids of
+    its faces, on the surface and in the map's domain (there the same averages of the
+    corners' ``uv_in``; on the sphere put back on it, :func:`.domain.project`). Only the rim's
+    own points are left out (:mod:`.rim` follows the boundary): the edges and faces at the rim
+    are in, where a coarse input's farthest point can be (igl_camel_b at 20k vertices: the
+    middle of an interior edge between two rim vertices)."""
     is_rim = topo.boundary_vertices_mask(S.F_in, len(S.V_in))
-    inner = S.F_in[~is_rim[S.F_in].any(axis=1)]
-    _, a, b, _ = edge_table(inner)
+    _, a, b, twin = edge_table(S.F_in)
+    a, b = a[twin >= 0], b[twin >= 0]
     v = np.flatnonzero(~is_rim)
 
     def points(Y):
-        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[inner].mean(axis=1)])
+        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[S.F_in].mean(axis=1)])
 
     return InputPoints(points(S.V_in), project(points(S.uv_in)), v, np.column_stack([a, b]),
-                       inner)
+                       S.F_in)
 
 
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:

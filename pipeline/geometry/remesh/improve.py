@@ -50,11 +50,13 @@ The schedule (:func:`improve_remesh`):
    farther from the surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not
    without ``relax_iterations``); then the remesh follows the input (:meth:`_Operations.follow`,
    :mod:`.fidelity`): a vertex snapped (or inserted) and locked on every input point (an
-   interior vertex, the middle of an edge or a face away from the rim) farther than
+   interior vertex, the middle of an interior edge or of a face) farther than
    ``follow_input × L`` from the remesh — the sharp creases and thin folds no sag test sees —
-   no two closer than ``FOLLOW_GAP × L``, a snap undone where it
+   no two closer than ``FOLLOW_GAPS[0] × L``, a snap undone where it
    leaves an edge farther than the sag tolerance from the surface, flips, as many guarded
-   collapses of the shortest edges as vertices were inserted, flips; after the smoothing,
+   collapses of the shortest edges as vertices were inserted, flips; then again for the
+   points still that far, ``FOLLOW_GAPS[1] × L`` apart (those within the first gap of a
+   snapped point, left by the first round, between the snapped ones); after the smoothing,
    which would move the vertices next to them off the creases again, and locked until the
    minimum-angle pass (step 10), whose collapses keep them and whose later operations may
    move them;
@@ -122,7 +124,9 @@ NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
-FOLLOW_GAP = 0.4      # vertices snapped onto far input points are this × L apart at least
+# the follow step's rounds: the vertices snapped onto far input points are this × L apart at
+# least (from each other and from the locked vertices, those of the rounds before among them)
+FOLLOW_GAPS = (0.4, 0.2)
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
 # vertices that close make a face no later pass may change (on ICT faces: 0.3 L apart, 13°)
 CORNER_GAP = 0.4
@@ -368,19 +372,21 @@ class _Operations:
         self.flip()
 
     def follow(self, tol: float) -> None:
-        """Snap (or insert) a locked vertex onto every input point farther than ``tol`` from
-        the remesh (an interior vertex, the middle of an edge or a face), ``FOLLOW_GAP × L``
-        apart, no snap leaving an edge farther than the sag tolerance from the surface
-        (:func:`.fidelity.follow_input`), flips, as many collapses of the shortest edges under
-        the guards as vertices were inserted, flips."""
+        """For each gap of ``FOLLOW_GAPS``: snap (or insert) a locked vertex onto every input
+        point farther than ``tol`` from the remesh (an interior vertex, the middle of an
+        interior edge or of a face), that gap × ``L`` apart, no snap leaving an edge farther
+        than the sag tolerance from the surface (:func:`.fidelity.follow_input`), flips, as
+        many collapses of the shortest edges under the guards as vertices were inserted,
+        flips."""
         S = self.S
-        n0 = S.n
-        snap_far_input(S, tol, FOLLOW_GAP * self.L, self.tol)
-        self.flip()
-        if S.n > n0:
-            collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - n0, max_gap=self.tol,
-                                 max_sag=self.tol)
+        for gap in FOLLOW_GAPS:
+            n0 = S.n
+            snap_far_input(S, tol, gap * self.L, self.tol)
             self.flip()
+            if S.n > n0:
+                collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - n0,
+                                     max_gap=self.tol, max_sag=self.tol)
+                self.flip()
 
     def refine_pinned(self, target: int, budget: int, relax_iterations: int) -> None:
         """Sag refinement again after the relaxation (which moves vertices off the folds the
