@@ -97,6 +97,8 @@ import numpy as np
 from ..metrics import corner_angles
 from ..rows import norms
 from .angles import raise_min_angles, split_for_count
+from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
+                            unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
@@ -436,14 +438,53 @@ class _Operations:
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, tol, bad)
-        if S.n < target:
-            split_for_count(S, target - S.n, min_angle_deg)
-        elif S.n > target:
-            collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
-                                 max_sag=tol)
+        self.restore_angle_count(target, min_angle_deg)
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, tol, bad)
+        self.grade(target, min_angle_deg)
+
+    def restore_angle_count(self, target: int, min_angle_deg: float,
+                            keep: np.ndarray | None = None) -> None:
+        """The count restored after the minimum-angle operations: splits that make no face
+        below ``min_angle_deg`` (:func:`.angles.split_for_count`) or collapses of the
+        shortest edges under the guards, none at the vertices ``keep`` (n bool) and their
+        neighbours."""
+        S = self.S
+        if S.n < target:
+            split_for_count(S, target - S.n, min_angle_deg)
+        elif S.n > target:
+            at = None if keep is None else ~_ring(S.F, keep)
+            collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - target,
+                                 max_gap=self.tol, max_sag=self.tol, at=at)
+
+    def grade(self, target: int, min_angle_deg: float) -> None:
+        """The faces still below ``min_angle_deg`` that no input corner forces refined at
+        their off-centres (:func:`.circumcentres.refine_at_circumcentres`, flips after each
+        round), the count restored away from the new vertices (:meth:`restore_angle_count`)
+        and the local operations again around the faces then below; all of it undone if it
+        leaves more such faces, or as many with a smaller smallest angle, or more faces turned
+        over."""
+        S = self.S
+        before = unforced_shortfall(S, min_angle_deg)
+        if before[0] == 0:
+            return
+        saved, log, n_folds, n0 = saved_state(S), dict(S.log), len(turned_over_faces(S)), S.n
+        if not refine_at_circumcentres(S, min_angle_deg, lambda F0: self.flip(since=F0),
+                                       lambda: turned_over_faces(S)):
+            return
+        graded = np.zeros(S.n, bool)
+        graded[n0:] = True
+        self.restore_angle_count(target, min_angle_deg, keep=graded)
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, self.tol, bad)
+        after = unforced_shortfall(S, min_angle_deg)
+        if (after[0], -after[1]) >= (before[0], -before[1]) or \
+                len(turned_over_faces(S)) > n_folds:
+            restore_state(S, saved)
+            S.log.clear()
+            S.log.update(log)
 
     def repair_folds(self, target: int, passes: int = 3) -> None:
         """Collapse an edge between interior corners of every face turned over against the input
@@ -596,3 +637,10 @@ def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
     corners = np.zeros(S.n, bool)
     corners[S.F[changed].ravel()] = True
     return corners
+
+
+def _ring(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """The marked vertices (n bool) and the corners of every face at one of them."""
+    out = mark.copy()
+    out[F[touching(F, mark)].ravel()] = True
+    return out
