@@ -35,6 +35,8 @@ from .state import RemeshState
 ROUNDS = 6            # at most this many rounds of insertions
 EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
+NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
+HALVINGS = 4          # each halved up to this many times until the lift comes nearer
 DRIFT = 0.5           # a target whose lift is farther than this × the circumradius from the
                       # circumcentre in 3D (the surface bends away) is not inserted
 _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
@@ -91,6 +93,48 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
     far = ln[k, j] / (2.0 * np.tan(np.radians(angle_deg) / 2.0))
     lam = np.minimum(1.0, far / np.maximum(norms(C - Mx), 1e-300))
     return M + lam[:, None] * (W - M)
+
+
+def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
+                      steps: int = NEWTON_STEPS) -> np.ndarray:
+    """Domain points whose lifts come near the 3D points ``C``: from the first guesses ``c``,
+    ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face under
+    ``c`` (:meth:`.state.RemeshState.pullback`): where the map's stretch changes within a
+    remesh face, the face's own affine map carries a point of its plane far from where it
+    lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS`` times,
+    then not made.
+
+    Parameters
+    ----------
+    S : RemeshState
+    c : (k, 2) float
+    C : (k, 3) float
+
+    Returns
+    -------
+    (k, 2) float
+    """
+    c = np.array(c, dtype=np.float64)
+    J = S.pullback()
+    miss = _miss(S, c, C)
+    for _ in range(steps):
+        mf, mb = S.locator.locate(c)
+        step = np.einsum("ijk,ik->ij", J[mf], C - lift(S.V_in, S.F_in, mf, mb))
+        for _ in range(HALVINGS):
+            nxt = _miss(S, c + step, C)
+            better = nxt < miss
+            c[better] += step[better]
+            miss[better] = nxt[better]
+            step[better] = 0.0
+            step *= 0.5
+    return c
+
+
+def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """How far (k) the lifts of the domain points ``c`` (k×2) are from the 3D points ``C``
+    (k×3); infinite for a point outside the input map."""
+    mf, mb, inside = S.locator.locate_with_inside(c)
+    return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf)
 
 
 def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -183,7 +227,7 @@ def insert_round(S: RemeshState, min_angle_deg: float) -> int:
     W = off_centre_weights(S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]], OFF_CENTRE_DEG)
     C3 = np.einsum("ij,ijk->ik", W, S.X[T])
     R = norms(C3 - S.X[T[:, 0]])
-    c = np.einsum("ij,ijk->ik", W, S.uv[T])
+    c = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv[T]), C3)
     f, bary, inside = locate_near(S, c)
     twin = S.twins()
     used = np.zeros(len(S.F), bool)
@@ -230,6 +274,8 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     j = int(np.argmin(bary))
     h = 3 * f + (j + 1) % 3                # the edge opposite the corner of least weight
     t = float(bary[(j + 2) % 3])
+    if _is_shortest_edge(S, bad, h):
+        return None                        # the edge the off-centre stands on stays
     if not inside:
         return _edge_split(S, h, twin, t) if twin[h] < 0 else None
     mf, mb = S.locator.locate(c[None])
@@ -242,6 +288,14 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     if (disk_shape(U, tri) < DISK_SHAPE_MIN).any():
         return None
     return "face", f, None
+
+
+def _is_shortest_edge(S: RemeshState, g: int, h: int) -> bool:
+    """Whether the half-edge ``h`` or its twin is the shortest edge (3D) of face ``g``."""
+    P = S.X[S.F[g]]
+    j = int(np.argmin(np.linalg.norm(P[[1, 2, 0]] - P, axis=1)))
+    ends = {int(S.F[g, j]), int(S.F[g, (j + 1) % 3])}
+    return ends == {int(S.F[h // 3, h % 3]), int(S.F[h // 3, (h % 3 + 1) % 3])}
 
 
 def _edge_split(S: RemeshState, h: int, twin: np.ndarray, t: float | None):
