@@ -33,7 +33,8 @@ from .refine import split_edges, split_faces, split_keeps_shape
 from .state import RemeshState
 
 ROUNDS = 6            # at most this many rounds of insertions
-EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge
+EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge,
+                      # to a corner is not inserted
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
@@ -274,8 +275,9 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     j = int(np.argmin(bary))
     h = 3 * f + (j + 1) % 3                # the edge opposite the corner of least weight
     t = float(bary[(j + 2) % 3])
-    if _is_shortest_edge(S, bad, h):
-        return None                        # the edge the off-centre stands on stays
+    if _is_shortest_edge(S, bad, h) or bary.max() > 1.0 - EDGE_BARY:
+        return None                        # the edge the off-centre stands on stays; a target
+                                           # next to a vertex has one
     if not inside:
         return _edge_split(S, h, twin, t) if twin[h] < 0 else None
     mf, mb = S.locator.locate(c[None])
