@@ -44,19 +44,9 @@ _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
 
 
 def circumcentre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
-    """The barycentric coordinates of each triangle's circumcentre (in its plane).
-
-    Parameters
-    ----------
-    P0, P1, P2 : (k, 3) float
-        The corners.
-
-    Returns
-    -------
-    (k, 3) float
-        Summing to 1; negative at the corner opposite the circumcentre's side for an obtuse
-        triangle.
-    """
+    """The barycentric coordinates (k×3, summing to 1) of the circumcentre of each triangle
+    ``P0, P1, P2`` (k×3 each) in its plane; an obtuse triangle's is negative at its obtuse
+    corner (the circumcentre lies beyond the opposite edge)."""
     a2 = ((P1 - P2) ** 2).sum(axis=1)
     b2 = ((P2 - P0) ** 2).sum(axis=1)
     c2 = ((P0 - P1) ** 2).sum(axis=1)
