@@ -5,18 +5,23 @@ opposite corner is about ``L`` away: a rim edge between two kept boundary corner
 between a rim corner and an interior vertex the operations could not move (its guards refuse).
 No flip, move or collapse fixes such a face: the short edge stays, so the far corner must come
 closer — a graded refinement. :func:`refine_at_circumcentres` makes it as Delaunay refinement
-does (Chew, Ruppert): the circumcentre of each such face (on the surface: the point of the
-face's plane equidistant from its corners, carried to the domain by the face's own affine map,
-located in the remesh and lifted by eq. (1)) becomes a vertex, and the flips connect it; where
-the circumcentre lies beyond the rim or encroaches a rim edge (inside the ball on its diameter)
-that edge is split instead, its vertex on the image polygon. The new face on the short edge has
-the circumcentre as apex: twice the old small angle there.
+does (Chew, Ruppert), with Üngör's off-centres: a vertex goes on the perpendicular bisector of
+each such face's shortest edge, where it sees that edge at ``OFF_CENTRE_DEG`` (or at the
+circumcentre if that is nearer), so the new face on the short edge has that angle at its apex
+and the steps grade the remesh from the short edge outwards. The point is computed in the
+face's plane, carried to the domain point whose lift is nearest to it
+(:func:`domain_points_for`), located in the remesh and lifted by eq. (1); the flips connect
+it. Where it lies beyond the rim or encroaches a rim edge (inside the ball on its diameter)
+that edge is split instead, its vertex on the image polygon; next to an edge of its face, that
+edge is split there; next to a vertex, or where its lift is far from it (the surface bends
+away from the face's plane), nothing is done.
 
-A round takes one insertion per face, those in distinct parts of the remesh (no two touching
-one face), then flips around them; it is kept only if it leaves fewer faces below the minimum
-that no input corner forces (:func:`.angles.forced_by_corners`), or as many with a larger
-smallest angle, and no more faces turned over — otherwise the remesh is put back as it was and
-the refinement ends.
+A round takes one insertion per face, worst face first, those in distinct parts of the remesh
+(no two touching one face), then flips around them. The rounds go on while there are faces to
+refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones); the
+remesh ends as the best state: the fewest faces below the minimum that no input
+corner forces (:func:`.angles.forced_by_corners`), then the largest smallest angle among them,
+with no more faces turned over than at the start (the start itself if no round beat it).
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import numpy as np
 
 from ..locate import lift
 from ..rows import norms
-from .angles import corner_angles_deg, forced_by_corners
+from .angles import corner_angles_deg, forcing_corners
 from .corners import locate_near
 from .domain import on_sphere
 from .halfedge import DISK_SHAPE_MIN, disk_shape
@@ -137,10 +142,20 @@ def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def unforced_shortfall(S: RemeshState, min_angle_deg: float) -> tuple[int, float]:
     """The faces below ``min_angle_deg`` that no input corner forces: how many, and their
     smallest angle (degrees; 180 when there are none)."""
-    A = corner_angles_deg(S.X, S.F).min(axis=1)
-    below = A < min_angle_deg
-    below &= ~forced_by_corners(S, min_angle_deg)
-    return int(below.sum()), float(A[below].min(initial=180.0))
+    _, A = unforced_below(S, min_angle_deg)
+    return len(A), float(A.min(initial=180.0))
+
+
+def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The faces (k indices) below ``min_angle_deg`` that no input corner forces
+    (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
+    first."""
+    A = corner_angles_deg(S.X, S.F)
+    bad = np.flatnonzero(A.min(axis=1) < min_angle_deg)
+    bad = bad[~(forcing_corners(S, min_angle_deg, bad) & (A[bad] < min_angle_deg)).any(axis=1)]
+    worst = A[bad].min(axis=1)
+    order = np.argsort(worst, kind="stable")
+    return bad[order], worst[order]
 
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
@@ -209,9 +224,7 @@ def insert_round(S: RemeshState, min_angle_deg: float) -> int:
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
     encroaches), worst face first, none in a face another one of the round touches; returns
     how many."""
-    A = corner_angles_deg(S.X, S.F).min(axis=1)
-    bad = np.flatnonzero((A < min_angle_deg) & ~forced_by_corners(S, min_angle_deg))
-    bad = bad[np.argsort(A[bad])]
+    bad, _ = unforced_below(S, min_angle_deg)
     if len(bad) == 0:
         return 0
     T = S.F[bad]
