@@ -43,7 +43,7 @@ EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
-DRIFT = 0.5           # a target whose lift is farther than this × the circumradius from the
+DRIFT = 1.0           # a target whose lift is farther than this × the circumradius from the
                       # circumcentre in 3D (the surface bends away) is not inserted
 _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
 
