@@ -43,8 +43,8 @@ EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
-DRIFT = 1.0           # a target whose lift is farther than this × the circumradius from the
-                      # circumcentre in 3D (the surface bends away) is not inserted
+DRIFT = 1.0           # a target whose lift is farther from it in 3D than this × its distance
+                      # to the face's corners (the surface bends away) is not inserted
 _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
 
 
@@ -160,8 +160,8 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
                             rounds: int = ROUNDS) -> int:
-    """Delaunay refinement of the faces below ``min_angle_deg`` no input corner forces (module
-    docstring); returns the number of vertices inserted (tallied as
+    """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
+    forces (module docstring); returns the number of vertices inserted (tallied as
     ``circumcentre_insertions``).
 
     Parameters
@@ -220,7 +220,7 @@ def restore_state(S: RemeshState, saved: dict) -> None:
 
 
 def insert_round(S: RemeshState, min_angle_deg: float) -> int:
-    """One round of :func:`refine_at_circumcentres`: a vertex at the circumcentre of each
+    """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
     encroaches), worst face first, none in a face another one of the round touches; returns
     how many."""
@@ -263,8 +263,8 @@ def insert_round(S: RemeshState, min_angle_deg: float) -> int:
 
 def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c: np.ndarray,
             C3: np.ndarray, R: float, twin: np.ndarray):
-    """What a round does for the bad face ``bad`` whose circumcentre (domain ``c``, 3D ``C3``,
-    radius ``R``) was located in face ``f`` at ``bary`` (``inside`` the remesh or not): a split
+    """What a round does for the bad face ``bad`` whose off-centre (domain ``c``, 3D ``C3``,
+    ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the remesh or not): a split
     of the rim edge it lies beyond or encroaches (``("edge", h, t)`` with ``t`` along the
     half-edge ``h``, None for the middle), a split of the edge it lies next to, a split of
     ``f`` at it (``("face", f, None)``), or None when none is allowed."""
