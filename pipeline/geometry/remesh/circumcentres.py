@@ -18,8 +18,9 @@ away from the face's plane), nothing is done.
 
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
 (no two touching one face), then flips around them. The rounds go on while there are faces to
-refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones); the
-remesh ends as the best state: the fewest faces below the minimum that no input
+refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
+one that leaves more than ``RUNAWAY`` × the best round's count + 1, none); the remesh ends as
+the best state: the fewest faces below the minimum that no input
 corner forces (:func:`.angles.forced_by_corners`), then the largest smallest angle among them,
 with no more faces turned over than at the start (the start itself if no round beat it).
 """
@@ -37,7 +38,8 @@ from .halfedge import DISK_SHAPE_MIN, disk_shape
 from .refine import split_edges, split_faces, split_keeps_shape
 from .state import RemeshState
 
-ROUNDS = 6            # at most this many rounds of insertions
+ROUNDS = 6            # at most this many rounds of insertions, none after one that leaves
+RUNAWAY = 2           # more than this × (the best round's count of faces to refine + 1)
 EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge,
                       # to a corner is not inserted
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
@@ -196,6 +198,8 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         after = unforced_shortfall(S, min_angle_deg)
         if _key(after) < _key(best[0]) and len(folds()) <= n_folds:
             best = (after, saved_state(S), done)
+        elif after[0] > RUNAWAY * best[0][0] + RUNAWAY:
+            break                          # the rounds make more faces than they mend
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])
     return best[2]
