@@ -97,8 +97,13 @@ def test_a_corner_sharper_than_the_minimum_is_reported_not_fixed():
     assert np.array_equal(S.F, [[0, 1, 3], [1, 2, 3]])
     assert forced_by_corners(S, 20.0).tolist() == [True, False]
     below = below_min_angle(S, S.V_in, 20.0)
+    tip = 2 * np.degrees(np.arctan(0.13))
+    corner = below.pop("input_corners")
     assert below == {"threshold_deg": 20.0, "faces": 1, "at_input_corners": 1,
-                     "input_corner_vertices": [0]}
+                     "unforced_faces": 0, "input_corner_vertices": [0]}
+    assert len(corner) == 1 and (corner[0]["vertex"], corner[0]["faces"]) == (0, 1)
+    assert corner[0]["angle_sum_deg"] == pytest.approx(tip, abs=1e-9)
+    assert corner[0]["smallest_angle_deg"] == pytest.approx(tip, abs=1e-9)
     assert forced_by_corners(S, 14.0).tolist() == [False, False]    # 14.8° is not below
     S = _kite(lock_tip=False)
     assert forced_by_corners(S, 20.0).tolist() == [False, False]
@@ -149,6 +154,10 @@ def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
     assert forced_by_corners(S, 20.0).tolist() == [True, False, False, True]
     below = below_min_angle(S, S.V_in, 20.0)
     assert (below["faces"], below["at_input_corners"], below["input_corner_vertices"]) == (2, 2, [0])
+    assert below["unforced_faces"] == 0
+    assert [(c["vertex"], c["faces"]) for c in below["input_corners"]] == [(0, 2)]
+    assert below["input_corners"][0]["angle_sum_deg"] == pytest.approx(30.0, abs=1e-9)
+    assert below["input_corners"][0]["smallest_angle_deg"] == pytest.approx(15.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("tent", [0.0, 0.5])

@@ -175,21 +175,34 @@ def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
 
     A locked vertex lies exactly on its input vertex (:mod:`.corners`): the input vertex is the
     corner of the input face under it with the largest barycentric coordinate."""
-    F = S.F
+    return (forcing_corners(S, min_angle_deg) & (corner_angles_deg(S.X, S.F) < min_angle_deg)
+            ).any(axis=1)
+
+
+def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) are at a
+    locked vertex whose input vertex is too sharp for any fan to give its faces
+    ``min_angle_deg`` (:func:`forced_by_corners`)."""
     locked = np.flatnonzero(S.locked)
     sharp = np.zeros(S.n, bool)
     if len(locked):
-        vin = S.F_in[S.face[locked], np.argmax(S.bary[locked], axis=1)]
-        sums = input_angle_sums(S)[vin]
+        sums = input_angle_sums(S)[input_vertex_under(S, locked)]
         sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 2, 3)
-    A = corner_angles_deg(S.X, F)
-    return (sharp[F] & (A < min_angle_deg)).any(axis=1)
+    return sharp[S.F if faces is None else S.F[faces]]
+
+
+def input_vertex_under(S: RemeshState, v: np.ndarray) -> np.ndarray:
+    """The input vertex (k int) each remesh vertex ``v`` (k int) lies on or nearest to in its
+    input face (the corner with the largest barycentric coordinate): a locked vertex's own
+    input corner."""
+    return S.F_in[S.face[v], np.argmax(S.bary[v], axis=1)]
 
 
 def input_angle_sums(S: RemeshState) -> np.ndarray:
-    """The sum (degrees) of the input faces' angles at each input vertex (N)."""
-    A = corner_angles_deg(S.V_in, S.F_in)
-    return np.bincount(S.F_in.ravel(), A.ravel(), len(S.V_in))
+    """The sum (degrees) of the input faces' angles at each input vertex (N; computed once,
+    :meth:`.state.RemeshState.angle_sums_in`)."""
+    return S.angle_sums_in()
 
 
 def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:

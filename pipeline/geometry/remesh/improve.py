@@ -78,9 +78,12 @@ The schedule (:func:`improve_remesh`):
     raises the smallest 3D angle of the faces it touches, under the sag guard) around the
     faces still below, the count restored (splits that make no face below the minimum,
     :func:`.angles.split_for_count`, or guarded collapses of the shortest edges) and the
-    operations again around the faces then below. A face no operation can raise stays: the
-    report counts the faces below the minimum and, among them, those an input corner too
-    sharp for any fan forces (:func:`.angles.forced_by_corners`);
+    operations again around the faces then below; then, up to ``GRADE_PASSES`` times while
+    it is kept, the faces still below that no input corner forces refined at their
+    off-centres (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short
+    edge whose far corner no operation can bring closer). A face none of this raises stays:
+    the report counts the faces below the minimum and, among them, those an input corner too
+    sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the corners;
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -99,6 +102,8 @@ import numpy as np
 from ..metrics import corner_angles
 from ..rows import norms, row_min
 from .angles import raise_min_angles, split_for_count
+from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
+                            unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
@@ -124,6 +129,7 @@ NEEDLE_PASSES = 3     # at most this many
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
+GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them)
 FOLLOW_GAPS = (0.4, 0.2)
@@ -442,14 +448,57 @@ class _Operations:
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, tol, bad)
-        if S.n < target:
-            split_for_count(S, target - S.n, min_angle_deg)
-        elif S.n > target:
-            collapse_short_edges(S, np.inf, 2.0 * L, budget=S.n - target, max_gap=tol,
-                                 max_sag=tol)
+        self.restore_angle_count(target, min_angle_deg)
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, tol, bad)
+        for _ in range(GRADE_PASSES):
+            if not self.grade(target, min_angle_deg):
+                break
+
+    def restore_angle_count(self, target: int, min_angle_deg: float,
+                            keep: np.ndarray | None = None) -> None:
+        """The count restored after the minimum-angle operations: splits that make no face
+        below ``min_angle_deg`` (:func:`.angles.split_for_count`) or collapses of the
+        shortest edges under the guards, none at the vertices ``keep`` (n bool) and their
+        neighbours."""
+        S = self.S
+        if S.n < target:
+            split_for_count(S, target - S.n, min_angle_deg)
+        elif S.n > target:
+            at = None if keep is None else ~_ring(S.F, keep)
+            collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - target,
+                                 max_gap=self.tol, max_sag=self.tol, at=at)
+
+    def grade(self, target: int, min_angle_deg: float) -> bool:
+        """The faces still below ``min_angle_deg`` that no input corner forces refined at
+        their off-centres (:func:`.circumcentres.refine_at_circumcentres`, flips after each
+        round), the count restored away from the new vertices (:meth:`restore_angle_count`)
+        and the local operations again around the faces then below; all of it undone if it
+        leaves more such faces, or as many with a smaller smallest angle, or more faces turned
+        over. Returns whether it was kept."""
+        S = self.S
+        before = unforced_shortfall(S, min_angle_deg)
+        if before[0] == 0:
+            return False
+        saved, log, n_folds, n0 = saved_state(S), dict(S.log), len(turned_over_faces(S)), S.n
+        if not refine_at_circumcentres(S, min_angle_deg, lambda F0: self.flip(since=F0),
+                                       lambda: turned_over_faces(S)):
+            return False
+        graded = np.zeros(S.n, bool)
+        graded[n0:] = True
+        self.restore_angle_count(target, min_angle_deg, keep=graded)
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(S, min_angle_deg, self.tol, bad)
+        after = unforced_shortfall(S, min_angle_deg)
+        if (after[0], -after[1]) >= (before[0], -before[1]) or \
+                len(turned_over_faces(S)) > n_folds:
+            restore_state(S, saved)
+            S.log.clear()
+            S.log.update(log)
+            return False
+        return True
 
     def repair_folds(self, target: int, passes: int = 3) -> None:
         """Collapse an edge between interior corners of every face turned over against the input
@@ -602,3 +651,10 @@ def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
     corners = np.zeros(S.n, bool)
     corners[S.F[changed].ravel()] = True
     return corners
+
+
+def _ring(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """The marked vertices (n bool) and the corners of every face at one of them."""
+    out = mark.copy()
+    out[F[touching(F, mark)].ravel()] = True
+    return out

@@ -126,6 +126,7 @@ class RemeshState:
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
     _pullback: np.ndarray | None = field(default=None, repr=False)
     _normals_in: np.ndarray | None = field(default=None, repr=False)
+    _angle_sums_in: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self):
         if self.locked is None:
@@ -145,6 +146,16 @@ class RemeshState:
         if self._normals_in is None:
             self._normals_in = face_normals(self.V_in, self.F_in)
         return self._normals_in
+
+    def angle_sums_in(self) -> np.ndarray:
+        """The sum (degrees, N) of the input faces' angles at each input vertex, computed
+        once."""
+        if self._angle_sums_in is None:
+            from ..metrics import corner_angles
+
+            A = np.degrees(corner_angles(self.V_in, self.F_in))
+            self._angle_sums_in = np.bincount(self.F_in.ravel(), A.ravel(), len(self.V_in))
+        return self._angle_sums_in
 
     def pullback(self) -> np.ndarray:
         """:func:`pullback_matrices` (M×2×3) of the input map, computed once."""

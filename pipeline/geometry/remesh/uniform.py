@@ -23,7 +23,8 @@ import numpy as np
 from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
-from .angles import forced_by_corners
+from .angles import (corner_angles_deg, forced_by_corners, forcing_corners, input_angle_sums,
+                     input_vertex_under)
 from .corners import boundary_corners, interior_corners
 from .domain import on_sphere
 from .halfedge import double_areas
@@ -244,20 +245,30 @@ def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> dict:
 
 
 def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict:
-    """The faces the minimum-angle pass left below ``min_angle_deg``: how many, how many of
-    them the input forces (an angle below it at a kept input corner too sharp for any fan:
-    :func:`.angles.forced_by_corners`) and which input vertices those corners are (the nearest
-    input vertex of each)."""
+    """The faces the minimum-angle pass left below ``min_angle_deg``: how many (``faces``),
+    how many of them the input forces (``at_input_corners``: an angle below it at a kept input
+    corner too sharp for any fan, :func:`.angles.forced_by_corners`) and how many it does not
+    (``unforced_faces``), which input vertices those corners are (``input_corner_vertices``,
+    the nearest input vertex of each) and, per corner (``input_corners``), its input angle
+    sum, how many faces below the minimum it has and their smallest angle there (degrees)."""
     from scipy.spatial import cKDTree
 
     bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
     forced = forced_by_corners(S, min_angle_deg)[bad] if len(bad) else np.zeros(0, bool)
     T = S.F[bad[forced]]
-    corners = np.unique(T[S.locked[T]])
+    at = forcing_corners(S, min_angle_deg)[bad[forced]] & \
+        (corner_angles_deg(S.X, T) < min_angle_deg)
+    corners = np.unique(T[at])
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
+    sums = input_angle_sums(S)[input_vertex_under(S, corners)]
+    A = corner_angles_deg(S.X, T)
+    per = [{"vertex": int(i), "angle_sum_deg": float(s), "faces": int((T[at] == v).sum()),
+            "smallest_angle_deg": float(A[at & (T == v)].min())}
+           for v, i, s in zip(corners, np.atleast_1d(names), sums)]
     return {"threshold_deg": float(min_angle_deg), "faces": int(len(bad)),
-            "at_input_corners": int(forced.sum()),
-            "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)})}
+            "at_input_corners": int(forced.sum()), "unforced_faces": int((~forced).sum()),
+            "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)}),
+            "input_corners": per}
 
 
 def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) -> RemeshState:

@@ -1,0 +1,324 @@
+"""Delaunay refinement of the faces the local operations leave below the minimum angle.
+
+What :func:`.angles.raise_min_angles` cannot raise is mostly a face beside a short edge whose
+opposite corner is about ``L`` away: a rim edge between two kept boundary corners, or an edge
+between a rim corner and an interior vertex the operations could not move (its guards refuse).
+No flip, move or collapse fixes such a face: the short edge stays, so the far corner must come
+closer — a graded refinement. :func:`refine_at_circumcentres` makes it as Delaunay refinement
+does (Chew, Ruppert), with Üngör's off-centres: a vertex goes on the perpendicular bisector of
+each such face's shortest edge, where it sees that edge at ``OFF_CENTRE_DEG`` (or at the
+circumcentre if that is nearer), so the new face on the short edge has that angle at its apex
+and the steps grade the remesh from the short edge outwards. The point is computed in the
+face's plane, carried to the domain point whose lift is nearest to it
+(:func:`domain_points_for`), located in the remesh and lifted by eq. (1); the flips connect
+it. Where it lies beyond the rim or encroaches a rim edge (inside the ball on its diameter)
+that edge is split instead, its vertex on the image polygon; next to an edge of its face, that
+edge is split there; next to a vertex, or where its lift is far from it (the surface bends
+away from the face's plane), nothing is done.
+
+A round takes one insertion per face, worst face first, those in distinct parts of the remesh
+(no two touching one face), then flips around them. The rounds go on while there are faces to
+refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
+one that leaves more than ``RUNAWAY`` × the best round's count + 1, none); the remesh ends as
+the best state: the fewest faces below the minimum that no input
+corner forces (:func:`.angles.forced_by_corners`), then the largest smallest angle among them,
+with no more faces turned over than at the start (the start itself if no round beat it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..locate import lift
+from ..rows import norms
+from .angles import corner_angles_deg, forcing_corners
+from .corners import locate_near
+from .domain import on_sphere
+from .halfedge import DISK_SHAPE_MIN, disk_shape
+from .refine import split_edges, split_faces, split_keeps_shape
+from .state import RemeshState
+
+ROUNDS = 6            # at most this many rounds of insertions, none after one that leaves
+RUNAWAY = 2           # more than this × (the best round's count of faces to refine + 1)
+EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge,
+                      # to a corner is not inserted
+OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
+NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
+HALVINGS = 4          # each halved up to this many times until the lift comes nearer
+DRIFT = 1.0           # a target whose lift is farther from it in 3D than this × its distance
+                      # to the face's corners (the surface bends away) is not inserted
+_STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
+
+
+def circumcentre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+    """The barycentric coordinates (k×3, summing to 1) of the circumcentre of each triangle
+    ``P0, P1, P2`` (k×3 each) in its plane; an obtuse triangle's is negative at its obtuse
+    corner (the circumcentre lies beyond the opposite edge)."""
+    a2 = ((P1 - P2) ** 2).sum(axis=1)
+    b2 = ((P2 - P0) ** 2).sum(axis=1)
+    c2 = ((P0 - P1) ** 2).sum(axis=1)
+    w = np.column_stack([a2 * (b2 + c2 - a2), b2 * (c2 + a2 - b2), c2 * (a2 + b2 - c2)])
+    return w / np.maximum(w.sum(axis=1, keepdims=True), 1e-300)
+
+
+def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg: float
+                       ) -> np.ndarray:
+    """The barycentric coordinates of each triangle's off-centre (Üngör): the point on the
+    perpendicular bisector of its shortest edge, towards the circumcentre, that makes with that
+    edge an isosceles triangle whose apex angle is ``angle_deg`` — or the circumcentre itself
+    when that is nearer to the edge.
+
+    Parameters
+    ----------
+    P0, P1, P2 : (k, 3) float
+        The corners.
+    angle_deg : float
+        The apex angle, below 60°.
+
+    Returns
+    -------
+    (k, 3) float
+    """
+    W = circumcentre_weights(P0, P1, P2)
+    P = np.stack([P0, P1, P2], axis=1)
+    ln = np.linalg.norm(P[:, [1, 2, 0]] - P, axis=2)     # edge j: corner j → corner j+1
+    j = np.argmin(ln, axis=1)
+    k = np.arange(len(P))
+    M = np.zeros_like(W)
+    M[k, j] = M[k, (j + 1) % 3] = 0.5                    # the middle of the shortest edge
+    C = np.einsum("ij,ijk->ik", W, P)
+    Mx = np.einsum("ij,ijk->ik", M, P)
+    far = ln[k, j] / (2.0 * np.tan(np.radians(angle_deg) / 2.0))
+    lam = np.minimum(1.0, far / np.maximum(norms(C - Mx), 1e-300))
+    return M + lam[:, None] * (W - M)
+
+
+def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
+                      steps: int = NEWTON_STEPS) -> np.ndarray:
+    """Domain points whose lifts come near the 3D points ``C``: from the first guesses ``c``,
+    ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face under
+    ``c`` (:meth:`.state.RemeshState.pullback`): where the map's stretch changes within a
+    remesh face, the face's own affine map carries a point of its plane far from where it
+    lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS`` times,
+    then not made.
+
+    Parameters
+    ----------
+    S : RemeshState
+    c : (k, 2) float
+    C : (k, 3) float
+
+    Returns
+    -------
+    (k, 2) float
+    """
+    c = np.array(c, dtype=np.float64)
+    J = S.pullback()
+    miss = _miss(S, c, C)
+    for _ in range(steps):
+        mf, mb = S.locator.locate(c)
+        step = np.einsum("ijk,ik->ij", J[mf], C - lift(S.V_in, S.F_in, mf, mb))
+        for _ in range(HALVINGS):
+            nxt = _miss(S, c + step, C)
+            better = nxt < miss
+            c[better] += step[better]
+            miss[better] = nxt[better]
+            step[better] = 0.0
+            step *= 0.5
+    return c
+
+
+def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """How far (k) the lifts of the domain points ``c`` (k×2) are from the 3D points ``C``
+    (k×3); infinite for a point outside the input map."""
+    mf, mb, inside = S.locator.locate_with_inside(c)
+    return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf)
+
+
+def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Whether each point ``C`` lies strictly inside the ball on the segment ``A–B`` as its
+    diameter (k×3 each; k bool)."""
+    return norms(C - 0.5 * (A + B)) < 0.5 * norms(B - A)
+
+
+def unforced_shortfall(S: RemeshState, min_angle_deg: float) -> tuple[int, float]:
+    """The faces below ``min_angle_deg`` that no input corner forces: how many, and their
+    smallest angle (degrees; 180 when there are none)."""
+    _, A = unforced_below(S, min_angle_deg)
+    return len(A), float(A.min(initial=180.0))
+
+
+def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """The faces (k indices) below ``min_angle_deg`` that no input corner forces
+    (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
+    first."""
+    A = corner_angles_deg(S.X, S.F)
+    bad = np.flatnonzero(A.min(axis=1) < min_angle_deg)
+    bad = bad[~(forcing_corners(S, min_angle_deg, bad) & (A[bad] < min_angle_deg)).any(axis=1)]
+    worst = A[bad].min(axis=1)
+    order = np.argsort(worst, kind="stable")
+    return bad[order], worst[order]
+
+
+def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
+                            rounds: int = ROUNDS) -> int:
+    """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
+    forces (module docstring); returns the number of vertices inserted (tallied as
+    ``circumcentre_insertions``).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place (vertices appended, faces rewritten); on the disk only.
+    min_angle_deg : float
+    flip : callable ``flip(F_before)``
+        Flips around the faces changed since ``F_before`` (m×3).
+    folds : callable ``folds() -> (j,) int``
+        The faces of ``S`` turned over against the input.
+    rounds : int
+
+    Returns
+    -------
+    int
+    """
+    if on_sphere(S.uv):
+        return 0
+    done = 0
+    n_folds = len(folds())
+    best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
+    for _ in range(rounds):
+        if best[0][0] == 0:
+            break
+        F0 = S.F.copy()
+        k = insert_round(S, min_angle_deg)
+        if k == 0:
+            break
+        flip(F0)
+        done += k
+        after = unforced_shortfall(S, min_angle_deg)
+        if _key(after) < _key(best[0]) and len(folds()) <= n_folds:
+            best = (after, saved_state(S), done)
+        elif after[0] > RUNAWAY * best[0][0] + RUNAWAY:
+            break                          # the rounds make more faces than they mend
+    restore_state(S, best[1])
+    S.tally("circumcentre_insertions", best[2])
+    return best[2]
+
+
+def _key(shortfall: tuple[int, float]) -> tuple[int, float]:
+    """The order of :func:`unforced_shortfall`'s results: fewer faces first, then the larger
+    smallest angle."""
+    return shortfall[0], -shortfall[1]
+
+
+def saved_state(S: RemeshState) -> dict:
+    """Copies of the arrays of ``S`` the operations change (:func:`restore_state`)."""
+    return {k: getattr(S, k).copy() for k in _STATE}
+
+
+def restore_state(S: RemeshState, saved: dict) -> None:
+    """Put ``S`` back as :func:`saved_state` saved it."""
+    for key, value in saved.items():
+        setattr(S, key, value)
+    S.set_faces(saved["F"])
+
+
+def insert_round(S: RemeshState, min_angle_deg: float) -> int:
+    """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
+    face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
+    encroaches), worst face first, none in a face another one of the round touches; returns
+    how many."""
+    bad, _ = unforced_below(S, min_angle_deg)
+    if len(bad) == 0:
+        return 0
+    T = S.F[bad]
+    W = off_centre_weights(S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]], OFF_CENTRE_DEG)
+    C3 = np.einsum("ij,ijk->ik", W, S.X[T])
+    R = norms(C3 - S.X[T[:, 0]])
+    c = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv[T]), C3)
+    f, bary, inside = locate_near(S, c)
+    twin = S.twins()
+    used = np.zeros(len(S.F), bool)
+    edges, faces, points = [], [], []
+    for i in range(len(bad)):
+        act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], twin)
+        if act is None:
+            continue
+        kind, h, t = act
+        touched = [h // 3] + ([twin[h] // 3] if twin[h] >= 0 else []) if kind == "edge" \
+            else [f[i]]
+        ring = [bad[i]] + touched
+        if used[ring].any():
+            continue
+        used[ring] = True
+        if kind == "edge":
+            edges.append((h, twin[h], t))
+        else:
+            faces.append(f[i])
+            points.append(c[i])
+    if edges:
+        h, tw, t = zip(*edges)
+        split_edges(S, np.array(h, np.int64), np.array(tw, np.int64),
+                    np.array([0.5 if x is None else x for x in t]))
+    if faces:
+        split_faces(S, np.array(faces, np.int64), np.array(points))
+    return len(edges) + len(faces)
+
+
+def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c: np.ndarray,
+            C3: np.ndarray, R: float, twin: np.ndarray):
+    """What a round does for the bad face ``bad`` whose off-centre (domain ``c``, 3D ``C3``,
+    ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the remesh or not): a split
+    of the rim edge it lies beyond or encroaches (``("edge", h, t)`` with ``t`` along the
+    half-edge ``h``, None for the middle), a split of the edge it lies next to, a split of
+    ``f`` at it (``("face", f, None)``), or None when none is allowed."""
+    F = S.F
+    for g in (bad, f):                    # an encroached rim edge of the bad face or of f
+        for j in range(3):
+            h = 3 * g + j
+            a, b = F[g, j], F[g, (j + 1) % 3]
+            if twin[h] < 0 and encroached(C3[None], S.X[[a]], S.X[[b]])[0]:
+                return _edge_split(S, h, twin, None)
+    j = int(np.argmin(bary))
+    h = 3 * f + (j + 1) % 3                # the edge opposite the corner of least weight
+    t = float(bary[(j + 2) % 3])
+    if _is_shortest_edge(S, bad, h) or bary.max() > 1.0 - EDGE_BARY:
+        return None                        # the edge the off-centre stands on stays; a target
+                                           # next to a vertex has one
+    if not inside:
+        return _edge_split(S, h, twin, t) if twin[h] < 0 else None
+    mf, mb = S.locator.locate(c[None])
+    if norms(lift(S.V_in, S.F_in, mf, mb) - C3[None])[0] > DRIFT * R:
+        return None
+    if bary[j] < EDGE_BARY:
+        return _edge_split(S, h, twin, t)
+    tri = np.array([[0, 1, 3], [1, 2, 3], [2, 0, 3]])
+    U = np.vstack([S.uv[F[f]], c])
+    if (disk_shape(U, tri) < DISK_SHAPE_MIN).any():
+        return None
+    return "face", f, None
+
+
+def _is_shortest_edge(S: RemeshState, g: int, h: int) -> bool:
+    """Whether the half-edge ``h`` or its twin is the shortest edge (3D) of face ``g``."""
+    P = S.X[S.F[g]]
+    j = int(np.argmin(np.linalg.norm(P[[1, 2, 0]] - P, axis=1)))
+    ends = {int(S.F[g, j]), int(S.F[g, (j + 1) % 3])}
+    return ends == {int(S.F[h // 3, h % 3]), int(S.F[h // 3, (h % 3 + 1) % 3])}
+
+
+def _edge_split(S: RemeshState, h: int, twin: np.ndarray, t: float | None):
+    """``("edge", h, t)`` if the split of half-edge ``h`` at ``t`` (None: the middle) is
+    allowed — not a kept edge, no face with three rim corners, no face thinner than
+    ``DISK_SHAPE_MIN`` on the disk — else None."""
+    F = S.F
+    f, j = h // 3, h % 3
+    a, b, p = F[f, j], F[f, (j + 1) % 3], F[f, (j + 2) % 3]
+    if S.is_joined(np.array([a]), np.array([b]))[0]:
+        return None
+    if twin[h] < 0 and S.is_rim[p]:
+        return None
+    tt = None if t is None else np.array([t])
+    if not split_keeps_shape(S, np.array([h]), twin[[h]], tt)[0]:
+        return None
+    return "edge", h, t
