@@ -161,9 +161,25 @@ def test_pardiso_single_precision_factor_is_refined_to_rtol(upper):
     assert np.all(np.linalg.norm(b - A @ X, axis=0) <= 1e-10 * np.linalg.norm(b, axis=0))
     assert s.refinement_stats["refinements"] >= 1
     assert s.refinement_stats["double_fallbacks"] == 0
+    assert s.iparm[33] <= 0     # (MKL writes −1: off) one thread, reproducible as it is
     x = s.solve(b[:, 0])
     assert x.shape == (A.shape[0],) and x.dtype == np.float64
     s.release()
+
+
+def test_pardiso_single_precision_on_threads_asks_for_reproducible_results():
+    """On more than one thread the single-precision factor runs in MKL's conditional numerical
+    reproducibility mode (``iparm[33]`` = the thread count; without it the 1M-face
+    Gauss–Newton system's solution differed from process to process); double precision and
+    one thread leave it off (MKL then writes −1 there)."""
+    _need("pardiso")
+    A = _grid_laplacian(30)
+    for single, threads, cnr in [(True, 2, 2), (True, 1, 0), (False, 2, 0)]:
+        s = solvers.PardisoSolver(single=single, threads=threads)
+        s.factorize(A)
+        assert (s.iparm[33] == cnr) if cnr else (s.iparm[33] <= 0), (single, threads)
+        np.testing.assert_allclose(A @ s.solve(np.ones(900)), np.ones(900), atol=1e-3)
+        s.release()
 
 
 def test_pardiso_single_precision_falls_back_to_double_where_refinement_stalls():

@@ -146,9 +146,10 @@ def block_ordering(interior_order: np.ndarray, cols: np.ndarray, nI: int, N: int
 #: the solver can (PARDISO: ``PardisoSolver(single=True)``) and each step solved to a relative
 #: residual of ``STEP_RTOL`` by refinement in double precision: an inexact Newton step (the
 #: Levenberg–Marquardt damping and the line search decide the step anyway). Measured with
-#: PARDISO on two threads: at 1.07M faces (2.1M unknowns) a refactorization 1.14 → 0.8 s, one
-#: refinement per step, the same 21 steps to the same map, converged mode 39.7 → 32.4 s; at
-#: 363k faces the same time in about as many steps (23 → 24); at 100k faces (choi_hand,
+#: PARDISO on two threads: at 1.07M faces (2.1M unknowns) a refactorization 1.14 → 0.8 s,
+#: the same 21 steps to as good a map, converged mode 39.7 → 35 s (30.5 s without the
+#: reproducible mode's slower solves, see :class:`.solvers.PardisoSolver`); at 363k faces
+#: the same time in about as many steps (23 → 24); at 100k faces (choi_hand,
 #: choi_human_brain) within ±0.1 s either way, hence the threshold. Smaller systems, and the
 #: other solvers, factor in double precision: their maps equal other solvers' to rounding.
 SINGLE_ABOVE = 200_000

@@ -289,7 +289,8 @@ class PardisoSolver:
     corrections short of that (a badly conditioned matrix) it factors the matrix in double
     precision once and solves with that (``refinement_stats["double_fallbacks"]``). This serves systems
     whose solution only has to be good to ``rtol`` (an inexact Newton step: see
-    :class:`.gauss_newton.GaussNewton`).
+    :class:`.gauss_newton.GaussNewton`). On more than one thread it runs in MKL's conditional
+    numerical reproducibility mode (``iparm[33]``), so that it too is the same from run to run.
 
     MKL runs on ``threads`` threads during these calls (``MKL_Set_Num_Threads_Local``, restored
     after each call). By default that is one thread below ``PARALLEL_ABOVE`` unknowns and MKL's
@@ -385,6 +386,12 @@ class PardisoSolver:
         self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
         self._key = (A.indptr, A.indices)
         self._threads = self.threads_for(n)
+        # a single-precision factor on several threads differs from process to process
+        # without MKL's conditional numerical reproducibility (iparm[33]: the thread count;
+        # the 1M-face Gauss–Newton system: three different solutions in six runs without it,
+        # one in six with it; the refactorization as fast, a solve 0.06 → 0.21 s); the
+        # double-precision factor is reproducible as it is
+        self.iparm[33] = self._threads if self.single and self._threads > 1 else 0
         given = self.ordering is not None and len(self.ordering) == n
         # on more than one thread the nested dissection runs in parallel (iparm[1] = 3: the
         # same order, 0.7 s less at 2M unknowns)
