@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry.remesh_quality import remesh_quality
-from pipeline.report.remesh import (Method, comparison_table, remesh_warnings, verdicts,
-                                    write_report)
+from pipeline.report.remesh import (Method, below_min_angle_warning, comparison_table,
+                                    remesh_warnings, verdicts, write_report)
 from pipeline.sample import make_face
 
 
@@ -83,3 +83,20 @@ def test_remesh_warnings_name_a_vertex_count_off_the_request():
     assert "the boundary alone took 60 rim samples" in w
     [w] = remesh_warnings({}, {}, count={"requested": 1000, "vertices": 970, "rim": 90})
     assert w == "the remesh has 970 vertices, -3 % from the 1000 requested"
+
+
+def test_below_min_angle_warning_names_forcing_corners_and_counts_the_rest():
+    """The faces left below the minimum angle: those a sharp input corner forces, with the
+    corner named (its angle sum, its faces, their smallest angle there), and those no corner
+    forces, counted apart; singular for one face."""
+    below = {"threshold_deg": 20.0, "faces": 3, "at_input_corners": 1, "unforced_faces": 2,
+             "input_corner_vertices": [136],
+             "input_corners": [{"vertex": 136, "angle_sum_deg": 26.725, "faces": 1,
+                                "smallest_angle_deg": 8.69}]}
+    assert below_min_angle_warning(below) == (
+        "3 faces keep an angle below 20°: 1 forced by sharp input corners (input vertex 136, a "
+        "26.7° corner: 1 face, 8.7° there); 2 that no input corner forces (the minimum-angle "
+        "pass and its refinement could not raise them)")
+    one = {"threshold_deg": 20.0, "faces": 1, "at_input_corners": 0, "unforced_faces": 1}
+    assert below_min_angle_warning(one).startswith("1 face keeps an angle below 20°: 1 that")
+    assert remesh_warnings({}, {}, below) == [below_min_angle_warning(below)]

@@ -298,7 +298,8 @@ skewed on the surface where the distortion is large (long protrusions, deep fold
 improvement step (rounds of splits, collapses, flips and relaxation judged by 3D lengths,
 splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, and of rim edges at
 the input boundary vertices they cut off, {imp.get('rim_splits', 0)} here, balanced by
-collapses of the shortest edges, and a pass on faces below 20°) removes most but not all of it, and
+collapses of the shortest edges, and a pass on faces below 20° that ends by inserting vertices at
+their off-centres) removes most but not all of it, and
 sharp features are kept only at corner
 vertices {corners}, not along creases.</p>
 {fig_html}"""
@@ -309,6 +310,34 @@ vertices {corners}, not along creases.</p>
 
 HAUSDORFF_GOAL = 0.005        # of the bounding-box diagonal
 ANISOTROPY_SHARE = 0.25       # of the surface stretched more than 10:1
+
+
+def below_min_angle_warning(below: dict) -> str:
+    """One sentence on the faces the minimum-angle pass left below its threshold
+    (``remesh.improve.below_min_angle``): how many, how many a sharp input corner forces and
+    which (input vertex, its angle sum, its faces, their smallest angle there; at most 10
+    named), and how many no corner forces."""
+    n, thr = below["faces"], below["threshold_deg"]
+    forced = below.get("at_input_corners", 0)
+    unforced = below.get("unforced_faces", n - forced)
+    corners = below.get("input_corners") or [{"vertex": v} for v in
+                                             below.get("input_corner_vertices") or []]
+
+    def corner(c):
+        if "angle_sum_deg" not in c:
+            return f"input vertex {c['vertex']}"
+        return (f"input vertex {c['vertex']}, a {c['angle_sum_deg']:.1f}° corner: "
+                f"{c['faces']} face{'s' if c['faces'] != 1 else ''}, "
+                f"{c['smallest_angle_deg']:.1f}° there")
+    parts = []
+    if forced:
+        named = "; ".join(corner(c) for c in corners[:10]) + (" …" if len(corners) > 10 else "")
+        parts.append(f"{forced} forced by sharp input corners ({named})")
+    if unforced:
+        parts.append(f"{unforced} that no input corner forces (the minimum-angle pass and its "
+                     f"refinement could not raise them)")
+    return (f"{n} face{'s' if n != 1 else ''} keep{'s' if n == 1 else ''} an angle below "
+            f"{thr:g}°: " + "; ".join(parts))
 
 
 def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
@@ -334,12 +363,7 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
         out.append(f"the remesh has {got} vertices, {100 * (got - want) / want:+.0f} % from the "
                    f"{want} requested{why}")
     if below and below.get("faces"):
-        corners = below.get("input_corner_vertices") or []
-        named = (f", {below['at_input_corners']} of them at sharp input corners (input "
-                 f"vertices {', '.join(map(str, corners[:10]))}{' …' if len(corners) > 10 else ''})"
-                 if below.get("at_input_corners") else ", none at a sharp input corner")
-        out.append(f"{below['faces']} faces keep an angle below {below['threshold_deg']:g}°"
-                   f"{named}")
+        out.append(below_min_angle_warning(below))
     share = distortion.get("anisotropy_area_above_10", 0.0)
     if share > ANISOTROPY_SHARE:
         out.append(f"the SEM map stretches {100 * share:.0f} % of the surface more than 10:1 "
