@@ -175,8 +175,16 @@ def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
 
     A locked vertex lies exactly on its input vertex (:mod:`.corners`): the input vertex is the
     corner of the input face under it with the largest barycentric coordinate."""
-    return (forcing_corners(S, min_angle_deg) & (corner_angles_deg(S.X, S.F) < min_angle_deg)
-            ).any(axis=1)
+    return forced_corners(S, min_angle_deg).any(axis=1)
+
+
+def forced_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | None = None
+                   ) -> np.ndarray:
+    """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) have an angle
+    below ``min_angle_deg`` at a vertex :func:`forcing_corners` marks: a face is forced
+    (:func:`forced_by_corners`) where one of its corners is."""
+    F = S.F if faces is None else S.F[faces]
+    return forcing_corners(S, min_angle_deg, faces) & (corner_angles_deg(S.X, F) < min_angle_deg)
 
 
 def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | None = None
@@ -187,7 +195,7 @@ def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | No
     locked = np.flatnonzero(S.locked)
     sharp = np.zeros(S.n, bool)
     if len(locked):
-        sums = input_angle_sums(S)[input_vertex_under(S, locked)]
+        sums = S.angle_sums_in()[input_vertex_under(S, locked)]
         sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 2, 3)
     return sharp[S.F if faces is None else S.F[faces]]
 
@@ -197,12 +205,6 @@ def input_vertex_under(S: RemeshState, v: np.ndarray) -> np.ndarray:
     input face (the corner with the largest barycentric coordinate): a locked vertex's own
     input corner."""
     return S.F_in[S.face[v], np.argmax(S.bary[v], axis=1)]
-
-
-def input_angle_sums(S: RemeshState) -> np.ndarray:
-    """The sum (degrees) of the input faces' angles at each input vertex (N; computed once,
-    :meth:`.state.RemeshState.angle_sums_in`)."""
-    return S.angle_sums_in()
 
 
 def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..locate import lift
 from ..rows import norms
-from .angles import corner_angles_deg, forcing_corners
+from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
 from .domain import on_sphere
 from .halfedge import DISK_SHAPE_MIN, disk_shape
@@ -154,7 +154,7 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
     first."""
     A = corner_angles_deg(S.X, S.F)
     bad = np.flatnonzero(A.min(axis=1) < min_angle_deg)
-    bad = bad[~(forcing_corners(S, min_angle_deg, bad) & (A[bad] < min_angle_deg)).any(axis=1)]
+    bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
     worst = A[bad].min(axis=1)
     order = np.argsort(worst, kind="stable")
     return bad[order], worst[order]

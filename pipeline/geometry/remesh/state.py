@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import topology as topo
 from ..locate import PointLocator, lift
+from ..metrics import corner_angles
 from ..rows import cross, dots, norms
 
 
@@ -151,8 +152,6 @@ class RemeshState:
         """The sum (degrees, N) of the input faces' angles at each input vertex, computed
         once."""
         if self._angle_sums_in is None:
-            from ..metrics import corner_angles
-
             A = np.degrees(corner_angles(self.V_in, self.F_in))
             self._angle_sums_in = np.bincount(self.F_in.ravel(), A.ravel(), len(self.V_in))
         return self._angle_sums_in

@@ -23,8 +23,7 @@ import numpy as np
 from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
-from .angles import (corner_angles_deg, forced_by_corners, forcing_corners, input_angle_sums,
-                     input_vertex_under)
+from .angles import corner_angles_deg, forced_corners, input_vertex_under
 from .corners import boundary_corners, interior_corners
 from .domain import on_sphere
 from .halfedge import double_areas
@@ -254,13 +253,12 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     from scipy.spatial import cKDTree
 
     bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
-    forced = forced_by_corners(S, min_angle_deg)[bad] if len(bad) else np.zeros(0, bool)
-    T = S.F[bad[forced]]
-    at = forcing_corners(S, min_angle_deg)[bad[forced]] & \
-        (corner_angles_deg(S.X, T) < min_angle_deg)
+    at = forced_corners(S, min_angle_deg, bad)
+    forced = at.any(axis=1)
+    T, at = S.F[bad[forced]], at[forced]
     corners = np.unique(T[at])
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
-    sums = input_angle_sums(S)[input_vertex_under(S, corners)]
+    sums = S.angle_sums_in()[input_vertex_under(S, corners)]
     A = corner_angles_deg(S.X, T)
     per = [{"vertex": int(i), "angle_sum_deg": float(s), "faces": int((T[at] == v).sum()),
             "smallest_angle_deg": float(A[at & (T == v)].min())}
