@@ -196,7 +196,7 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         flip(F0)
         done += k
         after = unforced_shortfall(S, min_angle_deg)
-        if _key(after) < _key(best[0]) and len(folds()) <= n_folds:
+        if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
             best = (after, saved_state(S), done)
         elif after[0] > RUNAWAY * best[0][0] + RUNAWAY:
             break                          # the rounds make more faces than they mend
@@ -205,7 +205,7 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     return best[2]
 
 
-def _key(shortfall: tuple[int, float]) -> tuple[int, float]:
+def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
     """The order of :func:`unforced_shortfall`'s results: fewer faces first, then the larger
     smallest angle."""
     return shortfall[0], -shortfall[1]

@@ -103,7 +103,7 @@ from ..metrics import corner_angles
 from ..rows import norms, row_min
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
-                            unforced_shortfall)
+                            shortfall_order, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
@@ -492,7 +492,7 @@ class _Operations:
         self.release(bad)
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
-        if (after[0], -after[1]) >= (before[0], -before[1]) or \
+        if shortfall_order(after) >= shortfall_order(before) or \
                 len(turned_over_faces(S)) > n_folds:
             restore_state(S, saved)
             S.log.clear()
