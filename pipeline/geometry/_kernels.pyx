@@ -353,25 +353,6 @@ def group_by_key(const int64_t[::1] keys, const int64_t[::1] values, int64_t n):
     return indptr_arr, out_arr
 
 
-def common_neighbours(const int64_t[::1] indptr, const int64_t[::1] indices, const int64_t[::1] r,
-                      const int64_t[::1] k, int64_t n):
-    """For every pair ``(r[i], k[i])``, how many entries of row ``r[i]`` of the adjacency CSR
-    also stand in row ``k[i]`` (the link condition's common neighbours)."""
-    cdef Py_ssize_t i, p
-    cdef int64_t stamp
-    mark_arr = np.full(n, -1, dtype=np.int64)
-    count_arr = np.zeros(r.shape[0], dtype=np.int64)
-    cdef int64_t[::1] mark = mark_arr, count = count_arr
-    for i in range(r.shape[0]):
-        stamp = i
-        for p in range(indptr[k[i]], indptr[k[i] + 1]):
-            mark[indices[p]] = stamp
-        for p in range(indptr[r[i]], indptr[r[i] + 1]):
-            if mark[indices[p]] == stamp:
-                count[i] += 1
-    return count_arr
-
-
 def faces_touching(const int64_t[:, ::1] F, const unsigned char[::1] mark):
     """Boolean mask of the faces with at least one corner ``v`` where ``mark[v]`` is set
     (``mark[F].any(axis=1)`` without the (m, 3) temporary and the slow reduction over a
@@ -384,34 +365,75 @@ def faces_touching(const int64_t[:, ::1] F, const unsigned char[::1] mark):
     return out_arr
 
 
-def collapse_breaks_faces(const double[:, ::1] uv, const double[:, ::1] X,
-                          const unsigned char[::1] is_rim, const int64_t[:, ::1] T,
-                          const int64_t[:, ::1] Tn, const int64_t[::1] kept, double L_max):
-    """For each face ``T[i]`` that a collapse rewrites as ``Tn[i]`` (the removed vertex
-    replaced by ``kept[i]``), whether the new face is invalid: its disk area (twice, signed)
-    at most 1e-6 of the old one's magnitude, its 3D normal turned over (non-positive dot with
-    the old), all three corners on the rim, or an edge from ``kept[i]`` longer than ``L_max``."""
-    cdef Py_ssize_t i, c
+def collapses_valid(const int64_t[::1] a_ptr, const int64_t[::1] a_idx,
+                    const int64_t[::1] vf_ptr, const int64_t[::1] vf_idx,
+                    const int64_t[:, ::1] F, const int64_t[::1] r, const int64_t[::1] k,
+                    const unsigned char[::1] on_boundary, const double[:, ::1] uv,
+                    const double[:, ::1] X, const unsigned char[::1] is_rim, double L_max,
+                    double shape_min):
+    """Whether each collapse ``r[i] → k[i]`` keeps the mesh valid: the link condition (rows
+    ``r[i]`` and ``k[i]`` of the adjacency CSR share exactly 1 entry for a boundary edge, 2
+    for an interior one) and, for each face of ``r[i]`` (incidence CSR ``vf``) without
+    ``k[i]``, rewritten with ``k[i]`` for ``r[i]``: its disk area (twice, signed) above 1e-6 of
+    the old one's magnitude, its 3D normal not turned over (positive dot with the old), not
+    all three corners on the rim, no edge from ``k[i]`` longer than ``L_max``, and its disk
+    shape (:func:`disk_shapes`) not below ``shape_min``."""
+    cdef Py_ssize_t i, p, c
+    cdef int64_t t, common, ri, ki
+    cdef int64_t T[3]
+    cdef int64_t Tn[3]
+    mark_arr = np.full(uv.shape[0], -1, dtype=np.int64)
+    ok_arr = np.empty(r.shape[0], dtype=np.bool_)
+    cdef int64_t[::1] mark = mark_arr
+    cdef unsigned char[::1] ok = ok_arr.view(np.uint8)
+    for i in range(r.shape[0]):
+        ri, ki = r[i], k[i]
+        for p in range(a_ptr[ki], a_ptr[ki + 1]):
+            mark[a_idx[p]] = i
+        common = 0
+        for p in range(a_ptr[ri], a_ptr[ri + 1]):
+            if mark[a_idx[p]] == i:
+                common += 1
+        ok[i] = common == (1 if on_boundary[i] else 2)
+        if not ok[i]:
+            continue
+        for p in range(vf_ptr[ri], vf_ptr[ri + 1]):
+            t = vf_idx[p]
+            if F[t, 0] == ki or F[t, 1] == ki or F[t, 2] == ki:
+                continue
+            for c in range(3):
+                T[c] = F[t, c]
+                Tn[c] = ki if T[c] == ri else T[c]
+            if _collapse_breaks(uv, X, is_rim, T, Tn, ki, L_max, shape_min):
+                ok[i] = 0
+                break
+    return ok_arr
+
+
+cdef inline bint _collapse_breaks(const double[:, ::1] uv, const double[:, ::1] X,
+                                  const unsigned char[::1] is_rim, const int64_t* T,
+                                  const int64_t* Tn, int64_t kept, double L_max,
+                                  double shape_min) noexcept nogil:
+    """Whether the face ``T`` rewritten by a collapse as ``Tn`` (the removed vertex replaced
+    by ``kept``) is invalid (the face tests of :func:`collapses_valid`)."""
+    cdef Py_ssize_t c
     cdef double old2, new2, d, longest
     cdef double no[3]
     cdef double nn[3]
-    bad_arr = np.empty(T.shape[0], dtype=np.bool_)
-    cdef unsigned char[::1] bad = bad_arr.view(np.uint8)
-    for i in range(T.shape[0]):
-        old2 = _signed2(uv, T[i, 0], T[i, 1], T[i, 2])
-        new2 = _signed2(uv, Tn[i, 0], Tn[i, 1], Tn[i, 2])
-        _normal(X, T[i, 0], T[i, 1], T[i, 2], no)
-        _normal(X, Tn[i, 0], Tn[i, 1], Tn[i, 2], nn)
-        longest = 0.0
-        for c in range(3):
-            d = _length(X, Tn[i, c], kept[i])
-            if d > longest:
-                longest = d
-        bad[i] = ((new2 <= 1e-6 * fabs(old2))
-                  or (_dot3(no, nn) <= 0)
-                  or (is_rim[Tn[i, 0]] and is_rim[Tn[i, 1]] and is_rim[Tn[i, 2]])
-                  or longest > L_max)
-    return bad_arr
+    old2 = _signed2(uv, T[0], T[1], T[2])
+    new2 = _signed2(uv, Tn[0], Tn[1], Tn[2])
+    _normal(X, T[0], T[1], T[2], no)
+    _normal(X, Tn[0], Tn[1], Tn[2], nn)
+    longest = 0.0
+    for c in range(3):
+        d = _length(X, Tn[c], kept)
+        if d > longest:
+            longest = d
+    return ((new2 <= 1e-6 * fabs(old2))
+            or (_dot3(no, nn) <= 0)
+            or (is_rim[Tn[0]] and is_rim[Tn[1]] and is_rim[Tn[2]])
+            or longest > L_max
+            or _disk_shape(uv, Tn[0], Tn[1], Tn[2], new2) < shape_min)
 
 
 cdef inline double _signed2(const double[:, ::1] uv, int64_t a, int64_t b, int64_t c
@@ -1165,3 +1187,4 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
     for x in range(3):
         q[x] = a[x] + ab[x] * v + ac[x] * w
     return _point_point(p, q)
+

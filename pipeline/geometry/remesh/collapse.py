@@ -8,8 +8,9 @@ is. It is made only if
   interior edge between two rim vertices is never collapsed);
 * the link condition holds (the ends share exactly two neighbours, one on the boundary);
 * no face flips on the disk or turns over in 3D, no face gets three boundary corners and no
-  edge gets longer than ``L_max`` (compiled: :func:`.._kernels.collapse_breaks_faces`), and
-  no new face is thinner on the disk than ``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`);
+  edge gets longer than ``L_max``, and no new face is thinner on the disk than
+  ``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`; compiled with the link condition:
+  :func:`.._kernels.collapses_valid`);
 * given ``max_gap``: the removed vertex, a point of the surface, stays within ``max_gap`` of
   the faces that replace its ring (so that collapses do not undo the refinement of folds);
 * given ``max_sag``: no new edge is farther than that from the surface (:func:`.sag.edge_sag`;
@@ -24,11 +25,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import (collapse_breaks_faces, common_neighbours, faces_kept_by_collapses,
-                        half_edge_lengths, short_edges)
+from .._kernels import collapses_valid, faces_kept_by_collapses, half_edge_lengths, short_edges
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
-from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, disk_shape, touching, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, touching, vertex_faces
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -125,18 +125,12 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             break
         A = adjacency(Fs, n, twin_all)
         VF = vertex_faces(Fs, n)
-        # link condition: common neighbours = 2 (interior edge) or 1 (boundary edge)
         r, k = r.astype(np.int64), k.astype(np.int64)
-        common = common_neighbours(A.indptr, A.indices, r, k, n)
-        ok = common == np.where(on_b, 1, 2)
-        # faces of r that survive (do not contain k), with r replaced by k
-        fr, T, Tn = faces_kept_by_collapses(VF.indptr, VF.indices, Fs, r, k)
-        bad = collapse_breaks_faces(np.ascontiguousarray(S.uv), X,
-                                    np.ascontiguousarray(S.is_rim).view(np.uint8), T, Tn,
-                                    k[fr], float(L_max))
-        bad |= disk_shape(S.uv, Tn) < DISK_SHAPE_MIN
-        ok &= np.bincount(fr[bad], minlength=len(r)) == 0
-        win = _independent_collapses(S, r, k, ln, ok, A, fr, Tn, max_gap, max_sag,
+        ok = collapses_valid(A.indptr, A.indices, VF.indptr, VF.indices, Fs, r, k,
+                             on_b.view(np.uint8), np.ascontiguousarray(S.uv, dtype=np.float64),
+                             X, np.ascontiguousarray(S.is_rim).view(np.uint8), float(L_max),
+                             DISK_SHAPE_MIN)
+        win = _independent_collapses(S, r, k, ln, ok, A, VF, Fs, max_gap, max_sag,
                                      None if budget is None else budget - done)
         if len(win) == 0:
             break
@@ -171,13 +165,13 @@ def _half_edge_ends(F: np.ndarray, mask: np.ndarray, is_rim: np.ndarray) -> np.n
     return np.concatenate([tails, F[h // 3, (h % 3 + 1) % 3]])
 
 
-def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap, max_sag,
+def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, VF: CSR, F, max_gap, max_sag,
                            budget: int | None) -> np.ndarray:
     """A maximal set of collapses ``r → k`` among the ``ok`` candidates whose removed vertices
     have pairwise disjoint closed 1-rings (``A``: adjacency), greedy from the shortest ``ln``:
     in passes, every candidate that is the shortest at all vertices of its closed ring among
     those not yet decided is checked against the guards (``max_gap``: the removed vertex within
-    that of its new faces ``Tn`` (rows ``fr``); ``max_sag``: no new edge ``k–x`` farther than
+    that of its new faces, from the faces ``F`` and their incidence ``VF``; ``max_sag``: no new edge ``k–x`` farther than
     that from the surface) and taken if it passes; the candidates touching a taken ring drop
     out. Disjoint closed rings make the collapses independent: one changes only the faces at
     its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
@@ -207,7 +201,7 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap
         lost = np.bincount(pr[live & (best[pv] != prank)], minlength=c)
         w = np.flatnonzero(open_ & (lost == 0))            # shortest in its whole ring
         open_[w] = False
-        w = w[_collapse_guards(S, r, k, sel[w], A, fr, Tn, max_gap, max_sag)]
+        w = w[_collapse_guards(S, r, k, sel[w], A, VF, F, max_gap, max_sag)]
         if budget is not None:
             w = w[np.argsort(rank[w], kind="stable")][:budget - n_won]
         mark = np.zeros(c, bool)
@@ -225,22 +219,23 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, fr, Tn, max_gap
     return sel[np.concatenate(won)] if won else sel[:0]
 
 
-def _collapse_guards(S: RemeshState, r, k, cand, A: CSR, fr, Tn, max_gap, max_sag
+def _collapse_guards(S: RemeshState, r, k, cand, A: CSR, VF: CSR, F, max_gap, max_sag
                      ) -> np.ndarray:
-    """Which collapses ``r[cand] → k[cand]`` pass the guards of :func:`collapse_short_edges`
-    (a bool mask over ``cand``): the removed vertex, a point of the surface, within ``max_gap``
-    of the faces ``Tn`` (rows ``fr``) that replace its ring; no new edge ``k–x`` (``x`` in
-    ``r``'s ring) farther than ``max_sag`` from the surface (:func:`edge_sag`)."""
+    """Which collapses ``r[cand] → k[cand]`` (``cand`` increasing) pass the guards of
+    :func:`collapse_short_edges` (a bool mask over ``cand``): the removed vertex, a point of
+    the surface, within ``max_gap`` of the faces that replace its ring (its faces in ``F``
+    (incidence ``VF``) without ``k``, rewritten with ``k``); no new edge ``k–x`` (``x`` in
+    ``r``'s ring, adjacency ``A``) farther than ``max_sag`` from the surface
+    (:func:`edge_sag`)."""
     good = np.ones(len(cand), bool)
     if len(cand) and max_gap is not None:
-        at = np.full(len(r), -1, np.int64)
-        at[cand] = np.arange(len(cand))
-        rows = np.flatnonzero(at[fr] >= 0)
-        X, Tr = S.X, Tn[rows]
-        Pr = X[r[fr[rows]]]
+        rc = r[cand]
+        fr, _, Tr = faces_kept_by_collapses(VF.indptr, VF.indices, F, rc, k[cand])
+        X = S.X
+        Pr = X[rc[fr]]
         gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]], X[Tr[:, 2]]))
         near = np.full(len(cand), np.inf)
-        np.minimum.at(near, at[fr[rows]], gap)
+        np.minimum.at(near, fr, gap)
         good &= near <= max_gap
     if len(cand) and max_sag is not None:
         idx = np.flatnonzero(good)
