@@ -106,3 +106,32 @@ def test_collapse_never_removes_a_rim_vertex_into_a_locked_interior_one():
     k = collapse_short_edges(S, 0.05, np.inf)
     assert k == 0 and is_disk(mesh_facts(S.X, S.F))
     np.testing.assert_array_equal(S.uv[S.is_rim], rim_before)
+
+
+def test_refused_edges_are_found_either_way_round_until_a_ring_at_an_end_changes():
+    """A strip of four triangles (vertices 0–5): the refused edges 0–1 and 4–5 are found as
+    pairs in both directions and as half-edges of the faces; removing vertex 3 (closed ring
+    1, 2, 3, 4, 5) forgets both, removing vertex 0 (ring 0, 1, 2) only 0–1."""
+    from pipeline.geometry.remesh.collapse import RefusedEdges
+    from pipeline.geometry.remesh.halfedge import adjacency
+
+    F = np.array([[0, 1, 2], [1, 3, 2], [2, 3, 4], [3, 5, 4]], np.int64)
+    A = adjacency(F, 6)
+
+    def refused():
+        R = RefusedEdges(6)
+        R.add(np.array([0, 5]), np.array([1, 4]))
+        return R
+
+    R = refused()
+    assert R.has(np.array([1, 0, 4, 0, 2]), np.array([0, 1, 5, 2, 3])).tolist() == [
+        True, True, True, False, False]
+    found = R.has_half_edges(F, np.ones(12, bool)).reshape(4, 3)
+    assert found.tolist() == [[True, False, False], [False] * 3, [False] * 3,
+                              [False, True, False]]
+    assert not R.has_half_edges(F, np.zeros(12, bool)).any()
+    R.forget_at(np.array([3]), A)
+    assert not R.has(np.array([0, 4]), np.array([1, 5])).any()
+    R = refused()
+    R.forget_at(np.array([0]), A)
+    assert R.has(np.array([0, 4]), np.array([1, 5])).tolist() == [False, True]

@@ -353,6 +353,43 @@ def group_by_key(const int64_t[::1] keys, const int64_t[::1] values, int64_t n):
     return indptr_arr, out_arr
 
 
+cdef inline bint _in_row(const int64_t[::1] indptr, const int64_t[::1] indices, int64_t a,
+                         int64_t b) noexcept nogil:
+    """Whether ``b`` stands in row ``a`` of a CSR structure."""
+    cdef Py_ssize_t p
+    for p in range(indptr[a], indptr[a + 1]):
+        if indices[p] == b:
+            return True
+    return False
+
+
+def pairs_in_rows(const int64_t[::1] indptr, const int64_t[::1] indices, const int64_t[::1] a,
+                  const int64_t[::1] b):
+    """For every pair ``(a[i], b[i])``, whether ``b[i]`` stands in row ``a[i]`` of a CSR
+    structure (bool)."""
+    cdef Py_ssize_t i
+    out_arr = np.empty(a.shape[0], dtype=np.bool_)
+    cdef unsigned char[::1] out = out_arr.view(np.uint8)
+    for i in range(a.shape[0]):
+        out[i] = _in_row(indptr, indices, a[i], b[i])
+    return out_arr
+
+
+def half_edges_in_rows(const int64_t[:, ::1] F, const unsigned char[::1] mask,
+                       const int64_t[::1] indptr, const int64_t[::1] indices):
+    """For every half-edge ``F[t, c] → F[t, c+1]`` (3m, half-edge order) marked in ``mask``,
+    whether its head stands in its tail's row of a CSR structure (bool; False where not
+    marked)."""
+    cdef Py_ssize_t t, c
+    out_arr = np.zeros(3 * F.shape[0], dtype=np.bool_)
+    cdef unsigned char[::1] out = out_arr.view(np.uint8)
+    for t in range(F.shape[0]):
+        for c in range(3):
+            if mask[3 * t + c]:
+                out[3 * t + c] = _in_row(indptr, indices, F[t, c], F[t, (c + 1) % 3])
+    return out_arr
+
+
 def faces_touching(const int64_t[:, ::1] F, const unsigned char[::1] mark):
     """Boolean mask of the faces with at least one corner ``v`` where ``mark[v]`` is set
     (``mark[F].any(axis=1)`` without the (m, 3) temporary and the slow reduction over a

@@ -25,10 +25,11 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import collapses_valid, faces_kept_by_collapses, half_edge_lengths, short_edges
+from .._kernels import (collapses_valid, faces_kept_by_collapses, half_edge_lengths,
+                        half_edges_in_rows, pairs_in_rows, short_edges)
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
-from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, touching, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, group, touching, vertex_faces
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -74,6 +75,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     thr = L_min
     alive = np.ones(S.n, bool)      # vertices not removed yet
     X = np.ascontiguousarray(S.X)   # fixed until the rounds end (removed vertices stay)
+    refused = RefusedEdges(S.n)
     for _ in range(max_rounds):
         F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
         Fs = F
@@ -87,11 +89,9 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
-            if look is None:
-                ends = _half_edge_ends(F, hl < thr, S.is_rim)
-            else:
-                Fl = F[touching(F, look)]
-                ends = _half_edge_ends(Fl, half_edge_lengths(Fl, X) < thr, S.is_rim)
+            Fl = F if look is None else F[touching(F, look)]
+            short = hl < thr if look is None else half_edge_lengths(Fl, X) < thr
+            ends = _half_edge_ends(Fl, short, S.is_rim)
             if len(ends) == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
@@ -99,7 +99,11 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
                 break
             at_short = np.zeros(n, bool)
             at_short[ends] = True
-            Fs = F[touching(F, at_short)]
+            # and of those only the edges not refused already
+            open_ends = np.zeros(n, bool)
+            open_ends[_half_edge_ends(Fl, short & ~refused.has_half_edges(Fl, short),
+                                      S.is_rim)] = True
+            Fs = F[touching(F, open_ends)]
         if at is not None:
             # only edges between marked vertices are candidates: every face at a marked vertex
             # of Fs stays, in order, so the candidates, the twins of their ends' edges and
@@ -107,8 +111,10 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             Fs = Fs[touching(Fs, at)]
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
+        keep = ~refused.has(a, b)
         if at is not None:
-            h, a, b, twin, ln = (x[at[a] & at[b]] for x in (h, a, b, twin, ln))
+            keep &= at[a] & at[b]
+        h, a, b, twin, ln = (x[keep] for x in (h, a, b, twin, ln))
         if len(h) == 0:
             break
         on_b = twin < 0
@@ -120,6 +126,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         r = np.where(keep_a, b, a)
         k = np.where(keep_a, a, b)
         ok &= ~S.locked[r] & ~(S.is_rim[r] & ~on_b)   # (a locked k can make r a rim vertex)
+        refused.add(a[~ok], b[~ok])
         r, k, a, b, ln, on_b, h, twin = (x[ok] for x in (r, k, a, b, ln, on_b, h, twin))
         if len(r) == 0:
             break
@@ -130,6 +137,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
                              on_b.view(np.uint8), np.ascontiguousarray(S.uv, dtype=np.float64),
                              X, np.ascontiguousarray(S.is_rim).view(np.uint8), float(L_max),
                              DISK_SHAPE_MIN)
+        refused.add(a[~ok], b[~ok])
         win = _independent_collapses(S, r, k, ln, ok, A, VF, Fs, max_gap, max_sag,
                                      None if budget is None else budget - done)
         if len(win) == 0:
@@ -142,6 +150,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         # compaction instead of one a round (the same numbering: deletions keep the order)
         S.set_faces(F2[keepf])
         alive[r[win]] = False
+        refused.forget_at(r[win], A)
         if np.isfinite(thr):
             # the short edges left are among those seen this round or at a kept vertex
             at_short[k[win]] = True
@@ -153,6 +162,64 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         S.keep_vertices(alive)
     S.tally("collapses", done)
     return done
+
+
+class RefusedEdges:
+    """Edges ``a–b`` whose collapse a round of :func:`collapse_short_edges` refused (the
+    checks before the guards: rim and lock rules, link condition, face tests), kept until the
+    ring of an end changes. Within one call ``X``, ``uv``, the rim and the locks are fixed, so
+    these checks read only the faces at the two ends: while no collapse touches those, the
+    verdict stands, and the rounds skip the edge (and the faces around it) instead of checking
+    it again.
+
+    Parameters
+    ----------
+    n : int
+        The number of vertices.
+    """
+
+    def __init__(self, n: int):
+        self.n = n
+        self.pairs = np.zeros((0, 2), np.int64)
+        self.rows = None                        # both directions grouped by their tail (CSR)
+
+    def add(self, a: np.ndarray, b: np.ndarray) -> None:
+        """Record the edges ``a–b`` (k int each) as refused."""
+        if len(a):
+            self.pairs = np.concatenate([self.pairs, np.stack([a, b], axis=1)])
+            self.rows = None
+
+    def forget_at(self, removed: np.ndarray, A: CSR) -> None:
+        """Drop the edges with an end in the closed ring (adjacency ``A``) of a removed vertex:
+        the collapses of ``removed`` rewrote the faces there."""
+        changed = np.zeros(self.n, bool)
+        changed[removed] = True
+        changed[topo.csr_rows(A.indptr, A.indices, removed)[1]] = True
+        self.pairs = self.pairs[~(changed[self.pairs[:, 0]] | changed[self.pairs[:, 1]])]
+        self.rows = None
+
+    def _csr(self) -> CSR:
+        if self.rows is None:
+            a, b = self.pairs[:, 0], self.pairs[:, 1]
+            self.rows = group(np.concatenate([a, b]), np.concatenate([b, a]), self.n)
+        return self.rows
+
+    def has(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Which edges ``a–b`` (k int each) are refused ones (k bool)."""
+        if len(self.pairs) == 0:
+            return np.zeros(len(a), bool)
+        rows = self._csr()
+        return pairs_in_rows(rows.indptr, rows.indices, np.ascontiguousarray(a, np.int64),
+                             np.ascontiguousarray(b, np.int64))
+
+    def has_half_edges(self, F: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """Which half-edges of ``F`` (m×3) marked in ``mask`` (3m bool, half-edge order) are
+        refused edges (3m bool)."""
+        if len(self.pairs) == 0:
+            return np.zeros(len(mask), bool)
+        rows = self._csr()
+        return half_edges_in_rows(F, np.ascontiguousarray(mask).view(np.uint8), rows.indptr,
+                                  rows.indices)
 
 
 def _half_edge_ends(F: np.ndarray, mask: np.ndarray, is_rim: np.ndarray) -> np.ndarray:
