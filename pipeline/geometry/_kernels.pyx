@@ -390,6 +390,34 @@ def half_edges_in_rows(const int64_t[:, ::1] F, const unsigned char[::1] mask,
     return out_arr
 
 
+def faces_with_mark(const int64_t[:, ::1] F, const unsigned char[::1] mark):
+    """The faces with at least one corner ``v`` where ``mark[v]`` is set, in order (k×3):
+    ``F[mark[F].any(axis=1)]``."""
+    cdef Py_ssize_t t, out = 0
+    out_arr = np.empty((F.shape[0], 3), dtype=np.int64)
+    cdef int64_t[:, ::1] G = out_arr
+    for t in range(F.shape[0]):
+        if mark[F[t, 0]] | mark[F[t, 1]] | mark[F[t, 2]]:
+            G[out, 0], G[out, 1], G[out, 2] = F[t, 0], F[t, 1], F[t, 2]
+            out += 1
+    return out_arr[:out]
+
+
+def renumbered_faces(const int64_t[:, ::1] F, const int64_t[::1] new):
+    """The faces ``new[F]`` that keep three distinct corners, in order (k×3): the faces left
+    after collapses ``r → new[r]``."""
+    cdef Py_ssize_t t, out = 0
+    cdef int64_t a, b, c
+    out_arr = np.empty((F.shape[0], 3), dtype=np.int64)
+    cdef int64_t[:, ::1] G = out_arr
+    for t in range(F.shape[0]):
+        a, b, c = new[F[t, 0]], new[F[t, 1]], new[F[t, 2]]
+        if a != b and b != c and c != a:
+            G[out, 0], G[out, 1], G[out, 2] = a, b, c
+            out += 1
+    return out_arr[:out]
+
+
 def faces_touching(const int64_t[:, ::1] F, const unsigned char[::1] mark):
     """Boolean mask of the faces with at least one corner ``v`` where ``mark[v]`` is set
     (``mark[F].any(axis=1)`` without the (m, 3) temporary and the slow reduction over a

@@ -26,10 +26,10 @@ import numpy as np
 
 from .. import topology as topo
 from .._kernels import (collapses_valid, faces_kept_by_collapses, half_edge_lengths,
-                        half_edges_in_rows, pairs_in_rows, short_edges)
+                        half_edges_in_rows, pairs_in_rows, renumbered_faces, short_edges)
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
-from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, group, touching, vertex_faces
+from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, faces_at, group, vertex_faces
 from .sag import edge_sag
 from .state import RemeshState
 
@@ -89,7 +89,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
-            Fl = F if look is None else F[touching(F, look)]
+            Fl = F if look is None else faces_at(F, look)
             short = hl < thr if look is None else half_edge_lengths(Fl, X) < thr
             ends = _half_edge_ends(Fl, short, S.is_rim)
             if len(ends) == 0:
@@ -103,12 +103,12 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             open_ends = np.zeros(n, bool)
             open_ends[_half_edge_ends(Fl, short & ~refused.has_half_edges(Fl, short),
                                       S.is_rim)] = True
-            Fs = F[touching(F, open_ends)]
+            Fs = faces_at(F, open_ends)
         if at is not None:
             # only edges between marked vertices are candidates: every face at a marked vertex
             # of Fs stays, in order, so the candidates, the twins of their ends' edges and
             # their ends' rows of the adjacency and incidence are those of the whole Fs
-            Fs = Fs[touching(Fs, at)]
+            Fs = faces_at(Fs, at)
         twin_all = topo.interior_edge_twins(Fs)
         h, a, b, twin, ln = short_edges(Fs, twin_all, X, thr)
         keep = ~refused.has(a, b)
@@ -144,11 +144,9 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             break
         remap = np.arange(n)
         remap[r[win]] = k[win]
-        F2 = remap[F]
-        keepf = (F2[:, 0] != F2[:, 1]) & (F2[:, 1] != F2[:, 2]) & (F2[:, 2] != F2[:, 0])
         # the removed vertices stay in the arrays, unreferenced, until the rounds end: one
         # compaction instead of one a round (the same numbering: deletions keep the order)
-        S.set_faces(F2[keepf])
+        S.set_faces(renumbered_faces(F, remap))
         alive[r[win]] = False
         refused.forget_at(r[win], A)
         if np.isfinite(thr):

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import disk_shapes, faces_touching, group_by_key
+from .._kernels import disk_shapes, faces_touching, faces_with_mark, group_by_key
 
 DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
 
@@ -31,6 +31,23 @@ def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
     """
     return faces_touching(np.ascontiguousarray(topo._as_faces(F)),
                           np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
+
+
+def faces_at(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
+    """The faces with a corner where ``mark`` is set, in order: ``F[touching(F, mark)]``,
+    compiled in one pass.
+
+    Parameters
+    ----------
+    F : (m, 3) int
+    mark : (n,) bool
+
+    Returns
+    -------
+    (k, 3) int
+    """
+    return faces_with_mark(np.ascontiguousarray(topo._as_faces(F), dtype=np.int64),
+                           np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
 
 
 def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
