@@ -630,6 +630,28 @@ def half_edge_lengths(const int64_t[:, ::1] F, const double[:, ::1] X):
     return out_arr
 
 
+def edge_halves(const int64_t[:, ::1] F, const int64_t[::1] twin):
+    """Every edge of ``F`` once: its half-edge ``h`` with ``twin[h] < 0 or twin[h] > h``, as
+    ``(h, a, b, twin[h])`` with ``h = a → b``, in half-edge order."""
+    cdef Py_ssize_t h, out = 0, N = 3 * F.shape[0]
+    for h in range(N):
+        if twin[h] < 0 or twin[h] > h:
+            out += 1
+    h_arr = np.empty(out, dtype=np.int64)
+    a_arr = np.empty(out, dtype=np.int64)
+    b_arr = np.empty(out, dtype=np.int64)
+    t_arr = np.empty(out, dtype=np.int64)
+    cdef int64_t[::1] hs = h_arr, as_ = a_arr, bs = b_arr, ts = t_arr
+    out = 0
+    for h in range(N):
+        if twin[h] >= 0 and twin[h] < h:
+            continue
+        hs[out], as_[out], ts[out] = h, F[h // 3, h % 3], twin[h]
+        bs[out] = F[h // 3, (h % 3 + 1) % 3]
+        out += 1
+    return h_arr, a_arr, b_arr, t_arr
+
+
 def short_edges(const int64_t[:, ::1] F, const int64_t[::1] twin, const double[:, ::1] X,
                 double thr):
     """Every edge of ``F`` once (its half-edge ``h`` with ``twin[h] < 0 or twin[h] > h``)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import disk_shapes, faces_touching, faces_with_mark, group_by_key
+from .._kernels import disk_shapes, edge_halves, faces_touching, faces_with_mark, group_by_key
 
 DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
 
@@ -109,11 +109,12 @@ def edge_table(F: np.ndarray, with_twins: bool = False, twin: np.ndarray | None 
     all_twins : (3m,) int
         Only with ``with_twins``.
     """
-    m = len(F)
+    F = np.asarray(F)
     twin = topo.interior_edge_twins(F) if twin is None else twin
-    he = np.arange(3 * m)
-    h = np.flatnonzero((twin < 0) | (twin > he))
-    out = (h, F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3], twin[h])
+    h, a, b, t = edge_halves(np.ascontiguousarray(topo._as_faces(F)),
+                             np.ascontiguousarray(twin, dtype=np.int64))
+    out = (h, a.astype(F.dtype, copy=False), b.astype(F.dtype, copy=False),
+           t.astype(twin.dtype, copy=False))       # (the dtypes of F and twin)
     return out + (twin,) if with_twins else out
 
 
