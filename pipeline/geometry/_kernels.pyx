@@ -113,33 +113,37 @@ def hold_rounds(const int64_t[:, ::1] F, const int[::1] vf_ptr, const int[::1] v
     return count
 
 
+@cython.cdivision(True)
 cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
     """The edges ``(F[t, c+shift], F[t, c+shift+1])`` of every corner ``3 t + c`` bucketed by
     their smaller end (a counting sort), each bucket sorted by the larger end (insertion sort:
-    a bucket holds a vertex's few edges). Returns ``(start, larger end, corner)``."""
+    a bucket holds a vertex's few edges). Returns ``(start, larger end, corner)``, int32
+    (half the memory traffic of int64: the pass is bound by it), bucket ``v`` at
+    ``start[v]:start[v + 1]``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
     cdef Py_ssize_t t, c, k, p, q, lo_v
-    cdef int64_t a, b, key, cid
-    start_arr = np.zeros(n + 1, dtype=np.int64)
-    hi_arr = np.empty(N, dtype=np.int64)
-    id_arr = np.empty(N, dtype=np.int64)
-    cdef int64_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
+    cdef int64_t a, b
+    cdef int32_t key, cid
+    if N >= 2 ** 31 or n >= 2 ** 31:
+        raise OverflowError("more than 2**31 half-edges or vertices")
+    start_arr = np.zeros(n + 2, dtype=np.int32)
+    hi_arr = np.empty(N, dtype=np.int32)
+    id_arr = np.empty(N, dtype=np.int32)
+    cdef int32_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
     for t in range(m):
         for c in range(3):
             a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
-            start[(a if a < b else b) + 1] += 1
+            start[(a if a < b else b) + 2] += 1
     for k in range(n):
-        start[k + 1] += start[k]
-    fill_arr = start_arr[:n].copy()
-    cdef int64_t[::1] fill = fill_arr
-    for t in range(m):
+        start[k + 2] += start[k + 1]
+    for t in range(m):                       # start[v + 1]: the next free slot of bucket v
         for c in range(3):
             a, b = F[t, (c + shift) % 3], F[t, (c + shift + 1) % 3]
             lo_v = a if a < b else b
-            p = fill[lo_v]
-            fill[lo_v] += 1
-            hi[p] = b if a < b else a
-            cid_of[p] = 3 * t + c
+            p = start[lo_v + 1]
+            start[lo_v + 1] += 1
+            hi[p] = <int32_t>(b if a < b else a)
+            cid_of[p] = <int32_t>(3 * t + c)
     for lo_v in range(n):
         for p in range(start[lo_v] + 1, start[lo_v + 1]):
             key, cid = hi[p], cid_of[p]
@@ -148,7 +152,7 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
                 hi[q + 1], cid_of[q + 1] = hi[q], cid_of[q]
                 q -= 1
             hi[q + 1], cid_of[q + 1] = key, cid
-    return start_arr, hi_arr, id_arr
+    return start_arr[:n + 1], hi_arr, id_arr
 
 
 def unique_edges(const int64_t[:, ::1] F, int64_t n):
@@ -159,7 +163,8 @@ def unique_edges(const int64_t[:, ::1] F, int64_t n):
     cdef Py_ssize_t m = F.shape[0], p, lo_v, e, E
     start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 1)
     ce_arr = np.empty(3 * m, dtype=np.int64)
-    cdef int64_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr, ce = ce_arr
+    cdef int32_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
+    cdef int64_t[::1] ce = ce_arr
     E = 0
     for lo_v in range(n):
         for p in range(start[lo_v], start[lo_v + 1]):
@@ -319,7 +324,8 @@ def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     cdef Py_ssize_t p, q, lo_v, end
     start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 0)
     twin_arr = np.full(3 * F.shape[0], -1, dtype=np.int64)
-    cdef int64_t[::1] twin = twin_arr, start = start_arr, hi = hi_arr, hid_of = id_arr
+    cdef int64_t[::1] twin = twin_arr
+    cdef int32_t[::1] start = start_arr, hi = hi_arr, hid_of = id_arr
     for lo_v in range(n):
         end = start[lo_v + 1]
         p = start[lo_v]
@@ -1274,4 +1280,5 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
     for x in range(3):
         q[x] = a[x] + ab[x] * v + ac[x] * w
     return _point_point(p, q)
+
 
