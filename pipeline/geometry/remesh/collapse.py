@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import topology as topo
 from .._kernels import (collapses_valid, faces_kept_by_collapses, half_edge_lengths,
-                        half_edges_in_rows, pairs_in_rows, renumbered_faces, short_edges)
+                        pairs_in_rows, renumbered_faces, short_edge_ends, short_edges)
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
 from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, faces_at, group, vertex_faces
@@ -79,30 +79,24 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     for _ in range(max_rounds):
         F, n = np.ascontiguousarray(S.F, dtype=np.int64), S.n
         Fs = F
-        if look is None and (budget is not None or np.isfinite(L_min)):
-            hl = half_edge_lengths(F, X)
         if budget is not None and look is None:
             # the pool: the shortest COLLAPSE_POOL × remaining + COLLAPSE_POOL_MIN edges (each
             # interior edge is two half-edges); validity is checked per candidate
+            hl = half_edge_lengths(F, X)
             pool = 2 * (COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN)
             thr = min(L_min, float(np.partition(hl, pool)[pool])) if pool < len(hl) else L_min
         if np.isfinite(thr):
             # only the faces at the ends of short edges: a collapse reads nothing but the rings
             # of its two ends, whose faces (and so their edges' twins) are all among these
-            Fl = F if look is None else faces_at(F, look)
-            short = hl < thr if look is None else half_edge_lengths(Fl, X) < thr
-            ends = _half_edge_ends(Fl, short, S.is_rim)
-            if len(ends) == 0:
+            # (and of those only the edges not refused already)
+            count, at_short, open_ends = short_edge_ends(
+                F, np.ones(n, np.uint8) if look is None else look.view(np.uint8), X, thr,
+                np.ascontiguousarray(S.is_rim).view(np.uint8), *refused.rows())
+            if count == 0:
                 if thr < L_min and look is not None:
                     look = None                  # the pool is used up: a new one
                     continue
                 break
-            at_short = np.zeros(n, bool)
-            at_short[ends] = True
-            # and of those only the edges not refused already
-            open_ends = np.zeros(n, bool)
-            open_ends[_half_edge_ends(Fl, short & ~refused.has_half_edges(Fl, short),
-                                      S.is_rim)] = True
             Fs = faces_at(F, open_ends)
         if at is not None:
             # only edges between marked vertices are candidates: every face at a marked vertex
@@ -179,13 +173,13 @@ class RefusedEdges:
     def __init__(self, n: int):
         self.n = n
         self.pairs = np.zeros((0, 2), np.int64)
-        self.rows = None                        # both directions grouped by their tail (CSR)
+        self.csr = None                         # rows(), made on demand
 
     def add(self, a: np.ndarray, b: np.ndarray) -> None:
         """Record the edges ``a–b`` (k int each) as refused."""
         if len(a):
             self.pairs = np.concatenate([self.pairs, np.stack([a, b], axis=1)])
-            self.rows = None
+            self.csr = None
 
     def forget_at(self, removed: np.ndarray, A: CSR) -> None:
         """Drop the edges with an end in the closed ring (adjacency ``A``) of a removed vertex:
@@ -194,40 +188,22 @@ class RefusedEdges:
         changed[removed] = True
         changed[topo.csr_rows(A.indptr, A.indices, removed)[1]] = True
         self.pairs = self.pairs[~(changed[self.pairs[:, 0]] | changed[self.pairs[:, 1]])]
-        self.rows = None
+        self.csr = None
 
-    def _csr(self) -> CSR:
-        if self.rows is None:
+    def rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Both directions of the refused edges grouped by their tail: CSR ``(indptr,
+        indices)``, row ``a`` the vertices ``b`` of the refused edges ``a–b``."""
+        if self.csr is None:
             a, b = self.pairs[:, 0], self.pairs[:, 1]
-            self.rows = group(np.concatenate([a, b]), np.concatenate([b, a]), self.n)
-        return self.rows
+            self.csr = group(np.concatenate([a, b]), np.concatenate([b, a]), self.n)
+        return self.csr.indptr, self.csr.indices
 
     def has(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Which edges ``a–b`` (k int each) are refused ones (k bool)."""
         if len(self.pairs) == 0:
             return np.zeros(len(a), bool)
-        rows = self._csr()
-        return pairs_in_rows(rows.indptr, rows.indices, np.ascontiguousarray(a, np.int64),
+        return pairs_in_rows(*self.rows(), np.ascontiguousarray(a, np.int64),
                              np.ascontiguousarray(b, np.int64))
-
-    def has_half_edges(self, F: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """Which half-edges of ``F`` (m×3) marked in ``mask`` (3m bool, half-edge order) are
-        refused edges (3m bool)."""
-        if len(self.pairs) == 0:
-            return np.zeros(len(mask), bool)
-        rows = self._csr()
-        return half_edges_in_rows(F, np.ascontiguousarray(mask).view(np.uint8), rows.indptr,
-                                  rows.indices)
-
-
-def _half_edge_ends(F: np.ndarray, mask: np.ndarray, is_rim: np.ndarray) -> np.ndarray:
-    """The vertices whose rings a collapse of the half-edges ``F[t, c] → F[t, c+1]`` that
-    ``mask`` (3m bool, half-edge order) marks reads: their tails, and the heads of those on
-    the rim (an interior edge's head is its twin's tail; a boundary edge has no twin)."""
-    h = np.flatnonzero(mask)
-    tails = F.ravel()[h]
-    h = h[is_rim[tails]]
-    return np.concatenate([tails, F[h // 3, (h % 3 + 1) % 3]])
 
 
 def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, VF: CSR, F, max_gap, max_sag,
