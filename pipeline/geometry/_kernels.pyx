@@ -385,31 +385,26 @@ def short_edge_ends(const int64_t[:, ::1] F, const unsigned char[::1] look,
                     const double[:, ::1] X, double thr, const unsigned char[::1] is_rim,
                     const int64_t[::1] indptr, const int64_t[::1] indices):
     """The ends of the half-edges ``a → b`` shorter than ``thr`` in 3D in the faces of ``F``
-    with a corner marked in ``look``: their tails, and the heads of those whose tail is on the
-    rim. Returns ``(count, ends, open ends)``: how many such half-edges, and the vertices
-    (n bool each) at all of them and at those whose head does not stand in the tail's row of
-    the CSR structure ``indptr, indices`` (the refused edges)."""
+    with a corner marked in ``look``, leaving out those whose head stands in the tail's row of
+    the CSR structure ``indptr, indices`` (the refused edges): their tails, and the heads of
+    those whose tail is on the rim. Returns ``(count, ends)``: how many such half-edges, and
+    the vertices (n bool) at them."""
     cdef Py_ssize_t t, c, count = 0, n = is_rim.shape[0]
     cdef int64_t a, b
     ends_arr = np.zeros(n, dtype=np.bool_)
-    open_arr = np.zeros(n, dtype=np.bool_)
-    cdef unsigned char[::1] ends = ends_arr.view(np.uint8), open_ = open_arr.view(np.uint8)
+    cdef unsigned char[::1] ends = ends_arr.view(np.uint8)
     for t in range(F.shape[0]):
         if not (look[F[t, 0]] | look[F[t, 1]] | look[F[t, 2]]):
             continue
         for c in range(3):
             a, b = F[t, c], F[t, (c + 1) % 3]
-            if not _length(X, a, b) < thr:
+            if not _length(X, a, b) < thr or _in_row(indptr, indices, a, b):
                 continue
             count += 1
             ends[a] = 1
             if is_rim[a]:
                 ends[b] = 1
-            if not _in_row(indptr, indices, a, b):
-                open_[a] = 1
-                if is_rim[a]:
-                    open_[b] = 1
-    return count, ends_arr, open_arr
+    return count, ends_arr
 
 
 def faces_with_mark(const int64_t[:, ::1] F, const unsigned char[::1] mark):

@@ -71,7 +71,7 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         The number of collapses.
     """
     done = 0
-    look = None                     # after a round: where short edges can still be (n bool)
+    look = None                     # after a round: where open short edges can be (n bool)
     thr = L_min
     alive = np.ones(S.n, bool)      # vertices not removed yet
     X = np.ascontiguousarray(S.X)   # fixed until the rounds end (removed vertices stay)
@@ -86,18 +86,19 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
             pool = 2 * (COLLAPSE_POOL * (budget - done) + COLLAPSE_POOL_MIN)
             thr = min(L_min, float(np.partition(hl, pool)[pool])) if pool < len(hl) else L_min
         if np.isfinite(thr):
-            # only the faces at the ends of short edges: a collapse reads nothing but the rings
-            # of its two ends, whose faces (and so their edges' twins) are all among these
-            # (and of those only the edges not refused already)
-            count, at_short, open_ends = short_edge_ends(
+            # only the faces at the ends of the short edges not refused already: a collapse
+            # reads nothing but the rings of its two ends, whose faces (and so their edges'
+            # twins) are all among these
+            count, at_short = short_edge_ends(
                 F, np.ones(n, np.uint8) if look is None else look.view(np.uint8), X, thr,
                 np.ascontiguousarray(S.is_rim).view(np.uint8), *refused.rows())
             if count == 0:
-                if thr < L_min and look is not None:
+                # (refused edges are short edges of this pool: with some, it is not used up)
+                if thr < L_min and look is not None and not len(refused):
                     look = None                  # the pool is used up: a new one
                     continue
                 break
-            Fs = faces_at(F, open_ends)
+            Fs = faces_at(F, at_short)
         if at is not None:
             # only edges between marked vertices are candidates: every face at a marked vertex
             # of Fs stays, in order, so the candidates, the twins of their ends' edges and
@@ -142,10 +143,12 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
         # compaction instead of one a round (the same numbering: deletions keep the order)
         S.set_faces(renumbered_faces(F, remap))
         alive[r[win]] = False
-        refused.forget_at(r[win], A)
+        again = refused.forget_at(r[win], A)
         if np.isfinite(thr):
-            # the short edges left are among those seen this round or at a kept vertex
+            # the open short edges left are among those seen this round, at a kept vertex or
+            # refused ones no longer refused
             at_short[k[win]] = True
+            at_short[again] = True
             look = at_short
         done += len(win)
         if budget is not None and done >= budget:
@@ -181,14 +184,20 @@ class RefusedEdges:
             self.pairs = np.concatenate([self.pairs, np.stack([a, b], axis=1)])
             self.csr = None
 
-    def forget_at(self, removed: np.ndarray, A: CSR) -> None:
-        """Drop the edges with an end in the closed ring (adjacency ``A``) of a removed vertex:
-        the collapses of ``removed`` rewrote the faces there."""
+    def __len__(self) -> int:
+        return len(self.pairs)
+
+    def forget_at(self, removed: np.ndarray, A: CSR) -> np.ndarray:
+        """Drop the edges with an end in the closed ring (adjacency ``A``) of a removed vertex
+        (the collapses of ``removed`` rewrote the faces there); returns the ends of the
+        dropped edges (k×2)."""
         changed = np.zeros(self.n, bool)
         changed[removed] = True
         changed[topo.csr_rows(A.indptr, A.indices, removed)[1]] = True
-        self.pairs = self.pairs[~(changed[self.pairs[:, 0]] | changed[self.pairs[:, 1]])]
+        drop = changed[self.pairs[:, 0]] | changed[self.pairs[:, 1]]
+        dropped, self.pairs = self.pairs[drop], self.pairs[~drop]
         self.csr = None
+        return dropped
 
     def rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Both directions of the refused edges grouped by their tail: CSR ``(indptr,
