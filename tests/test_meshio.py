@@ -239,3 +239,19 @@ def test_real_obj_reads_and_round_trips(tmp_path):
     m2 = read_mesh(out)
     assert np.array_equal(m2.V, m.V) and np.array_equal(m2.faces, m.faces)
     assert os.path.getsize(out) > 0
+
+
+def test_compiled_rows_are_the_percent_format_of_floats_and_integers():
+    """The compiled row writer gives exactly what ``(fmt * k) % values`` gives: floats as
+    ``repr`` (signed zero, exponents both ways, subnormal, largest, inf, nan, integers as
+    floats) and integers in decimal (negative, zero, the int64 extremes)."""
+    from pipeline.io.meshio import _format_rows
+
+    x = np.array([0.0, -0.0, 0.1, 1 / 3, -1.5, 1e-5, 1e-4, 1e16, 123456789012345678.0,
+                  5e-324, 1.7976931348623157e308, np.inf, -np.inf, np.nan, 2.0 ** 53])
+    x = np.concatenate([x, np.random.default_rng(0).standard_normal(6) * 1e7])[:21]
+    i = np.array([[-5, 0, 7], [np.iinfo(np.int64).min, np.iinfo(np.int64).max, 10 ** 12]])
+    for fmt, arr in [("v %r %r %r\n", x.reshape(-1, 3)), ("vt %r %r %r\n", x.reshape(-1, 3)[:0]),
+                     ("f %d/%d %d\n", i), ("f %d %d %d\n", i)]:
+        expected = (fmt * len(arr)) % tuple(arr.ravel().tolist()) if len(arr) else ""
+        assert _format_rows(fmt, arr) == expected

@@ -10,13 +10,24 @@ Each does the arithmetic of the numpy formula it replaces, operation for operati
 same order — 3-vector dot products and lengths in the order numpy's einsum sums them on these
 machines (x, z, then y) — and the module is compiled with ``-ffp-contract=off`` (no fused
 multiply-adds), so maps and remeshes are bit for bit those of the numpy code. Index arrays are
-int64 (``int`` only where SciPy's CSR arrays are int32).
+int64 (``int`` only where SciPy's CSR arrays are int32). The OBJ writer's rows are formatted
+here too, as Python's ``%`` formats them.
 """
 
 import numpy as np
 cimport cython
 from libc.math cimport INFINITY, fabs, sqrt
-from libc.stdint cimport int32_t, int64_t
+from libc.stdint cimport int32_t, int64_t, uint64_t
+from libc.stdlib cimport free, malloc, realloc
+from libc.string cimport memcpy, strlen
+
+
+cdef extern from "Python.h":
+    char* PyOS_double_to_string(double val, char format_code, int precision, int flags,
+                                int* ptype) except NULL
+    void PyMem_Free(void* p)
+    int Py_DTSF_ADD_DOT_0
+
 
 def signed_double_areas(const int64_t[:, ::1] F, const double complex[::1] z, double[::1] out):
     """``out[t]`` = twice the signed area of image face ``t`` (corners ``z[F[t]]``):
@@ -1293,3 +1304,95 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
     return _point_point(p, q)
 
 
+
+
+
+cdef class _Text:
+    """A growing byte buffer."""
+    cdef char* data
+    cdef Py_ssize_t size, cap
+
+    def __cinit__(self, Py_ssize_t cap):
+        self.cap = max(cap, 16)
+        self.size = 0
+        self.data = <char*>malloc(self.cap)
+        if self.data == NULL:
+            raise MemoryError()
+
+    def __dealloc__(self):
+        free(self.data)
+
+    cdef int put(self, const char* s, Py_ssize_t k) except -1:
+        cdef char* grown
+        if self.size + k > self.cap:
+            self.cap = 2 * (self.size + k)
+            grown = <char*>realloc(self.data, self.cap)
+            if grown == NULL:
+                raise MemoryError()
+            self.data = grown
+        memcpy(self.data + self.size, s, k)
+        self.size += k
+        return 0
+
+    cdef str text(self):
+        return self.data[:self.size].decode("ascii")
+
+
+def format_float_rows(list pieces, const double[:, ::1] A):
+    """Every row of ``A`` (k×c) written as ``pieces[0] a0 pieces[1] a1 … pieces[c]`` with each
+    value as ``repr`` writes a float (the shortest string that reads back to it): what
+    ``(fmt * k) % tuple(A.ravel())`` gives for a ``fmt`` of ``%r`` fields between the pieces."""
+    cdef Py_ssize_t i, j, c = A.shape[1]
+    cdef char* s
+    cdef bytes piece
+    cdef list raw = [p.encode("ascii") for p in pieces]
+    cdef _Text out = _Text(A.shape[0] * (24 * c + 8))
+    for i in range(A.shape[0]):
+        for j in range(c):
+            piece = raw[j]
+            out.put(piece, len(piece))
+            s = PyOS_double_to_string(A[i, j], b'r', 0, Py_DTSF_ADD_DOT_0, NULL)
+            try:
+                out.put(s, strlen(s))
+            finally:
+                PyMem_Free(s)
+        piece = raw[c]
+        out.put(piece, len(piece))
+    return out.text()
+
+
+cdef inline int _decimal(int64_t v, char* buf) noexcept nogil:
+    """``v`` in decimal written at the end of ``buf`` (32 chars); returns its length."""
+    cdef int k = 0
+    cdef uint64_t u = <uint64_t>(-(v + 1)) + 1 if v < 0 else <uint64_t>v
+    while True:
+        k += 1
+        buf[32 - k] = <char>(48 + u % 10)
+        u //= 10
+        if u == 0:
+            break
+    if v < 0:
+        k += 1
+        buf[32 - k] = b'-'
+    return k
+
+
+def format_int_rows(list pieces, const int64_t[:, ::1] A):
+    """Every row of ``A`` (k×c) written as ``pieces[0] a0 pieces[1] a1 … pieces[c]`` with each
+    value in decimal: what ``(fmt * k) % tuple(A.ravel())`` gives for a ``fmt`` of ``%d``
+    fields between the pieces."""
+    cdef Py_ssize_t i, j, c = A.shape[1]
+    cdef char buf[32]
+    cdef int k
+    cdef bytes piece
+    cdef list raw = [p.encode("ascii") for p in pieces]
+    cdef _Text out = _Text(A.shape[0] * (8 * c + 8))
+    for i in range(A.shape[0]):
+        for j in range(c):
+            piece = raw[j]
+            out.put(piece, len(piece))
+            k = _decimal(A[i, j], buf)
+            out.put(buf + 32 - k, k)
+        piece = raw[c]
+        out.put(piece, len(piece))
+    return out.text()

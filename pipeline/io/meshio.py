@@ -477,10 +477,19 @@ def read_mesh(path) -> RawMesh:
 
 
 def _format_rows(fmt: str, arr: np.ndarray) -> str:
-    """``fmt`` repeated once per row of ``arr`` and filled with one ``%`` operation."""
+    """``fmt`` repeated once per row of ``arr`` and filled as ``%`` fills it: ``fmt``'s
+    fields are all ``%r`` (floats: their ``repr``) or all ``%d`` (integers), one per column,
+    and the text between them is ASCII; compiled (:func:`..geometry._kernels.format_float_rows`,
+    :func:`..geometry._kernels.format_int_rows`)."""
+    from ..geometry._kernels import format_float_rows, format_int_rows
+
     if len(arr) == 0:
         return ""
-    return (fmt * len(arr)) % tuple(arr.ravel().tolist())
+    code = "%r" if "%r" in fmt else "%d"
+    pieces = fmt.split(code)
+    if code == "%r":
+        return format_float_rows(pieces, np.ascontiguousarray(arr, dtype=np.float64))
+    return format_int_rows(pieces, np.ascontiguousarray(arr, dtype=np.int64))
 
 
 def write_obj(path, V, F, uv=None, colors=None, header=None) -> Path:

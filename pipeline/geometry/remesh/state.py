@@ -202,8 +202,10 @@ class RemeshState:
         new = np.cumsum(alive) - 1
         self.F = new[self.F]
         self.joined = new[self.joined[alive[self.joined].all(axis=1)]]
+        kept = np.flatnonzero(alive)            # (np.take by index: faster than a bool mask)
         self.uv, self.X, self.face, self.bary, self.is_rim, self.locked = (
-            x[alive] for x in (self.uv, self.X, self.face, self.bary, self.is_rim, self.locked))
+            np.take(x, kept, axis=0)
+            for x in (self.uv, self.X, self.face, self.bary, self.is_rim, self.locked))
 
     def is_joined(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Which edges ``a–b`` (k int each) are kept ones (``joined``, either way round);
