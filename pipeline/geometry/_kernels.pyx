@@ -1338,29 +1338,6 @@ cdef class _Text:
         return self.data[:self.size].decode("ascii")
 
 
-def format_float_rows(list pieces, const double[:, ::1] A):
-    """Every row of ``A`` (k×c) written as ``pieces[0] a0 pieces[1] a1 … pieces[c]`` with each
-    value as ``repr`` writes a float (the shortest string that reads back to it): what
-    ``(fmt * k) % tuple(A.ravel())`` gives for a ``fmt`` of ``%r`` fields between the pieces."""
-    cdef Py_ssize_t i, j, c = A.shape[1]
-    cdef char* s
-    cdef bytes piece
-    cdef list raw = [p.encode("ascii") for p in pieces]
-    cdef _Text out = _Text(A.shape[0] * (24 * c + 8))
-    for i in range(A.shape[0]):
-        for j in range(c):
-            piece = raw[j]
-            out.put(piece, len(piece))
-            s = PyOS_double_to_string(A[i, j], b'r', 0, Py_DTSF_ADD_DOT_0, NULL)
-            try:
-                out.put(s, strlen(s))
-            finally:
-                PyMem_Free(s)
-        piece = raw[c]
-        out.put(piece, len(piece))
-    return out.text()
-
-
 cdef inline int _decimal(int64_t v, char* buf) noexcept nogil:
     """``v`` in decimal written at the end of ``buf`` (32 chars); returns its length."""
     cdef int k = 0
@@ -1377,22 +1354,36 @@ cdef inline int _decimal(int64_t v, char* buf) noexcept nogil:
     return k
 
 
-def format_int_rows(list pieces, const int64_t[:, ::1] A):
-    """Every row of ``A`` (k×c) written as ``pieces[0] a0 pieces[1] a1 … pieces[c]`` with each
-    value in decimal: what ``(fmt * k) % tuple(A.ravel())`` gives for a ``fmt`` of ``%d``
-    fields between the pieces."""
+ctypedef fused row_value:
+    double
+    int64_t
+
+
+def format_rows(list pieces, const row_value[:, ::1] A):
+    """Every row of ``A`` (k×c) written as ``pieces[0] a0 pieces[1] a1 … pieces[c]``: what
+    ``(fmt * k) % tuple(A.ravel().tolist())`` gives for a ``fmt`` of ``%r`` fields (floats,
+    written as ``repr`` writes them: the shortest string that reads back to the value) or of
+    ``%d`` fields (int64, in decimal) between the pieces (ASCII)."""
     cdef Py_ssize_t i, j, c = A.shape[1]
     cdef char buf[32]
+    cdef char* s
     cdef int k
     cdef bytes piece
     cdef list raw = [p.encode("ascii") for p in pieces]
-    cdef _Text out = _Text(A.shape[0] * (8 * c + 8))
+    cdef _Text out = _Text(A.shape[0] * (24 * c + 8))
     for i in range(A.shape[0]):
         for j in range(c):
             piece = raw[j]
             out.put(piece, len(piece))
-            k = _decimal(A[i, j], buf)
-            out.put(buf + 32 - k, k)
+            if row_value is double:
+                s = PyOS_double_to_string(A[i, j], b'r', 0, Py_DTSF_ADD_DOT_0, NULL)
+                try:
+                    out.put(s, strlen(s))
+                finally:
+                    PyMem_Free(s)
+            else:
+                k = _decimal(A[i, j], buf)
+                out.put(buf + 32 - k, k)
         piece = raw[c]
         out.put(piece, len(piece))
     return out.text()

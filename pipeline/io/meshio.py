@@ -479,17 +479,14 @@ def read_mesh(path) -> RawMesh:
 def _format_rows(fmt: str, arr: np.ndarray) -> str:
     """``fmt`` repeated once per row of ``arr`` and filled as ``%`` fills it: ``fmt``'s
     fields are all ``%r`` (floats: their ``repr``) or all ``%d`` (integers), one per column,
-    and the text between them is ASCII; compiled (:func:`..geometry._kernels.format_float_rows`,
-    :func:`..geometry._kernels.format_int_rows`)."""
-    from ..geometry._kernels import format_float_rows, format_int_rows
+    and the text between them is ASCII; compiled (:func:`..geometry._kernels.format_rows`)."""
+    from ..geometry._kernels import format_rows
 
     if len(arr) == 0:
         return ""
     code = "%r" if "%r" in fmt else "%d"
-    pieces = fmt.split(code)
-    if code == "%r":
-        return format_float_rows(pieces, np.ascontiguousarray(arr, dtype=np.float64))
-    return format_int_rows(pieces, np.ascontiguousarray(arr, dtype=np.int64))
+    dtype = np.float64 if code == "%r" else np.int64
+    return format_rows(fmt.split(code), np.ascontiguousarray(arr, dtype=dtype))
 
 
 def write_obj(path, V, F, uv=None, colors=None, header=None) -> Path:

@@ -34,18 +34,8 @@ def touching(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
 
 
 def faces_at(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
-    """The faces with a corner where ``mark`` is set, in order: ``F[touching(F, mark)]``,
-    compiled in one pass.
-
-    Parameters
-    ----------
-    F : (m, 3) int
-    mark : (n,) bool
-
-    Returns
-    -------
-    (k, 3) int
-    """
+    """The faces with a corner where ``mark`` is set, in order (k×3): ``F[touching(F,
+    mark)]`` compiled in one pass; arguments as for :func:`touching`."""
     return faces_with_mark(np.ascontiguousarray(topo._as_faces(F), dtype=np.int64),
                            np.ascontiguousarray(mark, dtype=bool).view(np.uint8))
 
