@@ -351,6 +351,41 @@ def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     return twin_arr
 
 
+def fans_per_vertex(const int64_t[::1] a, const int64_t[::1] twin, int64_t n):
+    """The number of fans at every vertex of a consistently oriented mesh with manifold edges
+    (half-edge ``h`` from ``a[h]``, ``twin`` −1 on the boundary): rotating about the tail of
+    ``h`` leads to ``succ[h] = next(twin[h])``, the half-edge from the same vertex in the face
+    across ``h``; an open fan is a chain of ``succ`` from a half-edge no other leads to, a
+    closed fan a cycle. Counts both by following every chain and then every cycle once."""
+    cdef Py_ssize_t h, g, m3 = a.shape[0]
+    succ_arr = np.full(m3, -1, dtype=np.int64)
+    seen_arr = np.zeros(m3, dtype=np.uint8)
+    fans_arr = np.zeros(n, dtype=np.int64)
+    cdef int64_t[::1] succ = succ_arr, fans = fans_arr
+    cdef unsigned char[::1] seen = seen_arr       # first: has a predecessor; then: visited
+    for h in range(m3):
+        if twin[h] >= 0:
+            succ[h] = 3 * (twin[h] // 3) + (twin[h] % 3 + 1) % 3
+            seen[succ[h]] = 1
+    for h in range(m3):
+        seen[h] = 2 if seen[h] == 0 else 0             # 2: the head of a chain
+    for h in range(m3):
+        if seen[h] == 2:
+            fans[a[h]] += 1
+            g = h
+            while g >= 0 and seen[g] != 1:
+                seen[g] = 1
+                g = succ[g]
+    for h in range(m3):                                # the rest: cycles
+        if seen[h] == 0:
+            fans[a[h]] += 1
+            g = h
+            while g >= 0 and seen[g] == 0:
+                seen[g] = 1
+                g = succ[g]
+    return fans_arr
+
+
 def group_by_key(const int64_t[::1] keys, const int64_t[::1] values, int64_t n):
     """CSR ``(indptr, grouped values)`` of ``values`` grouped by ``keys`` in ``[0, n)``; a
     stable counting sort (each group keeps the input order)."""

@@ -332,30 +332,11 @@ def _fans_per_vertex_oriented(a: np.ndarray, twin: np.ndarray, n: int) -> np.nda
 
     Rotating around the tail ``v`` of half-edge ``h`` (= the corner of ``v`` in ``h``'s face)
     leads to the corner of ``v`` in the face across ``h``: ``succ[h] = next(twin[h])``. Open fans
-    are chains of ``succ`` (one head without predecessor each), closed fans are cycles (one
-    minimum each); both are found by pointer doubling, ⌈log2(max valence)⌉ vectorised rounds.
+    are chains of ``succ``, closed fans are cycles; a compiled pass follows each once
+    (:func:`._kernels.fans_per_vertex`).
     """
-    m3 = len(a)
-    S = m3                                             # sentinel: past the end of a chain
-    succ = np.full(m3 + 1, S, dtype=np.int64)
-    inner = np.flatnonzero(twin >= 0)
-    tw = twin[inner]
-    succ[inner] = 3 * (tw // 3) + (tw % 3 + 1) % 3
-    has_pred = np.zeros(m3 + 1, dtype=bool)
-    has_pred[succ[:m3]] = True
-    heads = np.flatnonzero(~has_pred[:m3])
-    maxval = int(np.bincount(a, minlength=n).max())
-    q = succ
-    lab = np.arange(m3 + 1, dtype=np.int64)
-    window = 1
-    while window < maxval:
-        lab = np.minimum(lab, lab[q])
-        q = q[q]
-        window *= 2
-    idx = np.arange(m3)
-    cycle_rep = (q[:m3] != S) & (lab[:m3] == idx)
-    return (np.bincount(a[heads], minlength=n)
-            + np.bincount(a[np.flatnonzero(cycle_rep)], minlength=n))
+    return _kernels.fans_per_vertex(np.ascontiguousarray(a, dtype=np.int64),
+                                    np.ascontiguousarray(twin, dtype=np.int64), int(n))
 
 
 def _nonmanifold_vertices_general(F, n, a, order, start, size) -> np.ndarray:
