@@ -48,8 +48,10 @@ def collapse_short_edges(S: RemeshState, L_min: float, L_max: float, max_rounds:
     each takes a maximal set of independent collapses, greedy from the shortest
     (:func:`_independent_collapses`). With a budget the candidates are a pool of the shortest
     ``COLLAPSE_POOL × budget + COLLAPSE_POOL_MIN`` edges, chosen again when it is used up. A
-    round reads only the faces at the candidates' ends (after the first, only where
-    candidates were and at the vertices kept).
+    round reads only the faces at the candidates' ends, leaving out the edges an earlier round
+    refused while no collapse has touched their rings (:class:`RefusedEdges`); after the
+    first it looks for them only where candidates were, at the vertices kept and at the ends
+    of the edges no longer refused.
 
     Parameters
     ----------
