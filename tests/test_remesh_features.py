@@ -133,3 +133,32 @@ def test_placed_feature_points_are_joined_with_no_flat_face():
     kept = edge_set(S.F)
     assert all((min(p, q), max(p, q)) in kept for p, q in zip(on[:-1], on[1:]))
     assert disk_shape(S.uv, S.F).min() >= DISK_SHAPE_MIN
+
+
+def test_join_flip_refuses_a_face_turned_over_on_the_surface():
+    """A quad convex on the disk but not on the surface (its corner ``p`` pushed towards the
+    opposite diagonal end in 3D): the flip of ``p–q`` would turn the new face ``(x, p, y)``
+    over (normal −z against the input's +z at its corners) and is refused, ``F`` unchanged;
+    the same quad flat as on the disk flips."""
+    from pipeline.geometry.remesh.features import _flip
+
+    x, p, q, y = 0, 1, 2, 3
+    uv = np.array([[-1.0, 0.0], [0.0, -1.0], [0.0, 1.0], [1.0, 0.0]])
+    F = np.array([[x, p, q], [y, q, p]])
+
+    def vf(F):
+        out = {}
+        for t, f in enumerate(F.tolist()):
+            for v in f:
+                out.setdefault(v, set()).add(t)
+        return out
+
+    up = np.tile([0.0, 0.0, 1.0], (4, 1))
+    X = np.array([[-1.0, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    F1 = F.copy()
+    assert _flip(F1, vf(F1), uv, 0, p, q, X, up) is None
+    assert np.array_equal(F1, F)
+    flat = np.column_stack([uv, np.zeros(4)])
+    F2 = F.copy()
+    assert _flip(F2, vf(F2), uv, 0, p, q, flat, up) == 1
+    assert edge_set(F2) == {(0, 1), (0, 2), (1, 3), (2, 3), (0, 3)}

@@ -290,7 +290,8 @@ def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
 def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndarray:
     """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
     segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
-    the disk and both new faces keep a disk shape of at least ``DISK_SHAPE_MIN``; at most
+    the disk, both new faces keep a disk shape of at least ``DISK_SHAPE_MIN`` and neither
+    turns over on the surface (:func:`_flip`); at most
     ``max_flips`` per pair, never of a pair joined before); first the long edge of every flat
     face is flipped (:func:`_flip_thin`). Returns the pairs that are edges at the end.
 
@@ -314,7 +315,8 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
     joined = []
     uv = S.uv
-    changed = _flip_thin(F, VF, uv, S.X, done)
+    N = S.normals_in()[S.face]
+    changed = _flip_thin(F, VF, uv, S.X, N, done)
     for a, b in pairs.tolist():
         for _ in range(max_flips + 1):
             if VF[a] & VF[b]:
@@ -323,7 +325,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
                 break
             hits = [h for h in _crossed_edges(F, VF, uv, a, b)
                     if (min(h[1:]), max(h[1:])) not in done]
-            if not any(_flip(F, VF, uv, *h) is not None for h in hits):
+            if not any(_flip(F, VF, uv, *h, X=S.X, N=N) is not None for h in hits):
                 break
             changed = True
     if changed:
@@ -331,7 +333,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     return np.asarray(joined, np.int64).reshape(-1, 2)
 
 
-def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
+def _flip_thin(F, VF, uv, X, N, done, passes: int = 3) -> bool:
     """Flip the longest edge of every face of ``F`` flat on the surface (twice its area at most
     ``FLAT × `` its longest edge squared) or thinner than ``DISK_SHAPE_MIN`` on the disk —
     feature points snapped onto one straight crease — where :func:`_flip` allows it and the
@@ -351,7 +353,7 @@ def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
             p, q = f[(c + 1) % 3], f[(c + 2) % 3]
             if t in touched or (min(p, q), max(p, q)) in done:
                 continue
-            g = _flip(F, VF, uv, t, p, q)
+            g = _flip(F, VF, uv, t, p, q, X=X, N=N)
             if g is not None:
                 touched |= {t, g}
         flipped |= bool(touched)
@@ -404,11 +406,13 @@ def _cross2(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def _flip(F, VF, uv, t, p, q) -> int | None:
+def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
     """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
-    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk
-    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or
-    None where no flip is made."""
+    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk and
+    neither turns over on the surface (its normal on ``X``, n×3, against the input normals
+    ``N``, n×3, under all three of its corners: :func:`.improve.turned_over_faces`' test)
+    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or None
+    where no flip is made."""
     g = next((s for s in VF[p] & VF[q] if s != t), None)
     if g is None:
         return None
@@ -417,6 +421,8 @@ def _flip(F, VF, uv, t, p, q) -> int | None:
     y = next(v for v in F[g].tolist() if v not in (p, q))
     new = np.array([[x, p, y], [x, y, q]])
     if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
+        return None
+    if (np.einsum("ij,ikj->ik", face_normals(X, new), N[new]) < 0).all(axis=1).any():
         return None
     F[t], F[g] = new
     for v in (x, p, q, y):
