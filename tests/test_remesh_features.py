@@ -111,7 +111,7 @@ def test_joined_edges_survive_flips_and_are_released():
                                                                                     False]
     at = np.zeros(S.n, bool)
     at[p] = True
-    assert release_features(S, at) == 2
+    assert len(release_features(S, at)) == 2
     assert len(S.joined) == 0 and not S.locked[[p, q]].any()
 
 
@@ -133,3 +133,73 @@ def test_placed_feature_points_are_joined_with_no_flat_face():
     kept = edge_set(S.F)
     assert all((min(p, q), max(p, q)) in kept for p, q in zip(on[:-1], on[1:]))
     assert disk_shape(S.uv, S.F).min() >= DISK_SHAPE_MIN
+
+
+def test_join_flip_refuses_a_face_turned_over_on_the_surface():
+    """A quad convex on the disk but not on the surface (its corner ``p`` pushed towards the
+    opposite diagonal end in 3D): the flip of ``p–q`` would turn the new face ``(x, p, y)``
+    over (normal −z against the input's +z at its corners) and is refused, ``F`` unchanged;
+    the same quad flat as on the disk flips."""
+    from pipeline.geometry.remesh.features import _flip
+
+    x, p, q, y = 0, 1, 2, 3
+    uv = np.array([[-1.0, 0.0], [0.0, -1.0], [0.0, 1.0], [1.0, 0.0]])
+    F = np.array([[x, p, q], [y, q, p]])
+
+    def vf(F):
+        out = {}
+        for t, f in enumerate(F.tolist()):
+            for v in f:
+                out.setdefault(v, set()).add(t)
+        return out
+
+    up = np.tile([0.0, 0.0, 1.0], (4, 1))
+    X = np.array([[-1.0, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    F1 = F.copy()
+    assert _flip(F1, vf(F1), uv, 0, p, q, X, up) is None
+    assert np.array_equal(F1, F)
+    flat = np.column_stack([uv, np.zeros(4)])
+    F2 = F.copy()
+    assert _flip(F2, vf(F2), uv, 0, p, q, flat, up) == 1
+    assert edge_set(F2) == {(0, 1), (0, 2), (1, 3), (2, 3), (0, 3)}
+
+
+def test_no_feature_line_where_the_map_stretches_the_input_too_much():
+    """The folded disk's map is the plane projection: every input face has the dilatation
+    ``√(1 + slope²)`` (2.24 at slope 2, 10.05 at slope 10). Below ``MAX_DILATATION`` (8) its
+    crease gets feature points; above it none (flips and joins on a disk that squeezes the
+    surface that much fold it); :func:`feature_edges` keeps only the edges between the faces
+    it is given."""
+    from pipeline.geometry.remesh.features import MAX_DILATATION, place_features
+
+    assert 2.3 < MAX_DILATATION < 10.0
+    uv, F, V, loop, _ = creased_disk(2.0)
+    E, _ = feature_edges(V, F, 30.0)
+    upper = uv[F].mean(axis=1)[:, 1] > 0
+    E_up, _ = feature_edges(V, F, 30.0, faces=upper)
+    assert 0 < len(E_up) < len(E) and (uv[E_up, 1] >= 0).all()
+    counts = {}
+    for slope in (2.0, 10.0):
+        S, _ = coarse_state(*creased_disk(slope), 6)
+        place_features(S, 0.3)
+        counts[slope] = S.log.get("feature_points", 0)
+    assert counts[2.0] > 0 and counts[10.0] == 0
+
+
+def test_freed_feature_vertices_are_not_locked_again():
+    """A snapshot of the locks taken while a kept edge's ends are locked, applied again after
+    a repair freed them (``_Operations.lock_at``), locks the other vertex of the snapshot but
+    not the freed ends (no later release could free them: they are on no kept edge)."""
+    from pipeline.geometry.remesh.improve import _Operations
+
+    S, _ = coarse_state(*creased_disk(2.0), 4)
+    inner = np.flatnonzero(~S.is_rim)
+    p, q, r = inner[:3]
+    S.joined = np.array([[p, q]])
+    S.locked[[p, q, r]] = True
+    snapshot = S.X[S.locked].copy()
+    ops = _Operations(S, 0.3, True, 20.0, 0.5, 0.2)
+    ops.release(np.flatnonzero((S.F == p).any(axis=1)))
+    assert len(S.joined) == 0 and not S.locked[[p, q]].any() and S.locked[r]
+    ops.lock_at(snapshot)
+    assert np.flatnonzero(S.locked).tolist() == [r]

@@ -4,7 +4,11 @@ Where the input surface folds sharply across an edge (a dihedral angle over ``FE
 remesh whose edges cut across the crease between vertices on either side leaves the surface by
 about the edge length times the fold, on both sides of every such crease: the RMS distance of a
 coarse, creased input is decided there. The input edges sharper than the threshold, none at
-the boundary (:func:`feature_edges`), form **chains** (:func:`feature_chains`): runs through
+the boundary and none at an input face whose map dilatation (:func:`..metrics.stretch_anisotropy`)
+exceeds ``MAX_DILATATION`` (where the disk squeezes the surface that much, the flips that join
+feature points and the remesh around its locked vertices fold it: gpp_bunny at 20k vertices,
+30°, three faces turned over without this limit, none with it) (:func:`feature_edges`), form
+**chains** (:func:`feature_chains`): runs through
 vertices where exactly two of them meet and the line turns by at most ``TURN_DEG``; chains
 shorter than ``MIN_LENGTH × L`` are dropped. Each chain gets points (:func:`chain_points`):
 its own vertices where its chords would leave it by more than ``BEND_TOL × L``
@@ -32,6 +36,7 @@ from collections import defaultdict
 import numpy as np
 
 from .. import topology as topo
+from ..metrics import stretch_anisotropy
 from ..rows import dots, norms
 from .corners import snap_vertices
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
@@ -43,20 +48,22 @@ MIN_LENGTH = 0.8     # chains shorter than this × L are dropped
 FEATURE_GAP = 0.6    # feature vertices are at least this × L apart on the surface
 MAX_STEP = 1.25      # consecutive feature points at most this × L apart along a chain, …
 BEND_TOL = 0.05      # … their chord within this × L of the chain's vertices between them
+MAX_DILATATION = 8.0  # no feature edge at an input face whose map dilatation exceeds this
 FLAT = 1e-3          # a face with 2·area ≤ this × its longest edge² is flat (three collinear
                      # feature points): its longest edge is flipped
 
 
-def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
+                  faces: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The interior edges of ``(V, F)`` whose two faces' normals differ by more than
-    ``angle_deg``, neither end on the boundary.
+    ``angle_deg``, neither end on the boundary (and both faces among ``faces``, if given).
 
     Parameters
     ----------
     V : (n, 3) float
     F : (m, 3) int
     angle_deg : float
+    faces : (m,) bool, optional
 
     Returns
     -------
@@ -72,6 +79,8 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG
     cos = np.clip(dots(N[h // 3], N[twin // 3]), -1.0, 1.0)
     on_b = topo.boundary_vertices_mask(F, len(V))
     keep = (cos < np.cos(np.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
+    if faces is not None:
+        keep &= faces[h // 3] & faces[twin // 3]
     return np.column_stack([a[keep], b[keep]]), np.arccos(cos[keep])
 
 
@@ -256,7 +265,8 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
     (j, 2) int
         The pairs joined.
     """
-    E, angle = feature_edges(S.V_in, S.F_in, angle_deg)
+    even = stretch_anisotropy(S.V_in, S.F_in, S.uv_in) <= MAX_DILATATION
+    E, angle = feature_edges(S.V_in, S.F_in, angle_deg, faces=even)
     chains = feature_chains(S.V_in, E, TURN_DEG)
     P, chain, rank = chain_points(S.V_in, S.uv_in, chains, L, MIN_LENGTH)
     S.tally("feature_points", len(P))
@@ -290,7 +300,8 @@ def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
 def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndarray:
     """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
     segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
-    the disk and both new faces keep a disk shape of at least ``DISK_SHAPE_MIN``; at most
+    the disk, both new faces keep a disk shape of at least ``DISK_SHAPE_MIN`` and neither
+    turns over on the surface (:func:`_flip`); at most
     ``max_flips`` per pair, never of a pair joined before); first the long edge of every flat
     face is flipped (:func:`_flip_thin`). Returns the pairs that are edges at the end.
 
@@ -314,7 +325,8 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
     joined = []
     uv = S.uv
-    changed = _flip_thin(F, VF, uv, S.X, done)
+    N = S.normals_in()[S.face]
+    changed = _flip_thin(F, VF, uv, S.X, N, done)
     for a, b in pairs.tolist():
         for _ in range(max_flips + 1):
             if VF[a] & VF[b]:
@@ -323,7 +335,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
                 break
             hits = [h for h in _crossed_edges(F, VF, uv, a, b)
                     if (min(h[1:]), max(h[1:])) not in done]
-            if not any(_flip(F, VF, uv, *h) is not None for h in hits):
+            if not any(_flip(F, VF, uv, *h, X=S.X, N=N) is not None for h in hits):
                 break
             changed = True
     if changed:
@@ -331,7 +343,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     return np.asarray(joined, np.int64).reshape(-1, 2)
 
 
-def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
+def _flip_thin(F, VF, uv, X, N, done, passes: int = 3) -> bool:
     """Flip the longest edge of every face of ``F`` flat on the surface (twice its area at most
     ``FLAT × `` its longest edge squared) or thinner than ``DISK_SHAPE_MIN`` on the disk —
     feature points snapped onto one straight crease — where :func:`_flip` allows it and the
@@ -351,7 +363,7 @@ def _flip_thin(F, VF, uv, X, done, passes: int = 3) -> bool:
             p, q = f[(c + 1) % 3], f[(c + 2) % 3]
             if t in touched or (min(p, q), max(p, q)) in done:
                 continue
-            g = _flip(F, VF, uv, t, p, q)
+            g = _flip(F, VF, uv, t, p, q, X=X, N=N)
             if g is not None:
                 touched |= {t, g}
         flipped |= bool(touched)
@@ -404,11 +416,13 @@ def _cross2(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def _flip(F, VF, uv, t, p, q) -> int | None:
+def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
     """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
-    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk
-    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or
-    None where no flip is made."""
+    strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk and
+    neither turns over on the surface (its normal on ``X``, n×3, against the input normals
+    ``N``, n×3, under all three of its corners: :func:`.improve.turned_over_faces`' test)
+    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or None
+    where no flip is made."""
     g = next((s for s in VF[p] & VF[q] if s != t), None)
     if g is None:
         return None
@@ -417,6 +431,8 @@ def _flip(F, VF, uv, t, p, q) -> int | None:
     y = next(v for v in F[g].tolist() if v not in (p, q))
     new = np.array([[x, p, y], [x, y, q]])
     if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
+        return None
+    if (np.einsum("ij,ikj->ik", face_normals(X, new), N[new]) < 0).all(axis=1).any():
         return None
     F[t], F[g] = new
     for v in (x, p, q, y):
@@ -428,15 +444,16 @@ def _flip(F, VF, uv, t, p, q) -> int | None:
     return g
 
 
-def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None = None) -> int:
+def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None = None
+                     ) -> np.ndarray:
     """Free the feature vertices ``at`` marks (n bool): the kept edges at them dropped from
     ``S.joined``, and they and the feature vertices left on no kept edge unlocked, except
     those at one of the points ``corners`` (k×3: the input's sharp corners, which stay
-    locked). Returns how many were unlocked."""
+    locked). Returns the unlocked vertices (indices)."""
     on = np.zeros(S.n, bool)
     on[S.joined.ravel()] = True
     if not (at & on).any():
-        return 0
+        return np.zeros(0, np.int64)
     S.joined = S.joined[~(at & on)[S.joined].any(axis=1)]
     still = np.zeros(S.n, bool)
     still[S.joined.ravel()] = True
@@ -444,4 +461,4 @@ def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None 
     if corners is not None:
         free = free[~at_points(S.X[free], corners)]
     S.locked[free] = False
-    return len(free)
+    return free

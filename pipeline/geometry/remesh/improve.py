@@ -94,7 +94,7 @@ The schedule (:func:`improve_remesh`):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -274,6 +274,7 @@ class _Operations:
     refine_sag: float
     sag_floor: float = 0.0
     corners: np.ndarray | None = None     # the locked input corners (k×3), never released
+    freed: list = field(default_factory=list)   # where feature vertices were freed (k×3 each)
 
     @property
     def tol(self) -> float | None:
@@ -333,7 +334,19 @@ class _Operations:
             return
         at = np.zeros(S.n, bool)
         at[S.F[faces].ravel()] = True
-        S.tally("features_released", release_features(S, at, self.corners))
+        free = release_features(S, at, self.corners)
+        self.freed.append(S.X[free])
+        S.tally("features_released", len(free))
+
+    def lock_at(self, points: np.ndarray) -> None:
+        """Lock the vertices at ``points`` (k×3) and no others, except those where a feature
+        vertex was freed (:meth:`release`): a snapshot of the locks taken before a release
+        must not lock them again, which no later release could undo (they are on no kept
+        edge) and which would keep the minimum-angle pass off their faces."""
+        S = self.S
+        S.locked = at_points(S.X, points)
+        if self.freed:
+            S.locked &= ~at_points(S.X, np.vstack(self.freed))
 
     def reshape(self, angle_deg: float) -> None:
         """A smoothing step of the corners of the faces with an angle below ``angle_deg``
@@ -423,11 +436,11 @@ class _Operations:
         again around the faces then below. Given ``kept`` (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
-        the rest. The feature vertices of the faces each of these works on are freed first
-        (:meth:`release`)."""
+        the rest, but not the feature vertices freed since (:meth:`lock_at`). The feature
+        vertices of the faces each of these works on are freed first (:meth:`release`)."""
         S, L, tol = self.S, self.L, self.tol
         if kept is not None:
-            S.locked = at_points(S.X, kept[0])
+            self.lock_at(kept[0])
         for i in range(passes):
             bad = skinny_faces(S.X, S.F, min_angle_deg)
             if len(bad) == 0:
@@ -442,7 +455,7 @@ class _Operations:
                 split_long_edges(S, 0.0, budget=target - S.n)
             self.flip()
         if kept is not None:
-            S.locked = at_points(S.X, kept[1])
+            self.lock_at(kept[1])
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
         bad = skinny_faces(S.X, S.F, min_angle_deg)
