@@ -251,9 +251,9 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
 
 STEPS = ("sample", "delaunay", "locate", "lift", "improve", "total")
 SUB = ("flips", "relax", "refine", "isotropic", "count", "smoothing", "pinned", "reshape",
-       "follow", "slivers", "rim_fans", "guarantee", "repair")
+       "follow", "slivers", "rim_fans", "guarantee", "even", "repair")
 SUB_HEAD = ("flips", "relax", "refine", "iso", "count", "smooth", "pinned", "reshape", "follow",
-            "sliver", "fans", "angle", "repair")
+            "sliver", "fans", "angle", "even", "repair")
 
 
 def bench_remesh(names, counts, repeat):

@@ -164,3 +164,91 @@ def test_unguarded_collapses_remove_a_cap_and_keep_the_count():
     assert len(skinny_faces(S.X, S.F, NEEDLE_DEG)) == 0 and S.log["needles"] >= 1
     assert S.n == n0 and np.all(signed_double_areas(S.uv, S.F) > 0)
     assert is_disk(mesh_facts(S.X, S.F))
+
+
+def test_angle_veto_drops_a_move_that_makes_a_face_thinner_than_the_floor():
+    """On the flat disk the centre vertex moved most of the way to a first-ring neighbour makes
+    its faces there thinner than 20°: the veto drops that move (and reports no vertex that
+    did not move); a small move of it keeps every face above the floor and is kept; what the
+    veto it chains drops is dropped as well."""
+    from pipeline.geometry.remesh.improve import angle_veto
+
+    S = _flat_or_tent_state(0.0)
+    floor = np.minimum(np.min(corner_angles(S.X, S.F), axis=1), np.radians(20.0))
+    near = S.F[np.any(S.F == 0, axis=1)].ravel()
+    w = int(near[near != 0][0])
+    drop = angle_veto(S, floor, None, *_moved(S, 0, 0.85 * S.uv[w]))
+    assert np.flatnonzero(drop).tolist() == [0]
+    assert not angle_veto(S, floor, None, *_moved(S, 0, 0.05 * S.uv[w])).any()
+    everyone = lambda uv, face, bary, X: np.ones(len(uv), bool)       # noqa: E731
+    assert np.flatnonzero(angle_veto(S, floor, everyone,
+                                     *_moved(S, 0, 0.05 * S.uv[w]))).tolist() == [0]
+
+
+def test_angle_veto_drops_a_move_the_undone_one_of_a_neighbour_leaves_too_thin():
+    """Two neighbours ``a``, ``b`` of the first ring moved by half their edge towards ``a``'s
+    side, with a floor just under every face's smallest angle both before and after the
+    moves: the moves together pass. With ``a``'s move dropped by the chained veto, ``b``
+    alone halves their edge and the angle across it, and the rounds drop ``b`` too."""
+    from pipeline.geometry.remesh.improve import angle_veto
+
+    S = _flat_or_tent_state(0.0)
+    inner = np.flatnonzero(np.isclose(np.linalg.norm(S.uv, axis=1), 0.3))
+    a = int(inner[0])
+    b = int(next(v for v in S.F[np.any(S.F == a, axis=1)].ravel() if v in inner and v != a))
+    uv = S.uv.copy()
+    uv[[a, b]] += 0.5 * (S.uv[a] - S.uv[b])
+    face, bary = S.locator.locate(uv)
+    moved = (uv, face, bary, lift(S.V_in, S.F_in, face, bary))
+    floor = np.minimum(np.min(corner_angles(S.X, S.F), axis=1),
+                       np.min(corner_angles(moved[3], S.F), axis=1)) - 1e-9
+    assert not angle_veto(S, floor, None, *moved).any()
+    first = lambda uv, face, bary, X: np.arange(len(uv)) == a         # noqa: E731
+    assert np.flatnonzero(angle_veto(S, floor, first, *moved)).tolist() == sorted([a, b])
+
+
+def test_even_out_evens_the_areas_and_keeps_angles_rim_and_kept_vertices():
+    """Interior vertices of the flat disk's remesh pushed off their places: a step of
+    :meth:`_Operations.even_out` lowers the area CV, moves no rim vertex, no kept one and none
+    of their neighbours, and leaves no face's smallest angle below what it was and 20°."""
+    from pipeline.geometry.remesh.improve import _Operations
+
+    S = _flat_or_tent_state(0.0)
+    rng = np.random.default_rng(1)
+    inner = np.flatnonzero(~S.is_rim)
+    uv = S.uv.copy()
+    uv[inner] += rng.uniform(-0.06, 0.06, (len(inner), 2))
+    S.uv, S.face, S.bary, S.X = _moved(S, inner, uv[inner])
+    assert np.all(signed_double_areas(S.uv, S.F) > 0)
+    area = lambda: np.linalg.norm(np.cross(S.X[S.F[:, 1]] - S.X[S.F[:, 0]],   # noqa: E731
+                                           S.X[S.F[:, 2]] - S.X[S.F[:, 0]]), axis=1)
+    cv0 = area().std() / area().mean()
+    before = np.min(corner_angles(S.X, S.F), axis=1)
+    kept = S.X[inner[:3]].copy()
+    stay = np.zeros(S.n, bool)
+    stay[S.F[np.isin(S.F, inner[:3]).any(axis=1)].ravel()] = True
+    uv0 = S.uv.copy()
+    _Operations(S, 0.3, True, 20.0, 1.0, 0.2).even_out(1, 20.0, kept)
+    assert area().std() / area().mean() < cv0
+    assert np.array_equal(S.uv[S.is_rim], uv0[S.is_rim])
+    assert np.array_equal(S.uv[stay], uv0[stay]) and not S.locked.any()
+    assert np.any(S.uv[~stay] != uv0[~stay])
+    after = np.min(corner_angles(S.X, S.F), axis=1)
+    assert np.all(after >= np.minimum(before, np.radians(20.0)) - 1e-12)
+    assert np.all(signed_double_areas(S.uv, S.F) > 0)
+
+
+def test_folded_vertices_are_the_ends_of_the_edges_across_a_ridge():
+    """The flat disk's remesh lifted onto the ridge ``z = k |x|``: at ``k = 3`` (faces on
+    either side 143° apart) the ends of the edges whose faces lie on both sides are folded,
+    none farther than one ring (0.3) from the ridge line; at ``k = 0.2`` (23°) none is."""
+    from pipeline.geometry.remesh.improve import folded_vertices
+
+    S = _flat_or_tent_state(0.0)
+    x = S.uv[:, 0]
+    S.X = np.column_stack([S.uv, 3.0 * np.abs(x)])
+    fold = folded_vertices(S, 60.0)
+    assert fold.any() and np.abs(x[fold]).max() <= 0.3 + 1e-9
+    assert not fold[np.abs(x) > 0.31].any()
+    S.X = np.column_stack([S.uv, 0.2 * np.abs(x)])
+    assert not folded_vertices(S, 60.0).any()
