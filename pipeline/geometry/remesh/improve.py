@@ -121,7 +121,7 @@ from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
-from .state import RemeshState, at_points
+from .state import RemeshState, at_points, face_normals
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -713,8 +713,6 @@ def angle_veto(S: RemeshState, floor: np.ndarray, then, uv: np.ndarray, face: np
 def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
     """The ends (n bool) of the interior edges of ``S`` whose two faces' normals are more than
     ``max_dihedral_deg`` apart: where the remesh folds over a crease or a ridge of the input."""
-    from .state import face_normals
-
     N = face_normals(S.X, S.F)
     h, a, b, twin = edge_table(S.F, twin=S.twins())
     inner = twin >= 0
