@@ -7,6 +7,7 @@ import pytest
 
 from conftest import require_data
 from pipeline.geometry.remesh_quality import (DISTANCE_SAMPLES, MeshDistance, SampledSurface,
+                                              face_centroids,
                                               closest_points_on_triangles, is_disk,
                                               mesh_facts, point_mesh_distance, surface_distance,
                                               surface_samples, triangle_quality,
@@ -255,3 +256,24 @@ def test_turned_over_faces_counts_the_faces_of_a_fold_exactly():
     assert expected >= 2
     assert turned_over_faces(Q, F, reference) == expected
     assert surface_distance(P, F, Q, F, n_random=1000)["turned_over_faces"] == expected
+
+
+def test_closest_faces_found_once_give_the_counts_and_maxima_of_fresh_queries():
+    """The output's centroid and vertex queries that :func:`surface_distance` shares between
+    its output-to-input maximum and the turned-over faces: the same count and maximum as
+    queried where each is used (a fold of a coarse paraboloid against a fine one, where the
+    farthest samples are centroids)."""
+    fine, F = lattice_mesh(48, 0.25)
+    coarse, G = lattice_mesh(8, 1.5)
+    for V in (fine, coarse):
+        V[:, 2] = 0.05 * ((V[:, 0] - 9) ** 2 + (V[:, 1] - 5) ** 2)
+    coarse[4 * 9 + 4, 1] += 2.2 * 1.5 * np.sqrt(3) / 2
+    reference, ours = SampledSurface(fine, F, 500), SampledSurface(coarse, G, 500)
+    d_centroid, centroid_face = reference.distance(face_centroids(coarse, G))
+    shared = ours.distances_to(reference, d_centroid)
+    fresh = ours.distances_to(reference)
+    assert shared[:2] == fresh[:2] and np.array_equal(shared[2], fresh[2])
+    folds = turned_over_faces(coarse, G, reference)
+    assert folds >= 2
+    assert turned_over_faces(coarse, G, reference, centroid_face, shared[2]) == folds
+    assert surface_distance(fine, F, coarse, G, n_random=500)["turned_over_faces"] == folds

@@ -38,7 +38,7 @@ from .metrics import corner_angles
 from .rows import norms
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
-           "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
+           "MeshDistance", "SampledSurface", "face_centroids", "z_order", "point_mesh_distance",
            "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere",
            "DISTANCE_SAMPLES"]
@@ -360,6 +360,23 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
 _BOUND_MARGIN = 1e-9
 
 
+def midpoint_bounds(V: np.ndarray, E: np.ndarray, d_vertex: np.ndarray) -> np.ndarray:
+    """The Lipschitz upper bounds of :func:`middle_bounds` for the edge midpoints alone.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    E : (e, 2) int
+    d_vertex : (n,) float
+
+    Returns
+    -------
+    (e,) float
+    """
+    a, b = E[:, 0], E[:, 1]
+    return np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
+
+
 def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Upper bounds of the distance to a surface of the edge midpoints and face centroids of
@@ -380,8 +397,7 @@ def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndar
     centroids : (m, 3) float
     centroid_bound : (m,) float
     """
-    a, b = E[:, 0], E[:, 1]
-    mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
+    mid_bound = midpoint_bounds(V, E, d_vertex)
     corners = V[F]
     centroids = corners.mean(axis=1)
     to_corners = (centroids[:, None, :] - corners).reshape(-1, 3)
@@ -415,10 +431,12 @@ def face_bounds(P: np.ndarray, corners: np.ndarray, corner_face: np.ndarray,
 
 
 def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
-                    f_vertex: np.ndarray, known_max: float, distance: MeshDistance) -> float:
+                    f_vertex: np.ndarray, known_max: float, distance: MeshDistance,
+                    d_centroid: np.ndarray | None = None) -> float:
     """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
     (``E`` its edges, ``d_vertex`` its vertices' distances, ``f_vertex`` their closest faces
-    on the other surface) and ``known_max``.
+    on the other surface, ``d_centroid`` its face centroids' distances when already measured)
+    and ``known_max``.
 
     A midpoint or centroid whose bound is below the largest distance known cannot raise the
     maximum and is not queried: first the Lipschitz bound (:func:`middle_bounds`), then, for
@@ -426,18 +444,25 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
     The result is the maximum over every sample, as if all had been queried (each queried
     point is the one :func:`_structured_samples` makes)."""
     best = max(known_max, float(d_vertex.max(initial=0.0)))
+    if d_centroid is not None:
+        best = max(best, float(d_centroid.max(initial=0.0)))
     slack = _BOUND_MARGIN * bounding_box_diagonal(V)
 
     def above(bound):
         return bound * (1 + _BOUND_MARGIN) + slack >= best
 
-    mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
+    if d_centroid is None:
+        mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
+        cents = np.flatnonzero(above(centroid_bound))
+        cents = cents[above(face_bounds(centroids[cents], F[cents], f_vertex, distance))]
+        centroids = centroids[cents]
+    else:
+        mid_bound = midpoint_bounds(V, E, d_vertex)
+        centroids = np.zeros((0, 3))
     mids = np.flatnonzero(above(mid_bound))
     middles = (V[E[mids, 0]] + V[E[mids, 1]]) / 2
     keep = above(face_bounds(middles, E[mids], f_vertex, distance))
-    cents = np.flatnonzero(above(centroid_bound))
-    cents = cents[above(face_bounds(centroids[cents], F[cents], f_vertex, distance))]
-    d, _ = distance(np.vstack([middles[keep], centroids[cents]]))
+    d, _ = distance(np.vstack([middles[keep], centroids]))
     return max(best, float(d.max(initial=0.0)))
 
 
@@ -474,21 +499,33 @@ class SampledSurface:
         """Vertices, edge midpoints, face centroids and random samples."""
         return len(self.V) + len(self.E) + len(self.F) + len(self.random)
 
-    def distances_to(self, other: SampledSurface) -> tuple[float, float]:
-        """``(largest distance of any sample, mean squared distance of the random samples)``
-        from this surface's samples to ``other``."""
+    def distances_to(self, other: SampledSurface, d_centroid: np.ndarray | None = None
+                     ) -> tuple[float, float, np.ndarray]:
+        """``(largest distance of any sample, mean squared distance of the random samples,
+        closest face of ``other`` to each vertex (n,))`` from this surface's samples to
+        ``other``; ``d_centroid`` (m,): this surface's face centroids' distances to ``other``
+        when already measured."""
         d, f = other.distance(np.vstack([self.V, self.random]))
         d_vertex, d_random = d[:len(self.V)], d[len(self.V):]
-        largest = _structured_max(self.V, self.F, self.E, d_vertex, f[:len(self.V)],
-                                  float(d_random.max()), other.distance)
-        return largest, float(np.mean(d_random ** 2))
+        f_vertex = f[:len(self.V)]
+        largest = _structured_max(self.V, self.F, self.E, d_vertex, f_vertex,
+                                  float(d_random.max()), other.distance, d_centroid)
+        return largest, float(np.mean(d_random ** 2)), f_vertex
 
 
-def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -> int:
+def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The centroids (m, 3) of the faces ``F`` (m, 3) of ``V`` (n, 3)."""
+    return V[F].mean(axis=1)
+
+
+def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,
+                      centroid_face: np.ndarray | None = None,
+                      vertex_face: np.ndarray | None = None) -> int:
     """The number of faces of ``(V, F)`` (m×3, oriented as the input) turned over against the
     ``reference``: whose normal has a negative dot product with the normal of the reference face
     closest to their centroid, and with those of the reference faces closest to each of their
-    three corners.
+    three corners. ``centroid_face`` (m,) and ``vertex_face`` (n,): the reference faces closest
+    to ``(V, F)``'s face centroids and vertices when already found (else queried here).
 
     A surface that follows the input has every face's normal within a right angle of the
     input's beneath it (the input is consistently oriented); a face turned over is a fold, a
@@ -500,14 +537,25 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -
     P = V[F]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     below = reference.normals
-    _, closest = reference.distance(P.mean(axis=1))
-    suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[closest]) < 0)
+    if centroid_face is None:
+        _, centroid_face = reference.distance(P.mean(axis=1))
+    suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[centroid_face]) < 0)
     if len(suspect) == 0:
         return 0
-    _, at_corners = reference.distance(P[suspect].reshape(-1, 3))
+    if vertex_face is None:
+        _, at_corners = reference.distance(P[suspect].reshape(-1, 3))
+    else:
+        at_corners = vertex_face[F[suspect]].ravel()
     corner_dots = np.einsum("ij,ikj->ik", normal[suspect],
                             below[at_corners].reshape(len(suspect), 3, 3))
     return int(np.count_nonzero(np.all(corner_dots < 0, axis=1)))
+
+
+def _one_side(mx: float, mean_square: float, scale: float, samples: int) -> dict:
+    """One direction's entry of :func:`surface_distance`."""
+    rms = float(np.sqrt(mean_square))
+    return {"max": mx, "max_rel": mx / scale, "rms": rms, "rms_rel": rms / scale,
+            "samples": int(samples)}
 
 
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
@@ -529,20 +577,21 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
                          f"seed={reference.seed}; asked for {n_random}, {seed}")
     scale = bounding_box_diagonal(V_ref) if scale is None else float(scale)
     ours = SampledSurface(V, F, n_random, seed)
-    out = {}
-    ms = []
-    for name, (a, b) in {"output_to_input": (ours, reference),
-                         "input_to_output": (reference, ours)}.items():
-        mx, mean_square = a.distances_to(b)
-        ms.append(mean_square)
-        out[name] = {"max": mx, "max_rel": mx / scale, "rms": float(np.sqrt(mean_square)),
-                     "rms_rel": float(np.sqrt(mean_square)) / scale,
-                     "samples": int(a.sample_count)}
+    # the centroids' and vertices' closest input faces serve both the output's distances and
+    # the turned-over faces (a point's distance and closest face do not depend on the others
+    # of its query)
+    d_centroid, centroid_face = reference.distance(face_centroids(V, F))
+    mx_out, ms_out, vertex_face = ours.distances_to(reference, d_centroid)
+    mx_in, ms_in, _ = reference.distances_to(ours)
+    out = {name: _one_side(mx, mean_square, scale, a.sample_count)
+           for name, mx, mean_square, a in (("output_to_input", mx_out, ms_out, ours),
+                                            ("input_to_output", mx_in, ms_in, reference))}
+    ms = [ms_out, ms_in]
     h = max(out["output_to_input"]["max"], out["input_to_output"]["max"])
     rms = float(np.sqrt(np.mean(ms)))
     out.update({"hausdorff": h, "hausdorff_rel": h / scale, "rms": rms, "rms_rel": rms / scale,
                 "scale_bbox_diagonal": scale, "random_samples_per_side": int(n_random),
-                "turned_over_faces": turned_over_faces(V, F, reference)})
+                "turned_over_faces": turned_over_faces(V, F, reference, centroid_face, vertex_face)})
     return out
 
 
