@@ -56,21 +56,38 @@ def bounding_box_diagonal(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
 
 
-def degenerate_faces(V: np.ndarray, F: np.ndarray, rtol: float = DEGENERATE_RTOL) -> np.ndarray:
-    """Indices of faces with a repeated vertex or (near-)zero area."""
+def degenerate_faces(V: np.ndarray, F: np.ndarray, rtol: float = DEGENERATE_RTOL,
+                     double_area: np.ndarray | None = None) -> np.ndarray:
+    """Indices of faces with a repeated vertex or (near-)zero area (``double_area``: the
+    faces' :func:`.laplacian.face_double_areas` when already computed)."""
     rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
-    E = V[F[:, [1, 2, 0]]] - V[F]
-    lmax2 = (E ** 2).sum(axis=2).max(axis=1)
-    return np.flatnonzero(rep | (face_double_areas(V, F) <= rtol * lmax2))
+    dA = face_double_areas(V, F) if double_area is None else double_area
+    return np.flatnonzero(rep | (dA <= rtol * longest_edge_squared(V, F)))
 
 
-def mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
-    """Topology and validity counts of a triangle mesh (see the module docstring)."""
+def longest_edge_squared(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The squared length (m,) of the longest edge of each face of ``F`` (m, 3), summed
+    ``(x² + y²) + z²`` per edge, one coordinate at a time (numpy's reductions along the short
+    axis of an m×3×3 array are several times slower)."""
+    longest = None
+    for a, b in ((1, 0), (2, 1), (0, 2)):
+        sq = None
+        for axis in range(3):
+            x = V[:, axis]
+            e = x[F[:, a]] - x[F[:, b]]
+            sq = e * e if sq is None else sq + e * e
+        longest = sq if longest is None else np.maximum(longest, sq)
+    return longest
+
+
+def mesh_facts(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None = None) -> dict:
+    """Topology and validity counts of a triangle mesh (see the module docstring;
+    ``double_area``: the faces' doubled areas when already computed)."""
     with topo.kept_edge_groups():           # the counts below group F's edges five times
-        return _mesh_facts(V, np.asarray(F, np.int64))
+        return _mesh_facts(V, np.asarray(F, np.int64), double_area)
 
 
-def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
+def _mesh_facts(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None) -> dict:
     n = len(V)
     ncomp, _ = topo.connected_components(F, n)
     nm_edges = len(topo.nonmanifold_edges(F))
@@ -97,7 +114,7 @@ def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
         else None,
         "consistently_oriented": oriented,
         "leaf_faces": int(len(topo.leaf_faces(F, is_b))),
-        "degenerate_faces": int(len(degenerate_faces(V, F))),
+        "degenerate_faces": int(len(degenerate_faces(V, F, double_area=double_area))),
     }
 
 
@@ -126,11 +143,13 @@ def is_sphere(facts: dict) -> bool:
             and facts["unreferenced_vertices"] == 0)
 
 
-def triangle_quality(V: np.ndarray, F: np.ndarray) -> dict:
-    """Angles (degrees) and size uniformity of the faces (see the module docstring)."""
+def triangle_quality(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None = None
+                     ) -> dict:
+    """Angles (degrees) and size uniformity of the faces (see the module docstring;
+    ``double_area``: the faces' doubled areas when already computed)."""
     ang = np.degrees(corner_angles(V, F))
     mn, mx = ang.min(axis=1), ang.max(axis=1)
-    A = face_double_areas(V, F) / 2
+    A = (face_double_areas(V, F) if double_area is None else double_area) / 2
     Eu = _unique_edge_lengths(V, F)
     return {
         "min_angle_deg": float(mn.min()),
@@ -303,13 +322,16 @@ def _structured_samples(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> np.ndarr
     return np.vstack([V, (V[E[:, 0]] + V[E[:, 1]]) / 2, V[F].mean(axis=1)])
 
 
-def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> np.ndarray:
+def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int,
+                    double_area: np.ndarray | None = None) -> np.ndarray:
     """``n_random`` points uniform by area (seeded): a face drawn with probability
-    proportional to its area (:func:`_area_weighted_faces`), then a point uniform in it,
+    proportional to its area (:func:`_area_weighted_faces`; ``double_area``: the faces'
+    doubled areas when already computed), then a point uniform in it,
     ``p0 + u (p1 − p0) + v (p2 − p0)`` with ``(u, v)`` uniform in the unit square and
     reflected into the triangle (computed one coordinate at a time)."""
     rng = np.random.default_rng(seed)
-    f = _area_weighted_faces(face_double_areas(V, F), n_random, rng)
+    dA = face_double_areas(V, F) if double_area is None else double_area
+    f = _area_weighted_faces(dA, n_random, rng)
     u, v = rng.random(n_random), rng.random(n_random)
     flip = u + v > 1
     u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
@@ -468,15 +490,18 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
 
 class SampledSurface:
     """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
-    ``n_random`` area-uniform samples (seeded) and, made on first use, its AABB tree
-    (:class:`MeshDistance`). The input of a remesh is one such surface for every method it is
-    compared with: its samples are drawn and its tree built once."""
+    ``n_random`` area-uniform samples (seeded), its faces' doubled areas ``double_area`` (m,)
+    (given, or computed here) and, made on first use, its AABB tree (:class:`MeshDistance`).
+    The input of a remesh is one such surface for every method it is compared with: its
+    samples are drawn and its tree built once."""
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0):
+    def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0,
+                 double_area: np.ndarray | None = None):
         self.V, self.F = V, F
         self.n_random, self.seed = int(n_random), seed
         self.E, _ = topo.edges_with_faces(F)
-        self.random = _random_samples(V, F, n_random, seed)
+        self.double_area = face_double_areas(V, F) if double_area is None else double_area
+        self.random = _random_samples(V, F, n_random, seed, self.double_area)
         self._distance = None
         self._normals = None
 
@@ -560,9 +585,11 @@ def _one_side(mx: float, mean_square: float, scale: float, samples: int) -> dict
 
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
                      n_random: int = DISTANCE_SAMPLES, seed: int = 0, scale: float | None = None,
-                     reference: SampledSurface | None = None) -> dict:
+                     reference: SampledSurface | None = None,
+                     double_area: np.ndarray | None = None) -> dict:
     """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference, and
     the faces of ``(V, F)`` turned over against it (:func:`turned_over_faces`).
+    ``double_area``: the doubled areas of ``(V, F)``'s faces when already computed.
 
     ``scale`` (default: the reference's bounding-box diagonal) turns the distances into the
     ``*_rel`` fractions. ``reference``: the reference ``(V_ref, F_ref)`` already sampled with
@@ -576,7 +603,7 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
         raise ValueError(f"the reference was sampled with n_random={reference.n_random}, "
                          f"seed={reference.seed}; asked for {n_random}, {seed}")
     scale = bounding_box_diagonal(V_ref) if scale is None else float(scale)
-    ours = SampledSurface(V, F, n_random, seed)
+    ours = SampledSurface(V, F, n_random, seed, double_area)
     # the centroids' and vertices' closest input faces serve both the output's distances and
     # the turned-over faces (a point's distance and closest face do not depend on the others
     # of its query)
@@ -591,16 +618,19 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
     rms = float(np.sqrt(np.mean(ms)))
     out.update({"hausdorff": h, "hausdorff_rel": h / scale, "rms": rms, "rms_rel": rms / scale,
                 "scale_bbox_diagonal": scale, "random_samples_per_side": int(n_random),
-                "turned_over_faces": turned_over_faces(V, F, reference, centroid_face, vertex_face)})
+                "turned_over_faces": turned_over_faces(V, F, reference, centroid_face,
+                                                       vertex_face)})
     return out
 
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
                    n_random: int = DISTANCE_SAMPLES, seed: int = 0, distance: bool = True,
-                   reference: SampledSurface | None = None, facts: dict | None = None) -> dict:
+                   reference: SampledSurface | None = None, facts: dict | None = None,
+                   double_area: np.ndarray | None = None) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
     (``reference``: the input sampled for the distances, see :func:`surface_distance`;
-    ``facts``: :func:`mesh_facts` of ``(V, F)`` when already computed).
+    ``facts``: :func:`mesh_facts` of ``(V, F)``, ``double_area``: its faces' doubled areas,
+    when already computed).
 
     Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
@@ -608,11 +638,12 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
     with topo.kept_edge_groups():             # every measure below groups F's edges
-        facts = mesh_facts(V, F) if facts is None else facts
+        dA = face_double_areas(V, F) if double_area is None else double_area
+        facts = mesh_facts(V, F, dA) if facts is None else facts
         out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
-               "triangles": triangle_quality(V, F),
+               "triangles": triangle_quality(V, F, dA),
                "valence": valence_stats(F, len(V))}
         if distance:
             out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed,
-                                               reference=reference)
+                                               reference=reference, double_area=dA)
     return out
