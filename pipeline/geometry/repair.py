@@ -102,7 +102,8 @@ from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.remesh_quality import longest_edge_squared
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
-           "weld_map", "zero_area_mask", "has_interior_neighbour", "disk_blockers", "count_boundary_loops", "genus_of"]
+           "weld_map", "zero_area_mask", "has_interior_neighbour", "disk_blockers",
+           "count_boundary_loops", "genus_of"]
 
 ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts as zero area
 
