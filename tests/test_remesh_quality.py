@@ -7,7 +7,8 @@ import pytest
 
 from conftest import require_data
 from pipeline.geometry.remesh_quality import (DISTANCE_SAMPLES, MeshDistance, SampledSurface,
-                                              closest_points_on_triangles, is_disk,
+                                              closest_points_on_triangles, face_centroids,
+                                              is_disk, longest_edge_squared, remesh_quality,
                                               mesh_facts, point_mesh_distance, surface_distance,
                                               surface_samples, triangle_quality,
                                               turned_over_faces, valence_stats, z_order)
@@ -255,3 +256,50 @@ def test_turned_over_faces_counts_the_faces_of_a_fold_exactly():
     assert expected >= 2
     assert turned_over_faces(Q, F, reference) == expected
     assert surface_distance(P, F, Q, F, n_random=1000)["turned_over_faces"] == expected
+
+
+def test_closest_faces_found_once_give_the_counts_and_maxima_of_fresh_queries():
+    """The output's centroid and vertex queries that :func:`surface_distance` shares between
+    its output-to-input maximum and the turned-over faces: the same count and maximum as
+    queried where each is used (a fold of a coarse paraboloid against a fine one, where the
+    farthest samples are centroids)."""
+    fine, F = lattice_mesh(48, 0.25)
+    coarse, G = lattice_mesh(8, 1.5)
+    for V in (fine, coarse):
+        V[:, 2] = 0.05 * ((V[:, 0] - 9) ** 2 + (V[:, 1] - 5) ** 2)
+    coarse[4 * 9 + 4, 1] += 2.2 * 1.5 * np.sqrt(3) / 2
+    reference, ours = SampledSurface(fine, F, 500), SampledSurface(coarse, G, 500)
+    d_centroid, centroid_face = reference.distance(face_centroids(coarse, G))
+    shared = ours.distances_to(reference, d_centroid)
+    fresh = ours.distances_to(reference)
+    assert shared[:2] == fresh[:2] and np.array_equal(shared[2], fresh[2])
+    folds = turned_over_faces(coarse, G, reference)
+    assert folds >= 2
+    assert turned_over_faces(coarse, G, reference, centroid_face, shared[2]) == folds
+    assert surface_distance(fine, F, coarse, G, n_random=500)["turned_over_faces"] == folds
+
+
+def test_longest_edge_squared_is_the_largest_squared_edge_of_each_face():
+    """Bit for bit the largest of the three squared edge lengths summed over the coordinates
+    in order, on random faces, repeated corners and coordinates of very different scales."""
+    rng = np.random.default_rng(5)
+    V = rng.normal(size=(50, 3)) * np.array([1e-8, 1.0, 1e6])
+    F = rng.integers(0, 50, size=(400, 3))
+    F[:20, 1] = F[:20, 0]
+    E = V[F[:, [1, 2, 0]]] - V[F]
+    assert np.array_equal(longest_edge_squared(V, F), (E ** 2).sum(axis=2).max(axis=1))
+    assert len(longest_edge_squared(V, F[:0])) == 0
+
+
+def test_measures_with_given_areas_are_those_computed_afresh():
+    fine, F = lattice_mesh(24, 0.5)
+    fine[:, 2] = 0.1 * np.sin(fine[:, 0])
+    coarse, G = lattice_mesh(6, 2.0)
+    coarse[3, :] = coarse[4, :]                      # a collapsed face: one degenerate
+    reference = SampledSurface(fine, F, 1000)
+    q = remesh_quality(fine, F, coarse, G, 1000, reference=reference)
+    fresh = remesh_quality(fine, F, coarse, G, 1000)
+    assert q["facts"]["degenerate_faces"] == fresh["facts"]["degenerate_faces"] >= 1
+    assert q["distance"] == fresh["distance"]
+    given = SampledSurface(fine, F, 1000, double_area=reference.double_area)
+    assert np.array_equal(reference.random, given.random)

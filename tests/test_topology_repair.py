@@ -10,7 +10,8 @@ from conftest import require_data
 
 from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
-from pipeline.geometry.repair import RepairOptions, repair_mesh, zero_area_mask
+from pipeline.geometry.repair import (RepairOptions, has_interior_neighbour, repair_mesh,
+                                     zero_area_mask)
 from pipeline.io.meshio import read_mesh
 
 # --------------------------------------------------------------------------------------------
@@ -643,3 +644,16 @@ def test_interior_edge_twins_on_any_triangle_list():
     assert {1, 2, 3} <= sizes                      # the soup has all three kinds
     for dtype in (np.int32, np.int64):
         assert np.array_equal(topo.interior_edge_twins(F.astype(dtype)), expected)
+
+
+def test_interior_neighbours_are_those_of_the_vertex_adjacency():
+    """``has_interior_neighbour``: the vertices with a neighbour off the boundary in the
+    adjacency matrix, on a grid with and without leaf faces (whose corner vertex has none)."""
+    for alternate in (True, False):
+        V, F = grid(4, alternate)
+        is_b = topo.boundary_vertices_mask(F, len(V))
+        A = topo.vertex_neighbours(F, len(V)).astype(np.int64)
+        expected = np.asarray(A @ (~is_b).astype(np.int64)).ravel() > 0
+        got = has_interior_neighbour(F, is_b)
+        assert np.array_equal(got, expected)
+        assert got.all() == alternate               # a leaf's corner has none

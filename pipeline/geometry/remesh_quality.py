@@ -38,7 +38,7 @@ from .metrics import corner_angles
 from .rows import norms
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
-           "MeshDistance", "SampledSurface", "z_order", "point_mesh_distance",
+           "MeshDistance", "SampledSurface", "face_centroids", "z_order", "point_mesh_distance",
            "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere",
            "DISTANCE_SAMPLES"]
@@ -56,21 +56,38 @@ def bounding_box_diagonal(V: np.ndarray) -> float:
     return float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
 
 
-def degenerate_faces(V: np.ndarray, F: np.ndarray, rtol: float = DEGENERATE_RTOL) -> np.ndarray:
-    """Indices of faces with a repeated vertex or (near-)zero area."""
+def degenerate_faces(V: np.ndarray, F: np.ndarray, rtol: float = DEGENERATE_RTOL,
+                     double_area: np.ndarray | None = None) -> np.ndarray:
+    """Indices of faces with a repeated vertex or (near-)zero area (``double_area``: the
+    faces' :func:`.laplacian.face_double_areas` when already computed)."""
     rep = (F[:, 0] == F[:, 1]) | (F[:, 1] == F[:, 2]) | (F[:, 2] == F[:, 0])
-    E = V[F[:, [1, 2, 0]]] - V[F]
-    lmax2 = (E ** 2).sum(axis=2).max(axis=1)
-    return np.flatnonzero(rep | (face_double_areas(V, F) <= rtol * lmax2))
+    dA = face_double_areas(V, F) if double_area is None else double_area
+    return np.flatnonzero(rep | (dA <= rtol * longest_edge_squared(V, F)))
 
 
-def mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
-    """Topology and validity counts of a triangle mesh (see the module docstring)."""
+def longest_edge_squared(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The squared length (m,) of the longest edge of each face of ``F`` (m, 3), summed
+    ``(x² + y²) + z²`` per edge, one coordinate at a time (numpy's reductions along the short
+    axis of an m×3×3 array are several times slower)."""
+    longest = None
+    for a, b in ((1, 0), (2, 1), (0, 2)):
+        sq = None
+        for axis in range(3):
+            x = V[:, axis]
+            e = x[F[:, a]] - x[F[:, b]]
+            sq = e * e if sq is None else sq + e * e
+        longest = sq if longest is None else np.maximum(longest, sq)
+    return longest
+
+
+def mesh_facts(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None = None) -> dict:
+    """Topology and validity counts of a triangle mesh (see the module docstring;
+    ``double_area``: the faces' doubled areas when already computed)."""
     with topo.kept_edge_groups():           # the counts below group F's edges five times
-        return _mesh_facts(V, np.asarray(F, np.int64))
+        return _mesh_facts(V, np.asarray(F, np.int64), double_area)
 
 
-def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
+def _mesh_facts(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None) -> dict:
     n = len(V)
     ncomp, _ = topo.connected_components(F, n)
     nm_edges = len(topo.nonmanifold_edges(F))
@@ -97,7 +114,7 @@ def _mesh_facts(V: np.ndarray, F: np.ndarray) -> dict:
         else None,
         "consistently_oriented": oriented,
         "leaf_faces": int(len(topo.leaf_faces(F, is_b))),
-        "degenerate_faces": int(len(degenerate_faces(V, F))),
+        "degenerate_faces": int(len(degenerate_faces(V, F, double_area=double_area))),
     }
 
 
@@ -126,11 +143,13 @@ def is_sphere(facts: dict) -> bool:
             and facts["unreferenced_vertices"] == 0)
 
 
-def triangle_quality(V: np.ndarray, F: np.ndarray) -> dict:
-    """Angles (degrees) and size uniformity of the faces (see the module docstring)."""
+def triangle_quality(V: np.ndarray, F: np.ndarray, double_area: np.ndarray | None = None
+                     ) -> dict:
+    """Angles (degrees) and size uniformity of the faces (see the module docstring;
+    ``double_area``: the faces' doubled areas when already computed)."""
     ang = np.degrees(corner_angles(V, F))
     mn, mx = ang.min(axis=1), ang.max(axis=1)
-    A = face_double_areas(V, F) / 2
+    A = (face_double_areas(V, F) if double_area is None else double_area) / 2
     Eu = _unique_edge_lengths(V, F)
     return {
         "min_angle_deg": float(mn.min()),
@@ -303,13 +322,16 @@ def _structured_samples(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> np.ndarr
     return np.vstack([V, (V[E[:, 0]] + V[E[:, 1]]) / 2, V[F].mean(axis=1)])
 
 
-def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int) -> np.ndarray:
+def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int,
+                    double_area: np.ndarray | None = None) -> np.ndarray:
     """``n_random`` points uniform by area (seeded): a face drawn with probability
-    proportional to its area (:func:`_area_weighted_faces`), then a point uniform in it,
+    proportional to its area (:func:`_area_weighted_faces`; ``double_area``: the faces'
+    doubled areas when already computed), then a point uniform in it,
     ``p0 + u (p1 − p0) + v (p2 − p0)`` with ``(u, v)`` uniform in the unit square and
     reflected into the triangle (computed one coordinate at a time)."""
     rng = np.random.default_rng(seed)
-    f = _area_weighted_faces(face_double_areas(V, F), n_random, rng)
+    dA = face_double_areas(V, F) if double_area is None else double_area
+    f = _area_weighted_faces(dA, n_random, rng)
     u, v = rng.random(n_random), rng.random(n_random)
     flip = u + v > 1
     u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
@@ -360,6 +382,23 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
 _BOUND_MARGIN = 1e-9
 
 
+def midpoint_bounds(V: np.ndarray, E: np.ndarray, d_vertex: np.ndarray) -> np.ndarray:
+    """The Lipschitz upper bounds of :func:`middle_bounds` for the edge midpoints alone.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    E : (e, 2) int
+    d_vertex : (n,) float
+
+    Returns
+    -------
+    (e,) float
+    """
+    a, b = E[:, 0], E[:, 1]
+    return np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
+
+
 def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Upper bounds of the distance to a surface of the edge midpoints and face centroids of
@@ -380,8 +419,7 @@ def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndar
     centroids : (m, 3) float
     centroid_bound : (m,) float
     """
-    a, b = E[:, 0], E[:, 1]
-    mid_bound = np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
+    mid_bound = midpoint_bounds(V, E, d_vertex)
     corners = V[F]
     centroids = corners.mean(axis=1)
     to_corners = (centroids[:, None, :] - corners).reshape(-1, 3)
@@ -415,10 +453,12 @@ def face_bounds(P: np.ndarray, corners: np.ndarray, corner_face: np.ndarray,
 
 
 def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
-                    f_vertex: np.ndarray, known_max: float, distance: MeshDistance) -> float:
+                    f_vertex: np.ndarray, known_max: float, distance: MeshDistance,
+                    d_centroid: np.ndarray | None = None) -> float:
     """The largest distance over the vertices, edge midpoints and face centroids of ``(V, F)``
     (``E`` its edges, ``d_vertex`` its vertices' distances, ``f_vertex`` their closest faces
-    on the other surface) and ``known_max``.
+    on the other surface, ``d_centroid`` its face centroids' distances when already measured)
+    and ``known_max``.
 
     A midpoint or centroid whose bound is below the largest distance known cannot raise the
     maximum and is not queried: first the Lipschitz bound (:func:`middle_bounds`), then, for
@@ -426,32 +466,42 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
     The result is the maximum over every sample, as if all had been queried (each queried
     point is the one :func:`_structured_samples` makes)."""
     best = max(known_max, float(d_vertex.max(initial=0.0)))
+    if d_centroid is not None:
+        best = max(best, float(d_centroid.max(initial=0.0)))
     slack = _BOUND_MARGIN * bounding_box_diagonal(V)
 
     def above(bound):
         return bound * (1 + _BOUND_MARGIN) + slack >= best
 
-    mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
+    if d_centroid is None:
+        mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
+        cents = np.flatnonzero(above(centroid_bound))
+        cents = cents[above(face_bounds(centroids[cents], F[cents], f_vertex, distance))]
+        centroids = centroids[cents]
+    else:
+        mid_bound = midpoint_bounds(V, E, d_vertex)
+        centroids = np.zeros((0, 3))
     mids = np.flatnonzero(above(mid_bound))
     middles = (V[E[mids, 0]] + V[E[mids, 1]]) / 2
     keep = above(face_bounds(middles, E[mids], f_vertex, distance))
-    cents = np.flatnonzero(above(centroid_bound))
-    cents = cents[above(face_bounds(centroids[cents], F[cents], f_vertex, distance))]
-    d, _ = distance(np.vstack([middles[keep], centroids[cents]]))
+    d, _ = distance(np.vstack([middles[keep], centroids]))
     return max(best, float(d.max(initial=0.0)))
 
 
 class SampledSurface:
     """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
-    ``n_random`` area-uniform samples (seeded) and, made on first use, its AABB tree
-    (:class:`MeshDistance`). The input of a remesh is one such surface for every method it is
-    compared with: its samples are drawn and its tree built once."""
+    ``n_random`` area-uniform samples (seeded), its faces' doubled areas ``double_area`` (m,)
+    (given, or computed here) and, made on first use, its AABB tree (:class:`MeshDistance`).
+    The input of a remesh is one such surface for every method it is compared with: its
+    samples are drawn and its tree built once."""
 
-    def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0):
+    def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0,
+                 double_area: np.ndarray | None = None):
         self.V, self.F = V, F
         self.n_random, self.seed = int(n_random), seed
         self.E, _ = topo.edges_with_faces(F)
-        self.random = _random_samples(V, F, n_random, seed)
+        self.double_area = face_double_areas(V, F) if double_area is None else double_area
+        self.random = _random_samples(V, F, n_random, seed, self.double_area)
         self._distance = None
         self._normals = None
 
@@ -474,21 +524,33 @@ class SampledSurface:
         """Vertices, edge midpoints, face centroids and random samples."""
         return len(self.V) + len(self.E) + len(self.F) + len(self.random)
 
-    def distances_to(self, other: SampledSurface) -> tuple[float, float]:
-        """``(largest distance of any sample, mean squared distance of the random samples)``
-        from this surface's samples to ``other``."""
+    def distances_to(self, other: SampledSurface, d_centroid: np.ndarray | None = None
+                     ) -> tuple[float, float, np.ndarray]:
+        """``(largest distance of any sample, mean squared distance of the random samples,
+        closest face of ``other`` to each vertex (n,))`` from this surface's samples to
+        ``other``; ``d_centroid`` (m,): this surface's face centroids' distances to ``other``
+        when already measured."""
         d, f = other.distance(np.vstack([self.V, self.random]))
         d_vertex, d_random = d[:len(self.V)], d[len(self.V):]
-        largest = _structured_max(self.V, self.F, self.E, d_vertex, f[:len(self.V)],
-                                  float(d_random.max()), other.distance)
-        return largest, float(np.mean(d_random ** 2))
+        f_vertex = f[:len(self.V)]
+        largest = _structured_max(self.V, self.F, self.E, d_vertex, f_vertex,
+                                  float(d_random.max()), other.distance, d_centroid)
+        return largest, float(np.mean(d_random ** 2)), f_vertex
 
 
-def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -> int:
+def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The centroids (m, 3) of the faces ``F`` (m, 3) of ``V`` (n, 3)."""
+    return V[F].mean(axis=1)
+
+
+def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,
+                      centroid_face: np.ndarray | None = None,
+                      vertex_face: np.ndarray | None = None) -> int:
     """The number of faces of ``(V, F)`` (m×3, oriented as the input) turned over against the
     ``reference``: whose normal has a negative dot product with the normal of the reference face
     closest to their centroid, and with those of the reference faces closest to each of their
-    three corners.
+    three corners. ``centroid_face`` (m,) and ``vertex_face`` (n,): the reference faces closest
+    to ``(V, F)``'s face centroids and vertices when already found (else queried here).
 
     A surface that follows the input has every face's normal within a right angle of the
     input's beneath it (the input is consistently oriented); a face turned over is a fold, a
@@ -500,21 +562,34 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface) -
     P = V[F]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     below = reference.normals
-    _, closest = reference.distance(P.mean(axis=1))
-    suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[closest]) < 0)
+    if centroid_face is None:
+        _, centroid_face = reference.distance(P.mean(axis=1))
+    suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[centroid_face]) < 0)
     if len(suspect) == 0:
         return 0
-    _, at_corners = reference.distance(P[suspect].reshape(-1, 3))
+    if vertex_face is None:
+        _, at_corners = reference.distance(P[suspect].reshape(-1, 3))
+    else:
+        at_corners = vertex_face[F[suspect]].ravel()
     corner_dots = np.einsum("ij,ikj->ik", normal[suspect],
                             below[at_corners].reshape(len(suspect), 3, 3))
     return int(np.count_nonzero(np.all(corner_dots < 0, axis=1)))
 
 
+def _one_side(mx: float, mean_square: float, scale: float, samples: int) -> dict:
+    """One direction's entry of :func:`surface_distance`."""
+    rms = float(np.sqrt(mean_square))
+    return {"max": mx, "max_rel": mx / scale, "rms": rms, "rms_rel": rms / scale,
+            "samples": int(samples)}
+
+
 def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.ndarray,
                      n_random: int = DISTANCE_SAMPLES, seed: int = 0, scale: float | None = None,
-                     reference: SampledSurface | None = None) -> dict:
+                     reference: SampledSurface | None = None,
+                     double_area: np.ndarray | None = None) -> dict:
     """Two-sided sampled Hausdorff and RMS distance between ``(V, F)`` and the reference, and
     the faces of ``(V, F)`` turned over against it (:func:`turned_over_faces`).
+    ``double_area``: the doubled areas of ``(V, F)``'s faces when already computed.
 
     ``scale`` (default: the reference's bounding-box diagonal) turns the distances into the
     ``*_rel`` fractions. ``reference``: the reference ``(V_ref, F_ref)`` already sampled with
@@ -528,30 +603,34 @@ def surface_distance(V_ref: np.ndarray, F_ref: np.ndarray, V: np.ndarray, F: np.
         raise ValueError(f"the reference was sampled with n_random={reference.n_random}, "
                          f"seed={reference.seed}; asked for {n_random}, {seed}")
     scale = bounding_box_diagonal(V_ref) if scale is None else float(scale)
-    ours = SampledSurface(V, F, n_random, seed)
-    out = {}
-    ms = []
-    for name, (a, b) in {"output_to_input": (ours, reference),
-                         "input_to_output": (reference, ours)}.items():
-        mx, mean_square = a.distances_to(b)
-        ms.append(mean_square)
-        out[name] = {"max": mx, "max_rel": mx / scale, "rms": float(np.sqrt(mean_square)),
-                     "rms_rel": float(np.sqrt(mean_square)) / scale,
-                     "samples": int(a.sample_count)}
+    ours = SampledSurface(V, F, n_random, seed, double_area)
+    # the centroids' and vertices' closest input faces serve both the output's distances and
+    # the turned-over faces (a point's distance and closest face do not depend on the others
+    # of its query)
+    d_centroid, centroid_face = reference.distance(face_centroids(V, F))
+    mx_out, ms_out, vertex_face = ours.distances_to(reference, d_centroid)
+    mx_in, ms_in, _ = reference.distances_to(ours)
+    out = {name: _one_side(mx, mean_square, scale, a.sample_count)
+           for name, mx, mean_square, a in (("output_to_input", mx_out, ms_out, ours),
+                                            ("input_to_output", mx_in, ms_in, reference))}
+    ms = [ms_out, ms_in]
     h = max(out["output_to_input"]["max"], out["input_to_output"]["max"])
     rms = float(np.sqrt(np.mean(ms)))
     out.update({"hausdorff": h, "hausdorff_rel": h / scale, "rms": rms, "rms_rel": rms / scale,
                 "scale_bbox_diagonal": scale, "random_samples_per_side": int(n_random),
-                "turned_over_faces": turned_over_faces(V, F, reference)})
+                "turned_over_faces": turned_over_faces(V, F, reference, centroid_face,
+                                                       vertex_face)})
     return out
 
 
 def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndarray,
                    n_random: int = DISTANCE_SAMPLES, seed: int = 0, distance: bool = True,
-                   reference: SampledSurface | None = None, facts: dict | None = None) -> dict:
+                   reference: SampledSurface | None = None, facts: dict | None = None,
+                   double_area: np.ndarray | None = None) -> dict:
     """All measures of a remesh ``(V, F)`` of the input ``(V_in, F_in)`` as one dict
     (``reference``: the input sampled for the distances, see :func:`surface_distance`;
-    ``facts``: :func:`mesh_facts` of ``(V, F)`` when already computed).
+    ``facts``: :func:`mesh_facts` of ``(V, F)``, ``double_area``: its faces' doubled areas,
+    when already computed).
 
     Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
@@ -559,11 +638,12 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
     """
     with topo.kept_edge_groups():             # every measure below groups F's edges
-        facts = mesh_facts(V, F) if facts is None else facts
+        dA = face_double_areas(V, F) if double_area is None else double_area
+        facts = mesh_facts(V, F, dA) if facts is None else facts
         out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
-               "triangles": triangle_quality(V, F),
+               "triangles": triangle_quality(V, F, dA),
                "valence": valence_stats(F, len(V))}
         if distance:
             out["distance"] = surface_distance(V_in, F_in, V, F, n_random=n_random, seed=seed,
-                                               reference=reference)
+                                               reference=reference, double_area=dA)
     return out

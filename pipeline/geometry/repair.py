@@ -98,9 +98,12 @@ from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
+from pipeline.geometry.laplacian import face_double_areas
+from pipeline.geometry.remesh_quality import longest_edge_squared
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
-           "weld_map", "zero_area_mask", "disk_blockers", "count_boundary_loops", "genus_of"]
+           "weld_map", "zero_area_mask", "has_interior_neighbour", "disk_blockers",
+           "count_boundary_loops", "genus_of"]
 
 ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts as zero area
 
@@ -278,21 +281,21 @@ def genus_of(F: np.ndarray, loops: int, n: int | None = None) -> int:
     return (2 - loops - topo.euler_characteristic(F, n)) // 2
 
 
-def _double_areas_and_lmax(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    e0 = V[F[:, 1]] - V[F[:, 0]]
-    e1 = V[F[:, 2]] - V[F[:, 1]]
-    e2 = V[F[:, 0]] - V[F[:, 2]]
-    a2 = np.linalg.norm(np.cross(e0, -e2), axis=1)
-    lmax2 = np.maximum(np.maximum((e0 * e0).sum(1), (e1 * e1).sum(1)), (e2 * e2).sum(1))
-    return a2, lmax2
+def has_interior_neighbour(F: np.ndarray, is_b: np.ndarray) -> np.ndarray:
+    """Whether each vertex shares an edge of ``F`` (m, 3) with a vertex off the boundary
+    (``is_b``: (n,) bool, the boundary vertices); (n,) bool."""
+    a, b = topo.half_edges(F)
+    out = np.zeros(len(is_b), bool)
+    out[a[~is_b[b]]] = True
+    out[b[~is_b[a]]] = True
+    return out
 
 
 def zero_area_mask(V: np.ndarray, F: np.ndarray, rtol: float = ZERO_AREA_RTOL) -> np.ndarray:
     """Faces whose doubled area is at most ``rtol`` × (longest edge)² (collinear or collapsed)."""
     if len(F) == 0:
         return np.zeros(0, bool)
-    a2, lmax2 = _double_areas_and_lmax(V, F)
-    return a2 <= rtol * lmax2
+    return face_double_areas(V, F) <= rtol * longest_edge_squared(V, F)
 
 
 # --------------------------------------------------------------------------------------------
@@ -731,9 +734,8 @@ def _final_checks(M: _Mesh, changed_topology: bool, closed: bool) -> np.ndarray:
     is_b = np.zeros(n, bool)
     is_b[loops[0]] = True
     _ensure(len(topo.leaf_faces(F, is_b)) == 0, "leaf faces left")
-    A = topo.vertex_neighbours(F, n).astype(np.int64)
-    inner_nb = np.asarray(A[loops[0]] @ (~is_b).astype(np.int64)).ravel()
-    _ensure(np.all(inner_nb > 0), "a boundary vertex has no interior neighbour")
+    _ensure(np.all(has_interior_neighbour(F, is_b)[loops[0]]),
+            "a boundary vertex has no interior neighbour")
     return loops[0]
 
 

@@ -288,7 +288,8 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
 
     with kept_edge_groups():               # the input's edges, grouped once for both
         reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
-        measured_input = remesh_quality(V_in, F_in, V_in, F_in, distance=False)
+        measured_input = remesh_quality(V_in, F_in, V_in, F_in, distance=False,
+                                        double_area=reference.double_area)
 
     def quality(V, F, facts=None):
         return remesh_quality(V_in, F_in, V, F, n_random, seed, reference=reference,
