@@ -72,6 +72,27 @@ def test_follow_input_puts_a_locked_vertex_on_far_input_points_of_a_crease():
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
 
 
+@pytest.mark.timeout(60)
+def test_far_input_points_measure_only_the_midpoints_and_centroids_their_bounds_leave(
+        monkeypatch):
+    """On the coarse remesh of the creased disk (as above), :func:`far_input_points` measures
+    exactly the 4,777 interior vertices and then only the 1,842 midpoints and centroids that
+    are farther than 0.05 (2,207 far points less the 365 far vertices): the Lipschitz bound
+    of the corners' distances leaves 2,284 to measure, and the distance to the faces closest
+    to their corners bounds every near one of those within the tolerance."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    measured = []
+    call = MeshDistance.__call__
+
+    def counting(self, P):
+        measured.append(len(P))
+        return call(self, P)
+
+    monkeypatch.setattr(MeshDistance, "__call__", counting)
+    far, _ = far_input_points(S, 0.05)
+    assert len(far) == 2207 and measured == [4777, 2207 - 365]
+
+
 @pytest.mark.timeout(120)
 def test_uniform_remesh_follows_a_sharp_crease():
     """The disk creased at slope 2 (a 127° fold) remeshed at 1000 vertices: without

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import topology as topo
-from ..remesh_quality import MeshDistance, middle_bounds
+from ..remesh_quality import MeshDistance, face_bounds, middle_bounds
 from .corners import snap_vertices
 from .domain import project
 from .halfedge import double_areas, edge_table, touching
@@ -73,9 +73,10 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     """The input points of :func:`input_points` farther than ``tol`` from the remesh
     ``(S.X, S.F)``, farthest first.
 
-    The vertices are measured first; a midpoint or centroid is measured only if its corners'
-    distances do not already bound it within ``tol``
-    (:func:`..remesh_quality.middle_bounds`).
+    The vertices are measured first; a midpoint or centroid is measured only if neither its
+    corners' distances (:func:`..remesh_quality.middle_bounds`) nor its distance to the faces
+    closest to its corners (:func:`..remesh_quality.face_bounds`) already bound it within
+    ``tol``.
 
     Parameters
     ----------
@@ -94,10 +95,16 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     measure = MeshDistance(S.X, S.F)
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)
-    d_vertex[pts.vertices] = measure(pts.P[:nv])[0]
+    f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
+    d_vertex[pts.vertices], f_vertex[pts.vertices] = measure(pts.P[:nv])
     mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
+    ne = len(pts.edges)
+    mids, cents = ask[ask < nv + ne], ask[ask >= nv + ne]
+    d[mids] = face_bounds(pts.P[mids], pts.edges[mids - nv], f_vertex, measure)
+    d[cents] = face_bounds(pts.P[cents], pts.faces[cents - nv - ne], f_vertex, measure)
+    ask = ask[d[ask] > tol]
     d[ask] = measure(pts.P[ask])[0]
     far = np.flatnonzero(d > tol)
     far = far[np.argsort(-d[far], kind="stable")]
