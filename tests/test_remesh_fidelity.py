@@ -176,3 +176,24 @@ def test_the_alligator_remesh_keeps_its_rim_on_the_input_boundary():
     d, _ = MeshDistance(r.V, r.F)(mesh.V[rim])
     assert d.max() <= 0.1 * L
     assert len(r.V) == 5000 and is_disk(mesh_facts(r.V, r.F))
+
+
+@pytest.mark.timeout(60)
+def test_the_input_points_are_made_once_per_state_and_kept_through_remesh_changes():
+    """:meth:`RemeshState.of_input` makes :func:`input_points` on the first call and returns
+    that same object afterwards, also after the remesh's faces are replaced (the input points
+    depend on the input alone), and the far points found with it are the same."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    made = []
+
+    def counted(state):
+        made.append(1)
+        return input_points(state)
+
+    first = S.of_input(counted)
+    far, d = far_input_points(S, 0.05)
+    S.set_faces(S.F[::-1].copy())
+    assert S.of_input(counted) is first and len(made) == 1
+    far_again, d_again = far_input_points(S, 0.05)
+    np.testing.assert_array_equal(d_again, d)
+    np.testing.assert_array_equal(far_again, far)

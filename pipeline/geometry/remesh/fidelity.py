@@ -70,8 +70,9 @@ def input_points(S: RemeshState) -> InputPoints:
 
 
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """The input points of :func:`input_points` farther than ``tol`` from the remesh
-    ``(S.X, S.F)``, farthest first.
+    """The input points of :func:`input_points` (made once per state,
+    :meth:`.state.RemeshState.of_input`) farther than ``tol`` from the remesh ``(S.X, S.F)``,
+    farthest first.
 
     The vertices are measured first; a midpoint or centroid is measured only if neither its
     corners' distances (:func:`..remesh_quality.middle_bounds`) nor its distance to the faces
@@ -91,7 +92,7 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     distance : (j,) float
         In the mesh's units.
     """
-    pts = input_points(S)
+    pts = S.of_input(input_points)
     measure = MeshDistance(S.X, S.F)
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)

@@ -128,6 +128,7 @@ class RemeshState:
     _pullback: np.ndarray | None = field(default=None, repr=False)
     _normals_in: np.ndarray | None = field(default=None, repr=False)
     _angle_sums_in: np.ndarray | None = field(default=None, repr=False)
+    _of_input: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
         if self.locked is None:
@@ -161,6 +162,13 @@ class RemeshState:
         if self._pullback is None:
             self._pullback = pullback_matrices(self.V_in, self.F_in, self.uv_in)
         return self._pullback
+
+    def of_input(self, make):
+        """``make(self)``, computed once per ``make``: for a value of the input map alone
+        (``V_in``, ``F_in``, ``uv_in``), which no change of the remesh alters."""
+        if make not in self._of_input:
+            self._of_input[make] = make(self)
+        return self._of_input[make]
 
     # ------------------------------------------------------------------ faces and their twins
 
