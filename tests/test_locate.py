@@ -297,3 +297,29 @@ def test_real_sem_map_reconstructs_to_1e_12():
     # every vertex of the map locates onto itself
     f, b = locate_points(uv, F, uv, loop)
     assert np.abs(lift(uv, F, f, b) - uv).max() == 0.0
+
+
+def test_closest_on_segments_matches_the_brute_force_where_segment_lengths_vary():
+    """A closed polygon of 400 segments, one of them 100 times longer than the others (so the
+    first 8 nearest midpoints settle few points), and 2,000 random points plus every polygon
+    vertex (where two segments tie): each point's segment is one of the nearest of the brute
+    force over all segments, at exactly the smallest distance, with its ``t`` and closest
+    point."""
+    from pipeline.geometry.locate import _closest_on_segments
+
+    rng = np.random.default_rng(3)
+    x = np.concatenate([np.linspace(0.0, 1.0, 400, endpoint=False), [100.0]])
+    C = np.column_stack([x, 0.01 * np.sin(7 * x)])
+    C = np.vstack([C, [[100.0, 1.0], [0.0, 1.0]]])
+    A, B = C, np.roll(C, -1, axis=0)
+    P = np.vstack([rng.uniform([-1, -1], [101, 2], (2000, 2)), C])
+    seg, t, Q = _closest_on_segments(P, A, B)
+    D = B - A
+    L2 = np.einsum("ij,ij->i", D, D)
+    rel = P[:, None, :] - A[None]
+    tt = np.clip(np.einsum("psj,sj->ps", rel, D) / L2, 0.0, 1.0)
+    d2 = ((rel - tt[..., None] * D[None]) ** 2).sum(axis=2)
+    r = np.arange(len(P))
+    np.testing.assert_array_equal(d2[r, seg], d2.min(axis=1))
+    np.testing.assert_array_equal(t, tt[r, seg])
+    np.testing.assert_array_equal(Q, A[seg] + t[:, None] * D[seg])

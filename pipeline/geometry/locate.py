@@ -57,6 +57,7 @@ TOL = 1e-10              # smallest barycentric still counted as inside (then cl
 _CHUNK = 65536           # queries per vectorised block (bounds the temporaries)
 _WALK_MIN = 4096         # from this many queries, walk from the nearest vertex first
 _WALK = 8                # steps of that walk
+REDO_CANDIDATES = 64     # nearest segments tried for a point the first 8 do not settle
 
 
 def barycentric_coordinates(points: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray
@@ -114,8 +115,9 @@ def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
 
     Candidates are the segments with the ``K`` nearest midpoints (a KD-tree); the answer is
     exact when the K-th midpoint is farther than the best distance plus the longest half
-    segment (no other segment can then be closer). The few other points are done by brute
-    force."""
+    segment (no other segment can then be closer). The points the first ``K = 8`` do not
+    settle try the ``REDO_CANDIDATES`` nearest, in index order (a tie goes to the lowest
+    index, as in a brute force); the few still left are done by brute force."""
     from scipy.spatial import cKDTree
 
     P = np.asarray(points, dtype=np.float64)
@@ -142,6 +144,15 @@ def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
         seg[:], t[:], d2 = exact(P, S)
         half = 0.5 * np.sqrt(L2.max())
         redo = np.flatnonzero((K < len(A)) & (dm[:, -1] <= np.sqrt(d2) + half))
+        K2 = min(REDO_CANDIDATES, len(A))
+        if len(redo) and K2 > K:
+            # more candidates, in index order so that a tie goes to the lowest index as in
+            # the brute force
+            dm2, S2 = cKDTree(mid).query(P[redo], k=K2)
+            sure = (K2 == len(A)) | (dm2[:, -1] > np.sqrt(d2[redo]) + half)
+            r = redo[sure]
+            seg[r], t[r], _ = exact(P[r], np.sort(S2[sure], axis=1))
+            redo = redo[~sure]
         block = max(1, 4_000_000 // max(len(A), 1))
         allseg = np.arange(len(A))
         for lo in range(0, len(redo), block):
