@@ -339,8 +339,12 @@ def bench_locate(name="camelhead_x4", queries=100_000):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--meshes", nargs="+", default=["camelhead_x4"])
-    ap.add_argument("--vertices", nargs="+", type=int, default=[20000, 100000])
+    ap.add_argument("--meshes", nargs="+", default=None,
+                    help="default: camelhead_x4; with --compare every disk mesh, with "
+                         "--closed every closed one")
+    ap.add_argument("--vertices", nargs="+", type=int, default=None,
+                    help="default: 20000 100000; with --compare 5000 20000 100000, with "
+                         "--closed 5000 20000")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--locate", action="store_true", help="also the point-location comparison")
     ap.add_argument("--no-remesh", action="store_true")
@@ -354,16 +358,16 @@ def main(argv=None):
                     help="with --compare: the closed genus-0 meshes through the sphere map "
                          "(default meshes: all of them; default counts 5000 20000)")
     args = ap.parse_args(argv)
+    # defaults by mode; a value given on the command line is kept even when it equals
+    # another mode's default
     if args.closed:
-        if args.meshes == ap.get_default("meshes"):
-            args.meshes = list(CLOSED_GENUS0)
-        if args.vertices == ap.get_default("vertices"):
-            args.vertices = [5000, 20000]
+        meshes, counts = list(CLOSED_GENUS0), [5000, 20000]
     elif args.compare:
-        if args.meshes == ap.get_default("meshes"):
-            args.meshes = disk_meshes()
-        if args.vertices == ap.get_default("vertices"):
-            args.vertices = [5000, 20000, 100000]
+        meshes, counts = disk_meshes(), [5000, 20000, 100000]
+    else:
+        meshes, counts = ["camelhead_x4"], [20000, 100000]
+    args.meshes = meshes if args.meshes is None else args.meshes
+    args.vertices = counts if args.vertices is None else args.vertices
     if args.compare:
         print("side by side, same evaluator; * = ours at least as good as pymeshlab "
               "(area CV: ≤ 0.6 ×); seconds: ours = SEM map + remesh_stage (median of "
