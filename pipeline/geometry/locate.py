@@ -137,8 +137,8 @@ def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
     t = np.empty(k)
     K = min(8, len(A))
     if k:
-        mid = 0.5 * (A + B)
-        dm, S = cKDTree(mid).query(P, k=K)
+        tree = cKDTree(0.5 * (A + B))              # the segments' midpoints
+        dm, S = tree.query(P, k=K)
         S = S.reshape(k, K)
         dm = dm.reshape(k, K)
         seg[:], t[:], d2 = exact(P, S)
@@ -148,7 +148,7 @@ def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
         if len(redo) and K2 > K:
             # more candidates, in index order so that a tie goes to the lowest index as in
             # the brute force
-            dm2, S2 = cKDTree(mid).query(P[redo], k=K2)
+            dm2, S2 = tree.query(P[redo], k=K2)
             sure = (K2 == len(A)) | (dm2[:, -1] > np.sqrt(d2[redo]) + half)
             r = redo[sure]
             seg[r], t[r], _ = exact(P[r], np.sort(S2[sure], axis=1))
