@@ -8,8 +8,8 @@ import pytest
 
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.features import (chain_points, feature_chains, feature_edges,
-                                               join_edges, release_features)
+from pipeline.geometry.remesh.features import (chain_points, consecutive_pairs, feature_chains,
+                                               feature_edges, join_edges, release_features)
 from pipeline.geometry.remesh.flips import flip_edges
 from pipeline.geometry.remesh.halfedge import edge_table
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
@@ -232,3 +232,12 @@ def test_even_out_moves_feature_neighbours_and_frees_feature_vertices_at_skinny_
     beside = np.unique(S.F[np.isin(S.F, still).any(axis=1)])
     beside = beside[~np.isin(beside, ends) & ~S.is_rim[beside]]
     assert (S.uv[beside] != uv0[beside]).any(axis=1).any()
+
+
+def test_only_consecutive_feature_points_with_vertices_are_joined():
+    """Points 0–4 on chain 0 (point 2 without a vertex), 5–6 on chain 1, 7 on chain 2 at the
+    same vertex as 6: the pairs are 0–1, 3–4 and 5–6 (not 1–3 across the missing point, not
+    4–5 across chains, not 6–7, one vertex)."""
+    v = np.array([10, 11, -1, 13, 14, 15, 16, 16])
+    chain = np.array([0, 0, 0, 0, 0, 1, 1, 2])
+    assert consecutive_pairs(v, chain).tolist() == [[10, 11], [13, 14], [15, 16]]
