@@ -146,9 +146,8 @@ EVEN_FOLD_DEG = 45.0  # than this staying (on the creased disks of test_remesh_f
                       # they move too; choi_hand 100k: Hausdorff 0.079 %, 0.090 % at 60°)
 FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees the feature
                              # vertices at the faces with an angle below this (16 rows at 30°:
-                             # mean smallest angle at least pymeshlab's on 13, 12 with all kept;
-                             # area CV at most 0.6 × its on 14, 12; RMS 0.865 × the remesh's
-                             # without features, geometric mean, 0.851 × with all kept)
+                             # mean smallest angle at least pymeshlab's on 13, 12 with none
+                             # freed; area CV at most 0.6 × its on 14, 12; RMS 2 % higher)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them)
