@@ -8,8 +8,8 @@ import pytest
 
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.features import (chain_points, feature_chains, feature_edges,
-                                               join_edges, release_features)
+from pipeline.geometry.remesh.features import (chain_points, consecutive_pairs, feature_chains,
+                                               feature_edges, join_edges, release_features)
 from pipeline.geometry.remesh.flips import flip_edges
 from pipeline.geometry.remesh.halfedge import edge_table
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
@@ -203,3 +203,41 @@ def test_freed_feature_vertices_are_not_locked_again():
     assert len(S.joined) == 0 and not S.locked[[p, q]].any() and S.locked[r]
     ops.lock_at(snapshot)
     assert np.flatnonzero(S.locked).tolist() == [r]
+
+
+def test_even_out_moves_feature_neighbours_and_frees_feature_vertices_at_skinny_faces():
+    """The last smoothing steps on the folded disk with feature lines placed (12 rings,
+    ``L`` = 0.15, two smoothing steps and flips): the feature vertices at a face with an angle
+    below ``FEATURE_RELEASE_DEG`` lose their kept edges; those still on a kept edge stay where
+    they are, while interior vertices next to them move (the ring around the followed vertices
+    that stays put does not include theirs)."""
+    from pipeline.geometry.remesh.features import place_features
+    from pipeline.geometry.remesh.improve import FEATURE_RELEASE_DEG, _Operations, skinny_faces
+
+    S, _ = coarse_state(*creased_disk(2.0), 12)
+    L = 0.15
+    ops = _Operations(S, L, True, 20.0, 0.5, 0.2)
+    joined = place_features(S, L)
+    ops.features = S.X[np.unique(joined)]
+    for _ in range(2):
+        ops.relax()
+        ops.flip()
+    ends = np.unique(S.joined)
+    at_skinny = np.intersect1d(ends, S.F[skinny_faces(S.X, S.F, FEATURE_RELEASE_DEG)])
+    uv0 = S.uv.copy()
+    ops.even_out(4, 20.0, S.X[S.locked])
+    still = np.unique(S.joined)
+    assert len(at_skinny) > 0 and not np.isin(at_skinny, still).any()
+    assert len(still) > 0 and np.array_equal(S.uv[still], uv0[still])
+    beside = np.unique(S.F[np.isin(S.F, still).any(axis=1)])
+    beside = beside[~np.isin(beside, ends) & ~S.is_rim[beside]]
+    assert (S.uv[beside] != uv0[beside]).any(axis=1).any()
+
+
+def test_only_consecutive_feature_points_with_vertices_are_joined():
+    """Points 0–4 on chain 0 (point 2 without a vertex), 5–6 on chain 1, 7 on chain 2 at the
+    same vertex as 6: the pairs are 0–1, 3–4 and 5–6 (not 1–3 across the missing point, not
+    4–5 across chains, not 6–7, one vertex)."""
+    v = np.array([10, 11, -1, 13, 14, 15, 16, 16])
+    chain = np.array([0, 0, 0, 0, 0, 1, 1, 2])
+    assert consecutive_pairs(v, chain).tolist() == [[10, 11], [13, 14], [15, 16]]

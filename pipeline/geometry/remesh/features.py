@@ -20,8 +20,8 @@ image the same fraction along the edge's image: a vertex there lifts (eq. 1) ont
 (:func:`.corners.snap_vertices`), the heaviest chains first (:func:`chain_weights`: length ×
 dihedral², what cutting across them costs), a chain's ends before its other points, none
 within ``FEATURE_GAP × L`` on the surface of one placed before (where creases run closer than
-that, the lighter one gives way); then consecutive points of a chain that got vertices are
-**joined**: the edge between them is made by flips on the disk where it is missing
+that, the lighter one gives way); then consecutive points of a chain that both got a vertex
+are **joined** (:func:`consecutive_pairs`: a point without one cuts its chain): the edge between them is made by flips on the disk where it is missing
 (:func:`join_edges`) and kept (``RemeshState.joined``): the flips do not remove it, the
 splits do not divide it, and its ends, locked, are neither moved nor collapsed. Faces flat on
 the surface (three points on one straight crease) have their long edge flipped first. Where
@@ -276,16 +276,36 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
     order = np.lexsort((rank, -weight[chain]))
     placed = snap_vertices(S, P[order], min_gap=FEATURE_GAP * L, counts="features")
     v = vertices_at(S.uv, P)
-    got = np.flatnonzero(v >= 0)                  # consecutive points that got a vertex
-    v, chain = v[got], chain[got]
-    pairs = np.column_stack([v[:-1], v[1:]])[(chain[1:] == chain[:-1])]
-    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
+    pairs = consecutive_pairs(v, chain)
     S.tally("feature_pairs", len(pairs))
     pairs = join_edges(S, pairs)
     S.joined = np.vstack([S.joined, pairs])
     S.locked[np.setdiff1d(placed, pairs)] = False       # a point on no kept edge: a start
     S.tally("features_joined", len(pairs))
     return pairs
+
+
+def consecutive_pairs(v: np.ndarray, chain: np.ndarray) -> np.ndarray:
+    """The vertices of consecutive feature points of one chain, where both got a vertex
+    (``v ≥ 0``) and not the same one: the edges to join. A point left without a vertex (too
+    close to one placed before) leaves its chain cut there: the chord between its neighbours
+    could leave the crease where it bends, and the flips that make it would cut across the
+    surface around it.
+
+    Parameters
+    ----------
+    v : (p,) int
+        The vertex at each point along the chains (:func:`vertices_at`), −1 for none.
+    chain : (p,) int
+        The chain of each point, in order along it.
+
+    Returns
+    -------
+    (j, 2) int
+    """
+    pairs = np.column_stack([v[:-1], v[1:]])
+    keep = (v[:-1] >= 0) & (v[1:] >= 0) & (chain[1:] == chain[:-1]) & (v[:-1] != v[1:])
+    return pairs[keep]
 
 
 def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
