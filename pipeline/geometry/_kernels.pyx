@@ -1429,3 +1429,37 @@ def format_rows(list pieces, const row_value[:, ::1] A):
         piece = raw[c]
         out.put(piece, len(piece))
     return out.text()
+
+
+def sag_along_block(const double[:, ::1] P, const int64_t[::1] mf, const double[:, ::1] N_in,
+                    const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1] b,
+                    const double[::1] ts, const double[:, ::1] n_a, const double[:, ::1] n_b,
+                    Py_ssize_t lo, double[::1] best, double[::1] t_best):
+    """The sags of the edges ``lo … lo + m − 1`` of :func:`.remesh.sag.edge_sag_along` from
+    their lifted samples ``P`` (s·m × 3, sample-major: row ``j·m + q`` is ``t = ts[j]`` on edge
+    ``lo + q``) in the input faces ``mf``: at each sample the offset ``D = P − ((1 − t)·X[a] +
+    t·X[b])``, its largest absolute component along the input normal there (``N_in[mf]``) and
+    the ends' normals (``n_a``, ``n_b``; NaN if any is, as ``np.maximum``), and per edge the
+    largest over the samples (the first of equals; a NaN wins, as ``np.argmax``) into
+    ``best[e]`` and its ``t`` into ``t_best[e]``."""
+    cdef Py_ssize_t s = ts.shape[0], m = P.shape[0] // s if s else 0
+    cdef Py_ssize_t q, j, i, e, c, jb
+    cdef double D[3]
+    cdef double t, u, v, vb
+    for q in range(m):
+        e = lo + q
+        jb = -1
+        vb = 0.0
+        for j in range(s):
+            i = j * m + q
+            t = ts[j]
+            u = 1.0 - t
+            for c in range(3):
+                D[c] = P[i, c] - (u * X[a[e], c] + t * X[b[e], c])
+            v = fabs(_dot3(D, &N_in[mf[i], 0]))
+            v = _max_nan(v, fabs(_dot3(D, &n_a[e, 0])))
+            v = _max_nan(v, fabs(_dot3(D, &n_b[e, 0])))
+            if jb < 0 or v > vb or (v != v and vb == vb):
+                jb, vb = j, v
+        best[e] = vb
+        t_best[e] = ts[jb]
