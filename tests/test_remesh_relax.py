@@ -83,3 +83,33 @@ def test_equalizing_evens_out_a_jittered_disk_and_keeps_its_angles():
         cv[mu] = area_cv(X, F)
         assert np.degrees(corner_angles(X, F)).min() > 30
     assert cv[None] > 0.1 and cv[0.3] < 0.08
+
+
+def test_halve_thin_moves_is_the_retest_of_every_moving_face():
+    """Random moves of a jittered disk's interior, large enough that many faces would fold:
+    the moves halved by :func:`halve_thin_moves` (re-testing only the faces at a halved move)
+    are bit for bit those of re-testing every face with a moving corner after each halving,
+    and some were halved, some dropped (those of a face too thin whatever they are), some
+    kept whole."""
+    from pipeline.geometry.remesh.halfedge import double_areas
+    from pipeline.geometry.remesh.relax import _too_thin, halve_thin_moves
+    from pipeline.geometry.rows import nonzero_rows
+
+    uv, F, interior = jittered_disk(seed=3)
+    area_floor = 1e-6 * double_areas(uv, F)
+    area_floor[np.flatnonzero(interior[F].all(axis=1))[0]] = np.inf   # too thin at any move
+    rng = np.random.default_rng(1)
+    du = np.zeros_like(uv)
+    du[interior] = 0.25 * rng.normal(size=(interior.sum(), 2)) / 7
+    want = du.copy()
+    for halving in range(7):
+        bad = _too_thin(uv + want, F, area_floor, nonzero_rows(want))
+        if len(bad) == 0:
+            break
+        want[np.unique(F[bad].ravel())] *= 0.0 if halving == 6 else 0.5
+    got = du.copy()
+    halve_thin_moves(uv, got, F, area_floor)
+    assert np.array_equal(got, want)
+    kept = np.all(got == du, axis=1) & interior
+    dropped = np.all(got == 0, axis=1) & interior
+    assert kept.sum() > 10 and dropped.sum() > 0 and (~kept & ~dropped & interior).sum() > 0

@@ -855,7 +855,7 @@ def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[:
                const double[::1] area_floor, double shape_min):
     """The entries of ``faces`` (increasing, as given) whose twice signed disk area is at most
     ``area_floor[t]`` or whose disk shape is below ``shape_min`` (called by
-    ``remesh.relax._too_thin``)."""
+    ``remesh.relax._thin_among``)."""
     cdef Py_ssize_t i, out = 0
     cdef int64_t t
     cdef double d2
