@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, fabs, sqrt
+from libc.math cimport INFINITY, fabs, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -1463,3 +1463,80 @@ def sag_along_block(const double[:, ::1] P, const int64_t[::1] mf, const double[
                 jb, vb = j, v
         best[e] = vb
         t_best[e] = ts[jb]
+
+
+@cython.cdivision(True)
+def closest_points(const double[:, ::1] P, const double[:, ::1] A, const double[:, ::1] B,
+                   const double[:, ::1] C):
+    """The closest point of triangle ``(A[i], B[i], C[i])`` to ``P[i]`` (all k×3) by the
+    Voronoi-region case analysis of :func:`..remesh_quality.closest_points_on_triangles`, its
+    arithmetic operation for operation: the vertex regions A, B, C first, then the edges AB,
+    AC, BC, else the face interior; a point that comes out not finite (a degenerate
+    triangle) goes to the nearest corner (the first of equals; a NaN distance wins)."""
+    cdef Py_ssize_t i, c, k = P.shape[0], j
+    cdef double ab[3]
+    cdef double ac[3]
+    cdef double ap[3]
+    cdef double bp[3]
+    cdef double cp[3]
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, denom, v, w, t, s, best
+    out_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] Q = out_arr
+    cdef const double* corner[3]
+    for i in range(k):
+        for c in range(3):
+            ab[c] = B[i, c] - A[i, c]
+            ac[c] = C[i, c] - A[i, c]
+            ap[c] = P[i, c] - A[i, c]
+            bp[c] = P[i, c] - B[i, c]
+            cp[c] = P[i, c] - C[i, c]
+        d1, d2 = _dot3(ab, ap), _dot3(ac, ap)
+        d3, d4 = _dot3(ab, bp), _dot3(ac, bp)
+        d5, d6 = _dot3(ab, cp), _dot3(ac, cp)
+        va = d3 * d6 - d5 * d4
+        vb = d5 * d2 - d1 * d6
+        vc = d1 * d4 - d3 * d2
+        if d1 <= 0 and d2 <= 0:
+            for c in range(3):
+                Q[i, c] = A[i, c]
+        elif d3 >= 0 and d4 <= d3:
+            for c in range(3):
+                Q[i, c] = B[i, c]
+        elif d6 >= 0 and d5 <= d6:
+            for c in range(3):
+                Q[i, c] = C[i, c]
+        elif vc <= 0 and d1 >= 0 and d3 <= 0:
+            t = d1 / (d1 - d3)
+            for c in range(3):
+                Q[i, c] = A[i, c] + ab[c] * t
+        elif vb <= 0 and d2 >= 0 and d6 <= 0:
+            t = d2 / (d2 - d6)
+            for c in range(3):
+                Q[i, c] = A[i, c] + ac[c] * t
+        elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            for c in range(3):
+                Q[i, c] = B[i, c] + (C[i, c] - B[i, c]) * t
+        else:
+            denom = (va + vb) + vc
+            v = vb / denom
+            w = vc / denom
+            for c in range(3):
+                Q[i, c] = (A[i, c] + ab[c] * v) + ac[c] * w
+        if not (isfinite(Q[i, 0]) and isfinite(Q[i, 1]) and isfinite(Q[i, 2])):
+            corner[0], corner[1], corner[2] = &A[i, 0], &B[i, 0], &C[i, 0]
+            j = 0
+            for c in range(3):
+                t = corner[c][0] - P[i, 0]
+                s = t * t
+                t = corner[c][1] - P[i, 1]
+                s = s + t * t
+                t = corner[c][2] - P[i, 2]
+                s = s + t * t
+                if c == 0:
+                    best = s
+                elif best == best and (s < best or s != s):
+                    j, best = c, s
+            for c in range(3):
+                Q[i, c] = corner[j][c]
+    return out_arr
