@@ -1540,3 +1540,13 @@ def closest_points(const double[:, ::1] P, const double[:, ::1] A, const double[
             for c in range(3):
                 Q[i, c] = corner[j][c]
     return out_arr
+
+
+def pair_lengths(const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1] b):
+    """``|X[a[i]] − X[b[i]]|`` for every pair (k), as ``norms(X[a] − X[b])`` computes it."""
+    cdef Py_ssize_t i
+    out_arr = np.empty(a.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for i in range(a.shape[0]):
+        out[i] = _length(X, a[i], b[i])
+    return out_arr
