@@ -194,3 +194,21 @@ def test_edge_sag_along_is_the_numpy_formula_bit_for_bit(ts):
     want_sag, want_t = _numpy_sag_along(S, a, b, ts)
     assert np.array_equal(sag, want_sag) and np.array_equal(t, want_t)
     assert np.count_nonzero(sag > 1e-3) > 5
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_points_along_edges_are_the_numpy_formula_bit_for_bit(dim):
+    """:func:`.._kernels.points_along` (the domain points of :func:`.sag.lift_samples`):
+    ``(1 − t)·uv[a] + t·uv[b]`` with ``t`` a column, bit for bit, on the disk and on the
+    sphere's 3D domain, and the face under the nearer end (``a``'s at ``t = 1/2``)."""
+    from pipeline.geometry._kernels import points_along
+
+    rng = np.random.default_rng(11)
+    uv = rng.normal(size=(300, dim))
+    face = rng.integers(0, 1000, 300)
+    a, b = rng.integers(0, 300, 5000), rng.integers(0, 300, 5000)
+    T = np.r_[rng.random(4997), 0.5, 0.0, 1.0][:, None]
+    M, hint = points_along(uv, face, a, b, T[:, 0].copy())
+    assert np.array_equal(M, (1.0 - T) * uv[a] + T * uv[b])
+    assert np.array_equal(hint, np.where(T[:, 0] <= 0.5, face[a], face[b]))
+    assert hint[-3] == face[a[-3]] and hint[-1] == face[b[-1]]

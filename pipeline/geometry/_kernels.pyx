@@ -1550,3 +1550,22 @@ def pair_lengths(const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1
     for i in range(a.shape[0]):
         out[i] = _length(X, a[i], b[i])
     return out_arr
+
+
+def points_along(const double[:, ::1] uv, const int64_t[::1] face, const int64_t[::1] a,
+                 const int64_t[::1] b, const double[::1] t):
+    """The domain points ``(1 − t)·uv[a] + t·uv[b]`` (k×2, as numpy computes them with ``t``
+    a column) and the face under the nearer end of each (``face[a]`` where ``t ≤ 1/2``, else
+    ``face[b]``; called by ``remesh.sag.lift_samples``)."""
+    cdef Py_ssize_t i, c, k = a.shape[0], d = uv.shape[1]
+    cdef double u
+    M_arr = np.empty((k, d), dtype=np.float64)
+    hint_arr = np.empty(k, dtype=np.int64)
+    cdef double[:, ::1] M = M_arr
+    cdef int64_t[::1] hint = hint_arr
+    for i in range(k):
+        u = 1.0 - t[i]
+        for c in range(d):
+            M[i, c] = u * uv[a[i], c] + t[i] * uv[b[i], c]
+        hint[i] = face[a[i]] if t[i] <= 0.5 else face[b[i]]
+    return M_arr, hint_arr

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._kernels import sag_along_block
+from .._kernels import points_along, sag_along_block
 from ..locate import lift
 from .state import RemeshState
 
@@ -56,8 +56,11 @@ def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
 def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The lifts (eq. 1; k×3) of the domain points ``(1 − T)·uv[ea] + T·uv[eb]`` (``T`` k×1),
     each located from the face under the nearer end; also the faces they are in."""
-    M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
-    hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
+    M, hint = points_along(np.ascontiguousarray(S.uv, dtype=np.float64),
+                           np.ascontiguousarray(S.face, dtype=np.int64),
+                           np.ascontiguousarray(ea, dtype=np.int64),
+                           np.ascontiguousarray(eb, dtype=np.int64),
+                           np.ascontiguousarray(T, dtype=np.float64).reshape(-1))
     mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
     return lift(S.V_in, S.F_in, mf, mb), mf
 
