@@ -113,3 +113,25 @@ def test_halve_thin_moves_is_the_retest_of_every_moving_face():
     kept = np.all(got == du, axis=1) & interior
     dropped = np.all(got == 0, axis=1) & interior
     assert kept.sum() > 10 and dropped.sum() > 0 and (~kept & ~dropped & interior).sum() > 0
+
+
+def test_compiled_centroid_and_tangential_steps_are_the_numpy_formulas():
+    """The relaxation's compiled steps are bit for bit their numpy formulas: the step to the
+    ring's centroid ``G/max(W, 1e-300) − X`` and its part across the unit normal
+    ``D − (D·n) n`` with ``n = N/max(|N|, 1e-300)``, including rows with no faces (W = 0,
+    N = 0)."""
+    from pipeline.geometry._kernels import centroid_steps, tangential_parts
+    from pipeline.geometry.rows import norms
+
+    rng = np.random.default_rng(9)
+    X, G, N = (rng.normal(size=(400, 3)) for _ in range(3))
+    W = rng.random(400)
+    W[:5], N[:5], G[:5] = 0.0, 0.0, 0.0
+    mov = np.r_[0:5, rng.choice(np.arange(5, 400), 200, replace=False)]
+    D = centroid_steps(G, W, X, mov)
+    want = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+    assert np.array_equal(D, want)
+    n = N / np.maximum(norms(N)[:, None], 1e-300)
+    want -= np.einsum("ij,ij->i", want, n[mov])[:, None] * n[mov]
+    tangential_parts(D, N, mov)
+    assert np.array_equal(D, want)

@@ -1569,3 +1569,40 @@ def points_along(const double[:, ::1] uv, const int64_t[::1] face, const int64_t
             M[i, c] = u * uv[a[i], c] + t[i] * uv[b[i], c]
         hint[i] = face[a[i]] if t[i] <= 0.5 else face[b[i]]
     return M_arr, hint_arr
+
+
+@cython.cdivision(True)
+def centroid_steps(const double[:, ::1] G, const double[::1] W, const double[:, ::1] X,
+                   const int64_t[::1] mov):
+    """``G[mov] / max(W[mov], 1e-300) − X[mov]`` (k×3): each moving vertex's step to the
+    area-weighted centroid of its ring (:func:`ring_sums`' sums; NaN as ``np.maximum``;
+    called by ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, c, k = mov.shape[0]
+    cdef double w
+    D_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] D = D_arr
+    for i in range(k):
+        w = _max_nan(W[mov[i]], 1e-300)
+        for c in range(3):
+            D[i, c] = G[mov[i], c] / w - X[mov[i], c]
+    return D_arr
+
+
+@cython.cdivision(True)
+def tangential_parts(double[:, ::1] D, const double[:, ::1] N, const int64_t[::1] mov):
+    """In place, each step ``D[i]`` less its component along the unit normal of
+    ``N[mov[i]]`` (normalised as ``N / max(norms(N), 1e-300)``; the dot product and the length
+    summed as numpy's einsum does here): ``D − (D · n) n`` (called by
+    ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, c
+    cdef double n[3]
+    cdef double length, d
+    for i in range(mov.shape[0]):
+        for c in range(3):
+            n[c] = N[mov[i], c]
+        length = _max_nan(sqrt(_dot3(n, n)), 1e-300)
+        for c in range(3):
+            n[c] = n[c] / length
+        d = _dot3(&D[i, 0], n)
+        for c in range(3):
+            D[i, c] = D[i, c] - d * n[c]

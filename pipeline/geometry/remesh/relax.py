@@ -22,9 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from .._kernels import area_equalizing_steps as kernel_steps
-from .._kernels import ring_sums, thin_faces
+from .._kernels import centroid_steps, ring_sums, tangential_parts, thin_faces
 from ..locate import PointLocator, lift
-from ..rows import nonzero_rows, norms
+from ..rows import nonzero_rows
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
@@ -84,12 +84,12 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     area_floor = 1e-6 * double_areas(uv, F)          # per face
     for _ in range(iterations):
         # per vertex, over its faces: Σ 2·area, Σ 2·area · centroid, Σ 2·area · normal
-        W, G, N = ring_sums(np.ascontiguousarray(X, dtype=np.float64), F64, n)
-        N /= np.maximum(norms(N)[:, None], 1e-300)
-        D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+        Xc = np.ascontiguousarray(X, dtype=np.float64)
+        W, G, N = ring_sums(Xc, F64, n)
+        D = centroid_steps(G, W, Xc, mov)
         if equalize is not None:
-            D = area_equalizing_steps(X, F64, mov, D, equalize)
-        D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
+            D = area_equalizing_steps(Xc, F64, mov, D, equalize)
+        tangential_parts(D, N, mov)              # less the part along the unit normal
         du = np.zeros_like(uv)
         du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
         halve_thin_moves(uv, du, F, area_floor)
