@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
@@ -135,3 +136,21 @@ def test_compiled_centroid_and_tangential_steps_are_the_numpy_formulas():
     want -= np.einsum("ij,ij->i", want, n[mov])[:, None] * n[mov]
     tangential_parts(D, N, mov)
     assert np.array_equal(D, want)
+
+
+@pytest.mark.parametrize("rows", [2, 3])
+def test_compiled_pulled_back_steps_are_the_einsum(rows):
+    """``du[mov] = step · einsum("kij,kj->ki", J[face[mov]], D)`` bit for bit (the disk's 2×3
+    and the sphere's 3×3 pull-backs), the other rows untouched."""
+    from pipeline.geometry._kernels import pulled_back_steps
+
+    rng = np.random.default_rng(10)
+    J = rng.normal(size=(300, rows, 3)) * 10.0 ** rng.integers(-4, 4, (300, 1, 1))
+    face = rng.integers(0, 300, 500)
+    mov = np.sort(rng.choice(500, 350, replace=False))
+    D = rng.normal(size=(350, 3))
+    want = np.full((500, rows), 7.0)
+    want[mov] = 0.75 * np.einsum("kij,kj->ki", J[face[mov]], D)
+    got = np.full((500, rows), 7.0)
+    pulled_back_steps(J, face, mov, D, 0.75, got)
+    assert np.array_equal(got, want)

@@ -1606,3 +1606,18 @@ def tangential_parts(double[:, ::1] D, const double[:, ::1] N, const int64_t[::1
         d = _dot3(&D[i, 0], n)
         for c in range(3):
             D[i, c] = D[i, c] - d * n[c]
+
+
+def pulled_back_steps(const double[:, :, ::1] J, const int64_t[::1] face,
+                      const int64_t[::1] mov, const double[:, ::1] D, double step,
+                      double[:, ::1] du):
+    """In place, ``du[mov[i]] = step · J[face[mov[i]]] D[i]`` (each row of the matrix dotted
+    with the 3D step as numpy's einsum sums it here, x, z, then y): the moving vertices' steps
+    pulled back to the domain (called by ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, r, v
+    cdef int64_t f
+    for i in range(mov.shape[0]):
+        v = mov[i]
+        f = face[v]
+        for r in range(J.shape[1]):
+            du[v, r] = step * _dot3(&J[f, r, 0], &D[i, 0])

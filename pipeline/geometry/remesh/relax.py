@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._kernels import area_equalizing_steps as kernel_steps
-from .._kernels import centroid_steps, ring_sums, tangential_parts, thin_faces
+from .._kernels import (centroid_steps, pulled_back_steps, ring_sums, tangential_parts,
+                       thin_faces)
 from ..locate import PointLocator, lift
 from ..rows import nonzero_rows
 from .domain import project
@@ -76,7 +77,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     uv = np.array(uv, dtype=np.float64, copy=True)
     face, bary = face.copy(), bary.copy()
     X = lift(V_in, F_in, face, bary) if X is None else X.copy()
-    J = pullback_matrices(V_in, F_in, uv_in) if pullback is None else pullback
+    J = np.ascontiguousarray(pullback_matrices(V_in, F_in, uv_in) if pullback is None
+                             else pullback, dtype=np.float64)
     n = len(uv)
     moved_counts = []
     F64 = np.ascontiguousarray(F, dtype=np.int64)
@@ -91,7 +93,7 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
             D = area_equalizing_steps(Xc, F64, mov, D, equalize)
         tangential_parts(D, N, mov)              # less the part along the unit normal
         du = np.zeros_like(uv)
-        du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
+        pulled_back_steps(J, face, mov, D, float(step), du)
         halve_thin_moves(uv, du, F, area_floor)
         go = np.flatnonzero(nonzero_rows(du))
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
