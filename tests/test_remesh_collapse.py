@@ -155,3 +155,60 @@ def test_short_edge_ends_marks_tails_and_rim_heads_of_edges_not_refused():
     R.add(np.array([1]), np.array([0]))
     count, ends = short_edge_ends(F, np.ones(4, np.uint8), X, 0.12, rim, *R.rows())
     assert count == 2 and ends.tolist() == [False, True, True, False]
+
+
+def _numpy_sag_along(S, a, b, ts):
+    """:func:`edge_sag_along`'s arithmetic in numpy: the offsets of every sample from the
+    straight edge, their largest absolute component along the input normals there and at the
+    ends, the first ``t`` of the largest per edge."""
+    from pipeline.geometry.remesh.sag import lift_samples
+    from pipeline.geometry.rows import dots
+
+    ts = np.asarray(ts, dtype=np.float64)
+    s, k = len(ts), len(a)
+    T = np.repeat(ts, k)[:, None]
+    ea, eb = np.tile(a, s), np.tile(b, s)
+    P, mf = lift_samples(S, ea, eb, T)
+    D = P - ((1.0 - T) * S.X[ea] + T * S.X[eb])
+    sag = np.abs(dots(D, S.normals_in()[mf]))
+    for v in (a, b):
+        sag = np.maximum(sag, np.abs(dots(D, np.tile(S.normals_in()[S.face[v]], (s, 1)))))
+    sag = sag.reshape(s, k)
+    j = np.argmax(sag, axis=0)
+    return sag[j, np.arange(k)], ts[j]
+
+
+@pytest.mark.parametrize("ts", [(0.5,), (0.25, 0.5, 0.75), tuple(np.arange(1, 8) / 8)])
+def test_edge_sag_along_is_the_numpy_formula_bit_for_bit(ts):
+    """The compiled sag (:func:`.._kernels.sag_along_block`) of every edge of a coarse remesh
+    of the tent gives the very values and ``t`` of the numpy formula it replaces, and some
+    edges do leave the surface (the tent's flanks)."""
+    from pipeline.geometry.remesh.sag import edge_sag_along
+    from remesh_helpers import coarse_state
+
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.3)
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, rings=6)
+    E = topo.edges_with_faces(S.F)[0]
+    a, b = E[:, 0].copy(), E[:, 1].copy()
+    sag, t = edge_sag_along(S, a, b, ts)
+    want_sag, want_t = _numpy_sag_along(S, a, b, ts)
+    assert np.array_equal(sag, want_sag) and np.array_equal(t, want_t)
+    assert np.count_nonzero(sag > 1e-3) > 5
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_points_along_edges_are_the_numpy_formula_bit_for_bit(dim):
+    """:func:`.._kernels.points_along` (the domain points of :func:`.sag.lift_samples`):
+    ``(1 − t)·uv[a] + t·uv[b]`` with ``t`` a column, bit for bit, on the disk and on the
+    sphere's 3D domain, and the face under the nearer end (``a``'s at ``t = 1/2``)."""
+    from pipeline.geometry._kernels import points_along
+
+    rng = np.random.default_rng(11)
+    uv = rng.normal(size=(300, dim))
+    face = rng.integers(0, 1000, 300)
+    a, b = rng.integers(0, 300, 5000), rng.integers(0, 300, 5000)
+    T = np.r_[rng.random(4997), 0.5, 0.0, 1.0][:, None]
+    M, hint = points_along(uv, face, a, b, T[:, 0].copy())
+    assert np.array_equal(M, (1.0 - T) * uv[a] + T * uv[b])
+    assert np.array_equal(hint, np.where(T[:, 0] <= 0.5, face[a], face[b]))
+    assert hint[-3] == face[a[-3]] and hint[-1] == face[b[-1]]

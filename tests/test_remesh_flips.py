@@ -130,3 +130,24 @@ def test_valence_flips_undo_a_flip_in_a_regular_lattice():
     assert flips == 1
     assert {tuple(sorted(t)) for t in F2.tolist()} == {tuple(sorted(t)) for t in F0.tolist()}
     assert np.all(signed_double_areas(uv, F2) > 0)
+
+
+def test_valence_flips_keep_the_twins():
+    """A jittered disk triangulated with every third interior edge flipped where it can be
+    (valences off 6): the twins given to :func:`valence_flips`, updated in place over its
+    rounds, are those of the faces it returns, after many flips."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh.flips import valence_flips
+    from remesh_helpers import ccw_delaunay, disk_points
+
+    uv = disk_points(12, 6)
+    inner = np.linalg.norm(uv, axis=1) < 1 - 1e-9
+    uv[inner] += 0.02 * np.random.default_rng(2).uniform(-1, 1, (inner.sum(), 2))
+    F = ccw_delaunay(uv)
+    X = np.column_stack([uv, np.zeros(len(uv))])
+    rim = topo.boundary_vertices_mask(F, len(uv))
+    F, _ = valence_flips(X, F, uv, rim, min_angle_deg=0.0, max_rounds=1)   # a valid start
+    twin = topo.interior_edge_twins(F)
+    F2, flips = valence_flips(X, F, uv, rim, min_angle_deg=0.0, max_rounds=3, twin=twin)
+    assert flips > 0
+    assert np.array_equal(twin, topo.interior_edge_twins(F2))

@@ -303,3 +303,49 @@ def test_measures_with_given_areas_are_those_computed_afresh():
     assert q["distance"] == fresh["distance"]
     given = SampledSurface(fine, F, 1000, double_area=reference.double_area)
     assert np.array_equal(reference.random, given.random)
+
+
+def _masked_closest_points(P, A, B, C):
+    """The Voronoi-region case analysis of Ericson §5.1.5 in numpy, with masks (the face
+    interior, then the edges BC, AC, AB, then the corners C, B, A overwrite; a point not
+    finite goes to the nearest corner)."""
+    def dot(x, y):
+        return np.einsum("ij,ij->i", x, y)
+
+    ab, ac, ap, bp, cp = B - A, C - A, P - A, P - B, P - C
+    d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), dot(ab, cp), \
+        dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        Q = A + ab * (vb / denom)[:, None] + ac * (vc / denom)[:, None]
+        for m, Y in (((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+                      B + (C - B) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None]),
+                     ((vb <= 0) & (d2 >= 0) & (d6 <= 0), A + ac * (d2 / (d2 - d6))[:, None]),
+                     ((vc <= 0) & (d1 >= 0) & (d3 <= 0), A + ab * (d1 / (d1 - d3))[:, None]),
+                     ((d6 >= 0) & (d5 <= d6), C), ((d3 >= 0) & (d4 <= d3), B),
+                     ((d1 <= 0) & (d2 <= 0), A)):
+            Q[m] = Y[m]
+    bad = ~np.isfinite(Q).all(axis=1)
+    cand = np.stack([A[bad], B[bad], C[bad]], axis=1)
+    Q[bad] = cand[np.arange(bad.sum()), np.argmin(((cand - P[bad][:, None]) ** 2).sum(axis=2), 1)]
+    return Q
+
+
+def test_compiled_closest_points_are_the_masked_case_analysis_bit_for_bit():
+    """Random triangles and points, with degenerate triangles (two equal corners, a corner a
+    hair off another, a NaN corner) and points on corners and edge middles: the compiled
+    closest points are those of the case analysis in numpy, bit for bit (NaN where it gives
+    NaN), and every region is reached."""
+    rng = np.random.default_rng(4)
+    P, A, B, C = (rng.normal(size=(20000, 3)) for _ in range(4))
+    B[:50] = A[:50]
+    C[50:100] = A[50:100] + 1e-300
+    A[100:105] = np.nan
+    P[200:300] = B[200:300]
+    P[300:400] = (A[300:400] + C[300:400]) / 2
+    got = closest_points_on_triangles(P, A, B, C)
+    want = _masked_closest_points(P, A, B, C)
+    assert np.array_equal(got, want, equal_nan=True)
+    on = [np.all(got == X, axis=1).sum() for X in (A, B, C)]
+    assert min(on) > 100 and np.all(np.isfinite(got[:100]))

@@ -63,3 +63,15 @@ def test_split_never_lands_on_the_corner_of_a_face_thin_on_the_disk():
     assert (signed_double_areas(S.uv, S.F) > 0).all()
     fresh = disk_shape(S.uv, S.F[4:])               # the faces the splits made, if any
     assert (fresh >= DISK_SHAPE_MIN).all()
+
+
+def test_compiled_edge_lengths_are_the_row_norms():
+    """:func:`.halfedge.edge_lengths` gives the values of ``norms(X[a] − X[b])`` bit for bit,
+    on coordinates of mixed magnitudes."""
+    from pipeline.geometry.remesh.halfedge import edge_lengths
+    from pipeline.geometry.rows import norms
+
+    rng = np.random.default_rng(7)
+    X = rng.normal(size=(500, 3)) * 10.0 ** rng.integers(-6, 6, size=(500, 1))
+    a, b = rng.integers(0, 500, 3000), rng.integers(0, 500, 3000)
+    assert np.array_equal(edge_lengths(X, a, b), norms(X[a] - X[b]))

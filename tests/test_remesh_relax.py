@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
@@ -83,3 +84,73 @@ def test_equalizing_evens_out_a_jittered_disk_and_keeps_its_angles():
         cv[mu] = area_cv(X, F)
         assert np.degrees(corner_angles(X, F)).min() > 30
     assert cv[None] > 0.1 and cv[0.3] < 0.08
+
+
+def test_halve_thin_moves_is_the_retest_of_every_moving_face():
+    """Random moves of a jittered disk's interior, large enough that many faces would fold:
+    the moves halved by :func:`halve_thin_moves` (re-testing only the faces at a halved move)
+    are bit for bit those of re-testing every face with a moving corner after each halving,
+    and some were halved, some dropped (those of a face too thin whatever they are), some
+    kept whole."""
+    from pipeline.geometry.remesh.halfedge import double_areas
+    from pipeline.geometry.remesh.relax import _too_thin, halve_thin_moves
+    from pipeline.geometry.rows import nonzero_rows
+
+    uv, F, interior = jittered_disk(seed=3)
+    area_floor = 1e-6 * double_areas(uv, F)
+    area_floor[np.flatnonzero(interior[F].all(axis=1))[0]] = np.inf   # too thin at any move
+    rng = np.random.default_rng(1)
+    du = np.zeros_like(uv)
+    du[interior] = 0.25 * rng.normal(size=(interior.sum(), 2)) / 7
+    want = du.copy()
+    for halving in range(7):
+        bad = _too_thin(uv + want, F, area_floor, nonzero_rows(want))
+        if len(bad) == 0:
+            break
+        want[np.unique(F[bad].ravel())] *= 0.0 if halving == 6 else 0.5
+    got = du.copy()
+    halve_thin_moves(uv, got, F, area_floor)
+    assert np.array_equal(got, want)
+    kept = np.all(got == du, axis=1) & interior
+    dropped = np.all(got == 0, axis=1) & interior
+    assert kept.sum() > 10 and dropped.sum() > 0 and (~kept & ~dropped & interior).sum() > 0
+
+
+def test_compiled_centroid_and_tangential_steps_are_the_numpy_formulas():
+    """The relaxation's compiled steps are bit for bit their numpy formulas: the step to the
+    ring's centroid ``G/max(W, 1e-300) − X`` and its part across the unit normal
+    ``D − (D·n) n`` with ``n = N/max(|N|, 1e-300)``, including rows with no faces (W = 0,
+    N = 0)."""
+    from pipeline.geometry._kernels import centroid_steps, tangential_parts
+    from pipeline.geometry.rows import norms
+
+    rng = np.random.default_rng(9)
+    X, G, N = (rng.normal(size=(400, 3)) for _ in range(3))
+    W = rng.random(400)
+    W[:5], N[:5], G[:5] = 0.0, 0.0, 0.0
+    mov = np.r_[0:5, rng.choice(np.arange(5, 400), 200, replace=False)]
+    D = centroid_steps(G, W, X, mov)
+    want = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+    assert np.array_equal(D, want)
+    n = N / np.maximum(norms(N)[:, None], 1e-300)
+    want -= np.einsum("ij,ij->i", want, n[mov])[:, None] * n[mov]
+    tangential_parts(D, N, mov)
+    assert np.array_equal(D, want)
+
+
+@pytest.mark.parametrize("rows", [2, 3])
+def test_compiled_pulled_back_steps_are_the_einsum(rows):
+    """``du[mov] = step · einsum("kij,kj->ki", J[face[mov]], D)`` bit for bit (the disk's 2×3
+    and the sphere's 3×3 pull-backs), the other rows untouched."""
+    from pipeline.geometry._kernels import pulled_back_steps
+
+    rng = np.random.default_rng(10)
+    J = rng.normal(size=(300, rows, 3)) * 10.0 ** rng.integers(-4, 4, (300, 1, 1))
+    face = rng.integers(0, 300, 500)
+    mov = np.sort(rng.choice(500, 350, replace=False))
+    D = rng.normal(size=(350, 3))
+    want = np.full((500, rows), 7.0)
+    want[mov] = 0.75 * np.einsum("kij,kj->ki", J[face[mov]], D)
+    got = np.full((500, rows), 7.0)
+    pulled_back_steps(J, face, mov, D, 0.75, got)
+    assert np.array_equal(got, want)

@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, fabs, sqrt
+from libc.math cimport INFINITY, fabs, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -855,7 +855,7 @@ def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[:
                const double[::1] area_floor, double shape_min):
     """The entries of ``faces`` (increasing, as given) whose twice signed disk area is at most
     ``area_floor[t]`` or whose disk shape is below ``shape_min`` (called by
-    ``remesh.relax._too_thin``)."""
+    ``remesh.relax._thin_among``)."""
     cdef Py_ssize_t i, out = 0
     cdef int64_t t
     cdef double d2
@@ -1429,3 +1429,195 @@ def format_rows(list pieces, const row_value[:, ::1] A):
         piece = raw[c]
         out.put(piece, len(piece))
     return out.text()
+
+
+def sag_along_block(const double[:, ::1] P, const int64_t[::1] mf, const double[:, ::1] N_in,
+                    const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1] b,
+                    const double[::1] ts, const double[:, ::1] n_a, const double[:, ::1] n_b,
+                    Py_ssize_t lo, double[::1] best, double[::1] t_best):
+    """The sags of the edges ``lo … lo + m − 1`` of :func:`.remesh.sag.edge_sag_along` from
+    their lifted samples ``P`` (s·m × 3, sample-major: row ``j·m + q`` is ``t = ts[j]`` on edge
+    ``lo + q``) in the input faces ``mf``: at each sample the offset ``D = P − ((1 − t)·X[a] +
+    t·X[b])``, its largest absolute component along the input normal there (``N_in[mf]``) and
+    the ends' normals (``n_a``, ``n_b``; NaN if any is, as ``np.maximum``), and per edge the
+    largest over the samples (the first of equals; a NaN wins, as ``np.argmax``) into
+    ``best[e]`` and its ``t`` into ``t_best[e]``."""
+    cdef Py_ssize_t s = ts.shape[0], m = P.shape[0] // s if s else 0
+    cdef Py_ssize_t q, j, i, e, c, jb
+    cdef double D[3]
+    cdef double t, u, v, vb
+    for q in range(m):
+        e = lo + q
+        jb = -1
+        vb = 0.0
+        for j in range(s):
+            i = j * m + q
+            t = ts[j]
+            u = 1.0 - t
+            for c in range(3):
+                D[c] = P[i, c] - (u * X[a[e], c] + t * X[b[e], c])
+            v = fabs(_dot3(D, &N_in[mf[i], 0]))
+            v = _max_nan(v, fabs(_dot3(D, &n_a[e, 0])))
+            v = _max_nan(v, fabs(_dot3(D, &n_b[e, 0])))
+            if jb < 0 or v > vb or (v != v and vb == vb):
+                jb, vb = j, v
+        best[e] = vb
+        t_best[e] = ts[jb]
+
+
+@cython.cdivision(True)
+def closest_points(const double[:, ::1] P, const double[:, ::1] A, const double[:, ::1] B,
+                   const double[:, ::1] C):
+    """The closest point of triangle ``(A[i], B[i], C[i])`` to ``P[i]`` (all k×3) by the
+    Voronoi-region case analysis of :func:`..remesh_quality.closest_points_on_triangles`, its
+    arithmetic operation for operation: the vertex regions A, B, C first, then the edges AB,
+    AC, BC, else the face interior; a point that comes out not finite (a degenerate
+    triangle) goes to the nearest corner (the first of equals; a NaN distance wins)."""
+    cdef Py_ssize_t i, c, k = P.shape[0], j
+    cdef double ab[3]
+    cdef double ac[3]
+    cdef double ap[3]
+    cdef double bp[3]
+    cdef double cp[3]
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, denom, v, w, t, s, best
+    out_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] Q = out_arr
+    cdef const double* corner[3]
+    for i in range(k):
+        for c in range(3):
+            ab[c] = B[i, c] - A[i, c]
+            ac[c] = C[i, c] - A[i, c]
+            ap[c] = P[i, c] - A[i, c]
+            bp[c] = P[i, c] - B[i, c]
+            cp[c] = P[i, c] - C[i, c]
+        d1, d2 = _dot3(ab, ap), _dot3(ac, ap)
+        d3, d4 = _dot3(ab, bp), _dot3(ac, bp)
+        d5, d6 = _dot3(ab, cp), _dot3(ac, cp)
+        va = d3 * d6 - d5 * d4
+        vb = d5 * d2 - d1 * d6
+        vc = d1 * d4 - d3 * d2
+        if d1 <= 0 and d2 <= 0:
+            for c in range(3):
+                Q[i, c] = A[i, c]
+        elif d3 >= 0 and d4 <= d3:
+            for c in range(3):
+                Q[i, c] = B[i, c]
+        elif d6 >= 0 and d5 <= d6:
+            for c in range(3):
+                Q[i, c] = C[i, c]
+        elif vc <= 0 and d1 >= 0 and d3 <= 0:
+            t = d1 / (d1 - d3)
+            for c in range(3):
+                Q[i, c] = A[i, c] + ab[c] * t
+        elif vb <= 0 and d2 >= 0 and d6 <= 0:
+            t = d2 / (d2 - d6)
+            for c in range(3):
+                Q[i, c] = A[i, c] + ac[c] * t
+        elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            for c in range(3):
+                Q[i, c] = B[i, c] + (C[i, c] - B[i, c]) * t
+        else:
+            denom = (va + vb) + vc
+            v = vb / denom
+            w = vc / denom
+            for c in range(3):
+                Q[i, c] = (A[i, c] + ab[c] * v) + ac[c] * w
+        if not (isfinite(Q[i, 0]) and isfinite(Q[i, 1]) and isfinite(Q[i, 2])):
+            corner[0], corner[1], corner[2] = &A[i, 0], &B[i, 0], &C[i, 0]
+            j = 0
+            for c in range(3):
+                t = corner[c][0] - P[i, 0]
+                s = t * t
+                t = corner[c][1] - P[i, 1]
+                s = s + t * t
+                t = corner[c][2] - P[i, 2]
+                s = s + t * t
+                if c == 0:
+                    best = s
+                elif best == best and (s < best or s != s):
+                    j, best = c, s
+            for c in range(3):
+                Q[i, c] = corner[j][c]
+    return out_arr
+
+
+def pair_lengths(const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1] b):
+    """``|X[a[i]] − X[b[i]]|`` for every pair (k), as ``norms(X[a] − X[b])`` computes it."""
+    cdef Py_ssize_t i
+    out_arr = np.empty(a.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for i in range(a.shape[0]):
+        out[i] = _length(X, a[i], b[i])
+    return out_arr
+
+
+def points_along(const double[:, ::1] uv, const int64_t[::1] face, const int64_t[::1] a,
+                 const int64_t[::1] b, const double[::1] t):
+    """The domain points ``(1 − t)·uv[a] + t·uv[b]`` (k×2, as numpy computes them with ``t``
+    a column) and the face under the nearer end of each (``face[a]`` where ``t ≤ 1/2``, else
+    ``face[b]``; called by ``remesh.sag.lift_samples``)."""
+    cdef Py_ssize_t i, c, k = a.shape[0], d = uv.shape[1]
+    cdef double u
+    M_arr = np.empty((k, d), dtype=np.float64)
+    hint_arr = np.empty(k, dtype=np.int64)
+    cdef double[:, ::1] M = M_arr
+    cdef int64_t[::1] hint = hint_arr
+    for i in range(k):
+        u = 1.0 - t[i]
+        for c in range(d):
+            M[i, c] = u * uv[a[i], c] + t[i] * uv[b[i], c]
+        hint[i] = face[a[i]] if t[i] <= 0.5 else face[b[i]]
+    return M_arr, hint_arr
+
+
+@cython.cdivision(True)
+def centroid_steps(const double[:, ::1] G, const double[::1] W, const double[:, ::1] X,
+                   const int64_t[::1] mov):
+    """``G[mov] / max(W[mov], 1e-300) − X[mov]`` (k×3): each moving vertex's step to the
+    area-weighted centroid of its ring (:func:`ring_sums`' sums; NaN as ``np.maximum``;
+    called by ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, c, k = mov.shape[0]
+    cdef double w
+    D_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] D = D_arr
+    for i in range(k):
+        w = _max_nan(W[mov[i]], 1e-300)
+        for c in range(3):
+            D[i, c] = G[mov[i], c] / w - X[mov[i], c]
+    return D_arr
+
+
+@cython.cdivision(True)
+def tangential_parts(double[:, ::1] D, const double[:, ::1] N, const int64_t[::1] mov):
+    """In place, each step ``D[i]`` less its component along the unit normal of
+    ``N[mov[i]]`` (normalised as ``N / max(norms(N), 1e-300)``; the dot product and the length
+    summed as numpy's einsum does here): ``D − (D · n) n`` (called by
+    ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, c
+    cdef double n[3]
+    cdef double length, d
+    for i in range(mov.shape[0]):
+        for c in range(3):
+            n[c] = N[mov[i], c]
+        length = _max_nan(sqrt(_dot3(n, n)), 1e-300)
+        for c in range(3):
+            n[c] = n[c] / length
+        d = _dot3(&D[i, 0], n)
+        for c in range(3):
+            D[i, c] = D[i, c] - d * n[c]
+
+
+def pulled_back_steps(const double[:, :, ::1] J, const int64_t[::1] face,
+                      const int64_t[::1] mov, const double[:, ::1] D, double step,
+                      double[:, ::1] du):
+    """In place, ``du[mov[i]] = step · J[face[mov[i]]] D[i]`` (each row of the matrix dotted
+    with the 3D step as numpy's einsum sums it here, x, z, then y): the moving vertices' steps
+    pulled back to the domain (called by ``remesh.relax.tangential_smoothing``)."""
+    cdef Py_ssize_t i, r, v
+    cdef int64_t f
+    for i in range(mov.shape[0]):
+        v = mov[i]
+        f = face[v]
+        for r in range(J.shape[1]):
+            du[v, r] = step * _dot3(&J[f, r, 0], &D[i, 0])

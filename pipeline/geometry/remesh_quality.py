@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import face_distances
+from ._kernels import closest_points, face_distances
 from .laplacian import face_double_areas
 from .metrics import corner_angles
 from .rows import norms
@@ -203,48 +203,13 @@ def closest_points_on_triangles(P: np.ndarray, A: np.ndarray, B: np.ndarray, C: 
     """Closest point of triangle ``(A, B, C)`` to ``P`` (all k×3), row by row.
 
     The Voronoi-region case analysis of Ericson, *Real-Time Collision Detection* §5.1.5:
-    vertex regions, edge regions, then the face interior; vectorised with masks.
+    the vertex regions, then the edge regions, then the face interior; a degenerate triangle
+    (a point that comes out not finite) gives its corner nearest to ``P``. Compiled
+    (:func:`._kernels.closest_points`: the remesher asks it of a few faces at a time, many
+    times).
     """
-    ab, ac, ap = B - A, C - A, P - A
-    d1 = np.einsum("ij,ij->i", ab, ap)
-    d2 = np.einsum("ij,ij->i", ac, ap)
-    bp = P - B
-    d3 = np.einsum("ij,ij->i", ab, bp)
-    d4 = np.einsum("ij,ij->i", ac, bp)
-    cp = P - C
-    d5 = np.einsum("ij,ij->i", ab, cp)
-    d6 = np.einsum("ij,ij->i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = va + vb + vc
-        v = vb / denom
-        w = vc / denom
-        Q = A + ab * v[:, None] + ac * w[:, None]              # face interior
-        # edge regions (assigned from the lowest to the highest priority)
-        m = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        Q[m] = (B + (C - B) * t[:, None])[m]
-        m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        t = d2 / (d2 - d6)
-        Q[m] = (A + ac * t[:, None])[m]
-        m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        t = d1 / (d1 - d3)
-        Q[m] = (A + ab * t[:, None])[m]
-    # vertex regions
-    m = (d6 >= 0) & (d5 <= d6)
-    Q[m] = C[m]
-    m = (d3 >= 0) & (d4 <= d3)
-    Q[m] = B[m]
-    m = (d1 <= 0) & (d2 <= 0)
-    Q[m] = A[m]
-    bad = ~np.isfinite(Q).all(axis=1)                          # degenerate triangles
-    if bad.any():
-        cand = np.stack([A[bad], B[bad], C[bad]], axis=1)
-        j = np.argmin(((cand - P[bad][:, None]) ** 2).sum(axis=2), axis=1)
-        Q[bad] = cand[np.arange(len(j)), j]
-    return Q
+    f64 = [np.ascontiguousarray(x, dtype=np.float64).reshape(-1, 3) for x in (P, A, B, C)]
+    return closest_points(*f64)
 
 
 def _spread_bits(q: np.ndarray) -> np.ndarray:

@@ -133,19 +133,7 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         win = sel[independent_by_faces(m, f[sel], g[sel], -viol[sel])]
         f, g, c, d = f[win], g[win], c[win], d[win]
         a, b, p, q = a[win], b[win], p[win], q[win]
-        # half-edge bookkeeping, in place: the four outer half-edges of each quad move to new
-        # slots (p→a, a→q in f; q→b, b→p in g); their twins may sit in another flipped quad
-        old = np.concatenate([3 * f + (c + 2) % 3, 3 * g + (d + 1) % 3,
-                              3 * g + (d + 2) % 3, 3 * f + (c + 1) % 3])
-        new = np.concatenate([3 * f, 3 * f + 1, 3 * g, 3 * g + 1])
-        tw = twin[old]
-        slot[old] = new
-        inner = tw >= 0
-        twin[new] = np.where(inner, slot[np.maximum(tw, 0)], -1)
-        twin[slot[tw[inner]]] = new[inner]
-        twin[3 * f + 2] = 3 * g + 2                  # the new diagonal q→p / p→q
-        twin[3 * g + 2] = 3 * f + 2
-        slot[old] = old
+        _flipped_twins(twin, slot, f, c, g, d)
         F[f] = np.column_stack([p, a, q])
         F[g] = np.column_stack([q, b, p])
         changed = np.concatenate([f, g])
@@ -162,7 +150,8 @@ VALENCE_ROUNDS = 2      # valence flips: at most this many rounds (a third finds
 
 def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray,
                   max_dihedral_deg: float = 20.0, min_angle_deg: float = 35.0,
-                  max_rounds: int = VALENCE_ROUNDS) -> tuple[np.ndarray, int]:
+                  max_rounds: int = VALENCE_ROUNDS, twin: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, int]:
     """Flip interior edges that bring the valences of the quad's four corners closer to the
     regular ones (Botsch & Kobbelt 2004).
 
@@ -185,6 +174,8 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
         The boundary vertices.
     max_dihedral_deg, min_angle_deg : float
     max_rounds : int
+    twin : (3m,) int, optional
+        The half-edge twins of ``F``; updated in place to those of the result.
 
     Returns
     -------
@@ -199,9 +190,10 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
     target = np.where(boundary, 4, 6)
     cos_max, floor = np.cos(np.radians(max_dihedral_deg)), np.radians(min_angle_deg)
     total = 0
+    twin = topo.interior_edge_twins(F) if twin is None else twin
+    slot = np.arange(3 * m)
     for _ in range(max_rounds):
-        twin = topo.interior_edge_twins(F)
-        h = np.flatnonzero(twin > np.arange(3 * m))
+        h = np.flatnonzero(twin > slot)
         f, c, t = h // 3, h % 3, twin[h]
         dev = np.bincount(F.ravel(), minlength=n) - target
         gain = 2 * (dev[F[f, c]] + dev[F[f, (c + 1) % 3]] - dev[F[f, (c + 2) % 3]]
@@ -217,11 +209,41 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
         if len(ok) == 0:
             break
         win = ok[independent_by(n, (a[ok], b[ok], p[ok], q[ok]), -gain[ok])]
-        f, g = h[win] // 3, twin[h[win]] // 3
+        f, c, g, d = h[win] // 3, h[win] % 3, twin[h[win]] // 3, twin[h[win]] % 3
+        _flipped_twins(twin, slot, f, c, g, d)
         F[f] = np.column_stack([p[win], a[win], q[win]])
         F[g] = np.column_stack([q[win], b[win], p[win]])
         total += len(win)
     return F, total
+
+
+def _flipped_twins(twin: np.ndarray, slot: np.ndarray, f: np.ndarray, c: np.ndarray,
+                   g: np.ndarray, d: np.ndarray) -> None:
+    """Update the half-edge twins in place for flips of the edges at slot ``c`` of faces
+    ``f`` and slot ``d`` of faces ``g`` (no two flips sharing a face) whose faces become
+    ``f = (p, a, q)`` and ``g = (q, b, p)``: the four outer half-edges of each quad move to
+    new slots (p→a, a→q in f; q→b, b→p in g; their twins may sit in another flipped quad)
+    and the new diagonal's two halves are each other's twins.
+
+    Parameters
+    ----------
+    twin : (3m,) int
+        Changed in place.
+    slot : (3m,) int
+        ``arange(3m)``, used as scratch and restored.
+    f, c, g, d : (k,) int
+    """
+    old = np.concatenate([3 * f + (c + 2) % 3, 3 * g + (d + 1) % 3,
+                          3 * g + (d + 2) % 3, 3 * f + (c + 1) % 3])
+    new = np.concatenate([3 * f, 3 * f + 1, 3 * g, 3 * g + 1])
+    tw = twin[old]
+    slot[old] = new
+    inner = tw >= 0
+    twin[new] = np.where(inner, slot[np.maximum(tw, 0)], -1)
+    twin[slot[tw[inner]]] = new[inner]
+    twin[3 * f + 2] = 3 * g + 2                  # the new diagonal q→p / p→q
+    twin[3 * g + 2] = 3 * f + 2
+    slot[old] = old
 
 
 def _shapes_kept(uv: np.ndarray, p, a, q, b) -> np.ndarray:

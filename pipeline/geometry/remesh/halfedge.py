@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import disk_shapes, edge_halves, faces_touching, faces_with_mark, group_by_key
+from .._kernels import (disk_shapes, edge_halves, faces_touching, faces_with_mark, group_by_key,
+                       pair_lengths)
 
 DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
 
@@ -64,6 +65,24 @@ def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
         return triple_products(uv, F)
     return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
             - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+
+
+def edge_lengths(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The 3D lengths ``|X[a] − X[b]|`` (k) of the edges ``a–b`` (k int each): the values of
+    :func:`..rows.norms` of ``X[a] − X[b]``, compiled (no k×3 temporaries).
+
+    Parameters
+    ----------
+    X : (n, 3) float
+    a, b : (k,) int
+
+    Returns
+    -------
+    (k,) float
+    """
+    return pair_lengths(np.ascontiguousarray(X, dtype=np.float64),
+                        np.ascontiguousarray(a, dtype=np.int64),
+                        np.ascontiguousarray(b, dtype=np.int64))
 
 
 def disk_shape(uv: np.ndarray, F: np.ndarray) -> np.ndarray:

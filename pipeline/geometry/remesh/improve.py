@@ -336,8 +336,10 @@ class _Operations:
         if not self.flips:
             return
         S = self.S
-        F, k = valence_flips(S.X, S.F, S.uv, S.is_rim, self.max_dihedral_deg, VALENCE_MIN_DEG)
-        S.set_faces(F)
+        twin = S.twins().copy()
+        F, k = valence_flips(S.X, S.F, S.uv, S.is_rim, self.max_dihedral_deg, VALENCE_MIN_DEG,
+                             twin=twin)
+        S.set_faces(F, twin)
         S.tally("valence_flips", k)
 
     def relax(self, movable: np.ndarray | None = None, veto=None,

@@ -32,7 +32,8 @@ import numpy as np
 from ..locate import _closest_on_segments
 from ..rows import dots, norms, row_min
 from .domain import project
-from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
+from .halfedge import (DISK_SHAPE_MIN, disk_shape, edge_lengths, edge_table, independent_edges,
+                       touching)
 from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
 from .state import RemeshState
 
@@ -242,7 +243,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
     active = None
     for _ in range(max_rounds):
         h, a, b, twin = _edges_at(S, active)
-        ln = norms(S.X[a] - S.X[b])
+        ln = edge_lengths(S.X, a, b)
         cand = np.flatnonzero(ln > L_max)
         if budget is not None and len(cand) > 4 * (budget - done) + 1000:
             # only the longest few can be among the longest independent ones

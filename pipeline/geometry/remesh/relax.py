@@ -22,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from .._kernels import area_equalizing_steps as kernel_steps
-from .._kernels import ring_sums, thin_faces
+from .._kernels import (centroid_steps, pulled_back_steps, ring_sums, tangential_parts,
+                       thin_faces)
 from ..locate import PointLocator, lift
-from ..rows import nonzero_rows, norms
+from ..rows import nonzero_rows
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
@@ -76,7 +77,8 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     uv = np.array(uv, dtype=np.float64, copy=True)
     face, bary = face.copy(), bary.copy()
     X = lift(V_in, F_in, face, bary) if X is None else X.copy()
-    J = pullback_matrices(V_in, F_in, uv_in) if pullback is None else pullback
+    J = np.ascontiguousarray(pullback_matrices(V_in, F_in, uv_in) if pullback is None
+                             else pullback, dtype=np.float64)
     n = len(uv)
     moved_counts = []
     F64 = np.ascontiguousarray(F, dtype=np.int64)
@@ -84,24 +86,15 @@ def tangential_smoothing(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray,
     area_floor = 1e-6 * double_areas(uv, F)          # per face
     for _ in range(iterations):
         # per vertex, over its faces: Σ 2·area, Σ 2·area · centroid, Σ 2·area · normal
-        W, G, N = ring_sums(np.ascontiguousarray(X, dtype=np.float64), F64, n)
-        N /= np.maximum(norms(N)[:, None], 1e-300)
-        D = G[mov] / np.maximum(W[mov], 1e-300)[:, None] - X[mov]
+        Xc = np.ascontiguousarray(X, dtype=np.float64)
+        W, G, N = ring_sums(Xc, F64, n)
+        D = centroid_steps(G, W, Xc, mov)
         if equalize is not None:
-            D = area_equalizing_steps(X, F64, mov, D, equalize)
-        D -= np.einsum("ij,ij->i", D, N[mov])[:, None] * N[mov]
+            D = area_equalizing_steps(Xc, F64, mov, D, equalize)
+        tangential_parts(D, N, mov)              # less the part along the unit normal
         du = np.zeros_like(uv)
-        du[mov] = step * np.einsum("kij,kj->ki", J[face[mov]], D)
-        # halve the moves of vertices of faces that would flip (or nearly collapse) on the disk
-        # (only faces with a moving corner are tested: a face none of whose corners moves
-        # keeps its shape, and halving or dropping its corners' zero moves changes nothing)
-        for _halving in range(7):
-            new = uv + du
-            bad = _too_thin(new, F, area_floor, nonzero_rows(du))
-            if len(bad) == 0:
-                break
-            verts = np.unique(F[bad].ravel())
-            du[verts] *= 0.0 if _halving == 6 else 0.5
+        pulled_back_steps(J, face, mov, D, float(step), du)
+        halve_thin_moves(uv, du, F, area_floor)
         go = np.flatnonzero(nonzero_rows(du))
         f2, b2, inside = locator.relocate(uv[go] + du[go], face[go])
         du[go[~inside]] = 0.0                    # would leave the image polygon: stays
@@ -169,12 +162,57 @@ def area_equalizing_steps(X: np.ndarray, F: np.ndarray, mov: np.ndarray, D: np.n
                         np.ascontiguousarray(D, dtype=np.float64), float(mu), AREA_SHARE)
 
 
+def halve_thin_moves(uv: np.ndarray, du: np.ndarray, F: np.ndarray, area_floor: np.ndarray,
+                     halvings: int = 6) -> None:
+    """Halve, in place, the moves ``du`` of the corners of every face that the moves would
+    make too thin on the disk (:func:`_too_thin`), until none is or ``halvings`` halvings were
+    made; then drop the moves still making one.
+
+    Only faces with a moving corner are tested (a face none of whose corners moves keeps its
+    shape, and halving its corners' zero moves changes nothing), and after a halving only those
+    at a halved move (the others keep the shape that passed).
+
+    Parameters
+    ----------
+    uv : (n, 2) float
+    du : (n, 2) float
+        Changed in place.
+    F : (m, 3) int
+    area_floor : (m,) float
+    halvings : int
+    """
+    moving = nonzero_rows(du)
+    tested = np.flatnonzero(touching(F, moving))
+    for halving in range(halvings + 1):
+        bad = _thin_among(uv + du, F, area_floor, tested)
+        if len(bad) == 0:
+            return
+        verts = np.unique(F[bad].ravel())
+        du[verts] *= 0.0 if halving == halvings else 0.5
+        tested = np.flatnonzero(touching(F, _marked(len(uv), verts) & moving))
+
+
 def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray, moving: np.ndarray
               ) -> np.ndarray:
     """The faces (indices, increasing) with a corner where ``moving`` (n bool) is set that are
     at most ``area_floor`` in twice their disk area, or thinner than ``DISK_SHAPE_MIN`` on the
-    disk (compiled: :func:`.._kernels.thin_faces`, the arithmetic of :func:`.halfedge.double_areas`
+    disk (:func:`_thin_among` of those faces)."""
+    return _thin_among(uv, F, area_floor, np.flatnonzero(touching(F, moving)))
+
+
+def _thin_among(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray, faces: np.ndarray
+                ) -> np.ndarray:
+    """The faces of ``faces`` (k int, increasing) that are at most ``area_floor`` (m) in twice
+    their disk area, or thinner than ``DISK_SHAPE_MIN`` on the disk, in the same order
+    (compiled: :func:`.._kernels.thin_faces`, the arithmetic of :func:`.halfedge.double_areas`
     and :func:`.halfedge.disk_shape`)."""
-    F = np.ascontiguousarray(F, dtype=np.int64)
-    return thin_faces(np.ascontiguousarray(uv, dtype=np.float64), F,
-                      np.flatnonzero(touching(F, moving)), area_floor, DISK_SHAPE_MIN)
+    return thin_faces(np.ascontiguousarray(uv, dtype=np.float64),
+                      np.ascontiguousarray(F, dtype=np.int64), faces, area_floor,
+                      DISK_SHAPE_MIN)
+
+
+def _marked(n: int, indices: np.ndarray) -> np.ndarray:
+    """An n-bool mask set at ``indices``."""
+    mark = np.zeros(n, bool)
+    mark[indices] = True
+    return mark

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._kernels import points_along, sag_along_block
 from ..locate import lift
-from ..rows import dots
 from .state import RemeshState
 
 SAG_BLOCK = 262144    # sample points per point-location query
@@ -56,8 +56,11 @@ def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
 def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The lifts (eq. 1; k×3) of the domain points ``(1 − T)·uv[ea] + T·uv[eb]`` (``T`` k×1),
     each located from the face under the nearer end; also the faces they are in."""
-    M = (1.0 - T) * S.uv[ea] + T * S.uv[eb]
-    hint = np.where(T[:, 0] <= 0.5, S.face[ea], S.face[eb])
+    M, hint = points_along(np.ascontiguousarray(S.uv, dtype=np.float64),
+                           np.ascontiguousarray(S.face, dtype=np.int64),
+                           np.ascontiguousarray(ea, dtype=np.int64),
+                           np.ascontiguousarray(eb, dtype=np.int64),
+                           np.ascontiguousarray(T, dtype=np.float64).reshape(-1))
     mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
     return lift(S.V_in, S.F_in, mf, mb), mf
 
@@ -100,25 +103,23 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
     t : (k,) float
         The first ``t`` of ``ts`` where it is reached.
     """
-    ends = (end_normals if end_normals is not None
-            else [S.normals_in()[S.face[v]] for v in (a, b)])
-    ts = np.asarray(ts, dtype=np.float64)
+    a = np.ascontiguousarray(a, dtype=np.int64)
+    b = np.ascontiguousarray(b, dtype=np.int64)
+    N_in = S.normals_in()
+    n_a, n_b = (np.ascontiguousarray(n, dtype=np.float64) for n in
+                (end_normals if end_normals is not None else [N_in[S.face[v]] for v in (a, b)]))
+    X = np.ascontiguousarray(S.X, dtype=np.float64)
+    ts = np.ascontiguousarray(ts, dtype=np.float64)
     k, s = len(a), len(ts)
     best = np.empty(k)
     t_best = np.empty(k)
     step = max(SAG_BLOCK // max(s, 1), 1)
     for lo in range(0, k, step):
         # all samples of a block of edges in one query (sample-major), each located from the
-        # face under the nearer end
-        e = np.arange(lo, min(lo + step, k))
-        T = np.repeat(ts, len(e))[:, None]
-        ea, eb = np.tile(a[e], s), np.tile(b[e], s)
-        P, mf = lift_samples(S, ea, eb, T)
-        D = P - ((1.0 - T) * S.X[ea] + T * S.X[eb])
-        sag = np.abs(dots(D, S.normals_in()[mf]))
-        for n_end in ends:
-            sag = np.maximum(sag, np.abs(dots(D, np.tile(n_end[e], (s, 1)))))
-        sag = sag.reshape(s, len(e))
-        j = np.argmax(sag, axis=0)                       # the first t of the largest
-        best[e], t_best[e] = sag[j, np.arange(len(e))], ts[j]
+        # face under the nearer end; the offsets and their largest normal components compiled
+        e = slice(lo, min(lo + step, k))
+        T = np.repeat(ts, e.stop - lo)[:, None]
+        P, mf = lift_samples(S, np.tile(a[e], s), np.tile(b[e], s), T)
+        sag_along_block(np.ascontiguousarray(P), np.ascontiguousarray(mf, dtype=np.int64),
+                        N_in, X, a, b, ts, n_a, n_b, lo, best, t_best)
     return best, t_best
