@@ -83,3 +83,72 @@ def test_equalizing_evens_out_a_jittered_disk_and_keeps_its_angles():
         cv[mu] = area_cv(X, F)
         assert np.degrees(corner_angles(X, F)).min() > 30
     assert cv[None] > 0.1 and cv[0.3] < 0.08
+
+
+def uneven_rim_state():
+    """The flat unit disk map (:func:`remesh_helpers.disk_map`) remeshed by rings of points
+    inside radius 0.85 and a rim of 24 of its 240 boundary points taken alternately 6 and 14
+    apart: ``S`` (a :class:`RemeshState`) and the rim vertices in order."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.locate import lift
+    from pipeline.geometry.remesh.state import RemeshState
+
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    picks = np.cumsum(np.tile([6, 14], 12)) % len(loop)
+    uv = np.vstack([0.85 * disk_points(3, 6), uv_in[loop[picks]]])
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, topo.boundary_vertices_mask(F, len(uv)),
+                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    return S
+
+
+def rim_edge_lengths(S):
+    from pipeline.geometry.remesh.halfedge import edge_table
+
+    _, a, b, twin = edge_table(S.F, twin=S.twins())
+    return np.linalg.norm(S.X[a[twin < 0]] - S.X[b[twin < 0]], axis=1)
+
+
+def test_rim_slides_even_out_the_rim_spacing_on_the_boundary():
+    """Rim edges alternately 6 and 14 boundary steps long (ratio 2.3) slid 12 half steps
+    along the boundary: the longest at most 1.1 × the shortest, every rim vertex still on the
+    input's boundary (the unit circle's 240-gon), every face counter-clockwise on the disk."""
+    from pipeline.geometry.remesh.relax import slide_rim
+
+    S = uneven_rim_state()
+    d = rim_edge_lengths(S)
+    assert d.max() / d.min() > 2.0
+    for _ in range(12):
+        assert slide_rim(S, S.is_rim.copy(), 0.5, None) > 0
+    d = rim_edge_lengths(S)
+    assert d.max() / d.min() < 1.1
+    r = np.linalg.norm(S.X[S.is_rim, :2], axis=1)
+    assert r.min() > np.cos(np.pi / 240) - 1e-9 and r.max() < 1 + 1e-9
+    assert np.allclose(S.X[:, 2], 0)
+    assert (signed_double_areas(S.uv, S.F) > 0).all()
+
+
+def test_rim_slides_never_cut_off_more_of_the_boundary():
+    """No rim edge leaves a boundary vertex farther from its chord than the gap tolerance
+    (here the median gap of the uneven rim) and than it did (:func:`.rim.rim_gaps`); the
+    vertices not ``movable`` stay; with a tolerance of 0 on the circle nothing moves (every
+    move lengthens an edge, which cuts off more of the circle)."""
+    from pipeline.geometry.remesh.relax import rim_arc, slide_rim
+    from pipeline.geometry.remesh.rim import rim_gaps
+    from pipeline.geometry.remesh.sampling import arc_parameters
+
+    S = uneven_rim_state()
+    corners_X = S.of_input(rim_arc)[0]
+    corner_s = arc_parameters(S.polygon, S.polygon)
+    movable = S.is_rim.copy()
+    movable[np.flatnonzero(S.is_rim)[::3]] = False
+    X0 = S.X.copy()
+    before = rim_gaps(S, corners_X, corner_s)[4]
+    assert slide_rim(S, movable, 0.5, 0.0) == 0
+    tol = float(np.median(before))
+    assert slide_rim(S, movable, 0.5, tol) > 0
+    after = rim_gaps(S, corners_X, corner_s)[4]
+    assert (after <= np.maximum(before, tol) + 1e-12).all()
+    assert (after > before + 1e-9).any()
+    assert np.array_equal(S.X[~movable], X0[~movable])
