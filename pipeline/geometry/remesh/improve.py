@@ -39,11 +39,7 @@ The schedule (:func:`improve_remesh`):
 6. ``final_relax_iterations`` × (smoothing step, valence flips): each step also evens out
    the areas of every vertex's faces (:func:`.relax.area_equalizing_steps`, weight
    ``AREA_EQUALIZE``), which the connectivity limits (a valence-5 or -7 vertex's faces cannot
-   be both equilateral and as large as the others), and slides the rim's vertices along the
-   input boundary towards even spacing in 3D (:meth:`_Operations.slide_rim`: sampled evenly
-   on the disk, the rim is as uneven on the surface as the map's stretch along the boundary;
-   no rim edge may cut off an input boundary vertex by more than ``RIM_TOL`` × the sag
-   tolerance, and the rim next to folds stays); the flips make the valences regular
+   be both equilateral and as large as the others); the flips make the valences regular
    (:func:`.flips.valence_flips`, no new angle below ``VALENCE_MIN_DEG`` or the old faces'),
    which the smoothing then shapes;
 7. the sag refinement again (the smoothing moves vertices off the folds the first one
@@ -86,10 +82,11 @@ The schedule (:func:`improve_remesh`):
     operations again around the faces then below; then the rim's fans opened again as in
     step 9 (:meth:`_Operations.open_fans`: the minimum-angle operations' collapses can leave
     a reflex rim corner with two wide caps), kept only where it leaves fewer faces below the
-    minimum; then, up to ``GRADE_PASSES`` times while it is kept, the faces still below that
-    no input corner forces refined at their off-centres (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short
-    edge whose far corner no operation can bring closer). A face none of this raises stays:
-    the report counts the faces below the minimum and, among them, those an input corner too
+    minimum and none smaller; then, up to ``GRADE_PASSES`` times while it is kept, the faces
+    still below that no input corner forces refined at their off-centres
+    (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short edge whose
+    far corner no operation can bring closer). A face none of this raises stays: the report
+    counts the faces below the minimum and, among them, those an input corner too
     sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the corners; then
     ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
     ``relax_iterations``) that even out the faces the steps since step 7 left uneven, under
@@ -125,7 +122,7 @@ from .fidelity import follow_input as snap_far_input
 from .flips import flip_edges, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
-from .relax import slide_rim, tangential_smoothing
+from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
 from .state import RemeshState, at_points, face_normals
@@ -135,7 +132,6 @@ SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its s
 SLIVER_AGAIN = 5e-4   # the next only after one that collapsed at least this × the vertex count
 ISO_LONG, ISO_SHORT = 4.0 / 3.0, 0.8   # the isotropic rounds' split / collapse lengths (× ℓ)
 AREA_EQUALIZE = 0.3   # the final smoothing's weight of the centroid step against even areas
-RIM_SLIDE_STEP = 0.5  # its rim steps: this part of the way to even spacing along the boundary
 VALENCE_MIN_DEG = 35.0   # its valence flips keep the new faces' angles above this (or the old)
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
 NEEDLE_DEG = 5.0      # the minimum-angle pass ends with unguarded collapses below this angle,
@@ -324,28 +320,9 @@ class _Operations:
 
     def smooth(self) -> None:
         """A smoothing step that also evens out the areas of every vertex's faces (weight
-        ``AREA_EQUALIZE``), the rim's vertices slid along the input boundary towards even
-        spacing (:meth:`slide_rim`), then flips towards regular valences
-        (:meth:`flip_valence`)."""
+        ``AREA_EQUALIZE``), then flips towards regular valences (:meth:`flip_valence`)."""
         self.relax(equalize=AREA_EQUALIZE)
-        self.slide_rim()
         self.flip_valence()
-
-    def slide_rim(self) -> None:
-        """A smoothing step of the rim's vertices along the input boundary
-        (:func:`.relax.slide_rim`), none that is locked, on a kept edge or next to an edge
-        folded more than ``EVEN_FOLD_DEG`` (:func:`folded_vertices`), none that a rim edge at
-        it would leave an input boundary vertex farther than ``RIM_TOL`` × the sag tolerance
-        from its chord or an edge at it farther from the surface than the sag tolerance
-        (:func:`sag_veto`)."""
-        S = self.S
-        if on_sphere(S.uv) or len(S.polygon) == 0:
-            return
-        movable = S.is_rim & ~S.locked & ~_ring(S.F, folded_vertices(S, EVEN_FOLD_DEG))
-        movable[S.joined.ravel()] = False
-        gap = None if self.tol is None else RIM_TOL * self.tol
-        veto = None if self.tol is None else partial(sag_veto, S, self.tol)
-        S.tally("rim_slides", slide_rim(S, movable, RIM_SLIDE_STEP, gap, veto))
 
     def flip_valence(self) -> None:
         """Flips towards regular valences (:func:`.flips.valence_flips`), the new faces'
@@ -573,23 +550,27 @@ class _Operations:
 
     def open_fans(self, target: int, min_angle_deg: float) -> bool:
         """The rim's fans opened (:func:`.rim.open_rim_fans`: a vertex in the middle of the
-        interior edge across an angle wider than ``RIM_FAN_MAX_DEG`` at a rim vertex, the caps
-        a reflex corner of the boundary leaves), flips, kept as :meth:`refine_unforced` keeps
-        it. Returns whether it was kept."""
+        interior edge across an angle wider than :data:`.rim.RIM_FAN_MAX_DEG` at a rim
+        vertex, the caps a reflex corner of the boundary leaves), flips, kept as
+        :meth:`refine_unforced` keeps it and only if it leaves no smaller smallest angle (a
+        fan opened on a rim edge between close corners can trade two faces for a worse one).
+        Returns whether it was kept."""
         def insert() -> int:
             k = open_rim_fans(self.S)
             if k:
                 self.flip()
             return k
 
-        return self.refine_unforced(target, min_angle_deg, insert)
+        return self.refine_unforced(target, min_angle_deg, insert, pareto=True)
 
-    def refine_unforced(self, target: int, min_angle_deg: float, insert) -> bool:
+    def refine_unforced(self, target: int, min_angle_deg: float, insert,
+                        pareto: bool = False) -> bool:
         """Where faces below ``min_angle_deg`` that no input corner forces are left:
         ``insert()`` (adds vertices, returns how many), the count restored away from the new
         vertices (:meth:`restore_angle_count`) and the local operations again around the faces
         then below; all of it undone if it leaves more such faces, or as many with a smaller
-        smallest angle, or more faces turned over. Returns whether it was kept."""
+        smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
+        turned over. Returns whether it was kept."""
         S = self.S
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
@@ -605,7 +586,7 @@ class _Operations:
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
-                len(turned_over_faces(S)) > n_folds:
+                (pareto and after[1] < before[1]) or len(turned_over_faces(S)) > n_folds:
             restore_state(S, saved)
             S.log.clear()
             S.log.update(log)

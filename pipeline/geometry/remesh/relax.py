@@ -15,16 +15,9 @@ moves that would leave the image polygon are dropped, and so are those a ``veto`
 (:mod:`.domain`) the same step is taken in the chordal plane of the input face's spherical
 image (``J⁺`` then maps to 3D) and normalised back onto the sphere; the face tests are the
 sphere's orientation tests.
-
-The rim's vertices slide along the input boundary instead (:func:`slide_rim`): each part of
-the way to the middle, in 3D arc length along the boundary, between its rim neighbours; the
-image polygon is the boundary's image and the lift is linear along each of its edges, so a
-rim vertex stays on the input's boundary.
 """
 
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 
@@ -33,9 +26,7 @@ from .._kernels import ring_sums, thin_faces
 from ..locate import PointLocator, lift
 from ..rows import nonzero_rows, norms
 from .domain import project
-from .halfedge import DISK_SHAPE_MIN, double_areas, edge_table, touching
-from .rim import rim_gaps
-from .sampling import _Polygon
+from .halfedge import DISK_SHAPE_MIN, double_areas, touching
 from .state import pullback_matrices
 
 
@@ -187,103 +178,3 @@ def _too_thin(uv: np.ndarray, F: np.ndarray, area_floor: np.ndarray, moving: np.
     F = np.ascontiguousarray(F, dtype=np.int64)
     return thin_faces(np.ascontiguousarray(uv, dtype=np.float64), F,
                       np.flatnonzero(touching(F, moving)), area_floor, DISK_SHAPE_MIN)
-
-
-def rim_arc(S) -> tuple:
-    """The input boundary as the remesh's rim runs along it: the image polygon's corners lifted
-    (k×3, the input boundary vertices in polygon order), the 3D length of each polygon edge
-    (k), their cumulative sums from the first corner (k + 1) and the polygon itself (its
-    disk arc lengths, :class:`.sampling._Polygon`)."""
-    f, bary, _ = S.locator.locate_with_inside(S.polygon)
-    C = lift(S.V_in, S.F_in, f, bary)
-    seg = norms(np.roll(C, -1, axis=0) - C)
-    poly = _Polygon(np.asarray(S.polygon, dtype=np.float64))
-    return C, seg, np.r_[0.0, np.cumsum(seg)], poly
-
-
-def rim_slide_targets(S, movable: np.ndarray, step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Where one smoothing step along the input boundary takes the rim vertices: each
-    ``movable`` one (n bool) moves ``step`` of the way to the middle, in 3D arc length along
-    the boundary, between its two rim neighbours, so that the rim's spacing evens out
-    (sampled evenly on the disk, it is as uneven on the surface as the map's stretch along the
-    boundary).
-
-    Returns
-    -------
-    r : (k,) int
-        The rim vertices that move.
-    uv : (k, 2) float
-        Their new domain points, on the image polygon.
-    """
-    C, seg, cum3, poly = S.of_input(rim_arc)
-    _, a, b, twin = edge_table(S.F, twin=S.twins())
-    rim = twin < 0
-    a, b = a[rim], b[rim]                      # counter-clockwise, as the polygon runs
-    nxt = np.full(S.n, -1, np.int64)
-    prv = np.full(S.n, -1, np.int64)
-    nxt[a], prv[b] = b, a
-    r = a[movable[a]]
-    if len(r) == 0:
-        return r, np.zeros((0, 2))
-    s3 = np.zeros(S.n)
-    s3[a] = _arc3(poly, seg, cum3, S.uv[a])
-    P3 = cum3[-1]
-    back = np.mod(s3[r] - s3[prv[r]], P3)
-    ahead = np.mod(s3[nxt[r]] - s3[r], P3)
-    s = np.mod(s3[r] + 0.5 * step * (ahead - back), P3)
-    i = np.clip(np.searchsorted(cum3, s, side="right") - 1, 0, len(seg) - 1)
-    t = np.clip((s - cum3[i]) / np.maximum(seg[i], 1e-300), 0.0, 1.0)
-    return r, poly.A[i] + t[:, None] * (poly.B[i] - poly.A[i])
-
-
-def _arc3(poly, seg: np.ndarray, cum3: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """The 3D arc length (k) along the input boundary of the rim points ``uv`` (k×2, on the
-    image polygon ``poly``) from its first corner."""
-    s = poly.arc_position(uv)
-    i = np.clip(np.searchsorted(poly.cum, s, side="right") - 1, 0, len(seg) - 1)
-    t = np.clip((s - poly.cum[i]) / np.maximum(poly.cum[i + 1] - poly.cum[i], 1e-300), 0.0, 1.0)
-    return cum3[i] + t * seg[i]
-
-
-def slide_rim(S, movable: np.ndarray, step: float, gap_tol: float | None, veto=None) -> int:
-    """One smoothing step of the ``movable`` rim vertices (n bool) along the input boundary
-    (:func:`rim_slide_targets`), in place; returns how many moved. A move is dropped where a
-    face at the vertex would get thinner than ``DISK_SHAPE_MIN`` on the disk (or flip), or
-    where a rim edge at it would leave an input boundary vertex farther than ``gap_tol`` from
-    its chord and farther than before (:func:`.rim.rim_gaps`: the rim vertices on the
-    boundary's corners stay on them), and where ``veto`` (as :func:`tangential_smoothing`'s,
-    :func:`.improve.sag_veto`: an edge taken off the surface) refuses it."""
-    r, uv_r = rim_slide_targets(S, movable, step)
-    if len(r) == 0:
-        return 0
-    f_r, b_r, _ = S.locator.relocate(uv_r, S.face[r])
-    uv, face, bary, X = S.uv.copy(), S.face.copy(), S.bary.copy(), S.X.copy()
-    uv[r], face[r], bary[r], X[r] = uv_r, f_r, b_r, lift(S.V_in, S.F_in, f_r, b_r)
-    go = np.zeros(S.n, bool)
-    go[r] = True
-    area_floor = 1e-6 * double_areas(S.uv, S.F)
-    corners_X, _, _, poly = S.of_input(rim_arc)
-    corner_s = poly.cum[:-1]                   # the polygon's corners' own arc lengths
-    gap0 = None if gap_tol is None else rim_gaps(S, corners_X, corner_s)
-    while go.any():
-        U = np.where(go[:, None], uv, S.uv)
-        drop = np.zeros(S.n, bool)
-        drop[S.F[_too_thin(U, S.F, area_floor, go)].ravel()] = True
-        moved = replace(S, uv=U, face=np.where(go, face, S.face),
-                        bary=np.where(go[:, None], bary, S.bary),
-                        X=np.where(go[:, None], X, S.X))
-        if veto is not None:
-            drop |= veto(moved.uv, moved.face, moved.bary, moved.X)
-        if gap0 is not None:
-            _, a, b, _, gap = rim_gaps(moved, corners_X, corner_s)
-            worse = (gap > gap_tol) & (gap > gap0[4] + 1e-12)
-            drop[a[worse]] = drop[b[worse]] = True
-        drop &= go
-        if not drop.any():
-            break
-        go &= ~drop
-    S.uv = np.where(go[:, None], uv, S.uv)
-    S.face = np.where(go, face, S.face)
-    S.bary = np.where(go[:, None], bary, S.bary)
-    S.X = np.where(go[:, None], X, S.X)
-    return int(go.sum())
