@@ -79,11 +79,14 @@ The schedule (:func:`improve_remesh`):
     raises the smallest 3D angle of the faces it touches, under the sag guard) around the
     faces still below, the count restored (splits that make no face below the minimum,
     :func:`.angles.split_for_count`, or guarded collapses of the shortest edges) and the
-    operations again around the faces then below; then, up to ``GRADE_PASSES`` times while
-    it is kept, the faces still below that no input corner forces refined at their
-    off-centres (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short
-    edge whose far corner no operation can bring closer). A face none of this raises stays:
-    the report counts the faces below the minimum and, among them, those an input corner too
+    operations again around the faces then below; then the rim's fans opened again as in
+    step 9 (:meth:`_Operations.open_fans`: the minimum-angle operations' collapses can leave
+    a reflex rim corner with two wide caps), kept only where it leaves fewer faces below the
+    minimum and none smaller; then, up to ``GRADE_PASSES`` times while it is kept, the faces
+    still below that no input corner forces refined at their off-centres
+    (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short edge whose
+    far corner no operation can bring closer). A face none of this raises stays: the report
+    counts the faces below the minimum and, among them, those an input corner too
     sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the corners; then
     ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
     ``relax_iterations``) that even out the faces the steps since step 7 left uneven, under
@@ -534,6 +537,7 @@ class _Operations:
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, tol, bad)
+        self.open_fans(target, min_angle_deg)
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg):
                 break
@@ -555,27 +559,50 @@ class _Operations:
     def grade(self, target: int, min_angle_deg: float) -> bool:
         """The faces still below ``min_angle_deg`` that no input corner forces refined at
         their off-centres (:func:`.circumcentres.refine_at_circumcentres`, flips after each
-        round), the count restored away from the new vertices (:meth:`restore_angle_count`)
-        and the local operations again around the faces then below; all of it undone if it
-        leaves more such faces, or as many with a smaller smallest angle, or more faces turned
-        over. Returns whether it was kept."""
+        round), kept as :meth:`refine_unforced` keeps it. Returns whether it was kept."""
+        S = self.S
+        return self.refine_unforced(target, min_angle_deg, lambda: refine_at_circumcentres(
+            S, min_angle_deg, lambda F0: self.flip(since=F0), lambda: turned_over_faces(S)))
+
+    def open_fans(self, target: int, min_angle_deg: float) -> bool:
+        """The rim's fans opened (:func:`.rim.open_rim_fans`: a vertex in the middle of the
+        interior edge across an angle wider than :data:`.rim.RIM_FAN_MAX_DEG` at a rim
+        vertex, the caps a reflex corner of the boundary leaves), flips, kept as
+        :meth:`refine_unforced` keeps it and only if it leaves no smaller smallest angle (a
+        fan opened on a rim edge between close corners can trade two faces for a worse one).
+        Returns whether it was kept."""
+        def insert() -> int:
+            k = open_rim_fans(self.S)
+            if k:
+                self.flip()
+            return k
+
+        return self.refine_unforced(target, min_angle_deg, insert, pareto=True)
+
+    def refine_unforced(self, target: int, min_angle_deg: float, insert,
+                        pareto: bool = False) -> bool:
+        """Where faces below ``min_angle_deg`` that no input corner forces are left:
+        ``insert()`` (adds vertices, returns how many), the count restored away from the new
+        vertices (:meth:`restore_angle_count`) and the local operations again around the faces
+        then below; all of it undone if it leaves more such faces, or as many with a smaller
+        smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
+        turned over. Returns whether it was kept."""
         S = self.S
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
         saved, log, n_folds, n0 = saved_state(S), dict(S.log), len(turned_over_faces(S)), S.n
-        if not refine_at_circumcentres(S, min_angle_deg, lambda F0: self.flip(since=F0),
-                                       lambda: turned_over_faces(S)):
+        if not insert():
             return False
-        graded = np.zeros(S.n, bool)
-        graded[n0:] = True
-        self.restore_angle_count(target, min_angle_deg, keep=graded)
+        added = np.zeros(S.n, bool)
+        added[n0:] = True
+        self.restore_angle_count(target, min_angle_deg, keep=added)
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
-                len(turned_over_faces(S)) > n_folds:
+                (pareto and after[1] < before[1]) or len(turned_over_faces(S)) > n_folds:
             restore_state(S, saved)
             S.log.clear()
             S.log.update(log)
