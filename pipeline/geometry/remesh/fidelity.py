@@ -239,8 +239,9 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     from scipy.spatial import cKDTree
 
     far, d = far_input_points(S, tol)
-    keep = d > remesh_reach(S)
-    far, d = far[keep], d[keep]
+    if len(far):
+        keep = d > remesh_reach(S)
+        far, d = far[keep], d[keep]
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:
