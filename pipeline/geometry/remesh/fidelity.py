@@ -29,10 +29,14 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import topology as topo
-from ..remesh_quality import MeshDistance, face_bounds, middle_bounds
+from ..locate import lift
+from ..metrics import corner_angles
+from ..remesh_quality import (MeshDistance, closest_points_on_triangles, face_bounds,
+                              middle_bounds)
+from ..rows import norms, row_min
 from .corners import snap_vertices
 from .domain import project
-from .halfedge import double_areas, edge_table, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_SAMPLES
 from .sag import edge_sag_along
 from .state import RemeshState
@@ -194,3 +198,171 @@ def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: f
     S.tally("follow_snaps_undone", len(r))
     return r
 
+
+
+def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
+                        max_sag: float, fixed: np.ndarray | None = None,
+                        candidates: int = 8) -> np.ndarray:
+    """Put a remesh vertex exactly on each input point of :func:`far_input_points` (farther
+    than ``tol`` from the remesh), farthest first, skipping those within ``min_gap`` on the
+    surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
+    movable vertices on the disk that can move there (:func:`move_keeps_shape`); only points
+    farther than the remesh's own farthest edge middle from the input (:func:`remesh_reach`)
+    are taken. It stops at the first point no vertex can take: the Hausdorff distance is a
+    maximum, and vertices on the nearer points after it cannot lower it (they would only cost
+    triangle shape).
+
+    Made after the minimum-angle pass, and again after the last smoothing: the follow step's
+    snaps (:func:`follow_input`) are
+    free again in the fold repairs and that pass, whose collapses take some back, and an input
+    vertex less than the follow tolerance off (a cone point of a coarse input that a finer
+    remesh spans with a flat fan) is not followed at all. The count goes to the state's log as
+    ``settled_on_input``, the far points taken as ``far_input_points_late``.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place.
+    tol, min_gap, max_sag : float
+        In the mesh's units.
+    floor_deg : float
+        No face is left with a smallest angle below this and below what it had.
+    fixed : (n,) bool, optional
+        Vertices not to move, besides the rim's and the locked ones.
+    candidates : int
+
+    Returns
+    -------
+    (j,) int
+        The vertices moved.
+    """
+    from scipy.spatial import cKDTree
+
+    far, d = far_input_points(S, tol)
+    if len(far):
+        keep = d > remesh_reach(S)
+        far, d = far[keep], d[keep]
+    S.tally("far_input_points_late", len(far))
+    movable = ~S.is_rim & ~S.locked
+    if fixed is not None:
+        movable &= ~fixed
+    free = np.flatnonzero(movable)
+    if len(far) == 0:
+        return np.zeros(0, np.int64)
+    f, b, _ = S.locator.locate_with_inside(far)
+    P = lift(S.V_in, S.F_in, f, b)
+    k = min(candidates, len(free))
+    if k == 0:
+        return np.zeros(0, np.int64)
+    J = free[np.asarray(cKDTree(S.uv[free]).query(far, k=k)[1]).reshape(len(far), k)]
+    floor = np.radians(floor_deg)
+    put: list[int] = []
+    VF = vertex_faces(S.F, S.n)
+    for i in range(len(far)):
+        if put and norms(S.X[put] - P[i]).min() < min_gap:
+            continue
+        cands = J[i][movable[J[i]]]
+        cands = cands[np.argsort(norms(S.X[cands] - P[i]), kind="stable")]
+        target = (far[i], f[i], b[i], P[i])
+        v = next((v for v in cands.tolist()
+                  if move_keeps_shape(S, v, VF.indices[VF.indptr[v]:VF.indptr[v + 1]], target,
+                                      floor, max_sag, d[i])), None)
+        if v is None:
+            break
+        movable[v] = False
+        put.append(v)
+    S.tally("settled_on_input", len(put))
+    return np.asarray(put, np.int64)
+
+
+def input_distance(S: RemeshState) -> MeshDistance:
+    """Exact distances to the input surface (:class:`..remesh_quality.MeshDistance`); made
+    once per state (:meth:`.state.RemeshState.of_input`)."""
+    return MeshDistance(S.V_in, S.F_in)
+
+
+def remesh_reach(S: RemeshState) -> float:
+    """The largest distance of a remesh edge's middle from the input: a lower bound of the
+    remesh-to-input Hausdorff distance (the vertices lie on the input; a face's inside is
+    seldom farther than its edges' middles), below which an input point nearer the remesh
+    cannot decide the two-sided distance."""
+    _, a, b, twin = edge_table(S.F, twin=S.twins())
+    keep = (twin < 0) | (a < b)
+    d, _ = S.of_input(input_distance)((S.X[a[keep]] + S.X[b[keep]]) / 2)
+    return float(d.max(initial=0.0))
+
+
+def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndarray,
+                max_sag: float) -> bool:
+    """Whether the ``faces`` at vertex ``v`` are counter-clockwise on the disk (none thinner
+    than ``DISK_SHAPE_MIN``), have smallest 3D angles of at least ``floor_before`` (per face,
+    radians), none is turned over against the input (:func:`turned_over`) and no edge at
+    ``v`` is farther than ``max_sag`` from the surface (:func:`.sag.edge_sag_along` at
+    ``SAG_SAMPLES`` points)."""
+    ring = S.F[faces]
+    if not (np.all(disk_shape(S.uv, ring) >= DISK_SHAPE_MIN)
+            and np.all(row_min(corner_angles(S.X, ring)) >= floor_before)
+            and not turned_over(S, ring).any()):
+        return False
+    a, c = ring.ravel(), np.roll(ring, -1, axis=1).ravel()
+    at = (a == v) | (c == v)
+    ts = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)
+    sag, _ = edge_sag_along(S, a[at], c[at], ts)
+    return bool(np.all(sag <= max_sag))
+
+
+def input_point_tree(S: RemeshState):
+    """A KD-tree (:class:`scipy.spatial.cKDTree`) over the input points of
+    :func:`input_points`; made once per state (:meth:`.state.RemeshState.of_input`)."""
+    from scipy.spatial import cKDTree
+
+    return cKDTree(S.of_input(input_points).P)
+
+
+def near_input_kept(S: RemeshState, v: int, ring_faces: np.ndarray, was: np.ndarray,
+                    limit: float) -> bool:
+    """Whether every input point (:func:`input_points`) within the longest edge at ``v`` of
+    ``v``'s position or of where it ``was`` (3,) is nearer than ``limit`` to the faces at the
+    vertices of ``ring_faces`` (the faces at ``v``): a vertex moved onto one far point must
+    not leave another as far where it was."""
+    ring = S.F[ring_faces]
+    near = np.zeros(S.n, bool)
+    near[ring.ravel()] = True
+    faces = S.F[touching(S.F, near)]
+    reach = norms(S.X[ring.ravel()] - S.X[v]).max()
+    tree, P = S.of_input(input_point_tree), S.of_input(input_points).P
+    idx = np.unique(np.concatenate(tree.query_ball_point([S.X[v], was], reach)))
+    if len(idx) == 0:
+        return True
+    k, m = len(idx), len(faces)
+    Q = np.repeat(P[idx], m, axis=0)
+    T = np.tile(faces, (k, 1))
+    C = closest_points_on_triangles(Q, S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]])
+    return bool(norms(Q - C).reshape(k, m).min(axis=1).max() < limit)
+
+
+def turned_over(S: RemeshState, faces: np.ndarray) -> np.ndarray:
+    """Which of the remesh ``faces`` (k×3 vertex indices) face away from the input at all
+    three corners (their normal's dot product with the input normal under each is
+    negative): the evaluator's fold (:func:`..remesh_quality.turned_over_faces`)."""
+    P = S.X[faces]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    below = S.normals_in()[S.face[faces]]
+    return np.all(np.einsum("ij,ikj->ik", normal, below) < 0, axis=1)
+
+
+def move_keeps_shape(S: RemeshState, v: int, faces: np.ndarray, target: tuple, floor: float,
+                     max_sag: float, limit: float) -> bool:
+    """Move vertex ``v`` (its faces ``faces``) onto ``target`` — its domain point, input face,
+    barycentrics and 3D point — if its faces keep their shape (:func:`_shape_kept`, each
+    face's smallest angle at least the smaller of ``floor`` and what it was) and the input
+    points around stay nearer than ``limit`` (:func:`near_input_kept`); returns whether it
+    moved."""
+    before = row_min(corner_angles(S.X, S.F[faces]))
+    old = S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy()
+    S.uv[v], S.face[v], S.bary[v], S.X[v] = target
+    if (_shape_kept(S, v, faces, np.minimum(before, floor), max_sag)
+            and near_input_kept(S, v, faces, old[3], limit)):
+        return True
+    S.uv[v], S.face[v], S.bary[v], S.X[v] = old
+    return False
