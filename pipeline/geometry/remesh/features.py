@@ -21,9 +21,10 @@ image the same fraction along the edge's image: a vertex there lifts (eq. 1) ont
 dihedral², what cutting across them costs), a chain's ends before its other points, none
 within ``FEATURE_GAP × L`` on the surface of one placed before (where creases run closer than
 that, the lighter one gives way); then consecutive points of a chain that both got a vertex
-are **joined** (:func:`consecutive_pairs`: a point without one cuts its chain): the edge between them is made by flips on the disk where it is missing
-(:func:`join_edges`) and kept (``RemeshState.joined``): the flips do not remove it, the
-splits do not divide it, and its ends, locked, are neither moved nor collapsed. Faces flat on
+are **joined** (:func:`consecutive_pairs`: a point without one cuts its chain): the edge
+between them is made by flips on the disk where it is missing (:func:`join_edges`) and kept
+(``RemeshState.joined``): the flips do not remove it, the splits do not divide it, and its
+ends, locked, are neither moved nor collapsed. Faces flat on
 the surface (three points on one straight crease) have their long edge flipped first. Where
 the fold repair, the minimum-angle pass or the degenerate-face repair need a face with feature
 corners, those vertices are freed (:func:`release_features`).

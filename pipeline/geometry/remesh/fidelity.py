@@ -199,7 +199,6 @@ def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: f
     return r
 
 
-
 def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
                         max_sag: float, fixed: np.ndarray | None = None,
                         candidates: int = 8) -> np.ndarray:
@@ -213,11 +212,11 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     triangle shape).
 
     Made after the minimum-angle pass, and again after the last smoothing: the follow step's
-    snaps (:func:`follow_input`) are
-    free again in the fold repairs and that pass, whose collapses take some back, and an input
-    vertex less than the follow tolerance off (a cone point of a coarse input that a finer
-    remesh spans with a flat fan) is not followed at all. The count goes to the state's log as
-    ``settled_on_input``, the far points taken as ``far_input_points_late``.
+    snaps (:func:`follow_input`) are free again in the fold repairs and that pass, whose
+    collapses take some back, and an input vertex less than the follow tolerance off (a cone
+    point of a coarse input that a finer remesh spans with a flat fan) is not followed at all.
+    The count goes to the state's log as ``settled_on_input``, the far points taken as
+    ``far_input_points_late``.
 
     Parameters
     ----------

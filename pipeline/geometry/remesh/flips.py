@@ -1,13 +1,13 @@
 """Delaunay flips on the lifted surface.
 
 An interior edge is flipped when its two opposite **3D** angles sum to more than π (the
-Delaunay criterion on the lifted surface), in rounds of independent flips until none is left.
-A flip is allowed only when the quad is convex on the disk (so the new edge cannot exist yet:
-the triangulation is an embedding there), no new face has three boundary corners, the new
-faces' normals agree with the old ones and are not thinner on the disk than
-``DISK_SHAPE_MIN`` (:func:`.halfedge.disk_shape`), and either the quad is nearly planar (dihedral angle
-below ``max_dihedral_deg``), so the surface changes by no more than a shallow fold, or — given
-a ``sag`` measure (:func:`.sag.edge_sag`) — the new edge is no farther from the input surface
+Delaunay criterion on the lifted surface), in rounds of independent flips until none is left. A
+flip is allowed only when the quad is convex on the disk (so the new edge cannot exist yet: the
+triangulation is an embedding there), no new face has three boundary corners, the new faces'
+normals agree with the old ones and are not thinner on the disk than ``DISK_SHAPE_MIN``
+(:func:`.halfedge.disk_shape`), and either the quad is nearly planar (dihedral angle below
+``max_dihedral_deg``), so the surface changes by no more than a shallow fold, or — given a
+``sag`` measure (:func:`.sag.edge_sag`) — the new edge is no farther from the input surface
 than the old one. The second rule lets the caps and needles that the map's angle distortion
 leaves on curved regions (noses, lips, fingers, sulci) flip.
 

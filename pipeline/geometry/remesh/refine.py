@@ -18,11 +18,11 @@
   squeezed into a strip much thinner than the edge on the disk is seldom under the midpoint.
 
 Both split on the disk and lift the new vertex by eq. (1). A split boundary edge gets its
-vertex on the image polygon. Both leave an edge unsplit when a new face would be thinner on
-the disk than ``DISK_SHAPE_MIN`` (:func:`split_keeps_shape`). They run in rounds of independent splits (no two in one face);
-after the first round only the edges at new vertices and the candidates that waited for a free
-face are looked at again. :func:`split_edges` keeps the state's half-edge twins up to date
-instead of recomputing them.
+vertex on the image polygon. Both leave an edge unsplit when a new face would be thinner on the
+disk than ``DISK_SHAPE_MIN`` (:func:`split_keeps_shape`). They run in rounds of independent
+splits (no two in one face); after the first round only the edges at new vertices and the
+candidates that waited for a free face are looked at again. :func:`split_edges` keeps the
+state's half-edge twins up to date instead of recomputing them.
 """
 
 from __future__ import annotations
