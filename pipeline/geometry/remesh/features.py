@@ -41,7 +41,7 @@ from ..metrics import stretch_anisotropy
 from ..rows import dots, norms
 from .corners import snap_vertices
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
-from .state import RemeshState, at_points, face_normals
+from .state import RemeshState, at_points, face_normals, turned_against
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
@@ -441,7 +441,7 @@ def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
     """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
     strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk and
     neither turns over on the surface (its normal on ``X``, n×3, against the input normals
-    ``N``, n×3, under all three of its corners: :func:`.improve.turned_over_faces`' test)
+    ``N``, n×3, under all three of its corners: :func:`.state.turned_against`)
     (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or None
     where no flip is made."""
     g = next((s for s in VF[p] & VF[q] if s != t), None)
@@ -453,7 +453,7 @@ def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
     new = np.array([[x, p, y], [x, y, q]])
     if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
         return None
-    if (np.einsum("ij,ikj->ik", face_normals(X, new), N[new]) < 0).all(axis=1).any():
+    if turned_against(X, new, N[new]).any():
         return None
     F[t], F[g] = new
     for v in (x, p, q, y):

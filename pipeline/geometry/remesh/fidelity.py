@@ -39,7 +39,7 @@ from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_SAMPLES
 from .sag import edge_sag_along
-from .state import RemeshState
+from .state import RemeshState, turned_against
 
 
 class InputPoints(NamedTuple):
@@ -295,13 +295,14 @@ def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndar
                 max_sag: float) -> bool:
     """Whether the ``faces`` at vertex ``v`` are counter-clockwise on the disk (none thinner
     than ``DISK_SHAPE_MIN``), have smallest 3D angles of at least ``floor_before`` (per face,
-    radians), none is turned over against the input (:func:`turned_over`) and no edge at
+    radians), none is turned over against the input (:func:`.state.turned_against`, the first
+    test of :func:`.improve.turned_over_faces`) and no edge at
     ``v`` is farther than ``max_sag`` from the surface (:func:`.sag.edge_sag_along` at
     ``SAG_SAMPLES`` points)."""
     ring = S.F[faces]
     if not (np.all(disk_shape(S.uv, ring) >= DISK_SHAPE_MIN)
             and np.all(row_min(corner_angles(S.X, ring)) >= floor_before)
-            and not turned_over(S, ring).any()):
+            and not turned_against(S.X, ring, S.normals_in()[S.face[ring]]).any()):
         return False
     a, c = ring.ravel(), np.roll(ring, -1, axis=1).ravel()
     at = (a == v) | (c == v)
@@ -338,16 +339,6 @@ def near_input_kept(S: RemeshState, v: int, ring_faces: np.ndarray, was: np.ndar
     T = np.tile(faces, (k, 1))
     C = closest_points_on_triangles(Q, S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]])
     return bool(norms(Q - C).reshape(k, m).min(axis=1).max() < limit)
-
-
-def turned_over(S: RemeshState, faces: np.ndarray) -> np.ndarray:
-    """Which of the remesh ``faces`` (k×3 vertex indices) face away from the input at all
-    three corners (their normal's dot product with the input normal under each is
-    negative): the evaluator's fold (:func:`..remesh_quality.turned_over_faces`)."""
-    P = S.X[faces]
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    below = S.normals_in()[S.face[faces]]
-    return np.all(np.einsum("ij,ikj->ik", normal, below) < 0, axis=1)
 
 
 def move_keeps_shape(S: RemeshState, v: int, faces: np.ndarray, target: tuple, floor: float,

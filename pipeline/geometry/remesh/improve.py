@@ -134,7 +134,7 @@ from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along
-from .state import RemeshState, at_points, face_normals
+from .state import RemeshState, at_points, face_normals, turned_against
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -731,15 +731,14 @@ def turned_over_faces(S: RemeshState) -> np.ndarray:
     centroid lies in the input map: folds, where the remesh doubles back over the surface (the
     definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
     the map instead of by closest point)."""
-    P = S.X[S.F]
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     input_normal = S.normals_in()
-    at_corners = np.einsum("ij,ikj->ik", normal, input_normal[S.face[S.F]])
-    suspect = np.flatnonzero(np.all(at_corners < 0, axis=1))
+    suspect = np.flatnonzero(turned_against(S.X, S.F, input_normal[S.face[S.F]]))
     if len(suspect) == 0:
         return suspect
+    P = S.X[S.F[suspect]]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     under, _ = S.locator.locate(project(S.uv[S.F[suspect]].mean(axis=1)))
-    return suspect[np.einsum("ij,ij->i", normal[suspect], input_normal[under]) < 0]
+    return suspect[np.einsum("ij,ij->i", normal, input_normal[under]) < 0]
 
 
 def degenerate_faces(S: RemeshState) -> np.ndarray:

@@ -36,6 +36,26 @@ def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     return N / np.maximum(norms(N)[:, None], 1e-300)
 
 
+def turned_against(X: np.ndarray, faces: np.ndarray, corner_normals: np.ndarray) -> np.ndarray:
+    """Whether each of the ``faces`` (k×3 vertex indices) of ``X`` (n×3) faces away from the
+    normals under all three of its corners (``corner_normals``, k×3×3: its normal's dot
+    product with each is negative): the remesher's test of a fold against the input.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+    faces : (k, 3) int
+    corner_normals : (k, 3, 3) float
+
+    Returns
+    -------
+    (k,) bool
+    """
+    P = X[faces]
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    return np.all(np.einsum("ij,ikj->ik", normal, corner_normals) < 0, axis=1)
+
+
 def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> np.ndarray:
     """Per input face the matrix ``J⁺`` (2×3) taking a 3D displacement ``d`` to the disk.
 
