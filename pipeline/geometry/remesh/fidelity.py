@@ -37,7 +37,7 @@ from ..rows import norms, row_min
 from .corners import snap_vertices
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
-from .refine import SAG_SAMPLES
+from .refine import SAG_TS
 from .sag import edge_sag_along
 from .state import RemeshState, turned_against
 
@@ -179,7 +179,7 @@ def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: f
     is_moved[moved] = True
     _, a, b, _ = edge_table(S.F, twin=S.twins())
     e = np.flatnonzero(is_moved[a] | is_moved[b])
-    sag, _ = edge_sag_along(S, a[e], b[e], np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1))
+    sag, _ = edge_sag_along(S, a[e], b[e], SAG_TS)
     back = np.zeros(S.n, bool)
     far = e[sag > max_sag]
     back[a[far]] = back[b[far]] = True
@@ -306,8 +306,7 @@ def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndar
         return False
     a, c = ring.ravel(), np.roll(ring, -1, axis=1).ravel()
     at = (a == v) | (c == v)
-    ts = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)
-    sag, _ = edge_sag_along(S, a[at], c[at], ts)
+    sag, _ = edge_sag_along(S, a[at], c[at], SAG_TS)
     return bool(np.all(sag <= max_sag))
 
 

@@ -38,7 +38,8 @@ from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
 from .state import RemeshState
 
 SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
-_MIDDLE_TS = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)   # where a surface middle may be
+SAG_TS = np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1)   # those t (and where a surface
+                                                            # middle may be)
 MIN_BALANCE = 0.25    # with surface middles, an edge whose every split point lifts nearer than
                       # this × its length to an end is not split (it would leave a needle)
 
@@ -251,7 +252,7 @@ def split_long_edges(S: RemeshState, L_max: float, max_rounds: int = 6,
             cand = cand[np.argpartition(-ln[cand], k)[:k]]
         t = np.full(len(S.F) * 3, 0.5)                   # per half-edge; used when middles
         if S.surface_middles and len(cand):
-            t[h[cand]], balance = surface_middles(S, a[cand], b[cand], _MIDDLE_TS)
+            t[h[cand]], balance = surface_middles(S, a[cand], b[cand], SAG_TS)
             cand = cand[balance >= MIN_BALANCE]          # no split point away from both ends
         cand = cand[split_keeps_shape(S, h[cand], twin[cand],
                                       t[h[cand]] if S.surface_middles else None)]
@@ -320,7 +321,7 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
                  | (np.abs(dots(e, na)) > 0.5 * threshold)
                  | (np.abs(dots(e, nb)) > 0.5 * threshold))
         h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
-        sag, t_split = edge_sag_along(S, a, b, np.arange(1, SAG_SAMPLES + 1) / (SAG_SAMPLES + 1),
+        sag, t_split = edge_sag_along(S, a, b, SAG_TS,
                                       end_normals=(na[probe], nb[probe]))
         cand = np.flatnonzero(sag > threshold)
         if S.surface_middles and len(cand):
