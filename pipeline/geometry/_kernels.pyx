@@ -1286,29 +1286,20 @@ cdef inline double _point_point(const double* p, const double* q) noexcept nogil
     return sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
 
 
-cdef inline double _point_along(const double* p, const double* o, const double* e,
-                               double t) noexcept nogil:
-    """Distance from ``p`` to the point ``o + t·e``."""
-    cdef double q[3]
-    cdef int x
-    for x in range(3):
-        q[x] = o[x] + t * e[x]
-    return _point_point(p, q)
-
-
 @cython.cdivision(True)
-cdef double _point_triangle(const double* p, const double* a, const double* b,
-                            const double* c) noexcept nogil:
-    """Distance from ``p`` to the triangle ``(a, b, c)`` (3-vectors); NaN or inf for a
-    degenerate triangle whose face-interior case divides by zero."""
+cdef void _closest_on_triangle(const double* p, const double* a, const double* b,
+                               const double* c, double* q) noexcept nogil:
+    """The closest point ``q`` of the triangle ``(a, b, c)`` to ``p`` (3-vectors) by the
+    Voronoi-region cases of Ericson, *Real-Time Collision Detection* §5.1.5, in the order of
+    :func:`..remesh_quality.closest_points_on_triangles`' priority: the corners a, b, c, then
+    the edges ab, ac, bc, then the face's interior; not finite for a degenerate triangle whose
+    interior case divides by zero."""
     cdef double ab[3]
     cdef double ac[3]
     cdef double ap[3]
     cdef double bp[3]
     cdef double cp[3]
-    cdef double bc[3]
-    cdef double q[3]
-    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, v, w, denom
+    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, v, w, t, denom
     cdef int x
     for x in range(3):
         ab[x] = b[x] - a[x]
@@ -1319,34 +1310,46 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
     d1, d2 = _dot3(ab, ap), _dot3(ac, ap)
     d3, d4 = _dot3(ab, bp), _dot3(ac, bp)
     d5, d6 = _dot3(ab, cp), _dot3(ac, cp)
-    # the regions in the order of closest_points_on_triangles' priority: the corners a, b,
-    # c, then the edges ab, ac, bc, then the face's interior
-    if d1 <= 0 and d2 <= 0:
-        return _point_point(p, a)
-    if d3 >= 0 and d4 <= d3:
-        return _point_point(p, b)
-    if d6 >= 0 and d5 <= d6:
-        return _point_point(p, c)
-    vc = d1 * d4 - d3 * d2
-    vb = d5 * d2 - d1 * d6
     va = d3 * d6 - d5 * d4
-    if vc <= 0 and d1 >= 0 and d3 <= 0:
-        return _point_along(p, a, ab, d1 / (d1 - d3))
-    if vb <= 0 and d2 >= 0 and d6 <= 0:
-        return _point_along(p, a, ac, d2 / (d2 - d6))
-    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    if d1 <= 0 and d2 <= 0:
         for x in range(3):
-            bc[x] = c[x] - b[x]
-        return _point_along(p, b, bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)))
-    denom = va + vb + vc
-    v = vb / denom
-    w = vc / denom
-    for x in range(3):
-        q[x] = a[x] + ab[x] * v + ac[x] * w
+            q[x] = a[x]
+    elif d3 >= 0 and d4 <= d3:
+        for x in range(3):
+            q[x] = b[x]
+    elif d6 >= 0 and d5 <= d6:
+        for x in range(3):
+            q[x] = c[x]
+    elif vc <= 0 and d1 >= 0 and d3 <= 0:
+        t = d1 / (d1 - d3)
+        for x in range(3):
+            q[x] = a[x] + ab[x] * t
+    elif vb <= 0 and d2 >= 0 and d6 <= 0:
+        t = d2 / (d2 - d6)
+        for x in range(3):
+            q[x] = a[x] + ac[x] * t
+    elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        for x in range(3):
+            q[x] = b[x] + (c[x] - b[x]) * t
+    else:
+        denom = (va + vb) + vc
+        v = vb / denom
+        w = vc / denom
+        for x in range(3):
+            q[x] = (a[x] + ab[x] * v) + ac[x] * w
+
+
+cdef double _point_triangle(const double* p, const double* a, const double* b,
+                            const double* c) noexcept nogil:
+    """Distance from ``p`` to the triangle ``(a, b, c)`` (3-vectors,
+    :func:`_closest_on_triangle`); NaN or inf for a degenerate triangle whose face-interior
+    case divides by zero."""
+    cdef double q[3]
+    _closest_on_triangle(p, a, b, c, q)
     return _point_point(p, q)
-
-
-
 
 
 cdef class _Text:
@@ -1465,64 +1468,19 @@ def sag_along_block(const double[:, ::1] P, const int64_t[::1] mf, const double[
         t_best[e] = ts[jb]
 
 
-@cython.cdivision(True)
 def closest_points(const double[:, ::1] P, const double[:, ::1] A, const double[:, ::1] B,
                    const double[:, ::1] C):
-    """The closest point of triangle ``(A[i], B[i], C[i])`` to ``P[i]`` (all k×3) by the
-    Voronoi-region case analysis of :func:`..remesh_quality.closest_points_on_triangles`, its
-    arithmetic operation for operation: the vertex regions A, B, C first, then the edges AB,
-    AC, BC, else the face interior; a point that comes out not finite (a degenerate
-    triangle) goes to the nearest corner (the first of equals; a NaN distance wins)."""
+    """The closest point of triangle ``(A[i], B[i], C[i])`` to ``P[i]`` (all k×3,
+    :func:`_closest_on_triangle`: the vertex regions A, B, C first, then the edges AB, AC, BC,
+    else the face interior); a point that comes out not finite (a degenerate triangle) goes
+    to the nearest corner (the first of equals; a NaN distance wins)."""
     cdef Py_ssize_t i, c, k = P.shape[0], j
-    cdef double ab[3]
-    cdef double ac[3]
-    cdef double ap[3]
-    cdef double bp[3]
-    cdef double cp[3]
-    cdef double d1, d2, d3, d4, d5, d6, va, vb, vc, denom, v, w, t, s, best
+    cdef double t, s, best
     out_arr = np.empty((k, 3), dtype=np.float64)
     cdef double[:, ::1] Q = out_arr
     cdef const double* corner[3]
     for i in range(k):
-        for c in range(3):
-            ab[c] = B[i, c] - A[i, c]
-            ac[c] = C[i, c] - A[i, c]
-            ap[c] = P[i, c] - A[i, c]
-            bp[c] = P[i, c] - B[i, c]
-            cp[c] = P[i, c] - C[i, c]
-        d1, d2 = _dot3(ab, ap), _dot3(ac, ap)
-        d3, d4 = _dot3(ab, bp), _dot3(ac, bp)
-        d5, d6 = _dot3(ab, cp), _dot3(ac, cp)
-        va = d3 * d6 - d5 * d4
-        vb = d5 * d2 - d1 * d6
-        vc = d1 * d4 - d3 * d2
-        if d1 <= 0 and d2 <= 0:
-            for c in range(3):
-                Q[i, c] = A[i, c]
-        elif d3 >= 0 and d4 <= d3:
-            for c in range(3):
-                Q[i, c] = B[i, c]
-        elif d6 >= 0 and d5 <= d6:
-            for c in range(3):
-                Q[i, c] = C[i, c]
-        elif vc <= 0 and d1 >= 0 and d3 <= 0:
-            t = d1 / (d1 - d3)
-            for c in range(3):
-                Q[i, c] = A[i, c] + ab[c] * t
-        elif vb <= 0 and d2 >= 0 and d6 <= 0:
-            t = d2 / (d2 - d6)
-            for c in range(3):
-                Q[i, c] = A[i, c] + ac[c] * t
-        elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
-            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-            for c in range(3):
-                Q[i, c] = B[i, c] + (C[i, c] - B[i, c]) * t
-        else:
-            denom = (va + vb) + vc
-            v = vb / denom
-            w = vc / denom
-            for c in range(3):
-                Q[i, c] = (A[i, c] + ab[c] * v) + ac[c] * w
+        _closest_on_triangle(&P[i, 0], &A[i, 0], &B[i, 0], &C[i, 0], &Q[i, 0])
         if not (isfinite(Q[i, 0]) and isfinite(Q[i, 1]) and isfinite(Q[i, 2])):
             corner[0], corner[1], corner[2] = &A[i, 0], &B[i, 0], &C[i, 0]
             j = 0

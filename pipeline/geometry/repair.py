@@ -372,8 +372,8 @@ def _components(M: _Mesh, opts: RepairOptions, report: dict, messages: list, nam
     if not opts.keep_largest_component:
         raise UserError(
             f"mesh '{name}' has {ncomp} connected components{when} (largest: {int(sizes[big])} of "
-            f"{len(M.F)} faces); set repair.keep_largest_component: true (CLI: --keep-largest-component) or pass one connected "
-            f"patch"
+            f"{len(M.F)} faces); set repair.keep_largest_component: true "
+            f"(CLI: --keep-largest-component) or pass one connected patch"
         )
     keep = lab == big
     dropped = int((~keep).sum())

@@ -224,8 +224,8 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, VF: CSR, F, max
     in passes, every candidate that is the shortest at all vertices of its closed ring among
     those not yet decided is checked against the guards (``max_gap``: the removed vertex within
     that of its new faces, from the faces ``F`` and their incidence ``VF``; ``max_sag``: no
-    new edge ``k–x`` farther than that from the surface) and taken if it passes; the candidates touching a taken ring drop
-    out. Disjoint closed rings make the collapses independent: one changes only the faces at
+    new edge ``k–x`` farther than that from the surface) and taken if it passes; the
+    candidates touching a taken ring drop out. Disjoint closed rings make the collapses independent: one changes only the faces at
     its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
     The guards (the costly part) run only on the pass winners. Passes stop when one takes
     under ``MIS_TAIL`` of the first's. With a ``budget`` (at most that many, shortest first)
