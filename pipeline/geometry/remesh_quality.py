@@ -284,7 +284,7 @@ def surface_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0
 
 def _structured_samples(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> np.ndarray:
     """Vertices, then midpoints of the edges ``E``, then face centroids."""
-    return np.vstack([V, (V[E[:, 0]] + V[E[:, 1]]) / 2, V[F].mean(axis=1)])
+    return np.vstack([V, (V[E[:, 0]] + V[E[:, 1]]) / 2, face_centroids(V, F)])
 
 
 def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int,
@@ -528,7 +528,7 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     below = reference.normals
     if centroid_face is None:
-        _, centroid_face = reference.distance(P.mean(axis=1))
+        _, centroid_face = reference.distance(face_centroids(V, F))
     suspect = np.flatnonzero(np.einsum("ij,ij->i", normal, below[centroid_face]) < 0)
     if len(suspect) == 0:
         return 0
