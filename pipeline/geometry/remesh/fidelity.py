@@ -31,27 +31,31 @@ import numpy as np
 from .. import topology as topo
 from ..locate import lift
 from ..metrics import corner_angles
-from ..remesh_quality import (MeshDistance, closest_points_on_triangles, face_bounds,
-                              middle_bounds)
+from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
+                              candidate_face_distances, closest_points_on_triangles, face_bounds,
+                              face_centroids, largest_distance, middle_bounds, middle_offsets)
 from ..rows import norms, row_min
 from .corners import snap_vertices
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
-from .sag import edge_sag_along
+from .sag import edge_sag_along, lift_samples
 from .state import RemeshState, turned_against
 
 
 class InputPoints(NamedTuple):
     """The input points the remesh follows (:func:`input_points`): ``P`` (k×3) and their
     domain positions ``P_uv`` (k×2 or k×3), the ``vertices`` first, then the midpoints of the
-    ``edges`` (e×2), then the centroids of the ``faces`` (f×3) — input vertex indices."""
+    ``edges`` (e×2), then the centroids of the ``faces`` (f×3) — input vertex indices — and
+    the midpoints' and centroids' ``offsets`` from their corners
+    (:func:`..remesh_quality.middle_offsets`, for their distances' Lipschitz bounds)."""
 
     P: np.ndarray
     P_uv: np.ndarray
     vertices: np.ndarray
     edges: np.ndarray
     faces: np.ndarray
+    offsets: MiddleOffsets
 
 
 def input_points(S: RemeshState) -> InputPoints:
@@ -65,12 +69,15 @@ def input_points(S: RemeshState) -> InputPoints:
     _, a, b, twin = edge_table(S.F_in)
     a, b = a[twin >= 0], b[twin >= 0]
     v = np.flatnonzero(~is_rim)
+    edges = np.column_stack([a, b])
+    offsets = middle_offsets(S.V_in, S.F_in, edges)
 
-    def points(Y):
-        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[S.F_in].mean(axis=1)])
+    def points(Y, centroids):
+        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, centroids])
 
-    return InputPoints(points(S.V_in), project(points(S.uv_in)), v, np.column_stack([a, b]),
-                       S.F_in)
+    return InputPoints(points(S.V_in, offsets.centroids),
+                       project(points(S.uv_in, face_centroids(S.uv_in, S.F_in))), v, edges,
+                       S.F_in, offsets)
 
 
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +109,8 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
     d_vertex[pts.vertices], f_vertex[pts.vertices] = measure(pts.P[:nv])
-    mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex)
+    mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
+                                                 pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
     ne = len(pts.edges)
@@ -284,11 +292,26 @@ def remesh_reach(S: RemeshState) -> float:
     """The largest distance of a remesh edge's middle from the input: a lower bound of the
     remesh-to-input Hausdorff distance (the vertices lie on the input; a face's inside is
     seldom farther than its edges' middles), below which an input point nearer the remesh
-    cannot decide the two-sided distance."""
+    cannot decide the two-sided distance. Measured only at the middles whose distance to the
+    input faces under their edge's ends and under its domain midpoint
+    (:func:`..remesh_quality.candidate_face_distances`) may reach the largest
+    (:func:`..remesh_quality.largest_distance`)."""
     _, a, b, twin = edge_table(S.F, twin=S.twins())
     keep = (twin < 0) | (a < b)
-    d, _ = S.of_input(input_distance)((S.X[a[keep]] + S.X[b[keep]]) / 2)
-    return float(d.max(initial=0.0))
+    a, b = a[keep], b[keep]
+    M = (S.X[a] + S.X[b]) / 2
+    _, under = lift_samples(S, a, b, np.full((len(a), 1), 0.5))
+    measure = S.of_input(input_distance)
+    bound = candidate_face_distances(M, np.column_stack([S.face[a], S.face[b], under]),
+                                     measure)
+    return largest_distance(M, bound, measure, S.of_input(input_slack))
+
+
+def input_slack(S: RemeshState) -> float:
+    """The absolute margin of the distance bounds to the input
+    (:func:`..remesh_quality.bound_slack`); made once per state
+    (:meth:`.state.RemeshState.of_input`)."""
+    return bound_slack(S.V_in)
 
 
 def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndarray,
