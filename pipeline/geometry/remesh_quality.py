@@ -541,18 +541,19 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
 class SampledSurface:
     """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
     ``n_random`` area-uniform samples (seeded), its faces' doubled areas ``double_area`` (m,)
-    (given, or computed here) and, made on first use, its AABB tree (:class:`MeshDistance`).
-    The input of a remesh is one such surface for every method it is compared with: its
-    samples are drawn and its tree built once."""
+    (given, or computed here) and its AABB tree (:class:`MeshDistance`; given, or made on
+    first use). The input of a remesh is one such surface for every method it is compared
+    with: its samples are drawn and its tree built once (by the remesher, which measures its
+    distances to the input, if it did)."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0,
-                 double_area: np.ndarray | None = None):
+                 double_area: np.ndarray | None = None, distance: MeshDistance | None = None):
         self.V, self.F = V, F
         self.n_random, self.seed = int(n_random), seed
         self.E, _ = topo.edges_with_faces(F)
         self.double_area = face_double_areas(V, F) if double_area is None else double_area
         self.random = _random_samples(V, F, n_random, seed, self.double_area)
-        self._distance = None
+        self._distance = distance
         self._normals = None
 
     @property
