@@ -333,12 +333,20 @@ def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndar
     return bool(np.all(sag <= max_sag))
 
 
+#: the input point tree's leaf size: the settle step asks it for a few balls only, so it is
+#: built for a quick build (sliding-midpoint splits, no node shrinking) rather than quick
+#: queries; a ball's points are the same whatever the tree's shape
+POINT_TREE_LEAF = 64
+
+
 def input_point_tree(S: RemeshState):
-    """A KD-tree (:class:`scipy.spatial.cKDTree`) over the input points of
-    :func:`input_points`; made once per state (:meth:`.state.RemeshState.of_input`)."""
+    """A KD-tree (:class:`scipy.spatial.cKDTree`, ``POINT_TREE_LEAF`` points a leaf) over the
+    input points of :func:`input_points`; made once per state
+    (:meth:`.state.RemeshState.of_input`)."""
     from scipy.spatial import cKDTree
 
-    return cKDTree(S.of_input(input_points).P)
+    return cKDTree(S.of_input(input_points).P, leafsize=POINT_TREE_LEAF, balanced_tree=False,
+                   compact_nodes=False)
 
 
 def near_input_kept(S: RemeshState, v: int, ring_faces: np.ndarray, was: np.ndarray,
