@@ -104,16 +104,22 @@ def test_face_bounds_bound_the_distance_and_are_exact_on_the_corners_faces():
 
 
 def test_middle_bounds_from_stored_offsets_are_those_computed_anew():
-    """middle_bounds with the mesh's middle_offsets given: the same numbers, bit for bit, as
-    computed from the mesh, for another distance field each time; each bound at least the
-    distance (the distance is 1-Lipschitz)."""
+    """middle_offsets: the face centroids, their distances to the corners and half the edge
+    lengths; middle_bounds with them given: the same numbers, bit for bit, as computed from
+    the mesh, for another distance field each time; each bound at least the distance (the
+    distance is 1-Lipschitz)."""
     from pipeline.geometry import topology as topo
     from pipeline.geometry.remesh_quality import middle_bounds, middle_offsets
+    from pipeline.geometry.rows import norms
 
     V, F = lattice_mesh(10)
     V[:, 2] = 0.3 * np.sin(V[:, 0]) * np.cos(V[:, 1])
     E, _ = topo.edges_with_faces(F)
     offsets = middle_offsets(V, F, E)
+    np.testing.assert_array_equal(offsets.centroids, face_centroids(V, F))
+    to_corners = (face_centroids(V, F)[:, None] - V[F]).reshape(-1, 3)
+    np.testing.assert_array_equal(offsets.to_corners, norms(to_corners).reshape(F.shape))
+    np.testing.assert_array_equal(offsets.half_lengths, norms(V[E[:, 1]] - V[E[:, 0]]) / 2)
     for shift in (0.1, 0.4):
         distance = MeshDistance(V + np.array([0.0, shift, 0.2]), F)
         d_vertex, _ = distance(V)

@@ -385,10 +385,11 @@ class MiddleOffsets(NamedTuple):
 def middle_offsets(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> MiddleOffsets:
     """The distances :func:`middle_bounds` adds to the corners' distances, for the edges ``E``
     (e, 2) and faces ``F`` (m, 3) of ``V`` (n, 3): a function of the mesh alone, computed once
-    where the bounds are asked for many distance fields of one mesh."""
-    corners = V[F]
-    centroids = corners.mean(axis=1)
-    to_corners = norms((centroids[:, None, :] - corners).reshape(-1, 3)).reshape(F.shape)
+    where the bounds are asked for many distance fields of one mesh. (Corner by corner: the
+    values of ``V[F].mean(axis=1)`` and of the norms of an m×3×3 array's rows, faster.)"""
+    corners = [V[F[:, c]] for c in range(3)]
+    centroids = (corners[0] + corners[1] + corners[2]) / 3
+    to_corners = np.column_stack([norms(centroids - p) for p in corners])
     return MiddleOffsets(0.5 * norms(V[E[:, 1]] - V[E[:, 0]]), centroids, to_corners)
 
 
