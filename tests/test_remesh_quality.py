@@ -103,6 +103,16 @@ def test_face_bounds_bound_the_distance_and_are_exact_on_the_corners_faces():
     np.testing.assert_allclose(bound[same], exact[same], rtol=1e-12)
 
 
+def test_face_centroids_are_the_mean_of_the_corners_bit_for_bit():
+    """face_centroids, summed corner by corner: the values of ``V[F].mean(axis=1)`` exactly,
+    on the surface (3 columns) and on a disk (2)."""
+    rng = np.random.default_rng(5)
+    F = rng.integers(0, 500, size=(3000, 3))
+    for d in (3, 2):
+        V = rng.normal(size=(500, d)) * 10.0 ** rng.integers(-3, 4, size=(500, 1))
+        np.testing.assert_array_equal(face_centroids(V, F), V[F].mean(axis=1))
+
+
 def test_middle_bounds_from_stored_offsets_are_those_computed_anew():
     """middle_offsets: the face centroids, their distances to the corners and half the edge
     lengths; middle_bounds with them given: the same numbers, bit for bit, as computed from

@@ -28,7 +28,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import topology as topo
 from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
@@ -65,8 +64,9 @@ def input_points(S: RemeshState) -> InputPoints:
     own points are left out (:mod:`.rim` follows the boundary): the edges and faces at the rim
     are in, where a coarse input's farthest point can be (igl_camel_b at 20k vertices: the
     middle of an interior edge between two rim vertices)."""
-    is_rim = topo.boundary_vertices_mask(S.F_in, len(S.V_in))
     _, a, b, twin = edge_table(S.F_in)
+    is_rim = np.zeros(len(S.V_in), bool)          # the ends of the edges with one face
+    is_rim[a[twin < 0]] = is_rim[b[twin < 0]] = True
     a, b = a[twin >= 0], b[twin >= 0]
     v = np.flatnonzero(~is_rim)
     edges = np.column_stack([a, b])
