@@ -37,7 +37,7 @@ from . import topology as topo
 from ._kernels import closest_points, face_distances
 from .laplacian import face_double_areas
 from .metrics import corner_angles
-from .rows import norms
+from .rows import norms, row_min
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
            "MeshDistance", "MiddleOffsets", "middle_offsets", "SampledSurface", "face_centroids",
@@ -417,11 +417,7 @@ def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndar
     """
     o = middle_offsets(V, F, E) if offsets is None else offsets
     mid_bound = midpoint_bounds(V, E, d_vertex, o.half_lengths)
-    d = d_vertex[F]
-    centroid_bound = np.minimum(np.minimum(d[:, 0] + o.to_corners[:, 0],
-                                           d[:, 1] + o.to_corners[:, 1]),
-                                d[:, 2] + o.to_corners[:, 2])
-    return mid_bound, o.centroids, centroid_bound
+    return mid_bound, o.centroids, row_min(d_vertex[F] + o.to_corners)
 
 
 def face_bounds(P: np.ndarray, corners: np.ndarray, corner_face: np.ndarray,
