@@ -24,12 +24,13 @@ around the cap's own corners (a crumpled input, a corner on a ridge) keep from m
 
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
 (no two touching one face), then the caller's ``flip`` around them (flips, and in
-:meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces to
-refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
-one that leaves more than ``RUNAWAY`` × the best round's count + 1, none); the remesh ends as
-the best state: the fewest faces below the minimum that no input
-corner forces (:func:`.angles.forced_by_corners`), then the largest smallest angle among them,
-with no more faces turned over than at the start (the start itself if no round beat it).
+:meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
+to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
+one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
+after that many in a row that beat no earlier state, none); the remesh ends as the best state:
+the fewest faces below the minimum that no input corner forces
+(:func:`.angles.forced_by_corners`), then the largest smallest angle among them, with no more
+faces turned over than at the start (the start itself if no round beat it).
 """
 
 from __future__ import annotations
@@ -169,7 +170,8 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
 
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
-                            rounds: int = ROUNDS, caps: bool = False) -> int:
+                            rounds: int = ROUNDS, caps: bool = False,
+                            patience: int | None = None) -> int:
     """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
     forces (module docstring); returns the number of vertices inserted (tallied as
     ``circumcentre_insertions``).
@@ -187,6 +189,10 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     rounds : int
     caps : bool
         Split the long edge of a cap instead (:func:`cap_split`).
+    patience : int, optional
+        Stop after this many rounds in a row that beat no earlier state (for a ``flip`` that
+        settles each round's vertices, so that a round no better than those before is no
+        step on the way to a better one); default: no limit but ``rounds``.
 
     Returns
     -------
@@ -197,8 +203,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     done = 0
     n_folds = len(folds())
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
+    stale = 0                              # rounds in a row that beat no earlier state
     for _ in range(rounds):
-        if best[0][0] == 0:
+        if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
         F0 = S.F.copy()
         k = insert_round(S, min_angle_deg, caps)
@@ -208,8 +215,10 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         done += k
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
-            best = (after, saved_state(S), done)
-        elif after[0] > RUNAWAY * best[0][0] + RUNAWAY:
+            best, stale = (after, saved_state(S), done), 0
+            continue
+        stale += 1
+        if after[0] > RUNAWAY * best[0][0] + RUNAWAY:
             break                          # the rounds make more faces than they mend
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])

@@ -160,6 +160,7 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
                              # mean smallest angle at least pymeshlab's on 13, 12 with none
                              # freed; area CV at most 0.6 × its on 14, 12; RMS 2 % higher)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
+GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them)
 FOLLOW_GAPS = (0.4, 0.2)
@@ -591,13 +592,14 @@ class _Operations:
         """The faces still below ``min_angle_deg`` that no input corner forces refined
         (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
         operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
-        with their caps' long edges split; kept as :meth:`refine_unforced` keeps it. Returns
-        whether it was kept."""
+        with their caps' long edges split, each until ``GRADE_PATIENCE`` rounds in a row beat no
+        earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
+        kept."""
         S = self.S
         raise_after = partial(self.flip_and_raise, min_angle_deg)
         for caps in (False, True):
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
-                             lambda: turned_over_faces(S), caps=caps)
+                             lambda: turned_over_faces(S), caps=caps, patience=GRADE_PATIENCE)
             if self.refine_unforced(target, min_angle_deg, insert):
                 return True
         return False
