@@ -103,6 +103,21 @@ def test_a_face_on_a_short_rim_edge_is_graded_to_the_minimum():
     assert np.abs(S.X[:, 2]).max() == 0.0
 
 
+def test_rounds_stop_after_patience_rounds_that_beat_no_earlier_state():
+    """On the short rim edge, with flips alone after each round, the first round leaves the
+    faces worse than the start (the inserted vertex not yet settled): with a patience of one
+    the rounds stop there and the remesh is the start, unchanged, no vertex added."""
+    S = _short_rim_edge_state()
+    F0, X0 = S.F.copy(), S.X.copy()
+    before = unforced_shortfall(S, 20.0)
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    k = refine_at_circumcentres(S, 20.0, lambda F: ops.flip(since=F),
+                                lambda: turned_over_faces(S), patience=1)
+    assert k == 0 and S.log["circumcentre_insertions"] == 0
+    assert np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
+    assert unforced_shortfall(S, 20.0) == before
+
+
 def test_real_mesh_faces_beside_short_rim_edges_are_graded_to_the_minimum():
     """choi_human_brain at 5k vertices on the 2-step paper map (``bench_remesh.py --maps
     paper2``): the local operations alone left 7 faces under 20° (12.08°) beside short rim
