@@ -85,12 +85,13 @@ The schedule (:func:`improve_remesh`):
     minimum and none smaller; then, up to ``GRADE_PASSES`` times while it is kept, the faces
     still below that no input corner forces refined at their off-centres
     (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short edge whose
-    far corner no operation can bring closer). A face none of this raises stays: the report
-    counts the faces below the minimum and, among them, those an input corner too
-    sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the corners; then
-    ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
-    ``relax_iterations``) that even out the faces the steps since step 7 left uneven, under
-    vetoes of every move that makes a face's smallest angle smaller than it was and than
+    far corner no operation can bring closer), or where that is not kept with the long edges
+    of their caps split, the local operations after every round of insertions. A face none
+    of this raises stays: the report counts the faces below the minimum and, among them, those
+    an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the
+    corners; then ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not
+    without ``relax_iterations``) that even out the faces the steps since step 7 left uneven,
+    under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
     sag tolerance (:func:`sag_veto`), the followed vertices and their neighbours, the input
     corners and the ends of the edges folded more than ``EVEN_FOLD_DEG`` staying (the feature
@@ -159,6 +160,7 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
                              # mean smallest angle at least pymeshlab's on 13, 12 with none
                              # freed; area CV at most 0.6 × its on 14, 12; RMS 2 % higher)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
+GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them)
 FOLLOW_GAPS = (0.4, 0.2)
@@ -587,12 +589,29 @@ class _Operations:
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
     def grade(self, target: int, min_angle_deg: float) -> bool:
-        """The faces still below ``min_angle_deg`` that no input corner forces refined at
-        their off-centres (:func:`.circumcentres.refine_at_circumcentres`, flips after each
-        round), kept as :meth:`refine_unforced` keeps it. Returns whether it was kept."""
+        """The faces still below ``min_angle_deg`` that no input corner forces refined
+        (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
+        operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
+        with their caps' long edges split, each until ``GRADE_PATIENCE`` rounds in a row beat no
+        earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
+        kept."""
         S = self.S
-        return self.refine_unforced(target, min_angle_deg, lambda: refine_at_circumcentres(
-            S, min_angle_deg, lambda F0: self.flip(since=F0), lambda: turned_over_faces(S)))
+        raise_after = partial(self.flip_and_raise, min_angle_deg)
+        for caps in (False, True):
+            insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
+                             lambda: turned_over_faces(S), caps=caps, patience=GRADE_PATIENCE)
+            if self.refine_unforced(target, min_angle_deg, insert):
+                return True
+        return False
+
+    def flip_and_raise(self, min_angle_deg: float, F_before: np.ndarray) -> None:
+        """Flips around the faces changed since ``F_before`` (m₀×3), then the local
+        operations of :func:`.angles.raise_min_angles` around the faces below
+        ``min_angle_deg``."""
+        self.flip(since=F_before)
+        bad = skinny_faces(self.S.X, self.S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(self.S, min_angle_deg, self.tol, bad)
 
     def open_fans(self, target: int, min_angle_deg: float) -> bool:
         """The rim's fans opened (:func:`.rim.open_rim_fans`: a vertex in the middle of the
