@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import lift
-from ..rows import norms
+from ..rows import norms, row_min
 from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
 from .domain import on_sphere
@@ -162,9 +162,9 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first."""
     A = corner_angles_deg(S.X, S.F)
-    bad = np.flatnonzero(A.min(axis=1) < min_angle_deg)
+    bad = np.flatnonzero(row_min(A) < min_angle_deg)
     bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
-    worst = A[bad].min(axis=1)
+    worst = row_min(A[bad])
     order = np.argsort(worst, kind="stable")
     return bad[order], worst[order]
 

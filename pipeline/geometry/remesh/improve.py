@@ -126,6 +126,7 @@ from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
+from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .fidelity import settle_on_far_input
@@ -596,11 +597,13 @@ class _Operations:
         earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
         kept."""
         S = self.S
+        folds = FaceMemo(turned_over_at)
         raise_after = partial(self.flip_and_raise, min_angle_deg)
         for caps in (False, True):
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
-                             lambda: turned_over_faces(S), caps=caps, patience=GRADE_PATIENCE)
-            if self.refine_unforced(target, min_angle_deg, insert):
+                             lambda: np.flatnonzero(folds(S)), caps=caps,
+                             patience=GRADE_PATIENCE)
+            if self.refine_unforced(target, min_angle_deg, insert, folds=folds):
                 return True
         return False
 
@@ -629,18 +632,21 @@ class _Operations:
         return self.refine_unforced(target, min_angle_deg, insert, pareto=True)
 
     def refine_unforced(self, target: int, min_angle_deg: float, insert,
-                        pareto: bool = False) -> bool:
+                        pareto: bool = False, folds: FaceMemo | None = None) -> bool:
         """Where faces below ``min_angle_deg`` that no input corner forces are left:
         ``insert()`` (adds vertices, returns how many), the count restored away from the new
         vertices (:meth:`restore_angle_count`) and the local operations again around the faces
         then below; all of it undone if it leaves more such faces, or as many with a smaller
         smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
-        turned over. Returns whether it was kept."""
+        turned over. The folds are counted with ``folds`` (a :class:`.face_memo.FaceMemo` of
+        :func:`turned_over_at`, which ``insert`` may share; default: a new one). Returns whether
+        it was kept."""
         S = self.S
+        folds = FaceMemo(turned_over_at) if folds is None else folds
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
-        saved, log, n_folds, n0 = saved_state(S), dict(S.log), len(turned_over_faces(S)), S.n
+        saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(folds(S).sum()), S.n
         if not insert():
             return False
         added = np.zeros(S.n, bool)
@@ -651,7 +657,7 @@ class _Operations:
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
-                (pareto and after[1] < before[1]) or len(turned_over_faces(S)) > n_folds:
+                (pareto and after[1] < before[1]) or folds(S).sum() > n_folds:
             restore_state(S, saved)
             S.log.clear()
             S.log.update(log)
@@ -744,14 +750,17 @@ class Stopwatch:
         self.tick = now
 
 
-def turned_over_faces(S: RemeshState) -> np.ndarray:
+def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.ndarray:
     """The faces (indices) of ``S`` whose surface normal points against the input's at each of
     their corners (the normal of the input face each corner lies in) and where their domain
     centroid lies in the input map: folds, where the remesh doubles back over the surface (the
     definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
-    the map instead of by closest point)."""
+    the map instead of by closest point); given ``faces`` (k indices), those among them."""
     input_normal = S.normals_in()
-    suspect = np.flatnonzero(turned_against(S.X, S.F, input_normal[S.face[S.F]]))
+    F = S.F if faces is None else S.F[faces]
+    suspect = np.flatnonzero(turned_against(S.X, F, input_normal[S.face[F]]))
+    if faces is not None:
+        suspect = faces[suspect]
     if len(suspect) == 0:
         return suspect
     P = S.X[S.F[suspect]]
@@ -825,6 +834,12 @@ def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
     out = np.zeros(S.n, bool)
     out[a[inner][fold]] = out[b[inner][fold]] = True
     return out
+
+
+def turned_over_at(S: RemeshState, faces: np.ndarray) -> np.ndarray:
+    """Whether each of the ``faces`` (k indices) of ``S`` is turned over
+    (:func:`turned_over_faces`; k bool): the measure of a :class:`.face_memo.FaceMemo`."""
+    return np.isin(faces, turned_over_faces(S, faces))
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
