@@ -330,6 +330,8 @@ class _Operations:
     features: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # where feature
                                           # vertices were placed (k×3)
     freed: list = field(default_factory=list)   # where feature vertices were freed (k×3 each)
+    folds: FaceMemo = field(default_factory=lambda: FaceMemo(turned_over_at))   # the fold
+                                          # counts of the minimum-angle pass's refinements
 
     @property
     def tol(self) -> float | None:
@@ -597,13 +599,12 @@ class _Operations:
         earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
         kept."""
         S = self.S
-        folds = FaceMemo(turned_over_at)
         raise_after = partial(self.flip_and_raise, min_angle_deg)
         for caps in (False, True):
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
-                             lambda: np.flatnonzero(folds(S)), caps=caps,
+                             lambda: np.flatnonzero(self.folds(S)), caps=caps,
                              patience=GRADE_PATIENCE)
-            if self.refine_unforced(target, min_angle_deg, insert, folds=folds):
+            if self.refine_unforced(target, min_angle_deg, insert):
                 return True
         return False
 
@@ -632,21 +633,19 @@ class _Operations:
         return self.refine_unforced(target, min_angle_deg, insert, pareto=True)
 
     def refine_unforced(self, target: int, min_angle_deg: float, insert,
-                        pareto: bool = False, folds: FaceMemo | None = None) -> bool:
+                        pareto: bool = False) -> bool:
         """Where faces below ``min_angle_deg`` that no input corner forces are left:
         ``insert()`` (adds vertices, returns how many), the count restored away from the new
         vertices (:meth:`restore_angle_count`) and the local operations again around the faces
         then below; all of it undone if it leaves more such faces, or as many with a smaller
         smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
-        turned over. The folds are counted with ``folds`` (a :class:`.face_memo.FaceMemo` of
-        :func:`turned_over_at`, which ``insert`` may share; default: a new one). Returns whether
-        it was kept."""
+        turned over (counted with :attr:`folds`, again only where the remesh changed).
+        Returns whether it was kept."""
         S = self.S
-        folds = FaceMemo(turned_over_at) if folds is None else folds
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
-        saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(folds(S).sum()), S.n
+        saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(self.folds(S).sum()), S.n
         if not insert():
             return False
         added = np.zeros(S.n, bool)
@@ -657,7 +656,7 @@ class _Operations:
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
-                (pareto and after[1] < before[1]) or folds(S).sum() > n_folds:
+                (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
             restore_state(S, saved)
             S.log.clear()
             S.log.update(log)
