@@ -66,3 +66,15 @@ def test_changed_faces_sees_a_moved_disk_position():
     S.uv = S.uv.copy()
     S.uv[3, 0] = 1.5
     assert changed_faces(S, seen).tolist() == [False, True]
+
+
+def test_face_memo_restored_with_the_remesh_recomputes_nothing():
+    S = _state([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1, 2], [1, 3, 2]])
+    memo, asked = _memo()
+    before = memo(S)
+    kept, X = memo.kept(), S.X
+    S.X = X + 1.0
+    assert memo(S).tolist() == (before + 9.0).tolist() and asked[-1] == [0, 1]
+    S.X = X
+    memo.restore(kept)
+    assert memo(S).tolist() == before.tolist() and len(asked) == 2

@@ -51,6 +51,15 @@ class FaceMemo:
         self._values = values
         return values
 
+    def kept(self) -> tuple:
+        """What the memo holds now, for :meth:`restore`."""
+        return self._seen, self._values
+
+    def restore(self, kept: tuple) -> None:
+        """Hold again what :meth:`kept` returned: after the remesh is put back as it was then,
+        the next call recomputes nothing. (Any other remesh is compared with it as usual.)"""
+        self._seen, self._values = kept
+
 
 def snapshot(S: RemeshState) -> tuple:
     """Copies of what :func:`changed_faces` compares: ``X``, ``uv``, ``face`` and ``F``."""

@@ -646,6 +646,7 @@ class _Operations:
         if before[0] == 0:
             return False
         saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(self.folds(S).sum()), S.n
+        counted = self.folds.kept()
         if not insert():
             return False
         added = np.zeros(S.n, bool)
@@ -658,6 +659,7 @@ class _Operations:
         if shortfall_order(after) >= shortfall_order(before) or \
                 (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
             restore_state(S, saved)
+            self.folds.restore(counted)
             S.log.clear()
             S.log.update(log)
             return False
