@@ -582,7 +582,7 @@ class _Operations:
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg):
                 break
-        if len(turned_over_faces(S)):
+        if self.folds(S).any():
             self.unfold()
             self.raise_angles(min_angle_deg)
 
@@ -682,7 +682,7 @@ class _Operations:
         undone if it leaves as many folds or more (a collapse at a fold turns its neighbours
         over where the map is that anisotropic)."""
         S = self.S
-        folds = lambda: turned_over_faces(S)        # noqa: E731
+        folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731
         self.unfold()
         for guard in (self.tol, None):
             n_folds = len(folds())
@@ -698,7 +698,7 @@ class _Operations:
     def unfold(self) -> None:
         """The local operations around the folds (:func:`.unfold.unfold_locally`), the feature
         vertices at them freed first (:meth:`release`)."""
-        bad = turned_over_faces(self.S)
+        bad = np.flatnonzero(self.folds(self.S))
         if len(bad):
             self.release(bad)
             unfold_locally(self.S, bad)

@@ -42,7 +42,8 @@ FOLD_WEIGHT = 180.0        # an operation's score: this × the folds it removes 
 def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray) -> np.ndarray:
     """Whether each face with corners ``P`` on the surface, ``U`` on the domain and in the input
     faces ``under`` is turned over against the input: its normal points against the input's
-    normal at each of its corners and at its domain centroid (located in the input map).
+    normal at each of its corners and at its domain centroid (located in the input map, from
+    the input face of its first corner).
 
     Parameters
     ----------
@@ -61,7 +62,7 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray)
     out = np.all(np.einsum("ij,ikj->ik", normal, input_normal[under]) < 0, axis=1)
     suspect = np.flatnonzero(out)
     if len(suspect):
-        at, _ = S.locator.locate(project(U[suspect].mean(axis=1)))
+        at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0])
         out[suspect] = np.einsum("ij,ij->i", normal[suspect], input_normal[at]) < 0
     return out
 
