@@ -280,6 +280,15 @@ def input_distance(S: RemeshState) -> MeshDistance:
     return MeshDistance(S.V_in, S.F_in)
 
 
+def input_reach(S: RemeshState, tol: float) -> float:
+    """The largest distance of an input point (:func:`input_points`) from the remesh, or
+    ``tol`` if none is farther (:func:`far_input_points`): the input-to-remesh side of the
+    Hausdorff distance as the settle step measures it, below which bringing the remesh
+    nearer the input cannot lower the two-sided distance."""
+    _, d = far_input_points(S, tol)
+    return float(d[0]) if len(d) else tol
+
+
 def remesh_reach(S: RemeshState) -> float:
     """The largest distance of a remesh edge's middle from the input: a lower bound of the
     remesh-to-input Hausdorff distance (the vertices lie on the input; a face's inside is
