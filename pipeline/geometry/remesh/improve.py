@@ -759,13 +759,10 @@ def sag_at_samples(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def turned_from_input(S: RemeshState, faces: np.ndarray) -> np.ndarray:
-    """Whether each of the ``faces`` (k×3) faces away from the input's normal under any of
-    its corners (k bool): stricter than :func:`turned_over_faces`' test (under all three),
-    for a new face across an input crease, whose closest input face can be either side's."""
-    P = S.X[faces]
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    under = S.normals_in()[S.face[faces]]
-    return (np.einsum("kj,kcj->kc", normal, under) < 0).any(axis=1)
+    """Whether each of the ``faces`` (k×3) faces away from the input's normal under all three
+    of its corners (k bool; :func:`.state.turned_against`, the first test of
+    :func:`turned_over_faces`)."""
+    return turned_against(S.X, faces, S.normals_in()[S.face[faces]])
 
 
 def turned_over_faces(S: RemeshState) -> np.ndarray:
