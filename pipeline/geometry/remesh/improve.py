@@ -139,7 +139,7 @@ from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, SAG_TS, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
-from .sag import edge_sag, edge_sag_along
+from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
@@ -368,7 +368,7 @@ class _Operations:
             return
         S = self.S
         twin = S.twins().copy()
-        F, k = sag_flips(S.X, S.F, S.uv, S.is_rim, partial(sag_at_samples, S), threshold,
+        F, k = sag_flips(S.X, S.F, S.uv, S.is_rim, partial(sag_at_samples, S, threshold), threshold,
                          min_angle_deg, twin=twin, fixed=S.is_joined,
                          turned=partial(turned_from_input, S))
         S.set_faces(F, twin)
@@ -752,10 +752,15 @@ class Stopwatch:
         self.tick = now
 
 
-def sag_at_samples(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def sag_at_samples(S: RemeshState, threshold: float, a: np.ndarray, b: np.ndarray
+                   ) -> np.ndarray:
     """How far the edges ``a–b`` (k) are from the surface at the points ``SAG_FLIP_TS``
-    along them (:func:`.sag.edge_sag_along`), in the mesh's units (k float)."""
-    return edge_sag_along(S, a, b, SAG_FLIP_TS)[0]
+    along them (:func:`.sag.edge_sag_along`), in the mesh's units (k float); 0 for those that
+    cannot be farther than ``threshold`` (:func:`.sag.may_sag`)."""
+    sag = np.zeros(len(a))
+    bent = may_sag(S, a, b, threshold)
+    sag[bent] = edge_sag_along(S, a[bent], b[bent], SAG_FLIP_TS)[0]
+    return sag
 
 
 def turned_from_input(S: RemeshState, faces: np.ndarray) -> np.ndarray:
