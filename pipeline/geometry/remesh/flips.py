@@ -16,7 +16,7 @@ leaves on curved regions (noses, lips, fingers, sulci) flip.
 smallest 3D angle is at least the old faces' or ``min_angle_deg``.
 
 :func:`sag_flips` flips the edges farther than a threshold from the input surface whose other
-diagonal is nearer, whatever the Delaunay criterion says (an edge across an input crease), under
+diagonal is within it, whatever the Delaunay criterion says (an edge across an input crease), under
 the same checks, the same angle rule and a test of the new faces against the input's normals.
 """
 
@@ -220,11 +220,13 @@ def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray
               twin: np.ndarray | None = None, fixed=None, turned=None
               ) -> tuple[np.ndarray, int]:
     """Flip the interior edges farther than ``threshold`` from the input surface whose other
-    diagonal is nearer to it, whatever the Delaunay criterion says: an edge across a crease
+    diagonal is within it, whatever the Delaunay criterion says: an edge across a crease
     of the input (a lip's, an eyelid's, a ridge narrower than the faces) sags into the fold
     or bridges over it, while the diagonal along the crease lies on it.
 
-    An edge ``a–b`` with opposite corners ``p``, ``q`` flips when ``sag(p, q) < sag(a, b)``,
+    An edge ``a–b`` with opposite corners ``p``, ``q`` flips when ``sag(p, q) ≤ threshold``
+    (not merely below ``sag(a, b)``: the measure can rank two diagonals across a crease
+    wrongly, and the flip must not make the remesh's side of the distance the larger),
     the flip is valid (:func:`flip_edges`' checks other than the fold's), neither new face is
     ``turned`` and the new faces' smallest 3D angle is at least ``min(old faces' smallest,
     min_angle_deg)``. Each round flips a set of such edges no two of which share a face, the
@@ -279,7 +281,7 @@ def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray
         if fixed is not None:
             ok = ok[~fixed(a[ok], b[ok])]
         ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
-        ok = ok[sag(p[ok], q[ok]) < old_sag[ok]]
+        ok = ok[sag(p[ok], q[ok]) <= threshold]
         if turned is not None:
             ok = ok[~turned(np.column_stack([p, a, q, q, b, p])[ok].reshape(-1, 3)
                             ).reshape(-1, 2).any(axis=1)]

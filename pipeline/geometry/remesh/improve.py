@@ -104,7 +104,7 @@ The schedule (:func:`improve_remesh`):
     neighbours move); before and after the second, the edges farther from the surface (at
     ``SAG_FLIP_TS``) than the farthest input point from the remesh
     (:func:`.fidelity.input_reach`, at least ``SETTLE_TOL × L``) flipped where the other
-    diagonal is nearer, with no new angle below ``min_angle_deg`` and the old faces' and no
+    diagonal is within that distance, with no new angle below ``min_angle_deg`` and the old faces' and no
     new face turned from the input (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`:
     an edge across an input crease, which the Delaunay flips keep, decides the
     remesh-to-input side there and, at the crossing, the input-to-remesh side);
@@ -362,7 +362,7 @@ class _Operations:
 
     def flip_sagging(self, threshold: float, min_angle_deg: float) -> None:
         """Flip the edges farther than ``threshold`` from the surface (at the points
-        ``SAG_FLIP_TS``, :func:`sag_at_samples`) whose other diagonal is nearer, no new face's
+        ``SAG_FLIP_TS``, :func:`sag_at_samples`) whose other diagonal is within it, no new face's
         smallest angle below ``min_angle_deg`` and the old faces' (:func:`.flips.sag_flips`)."""
         if not self.flips:
             return
