@@ -10,7 +10,8 @@ import pytest
 from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator
 from pipeline.geometry.metrics import signed_double_areas
-from pipeline.geometry.remesh_quality import bounding_box_diagonal, point_mesh_distance
+from pipeline.geometry.remesh_quality import (MeshDistance, bounding_box_diagonal,
+                                              point_mesh_distance)
 from pipeline.geometry.repair import repair_mesh
 from pipeline.geometry.sem import SEMOptions
 from pipeline.sample import make_face
@@ -94,3 +95,17 @@ def creased_disk(slope: float, x0: float = 0.1, rings: int = 40, on_crease: int 
     V = np.column_stack([uv, slope * np.abs(uv[:, 0] - x0)])
     loop = topo.boundary_loops(F)[0]
     return uv, F, V, loop, PointLocator(uv, F, loop)
+
+
+def count_measured(monkeypatch) -> list:
+    """A list to which every :class:`MeshDistance` query from now on (within the test) adds
+    its number of points."""
+    measured = []
+    call = MeshDistance.__call__
+
+    def counting(self, P):
+        measured.append(len(P))
+        return call(self, P)
+
+    monkeypatch.setattr(MeshDistance, "__call__", counting)
+    return measured

@@ -7,8 +7,8 @@ import numpy as np
 
 from pipeline.geometry.locate import lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh.circumcentres import (circumcentre_weights, encroached,
-                                                    off_centre_weights,
+from pipeline.geometry.remesh.circumcentres import (EDGE_BARY, cap_split, circumcentre_weights,
+                                                    encroached, off_centre_weights,
                                                     refine_at_circumcentres,
                                                     unforced_shortfall)
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
@@ -43,6 +43,25 @@ def test_encroached_is_the_open_ball_on_the_diameter():
     A, B = np.array([[0.0, 0, 0]] * 3), np.array([[2.0, 0, 0]] * 3)
     C = np.array([[1.0, 0.99, 0], [1.0, 1.0, 0], [1.0, 0, 1.01]])
     assert encroached(C, A, B).tolist() == [True, False, False]
+
+
+def test_a_cap_is_split_on_its_long_edge_at_the_foot_of_its_altitude():
+    """Face 0 is a cap (its apex (0.5, 0.2) sees the edge (0, 0)–(2, 0) at 150.6°): its
+    long edge is half-edge 3·0 + 0 (corner 0 to corner 1), met by the altitude at t = 0.25.
+    Face 1 (apex (1, 1), 90°) is no cap. Face 2's apex (0.3, 0.05) sees its edge (0, 0)–(4, 0)
+    at 169.8° from over t = 0.075: the split is kept ``EDGE_BARY`` inside the edge."""
+    from types import SimpleNamespace
+
+    X = np.array([[0, 0, 0], [2, 0, 0], [0.5, 0.2, 0], [1, 1, 0], [0.3, 0.05, 0.0],
+                  [4, 0, 0]], float)
+    F = np.array([[0, 1, 2], [0, 1, 3], [0, 5, 4]])
+    S = SimpleNamespace(X=X, F=F)
+    assert np.degrees(corner_angles(X, F[[0]]))[0, 2] > 120.0
+    h, t = cap_split(S, 0)
+    assert h == 0 and t == 0.25
+    assert cap_split(S, 1) is None
+    assert np.degrees(corner_angles(X, F[[2]]))[0, 2] > 120.0
+    assert cap_split(S, 2) == (6, EDGE_BARY)
 
 
 def _short_rim_edge_state():
@@ -84,6 +103,21 @@ def test_a_face_on_a_short_rim_edge_is_graded_to_the_minimum():
     assert np.abs(S.X[:, 2]).max() == 0.0
 
 
+def test_rounds_stop_after_patience_rounds_that_beat_no_earlier_state():
+    """On the short rim edge, with flips alone after each round, the first round leaves the
+    faces worse than the start (the inserted vertex not yet settled): with a patience of one
+    the rounds stop there and the remesh is the start, unchanged, no vertex added."""
+    S = _short_rim_edge_state()
+    F0, X0 = S.F.copy(), S.X.copy()
+    before = unforced_shortfall(S, 20.0)
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    k = refine_at_circumcentres(S, 20.0, lambda F: ops.flip(since=F),
+                                lambda: turned_over_faces(S), patience=1)
+    assert k == 0 and S.log["circumcentre_insertions"] == 0
+    assert np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
+    assert unforced_shortfall(S, 20.0) == before
+
+
 def test_real_mesh_faces_beside_short_rim_edges_are_graded_to_the_minimum():
     """choi_human_brain at 5k vertices on the 2-step paper map (``bench_remesh.py --maps
     paper2``): the local operations alone left 7 faces under 20° (12.08°) beside short rim
@@ -103,3 +137,25 @@ def test_real_mesh_faces_beside_short_rim_edges_are_graded_to_the_minimum():
     assert np.degrees(corner_angles(r.V, r.F)).min() >= 20.0
     assert imp["below_min_angle"]["faces"] == imp["below_min_angle"]["unforced_faces"] == 0
     assert abs(len(r.V) - 5000) <= 0.02 * 5000 and is_disk(mesh_facts(r.V, r.F))
+
+
+def test_real_mesh_rounds_with_the_local_operations_leave_no_unforced_face():
+    """gpp_face at 20k vertices on the map ``sem-pipeline remesh`` makes (``mode: auto``):
+    beside a rim edge between two kept boundary corners and at a reflex stretch of its jagged
+    rim, faces of 14.9° and 16.9° were left that no operation raised and that single rounds
+    of insertions made worse (each new vertex left where it was inserted); with the local
+    operations after every round (:meth:`_Operations.flip_and_raise`) the faces under 20°
+    left are only those at the corners the input forces (a 27° rim corner)."""
+    from conftest import require_data
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = load_stage(require_data("meshes", "gpp_face.obj")).mesh
+    p = parameterize_stage(mesh, SEMOptions(mode="auto"))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=20000))
+    below = r.info["improve"]["below_min_angle"]
+    assert r.info["improve"]["circumcentre_insertions"] > 0
+    assert below["unforced_faces"] == 0 and below["faces"] == below["at_input_corners"] > 0
+    assert abs(len(r.V) - 20000) <= 0.02 * 20000 and is_disk(mesh_facts(r.V, r.F))

@@ -11,12 +11,13 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input, input_points,
-                                              remesh_reach, settle_on_far_input)
+from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input,
+                                              input_point_tree, input_points, remesh_reach,
+                                              settle_on_far_input)
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
 from pipeline.geometry.rows import row_min
-from remesh_helpers import coarse_state, creased_disk
+from remesh_helpers import coarse_state, count_measured, creased_disk
 
 
 def interior_distances(V_in, F_in, X, F):
@@ -83,14 +84,7 @@ def test_far_input_points_measure_only_the_midpoints_and_centroids_their_bounds_
     of the corners' distances leaves 2,284 to measure, and the distance to the faces closest
     to their corners bounds every near one of those within the tolerance."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
-    measured = []
-    call = MeshDistance.__call__
-
-    def counting(self, P):
-        measured.append(len(P))
-        return call(self, P)
-
-    monkeypatch.setattr(MeshDistance, "__call__", counting)
+    measured = count_measured(monkeypatch)
     far, _ = far_input_points(S, 0.05)
     assert len(far) == 2207 and measured == [4777, 2207 - 365]
 
@@ -201,6 +195,36 @@ def test_the_input_points_are_made_once_per_state_and_kept_through_remesh_change
     far_again, d_again = far_input_points(S, 0.05)
     np.testing.assert_array_equal(d_again, d)
     np.testing.assert_array_equal(far_again, far)
+
+
+@pytest.mark.timeout(60)
+def test_remesh_reach_is_the_farthest_edge_middle_however_few_are_measured():
+    """:func:`remesh_reach` of the coarse remeshes of the creased disk: exactly the largest
+    distance from the input of the middles of the remesh edges it takes (each interior edge
+    once), as if every middle were measured."""
+    from pipeline.geometry.remesh.halfedge import edge_table
+
+    for rings in (4, 8):
+        S, _ = coarse_state(*creased_disk(1.0), rings)
+        _, a, b, twin = edge_table(S.F, twin=S.twins())
+        keep = (twin < 0) | (a < b)
+        d, _ = MeshDistance(S.V_in, S.F_in)((S.X[a[keep]] + S.X[b[keep]]) / 2)
+        assert remesh_reach(S) == d.max() > 0
+
+
+@pytest.mark.timeout(60)
+def test_the_input_point_tree_finds_every_input_point_of_a_ball():
+    """:func:`input_point_tree` (built for a quick build): for balls around 50 input points
+    and 50 points off the surface of the creased disk, radii 0.02 to 0.3, exactly the input
+    points within the radius (all 29,135 measured)."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    P = input_points(S).P
+    tree = input_point_tree(S)
+    rng = np.random.default_rng(4)
+    centres = np.vstack([P[rng.integers(0, len(P), 50)], rng.uniform(-1, 1, (50, 3))])
+    for x, r in zip(centres, rng.uniform(0.02, 0.3, len(centres))):
+        expected = np.flatnonzero(np.linalg.norm(P - x, axis=1) <= r)
+        np.testing.assert_array_equal(np.sort(tree.query_ball_point(x, r)), expected)
 
 
 def smallest_angles_deg(S):

@@ -17,6 +17,7 @@ from pipeline.geometry.sem import SEMOptions
 from pipeline.io.meshio import read_mesh
 from pipeline.stages.parameterize import parameterize_stage
 from pipeline.stages.remesh import RemeshConfig, remesh_stage
+from remesh_helpers import count_measured
 
 
 def lattice_mesh(k=20, h=1.0):
@@ -100,6 +101,69 @@ def test_face_bounds_bound_the_distance_and_are_exact_on_the_corners_faces():
     same = np.any(corner_face[pairs] == closest[:, None], axis=1)
     assert same.sum() > 50 and np.mean(bound[~same] > exact[~same]) > 0.9
     np.testing.assert_allclose(bound[same], exact[same], rtol=1e-12)
+
+
+def test_face_centroids_are_the_mean_of_the_corners_bit_for_bit():
+    """face_centroids, summed corner by corner: the values of ``V[F].mean(axis=1)`` exactly,
+    on the surface (3 columns) and on a disk (2)."""
+    rng = np.random.default_rng(5)
+    F = rng.integers(0, 500, size=(3000, 3))
+    for d in (3, 2):
+        V = rng.normal(size=(500, d)) * 10.0 ** rng.integers(-3, 4, size=(500, 1))
+        np.testing.assert_array_equal(face_centroids(V, F), V[F].mean(axis=1))
+
+
+def test_middle_bounds_from_stored_offsets_are_those_computed_anew():
+    """middle_offsets: the face centroids, their distances to the corners and half the edge
+    lengths; middle_bounds with them given: the same numbers, bit for bit, as computed from
+    the mesh, for another distance field each time; each bound at least the distance (the
+    distance is 1-Lipschitz)."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh_quality import middle_bounds, middle_offsets
+    from pipeline.geometry.rows import norms
+
+    V, F = lattice_mesh(10)
+    V[:, 2] = 0.3 * np.sin(V[:, 0]) * np.cos(V[:, 1])
+    E, _ = topo.edges_with_faces(F)
+    offsets = middle_offsets(V, F, E)
+    np.testing.assert_array_equal(offsets.centroids, face_centroids(V, F))
+    to_corners = (face_centroids(V, F)[:, None] - V[F]).reshape(-1, 3)
+    np.testing.assert_array_equal(offsets.to_corners, norms(to_corners).reshape(F.shape))
+    np.testing.assert_array_equal(offsets.half_lengths, norms(V[E[:, 1]] - V[E[:, 0]]) / 2)
+    for shift in (0.1, 0.4):
+        distance = MeshDistance(V + np.array([0.0, shift, 0.2]), F)
+        d_vertex, _ = distance(V)
+        fresh, stored = middle_bounds(V, F, E, d_vertex), middle_bounds(V, F, E, d_vertex,
+                                                                         offsets)
+        for a, b in zip(fresh, stored):
+            np.testing.assert_array_equal(a, b)
+        exact, _ = distance(np.vstack([(V[E[:, 0]] + V[E[:, 1]]) / 2, face_centroids(V, F)]))
+        assert np.all(np.concatenate([stored[0], stored[2]]) >= exact * (1 - 1e-12))
+
+
+def test_largest_distance_is_the_maximum_over_every_point_measuring_few(monkeypatch):
+    """largest_distance of the edge midpoints of a shifted copy of a wavy lattice with a bump,
+    bounded by their distances to the faces closest to their ends and to a point 0.1 beside
+    them (candidate_face_distances): exactly the largest of all the points' distances, having
+    measured the 64 of the largest bounds and at most a tenth of the others."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh_quality import (bound_slack, candidate_face_distances,
+                                                  largest_distance)
+
+    V, F = lattice_mesh(20)
+    V[:, 2] = 0.3 * np.sin(V[:, 0]) * np.cos(V[:, 1])
+    distance = MeshDistance(V, F)
+    W = V + np.array([0.01, 0.02, 0.03])
+    W[:, 2] += 0.5 * np.exp(-((V[:, 0] - 15) ** 2 + (V[:, 1] - 8) ** 2))     # a bump
+    E, _ = topo.edges_with_faces(F)
+    P = (W[E[:, 0]] + W[E[:, 1]]) / 2
+    _, corner_face = distance(W)
+    _, beside = distance(P + np.array([0.1, 0.0, 0.0]))
+    expected = distance(P)[0].max()
+    bound = candidate_face_distances(P, np.column_stack([corner_face[E], beside]), distance)
+    measured = count_measured(monkeypatch)
+    assert largest_distance(P, bound, distance, bound_slack(V)) == expected
+    assert measured[0] == 64 and measured[1] <= 0.1 * (len(P) - 64)
 
 
 def test_surface_distance_of_a_shifted_plane_is_the_shift():

@@ -121,12 +121,16 @@ def test_a_baseline_that_fails_costs_its_column_not_the_remesh(face_map, monkeyp
 
 def test_without_compare_the_remesh_is_measured_once(face_map, monkeypatch):
     """``compare: false``: the input's shape measures and one distance measure, ours (the
-    input's samples and tree made once: two trees, the input's and ours)."""
+    input's samples made once; one tree built, ours: the input's is the one the remesher
+    built for its settle step), with the same distances as with an input tree of its own."""
+    import dataclasses
+
     from pipeline.geometry import remesh_quality as rq
     from pipeline.stages.remesh import compare_methods
 
     _, mesh, p = face_map
     r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=800))
+    assert isinstance(r.input_distance, rq.MeshDistance)
     calls = {"surface_distance": 0, "trees": 0}
     measure, build = rq.surface_distance, rq.MeshDistance.__init__
 
@@ -142,7 +146,27 @@ def test_without_compare_the_remesh_is_measured_once(face_map, monkeypatch):
     monkeypatch.setattr(rq.MeshDistance, "__init__", counted_build)
     methods = compare_methods(mesh.V, mesh.F, r, 800, compare=False, n_random=20_000)
     assert set(methods) == {"input", "sem"} and "distance" not in methods["input"].quality
-    assert calls == {"surface_distance": 1, "trees": 2}
+    assert calls == {"surface_distance": 1, "trees": 1}
+    own = compare_methods(mesh.V, mesh.F, dataclasses.replace(r, input_distance=None), 800,
+                          compare=False, n_random=20_000)
+    assert calls == {"surface_distance": 2, "trees": 3}
+    assert own["sem"].quality["distance"] == methods["sem"].quality["distance"]
+
+
+def test_a_tree_of_another_mesh_is_not_used():
+    """tree_of: the remesher's input tree only for the very mesh it was built on (a face
+    reordered or turned around, or a vertex moved, makes a tree that answers otherwise)."""
+    from pipeline.geometry.remesh_quality import MeshDistance
+    from pipeline.stages.remesh import tree_of
+
+    face = make_face(600)
+    V, F = face.V, face.F
+    tree = MeshDistance(V, F)
+    assert tree_of(tree, V, F) is tree and tree_of(None, V, F) is None
+    W = V.copy()
+    W[3, 2] += 1e-9
+    for other in ((W, F), (V, F[::-1]), (V, F[:, ::-1])):
+        assert tree_of(tree, *other) is None
 
 
 @pytest.fixture(scope="module")

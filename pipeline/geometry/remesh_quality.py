@@ -29,16 +29,19 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from . import topology as topo
 from ._kernels import closest_points, face_distances
 from .laplacian import face_double_areas
 from .metrics import corner_angles
-from .rows import norms
+from .rows import norms, row_min
 
 __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on_triangles",
-           "MeshDistance", "SampledSurface", "face_centroids", "z_order", "point_mesh_distance",
+           "MeshDistance", "MiddleOffsets", "middle_offsets", "SampledSurface", "face_centroids",
+           "z_order", "point_mesh_distance",
            "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
            "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere",
            "DISTANCE_SAMPLES"]
@@ -347,7 +350,8 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
 _BOUND_MARGIN = 1e-9
 
 
-def midpoint_bounds(V: np.ndarray, E: np.ndarray, d_vertex: np.ndarray) -> np.ndarray:
+def midpoint_bounds(V: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
+                    half_lengths: np.ndarray | None = None) -> np.ndarray:
     """The Lipschitz upper bounds of :func:`middle_bounds` for the edge midpoints alone.
 
     Parameters
@@ -355,16 +359,41 @@ def midpoint_bounds(V: np.ndarray, E: np.ndarray, d_vertex: np.ndarray) -> np.nd
     V : (n, 3) float
     E : (e, 2) int
     d_vertex : (n,) float
+    half_lengths : (e,) float, optional
+        Half the edges' lengths when already computed (:func:`middle_offsets`).
 
     Returns
     -------
     (e,) float
     """
     a, b = E[:, 0], E[:, 1]
-    return np.minimum(d_vertex[a], d_vertex[b]) + 0.5 * norms(V[b] - V[a])
+    half = 0.5 * norms(V[b] - V[a]) if half_lengths is None else half_lengths
+    return np.minimum(d_vertex[a], d_vertex[b]) + half
 
 
-def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray
+class MiddleOffsets(NamedTuple):
+    """How far the middles of a mesh's edges and faces are from their corners
+    (:func:`middle_offsets`): ``half_lengths`` (e,), half of each edge's length;
+    ``centroids`` (m, 3), the faces' centroids; ``to_corners`` (m, 3), each centroid's
+    distance to each corner of its face."""
+
+    half_lengths: np.ndarray
+    centroids: np.ndarray
+    to_corners: np.ndarray
+
+
+def middle_offsets(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> MiddleOffsets:
+    """The distances :func:`middle_bounds` adds to the corners' distances, for the edges ``E``
+    (e, 2) and faces ``F`` (m, 3) of ``V`` (n, 3): a function of the mesh alone, computed once
+    where the bounds are asked for many distance fields of one mesh. (Corner by corner: the
+    values of the norms of an m×3×3 array's rows, faster.)"""
+    centroids = face_centroids(V, F)
+    to_corners = np.column_stack([norms(centroids - V[F[:, c]]) for c in range(3)])
+    return MiddleOffsets(0.5 * norms(V[E[:, 1]] - V[E[:, 0]]), centroids, to_corners)
+
+
+def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
+                  offsets: MiddleOffsets | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Upper bounds of the distance to a surface of the edge midpoints and face centroids of
     ``(V, F)`` from their corners' distances ``d_vertex`` (n): the distance is 1-Lipschitz, so
@@ -377,6 +406,8 @@ def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndar
     E : (e, 2) int
         Edges of ``(V, F)`` (any subset).
     d_vertex : (n,) float
+    offsets : MiddleOffsets, optional
+        :func:`middle_offsets` of ``(V, F, E)`` when already computed.
 
     Returns
     -------
@@ -384,12 +415,9 @@ def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndar
     centroids : (m, 3) float
     centroid_bound : (m,) float
     """
-    mid_bound = midpoint_bounds(V, E, d_vertex)
-    corners = V[F]
-    centroids = corners.mean(axis=1)
-    to_corners = (centroids[:, None, :] - corners).reshape(-1, 3)
-    centroid_bound = np.min(d_vertex[F] + norms(to_corners).reshape(F.shape), axis=1)
-    return mid_bound, centroids, centroid_bound
+    o = middle_offsets(V, F, E) if offsets is None else offsets
+    mid_bound = midpoint_bounds(V, E, d_vertex, o.half_lengths)
+    return mid_bound, o.centroids, row_min(d_vertex[F] + o.to_corners)
 
 
 def face_bounds(P: np.ndarray, corners: np.ndarray, corner_face: np.ndarray,
@@ -413,8 +441,61 @@ def face_bounds(P: np.ndarray, corners: np.ndarray, corner_face: np.ndarray,
     -------
     (k,) float
     """
+    return candidate_face_distances(P, corner_face[corners], distance)
+
+
+def candidate_face_distances(P: np.ndarray, faces: np.ndarray, distance: MeshDistance
+                             ) -> np.ndarray:
+    """The distance of each point of ``P`` (k, 3) to the nearest of its candidate faces
+    ``faces`` (k, c) of the surface of ``distance`` (compiled:
+    :func:`._kernels.face_distances`): an upper bound of its distance to that surface."""
     return face_distances(np.ascontiguousarray(P, dtype=np.float64), distance.V, distance.F,
-                          np.ascontiguousarray(corner_face[corners], dtype=np.int64))
+                          np.ascontiguousarray(faces, dtype=np.int64))
+
+
+def bound_slack(V: np.ndarray) -> float:
+    """The absolute margin (:func:`may_reach`) of distance bounds to or from the surface of
+    the vertices ``V`` (n, 3): ``_BOUND_MARGIN`` × its bounding-box diagonal."""
+    return _BOUND_MARGIN * bounding_box_diagonal(V)
+
+
+def may_reach(bound: np.ndarray, best: float, slack: float) -> np.ndarray:
+    """Whether each upper bound ``bound`` (k,) of a distance may reach ``best``: not below it
+    by more than ``_BOUND_MARGIN`` relative and ``slack`` absolute, far above the rounding
+    that separates a compiled bound from the tree's distance of the same point."""
+    return bound * (1 + _BOUND_MARGIN) + slack >= best
+
+
+def largest_distance(P: np.ndarray, bound: np.ndarray, distance: MeshDistance, slack: float,
+                     first: int = 64) -> float:
+    """The largest distance of the points ``P`` to the surface of ``distance``, as if every
+    point were measured, from their upper bounds: the ``first`` points of the largest bounds
+    are measured, then only those of the others whose bound may reach the largest distance
+    found (:func:`may_reach`).
+
+    Parameters
+    ----------
+    P : (k, 3) float
+    bound : (k,) float
+        Upper bounds of the points' distances (:func:`face_bounds`).
+    distance : MeshDistance
+    slack : float
+        In the mesh's units (:func:`may_reach`).
+    first : int
+
+    Returns
+    -------
+    float
+        0 for no points.
+    """
+    if len(P) == 0:
+        return 0.0
+    top = np.argsort(-bound, kind="stable")[:first]
+    best = float(distance(P[top])[0].max())
+    rest = may_reach(bound, best, slack)
+    rest[top] = False
+    d, _ = distance(P[rest])
+    return max(best, float(d.max(initial=0.0)))
 
 
 def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
@@ -433,10 +514,10 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
     best = max(known_max, float(d_vertex.max(initial=0.0)))
     if d_centroid is not None:
         best = max(best, float(d_centroid.max(initial=0.0)))
-    slack = _BOUND_MARGIN * bounding_box_diagonal(V)
+    slack = bound_slack(V)
 
     def above(bound):
-        return bound * (1 + _BOUND_MARGIN) + slack >= best
+        return may_reach(bound, best, slack)
 
     if d_centroid is None:
         mid_bound, centroids, centroid_bound = middle_bounds(V, F, E, d_vertex)
@@ -456,18 +537,19 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
 class SampledSurface:
     """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
     ``n_random`` area-uniform samples (seeded), its faces' doubled areas ``double_area`` (m,)
-    (given, or computed here) and, made on first use, its AABB tree (:class:`MeshDistance`).
-    The input of a remesh is one such surface for every method it is compared with: its
-    samples are drawn and its tree built once."""
+    (given, or computed here) and its AABB tree (:class:`MeshDistance`; given, or made on
+    first use). The input of a remesh is one such surface for every method it is compared
+    with: its samples are drawn and its tree built once (by the remesher, which measures its
+    distances to the input, if it did)."""
 
     def __init__(self, V: np.ndarray, F: np.ndarray, n_random: int, seed: int = 0,
-                 double_area: np.ndarray | None = None):
+                 double_area: np.ndarray | None = None, distance: MeshDistance | None = None):
         self.V, self.F = V, F
         self.n_random, self.seed = int(n_random), seed
         self.E, _ = topo.edges_with_faces(F)
         self.double_area = face_double_areas(V, F) if double_area is None else double_area
         self.random = _random_samples(V, F, n_random, seed, self.double_area)
-        self._distance = None
+        self._distance = distance
         self._normals = None
 
     @property
@@ -504,8 +586,10 @@ class SampledSurface:
 
 
 def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """The centroids (m, 3) of the faces ``F`` (m, 3) of ``V`` (n, 3)."""
-    return V[F].mean(axis=1)
+    """The centroids (m, d) of the faces ``F`` (m, 3) of ``V`` (n, d): the values of
+    ``V[F].mean(axis=1)``, summed corner by corner (faster than the mean over the short axis
+    of an m×3×d array)."""
+    return (V[F[:, 0]] + V[F[:, 1]] + V[F[:, 2]]) / 3
 
 
 def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,

@@ -125,6 +125,7 @@ class Remesh:
     seconds: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)   # remesh_metrics.json, once written
     facts: dict = field(default_factory=dict)     # mesh_facts of (V, F), as checked
+    input_distance: object = None      # the input's MeshDistance, if the remesher built one
 
 
 def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
@@ -191,7 +192,7 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
             **r.info, "attributes": lifted_attrs}
     return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted, r.landmarks,
-                  info, sec, facts=r.facts)
+                  info, sec, facts=r.facts, input_distance=r.input_distance)
 
 
 def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
@@ -287,7 +288,8 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
             progress(msg)
 
     with kept_edge_groups():               # the input's edges, grouped once for both
-        reference = SampledSurface(V_in, F_in, n_random, seed)      # one for every method
+        reference = SampledSurface(V_in, F_in, n_random, seed,      # one for every method
+                                   distance=tree_of(remesh.input_distance, V_in, F_in))
         measured_input = remesh_quality(V_in, F_in, V_in, F_in, distance=False,
                                         double_area=reference.double_area)
 
@@ -338,6 +340,15 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
     out["fast_simplification"] = baseline(
         "fast_simplification", lambda: baselines.decimate(V_in, F_in, target))
     return out
+
+
+def tree_of(distance, V: np.ndarray, F: np.ndarray):
+    """``distance`` (a :class:`..geometry.remesh_quality.MeshDistance`, or None) if it was
+    built on the mesh ``(V, F)`` (n, 3), (m, 3) itself — the same vertices and the same faces
+    in the same order and orientation, so that it answers as one built here — else None."""
+    if distance is None or not (np.array_equal(distance.V, V) and np.array_equal(distance.F, F)):
+        return None
+    return distance
 
 
 def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | None = None,

@@ -16,13 +16,21 @@ that edge is split instead, its vertex on the image polygon; next to an edge of 
 edge is split there; next to a vertex, or where its lift is far from it (the surface bends
 away from the face's plane), nothing is done.
 
+With ``caps`` a cap — a face with an angle of ``CAP_DEG`` or more, whose short edges meet at
+that corner — has its long edge split where the altitude from the wide corner meets it
+instead (:func:`cap_split`): the wide angle halves, and the local operations the caller runs
+after the round (:func:`.angles.raise_min_angles`) move the new vertex, which the guards
+around the cap's own corners (a crumpled input, a corner on a ridge) keep from moving.
+
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
-(no two touching one face), then flips around them. The rounds go on while there are faces to
-refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
-one that leaves more than ``RUNAWAY`` × the best round's count + 1, none); the remesh ends as
-the best state: the fewest faces below the minimum that no input
-corner forces (:func:`.angles.forced_by_corners`), then the largest smallest angle among them,
-with no more faces turned over than at the start (the start itself if no round beat it).
+(no two touching one face), then the caller's ``flip`` around them (flips, and in
+:meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
+to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
+one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
+after that many in a row that beat no earlier state, none); the remesh ends as the best state:
+the fewest faces below the minimum that no input corner forces
+(:func:`.angles.forced_by_corners`), then the largest smallest angle among them, with no more
+faces turned over than at the start (the start itself if no round beat it).
 """
 
 from __future__ import annotations
@@ -30,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import lift
-from ..rows import norms
+from ..rows import norms, row_min
 from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
 from .domain import on_sphere
@@ -45,6 +53,7 @@ EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
+CAP_DEG = 120.0       # a face with an angle this wide or wider is a cap: its long edge is split
 DRIFT = 1.0           # a target whose lift is farther from it in 3D than this × its distance
                       # to the face's corners (the surface bends away) is not inserted
 _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
@@ -153,15 +162,16 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first."""
     A = corner_angles_deg(S.X, S.F)
-    bad = np.flatnonzero(A.min(axis=1) < min_angle_deg)
+    bad = np.flatnonzero(row_min(A) < min_angle_deg)
     bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
-    worst = A[bad].min(axis=1)
+    worst = row_min(A[bad])
     order = np.argsort(worst, kind="stable")
     return bad[order], worst[order]
 
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
-                            rounds: int = ROUNDS) -> int:
+                            rounds: int = ROUNDS, caps: bool = False,
+                            patience: int | None = None) -> int:
     """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
     forces (module docstring); returns the number of vertices inserted (tallied as
     ``circumcentre_insertions``).
@@ -172,10 +182,17 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         Changed in place (vertices appended, faces rewritten); on the disk only.
     min_angle_deg : float
     flip : callable ``flip(F_before)``
-        Flips around the faces changed since ``F_before`` (m×3).
+        Flips around the faces changed since ``F_before`` (m×3), and any other operations
+        the caller makes after a round.
     folds : callable ``folds() -> (j,) int``
         The faces of ``S`` turned over against the input.
     rounds : int
+    caps : bool
+        Split the long edge of a cap instead (:func:`cap_split`).
+    patience : int, optional
+        Stop after this many rounds in a row that beat no earlier state (for a ``flip`` that
+        settles each round's vertices, so that a round no better than those before is no
+        step on the way to a better one); default: no limit but ``rounds``.
 
     Returns
     -------
@@ -186,19 +203,22 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     done = 0
     n_folds = len(folds())
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
+    stale = 0                              # rounds in a row that beat no earlier state
     for _ in range(rounds):
-        if best[0][0] == 0:
+        if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
         F0 = S.F.copy()
-        k = insert_round(S, min_angle_deg)
+        k = insert_round(S, min_angle_deg, caps)
         if k == 0:
             break
         flip(F0)
         done += k
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
-            best = (after, saved_state(S), done)
-        elif after[0] > RUNAWAY * best[0][0] + RUNAWAY:
+            best, stale = (after, saved_state(S), done), 0
+            continue
+        stale += 1
+        if after[0] > RUNAWAY * best[0][0] + RUNAWAY:
             break                          # the rounds make more faces than they mend
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])
@@ -223,7 +243,7 @@ def restore_state(S: RemeshState, saved: dict) -> None:
     S.set_faces(saved["F"])
 
 
-def insert_round(S: RemeshState, min_angle_deg: float) -> int:
+def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False) -> int:
     """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
     encroaches), worst face first, none in a face another one of the round touches; returns
@@ -241,7 +261,7 @@ def insert_round(S: RemeshState, min_angle_deg: float) -> int:
     used = np.zeros(len(S.F), bool)
     edges, faces, points = [], [], []
     for i in range(len(bad)):
-        act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], twin)
+        act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], twin, caps)
         if act is None:
             continue
         kind, h, t = act
@@ -266,13 +286,16 @@ def insert_round(S: RemeshState, min_angle_deg: float) -> int:
 
 
 def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c: np.ndarray,
-            C3: np.ndarray, R: float, twin: np.ndarray):
+            C3: np.ndarray, R: float, twin: np.ndarray, caps: bool = False):
     """What a round does for the bad face ``bad`` whose off-centre (domain ``c``, 3D ``C3``,
     ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the remesh or not): a split
     of the rim edge it lies beyond or encroaches (``("edge", h, t)`` with ``t`` along the
     half-edge ``h``, None for the middle), a split of the edge it lies next to, a split of
     ``f`` at it (``("face", f, None)``), or None when none is allowed."""
     F = S.F
+    cap = cap_split(S, bad) if caps else None
+    if cap is not None:
+        return _edge_split(S, cap[0], twin, cap[1])
     for g in (bad, f):                    # an encroached rim edge of the bad face or of f
         for j in range(3):
             h = 3 * g + j
@@ -297,6 +320,23 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     if (disk_shape(U, tri) < DISK_SHAPE_MIN).any():
         return None
     return "face", f, None
+
+
+def cap_split(S: RemeshState, g: int) -> tuple[int, float] | None:
+    """For a cap — a face ``g`` whose largest angle is at least ``CAP_DEG``, its small angles
+    at the ends of the edge across from it — the half-edge of that edge and where along it
+    the altitude from the wide corner meets it (``(h, t)``, ``t`` kept within
+    ``[EDGE_BARY, 1 − EDGE_BARY]``); None for any other face. No off-centre mends a cap: its
+    short edges are beside the wide corner, and the point across the long edge sees them
+    from farther still."""
+    A = corner_angles_deg(S.X, S.F[[g]])[0]
+    k = int(np.argmax(A))
+    if A[k] < CAP_DEG:
+        return None
+    a, b, w = S.F[g, (k + 1) % 3], S.F[g, (k + 2) % 3], S.F[g, k]
+    e = S.X[b] - S.X[a]
+    t = float(np.dot(S.X[w] - S.X[a], e) / max(float(np.dot(e, e)), 1e-300))
+    return 3 * g + (k + 1) % 3, min(max(t, EDGE_BARY), 1.0 - EDGE_BARY)
 
 
 def _is_shortest_edge(S: RemeshState, g: int, h: int) -> bool:

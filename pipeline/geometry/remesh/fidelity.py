@@ -28,30 +28,33 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import topology as topo
 from ..locate import lift
 from ..metrics import corner_angles
-from ..remesh_quality import (MeshDistance, closest_points_on_triangles, face_bounds,
-                              middle_bounds)
+from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
+                              candidate_face_distances, closest_points_on_triangles, face_bounds,
+                              face_centroids, largest_distance, middle_bounds, middle_offsets)
 from ..rows import norms, row_min
 from .corners import snap_vertices
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
-from .sag import edge_sag_along
+from .sag import edge_sag_along, lift_samples
 from .state import RemeshState, turned_against
 
 
 class InputPoints(NamedTuple):
     """The input points the remesh follows (:func:`input_points`): ``P`` (k×3) and their
     domain positions ``P_uv`` (k×2 or k×3), the ``vertices`` first, then the midpoints of the
-    ``edges`` (e×2), then the centroids of the ``faces`` (f×3) — input vertex indices."""
+    ``edges`` (e×2), then the centroids of the ``faces`` (f×3) — input vertex indices — and
+    the midpoints' and centroids' ``offsets`` from their corners
+    (:func:`..remesh_quality.middle_offsets`, for their distances' Lipschitz bounds)."""
 
     P: np.ndarray
     P_uv: np.ndarray
     vertices: np.ndarray
     edges: np.ndarray
     faces: np.ndarray
+    offsets: MiddleOffsets
 
 
 def input_points(S: RemeshState) -> InputPoints:
@@ -61,16 +64,20 @@ def input_points(S: RemeshState) -> InputPoints:
     own points are left out (:mod:`.rim` follows the boundary): the edges and faces at the rim
     are in, where a coarse input's farthest point can be (igl_camel_b at 20k vertices: the
     middle of an interior edge between two rim vertices)."""
-    is_rim = topo.boundary_vertices_mask(S.F_in, len(S.V_in))
     _, a, b, twin = edge_table(S.F_in)
+    is_rim = np.zeros(len(S.V_in), bool)          # the ends of the edges with one face
+    is_rim[a[twin < 0]] = is_rim[b[twin < 0]] = True
     a, b = a[twin >= 0], b[twin >= 0]
     v = np.flatnonzero(~is_rim)
+    edges = np.column_stack([a, b])
+    offsets = middle_offsets(S.V_in, S.F_in, edges)
 
-    def points(Y):
-        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, Y[S.F_in].mean(axis=1)])
+    def points(Y, centroids):
+        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, centroids])
 
-    return InputPoints(points(S.V_in), project(points(S.uv_in)), v, np.column_stack([a, b]),
-                       S.F_in)
+    return InputPoints(points(S.V_in, offsets.centroids),
+                       project(points(S.uv_in, face_centroids(S.uv_in, S.F_in))), v, edges,
+                       S.F_in, offsets)
 
 
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +109,8 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
     d_vertex[pts.vertices], f_vertex[pts.vertices] = measure(pts.P[:nv])
-    mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex)
+    mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
+                                                 pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
     ne = len(pts.edges)
@@ -293,11 +301,26 @@ def remesh_reach(S: RemeshState) -> float:
     """The largest distance of a remesh edge's middle from the input: a lower bound of the
     remesh-to-input Hausdorff distance (the vertices lie on the input; a face's inside is
     seldom farther than its edges' middles), below which an input point nearer the remesh
-    cannot decide the two-sided distance."""
+    cannot decide the two-sided distance. Measured only at the middles whose distance to the
+    input faces under their edge's ends and under its domain midpoint
+    (:func:`..remesh_quality.candidate_face_distances`) may reach the largest
+    (:func:`..remesh_quality.largest_distance`)."""
     _, a, b, twin = edge_table(S.F, twin=S.twins())
     keep = (twin < 0) | (a < b)
-    d, _ = S.of_input(input_distance)((S.X[a[keep]] + S.X[b[keep]]) / 2)
-    return float(d.max(initial=0.0))
+    a, b = a[keep], b[keep]
+    M = (S.X[a] + S.X[b]) / 2
+    _, under = lift_samples(S, a, b, np.full((len(a), 1), 0.5))
+    measure = S.of_input(input_distance)
+    bound = candidate_face_distances(M, np.column_stack([S.face[a], S.face[b], under]),
+                                     measure)
+    return largest_distance(M, bound, measure, S.of_input(input_slack))
+
+
+def input_slack(S: RemeshState) -> float:
+    """The absolute margin of the distance bounds to the input
+    (:func:`..remesh_quality.bound_slack`); made once per state
+    (:meth:`.state.RemeshState.of_input`)."""
+    return bound_slack(S.V_in)
 
 
 def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndarray,
@@ -319,12 +342,20 @@ def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndar
     return bool(np.all(sag <= max_sag))
 
 
+#: the input point tree's leaf size: the settle step asks it for a few balls only, so it is
+#: built for a quick build (sliding-midpoint splits, no node shrinking) rather than quick
+#: queries; a ball's points are the same whatever the tree's shape
+POINT_TREE_LEAF = 64
+
+
 def input_point_tree(S: RemeshState):
-    """A KD-tree (:class:`scipy.spatial.cKDTree`) over the input points of
-    :func:`input_points`; made once per state (:meth:`.state.RemeshState.of_input`)."""
+    """A KD-tree (:class:`scipy.spatial.cKDTree`, ``POINT_TREE_LEAF`` points a leaf) over the
+    input points of :func:`input_points`; made once per state
+    (:meth:`.state.RemeshState.of_input`)."""
     from scipy.spatial import cKDTree
 
-    return cKDTree(S.of_input(input_points).P)
+    return cKDTree(S.of_input(input_points).P, leafsize=POINT_TREE_LEAF, balanced_tree=False,
+                   compact_nodes=False)
 
 
 def near_input_kept(S: RemeshState, v: int, ring_faces: np.ndarray, was: np.ndarray,

@@ -85,12 +85,13 @@ The schedule (:func:`improve_remesh`):
     minimum and none smaller; then, up to ``GRADE_PASSES`` times while it is kept, the faces
     still below that no input corner forces refined at their off-centres
     (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short edge whose
-    far corner no operation can bring closer). A face none of this raises stays: the report
-    counts the faces below the minimum and, among them, those an input corner too
-    sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the corners; then
-    ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
-    ``relax_iterations``) that even out the faces the steps since step 7 left uneven, under
-    vetoes of every move that makes a face's smallest angle smaller than it was and than
+    far corner no operation can bring closer), or where that is not kept with the long edges
+    of their caps split, the local operations after every round of insertions. A face none
+    of this raises stays: the report counts the faces below the minimum and, among them, those
+    an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the
+    corners; then ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not
+    without ``relax_iterations``) that even out the faces the steps since step 7 left uneven,
+    under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
     sag tolerance (:func:`sag_veto`), the followed vertices and their neighbours, the input
     corners and the ends of the edges folded more than ``EVEN_FOLD_DEG`` staying (the feature
@@ -131,6 +132,7 @@ from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
 from .domain import on_sphere, project
+from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .fidelity import input_reach, settle_on_far_input
@@ -165,6 +167,7 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
                              # mean smallest angle at least pymeshlab's on 13, 12 with none
                              # freed; area CV at most 0.6 × its on 14, 12; RMS 2 % higher)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
+GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them)
 FOLLOW_GAPS = (0.4, 0.2)
@@ -340,6 +343,8 @@ class _Operations:
     features: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # where feature
                                           # vertices were placed (k×3)
     freed: list = field(default_factory=list)   # where feature vertices were freed (k×3 each)
+    folds: FaceMemo = field(default_factory=lambda: FaceMemo(turned_over_at))   # the fold
+                                          # counts of the minimum-angle pass's refinements
 
     @property
     def tol(self) -> float | None:
@@ -614,12 +619,30 @@ class _Operations:
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
     def grade(self, target: int, min_angle_deg: float) -> bool:
-        """The faces still below ``min_angle_deg`` that no input corner forces refined at
-        their off-centres (:func:`.circumcentres.refine_at_circumcentres`, flips after each
-        round), kept as :meth:`refine_unforced` keeps it. Returns whether it was kept."""
+        """The faces still below ``min_angle_deg`` that no input corner forces refined
+        (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
+        operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
+        with their caps' long edges split, each until ``GRADE_PATIENCE`` rounds in a row beat no
+        earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
+        kept."""
         S = self.S
-        return self.refine_unforced(target, min_angle_deg, lambda: refine_at_circumcentres(
-            S, min_angle_deg, lambda F0: self.flip(since=F0), lambda: turned_over_faces(S)))
+        raise_after = partial(self.flip_and_raise, min_angle_deg)
+        for caps in (False, True):
+            insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
+                             lambda: np.flatnonzero(self.folds(S)), caps=caps,
+                             patience=GRADE_PATIENCE)
+            if self.refine_unforced(target, min_angle_deg, insert):
+                return True
+        return False
+
+    def flip_and_raise(self, min_angle_deg: float, F_before: np.ndarray) -> None:
+        """Flips around the faces changed since ``F_before`` (m₀×3), then the local
+        operations of :func:`.angles.raise_min_angles` around the faces below
+        ``min_angle_deg``."""
+        self.flip(since=F_before)
+        bad = skinny_faces(self.S.X, self.S.F, min_angle_deg)
+        self.release(bad)
+        raise_min_angles(self.S, min_angle_deg, self.tol, bad)
 
     def open_fans(self, target: int, min_angle_deg: float) -> bool:
         """The rim's fans opened (:func:`.rim.open_rim_fans`: a vertex in the middle of the
@@ -643,12 +666,14 @@ class _Operations:
         vertices (:meth:`restore_angle_count`) and the local operations again around the faces
         then below; all of it undone if it leaves more such faces, or as many with a smaller
         smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
-        turned over. Returns whether it was kept."""
+        turned over (counted with :attr:`folds`, again only where the remesh changed).
+        Returns whether it was kept."""
         S = self.S
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
-        saved, log, n_folds, n0 = saved_state(S), dict(S.log), len(turned_over_faces(S)), S.n
+        saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(self.folds(S).sum()), S.n
+        counted = self.folds.kept()
         if not insert():
             return False
         added = np.zeros(S.n, bool)
@@ -659,8 +684,9 @@ class _Operations:
         raise_min_angles(S, min_angle_deg, self.tol, bad)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
-                (pareto and after[1] < before[1]) or len(turned_over_faces(S)) > n_folds:
+                (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
             restore_state(S, saved)
+            self.folds.restore(counted)
             S.log.clear()
             S.log.update(log)
             return False
@@ -770,14 +796,17 @@ def turned_from_input(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     return turned_against(S.X, faces, S.normals_in()[S.face[faces]])
 
 
-def turned_over_faces(S: RemeshState) -> np.ndarray:
+def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.ndarray:
     """The faces (indices) of ``S`` whose surface normal points against the input's at each of
     their corners (the normal of the input face each corner lies in) and where their domain
     centroid lies in the input map: folds, where the remesh doubles back over the surface (the
     definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
-    the map instead of by closest point)."""
+    the map instead of by closest point); given ``faces`` (k indices), those among them."""
     input_normal = S.normals_in()
-    suspect = np.flatnonzero(turned_against(S.X, S.F, input_normal[S.face[S.F]]))
+    F = S.F if faces is None else S.F[faces]
+    suspect = np.flatnonzero(turned_against(S.X, F, input_normal[S.face[F]]))
+    if faces is not None:
+        suspect = faces[suspect]
     if len(suspect) == 0:
         return suspect
     P = S.X[S.F[suspect]]
@@ -851,6 +880,12 @@ def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
     out = np.zeros(S.n, bool)
     out[a[inner][fold]] = out[b[inner][fold]] = True
     return out
+
+
+def turned_over_at(S: RemeshState, faces: np.ndarray) -> np.ndarray:
+    """Whether each of the ``faces`` (k indices) of ``S`` is turned over
+    (:func:`turned_over_faces`; k bool): the measure of a :class:`.face_memo.FaceMemo`."""
+    return np.isin(faces, turned_over_faces(S, faces))
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:

@@ -30,7 +30,8 @@ from .improve import Stopwatch
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples
 from .state import RemeshState
-from .uniform import RemeshResult, check_remesh, check_topology, improve_state
+from .uniform import (RemeshResult, built_input_distance, check_remesh, check_topology,
+                      improve_state)
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
@@ -159,6 +160,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     uv_out = P
     imp = {"enabled": bool(improve)}
     L = target_length(V, F, n)
+    input_tree = None
     if improve:
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
                         np.zeros((0, 3)), surface_middles=True)
@@ -168,6 +170,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
                                  sag_floor=refine_sag * target_length(V, F, len(V)),
                                  **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
+        input_tree = built_input_distance(S)
     lap("improve")
     check_remesh(X, F_out, uv_out)
     facts = check_topology(X, F_out, closed=True)
@@ -185,4 +188,4 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         "improve": imp,
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
-                        facts)
+                        facts, input_tree)

@@ -190,6 +190,10 @@ class RemeshState:
             self._of_input[make] = make(self)
         return self._of_input[make]
 
+    def made_of_input(self, make):
+        """What :meth:`of_input` made of ``make``, or None if nothing asked for it yet."""
+        return self._of_input.get(make)
+
     # ------------------------------------------------------------------ faces and their twins
 
     def twins(self) -> np.ndarray:

@@ -23,9 +23,11 @@ import numpy as np
 from ..laplacian import face_double_areas
 from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
+from ..remesh_quality import MeshDistance
 from .angles import corner_angles_deg, forced_corners, input_vertex_under
 from .corners import boundary_corners, interior_corners
 from .domain import on_sphere
+from .fidelity import input_distance
 from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
@@ -59,6 +61,9 @@ class RemeshResult:
         Seconds per step: sample, delaunay, locate, lift, improve, landmarks.
     facts : dict
         The remesh's :func:`..remesh_quality.mesh_facts`, as :func:`check_topology` found them.
+    input_distance : MeshDistance or None
+        The input's AABB tree (:func:`.fidelity.input_distance`) if the improvement built
+        one, for the measures to use again (:func:`built_input_distance`).
     """
 
     V: np.ndarray
@@ -72,6 +77,7 @@ class RemeshResult:
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     facts: dict = field(default_factory=dict)
+    input_distance: MeshDistance | None = None
 
 
 def area_scale(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> float:
@@ -143,6 +149,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     lifted = (X, F_out)
     uv_out = samples.points
     imp = {"enabled": bool(improve), "rim_corners_snapped": int(len(snapped))}
+    input_tree = None
     if improve:
         S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped)
         L = samples.spacing / np.sqrt(ratio)                             # target length in 3D
@@ -155,6 +162,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
             pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg,
             follow_input=follow_input, feature_angle_deg=feature_angle_deg))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
+        input_tree = built_input_distance(S)
     lap("improve")
     check_remesh(X, F_out, uv_out)
     facts = check_topology(X, F_out)
@@ -171,7 +179,14 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "improve": imp,
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
-                        facts)
+                        facts, input_tree)
+
+
+def built_input_distance(S: RemeshState) -> MeshDistance | None:
+    """The input's AABB tree (:func:`.fidelity.input_distance`) if the improvement of ``S``
+    built one (the settle step does), else None: the measures of the remesh against the
+    input can use it instead of building their own."""
+    return S.made_of_input(input_distance)
 
 
 def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndarray, *,
