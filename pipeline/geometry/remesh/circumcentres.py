@@ -105,8 +105,8 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
 def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
                       steps: int = NEWTON_STEPS) -> np.ndarray:
     """Domain points whose lifts come near the 3D points ``C``: from the first guesses ``c``,
-    ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face under
-    ``c`` (:meth:`.state.RemeshState.pullback`): where the map's stretch changes within a
+    ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face
+    under ``c`` (:meth:`.state.RemeshState.pullback`): where the map's stretch changes within a
     remesh face, the face's own affine map carries a point of its plane far from where it
     lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS`` times,
     then not made.
@@ -288,7 +288,8 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False) -> in
 def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c: np.ndarray,
             C3: np.ndarray, R: float, twin: np.ndarray, caps: bool = False):
     """What a round does for the bad face ``bad`` whose off-centre (domain ``c``, 3D ``C3``,
-    ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the remesh or not): a split
+    ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the
+    remesh or not): with ``caps``, a split of a cap's long edge (:func:`cap_split`); a split
     of the rim edge it lies beyond or encroaches (``("edge", h, t)`` with ``t`` along the
     half-edge ``h``, None for the middle), a split of the edge it lies next to, a split of
     ``f`` at it (``("face", f, None)``), or None when none is allowed."""

@@ -592,13 +592,9 @@ class _Operations:
             self.lock_at(kept[1])
         self.collapse_at_faces(target, lambda: skinny_faces(S.X, S.F, NEEDLE_DEG),
                                "needles_collapsed", NEEDLE_PASSES, rim=False)
-        bad = skinny_faces(S.X, S.F, min_angle_deg)
-        self.release(bad)
-        raise_min_angles(S, min_angle_deg, tol, bad)
+        self.raise_angles(min_angle_deg)
         self.restore_angle_count(target, min_angle_deg)
-        bad = skinny_faces(S.X, S.F, min_angle_deg)
-        self.release(bad)
-        raise_min_angles(S, min_angle_deg, tol, bad)
+        self.raise_angles(min_angle_deg)
         self.open_fans(target, min_angle_deg)
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg):
@@ -637,9 +633,13 @@ class _Operations:
 
     def flip_and_raise(self, min_angle_deg: float, F_before: np.ndarray) -> None:
         """Flips around the faces changed since ``F_before`` (m₀×3), then the local
-        operations of :func:`.angles.raise_min_angles` around the faces below
-        ``min_angle_deg``."""
+        operations around the faces below ``min_angle_deg`` (:meth:`raise_angles`)."""
         self.flip(since=F_before)
+        self.raise_angles(min_angle_deg)
+
+    def raise_angles(self, min_angle_deg: float) -> None:
+        """The local operations of :func:`.angles.raise_min_angles` around the faces with a 3D
+        angle below ``min_angle_deg``, their feature vertices freed first (:meth:`release`)."""
         bad = skinny_faces(self.S.X, self.S.F, min_angle_deg)
         self.release(bad)
         raise_min_angles(self.S, min_angle_deg, self.tol, bad)
@@ -679,9 +679,7 @@ class _Operations:
         added = np.zeros(S.n, bool)
         added[n0:] = True
         self.restore_angle_count(target, min_angle_deg, keep=added)
-        bad = skinny_faces(S.X, S.F, min_angle_deg)
-        self.release(bad)
-        raise_min_angles(S, min_angle_deg, self.tol, bad)
+        self.raise_angles(min_angle_deg)
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
                 (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
