@@ -176,8 +176,8 @@ def _roof_quad():
 def test_sag_flips_turn_an_edge_across_a_crease_onto_it():
     """On the roof quad the Delaunay flips keep ``a–b``, a unit below the ridge; the sag flips
     turn it into ``p–q`` on the ridge (the faces still counter-clockwise on the disk, the
-    twins given updated in place), and keep it below a threshold of the sag or on a fixed
-    edge."""
+    twins given updated in place), and keep it below a threshold of the sag, on a fixed
+    edge or where a screen says it cannot be farther than the threshold."""
     from pipeline.geometry import topology as topo
     from pipeline.geometry.remesh.flips import sag_flips
 
@@ -195,6 +195,10 @@ def test_sag_flips_turn_an_edge_across_a_crease_onto_it():
     assert sag_flips(X, F, uv, rim, sag, 1.5, 20.0)[1] == 0
     assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
                      fixed=lambda i, j: np.ones(len(i), bool))[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
+                     screen=lambda i, j: np.zeros(len(i), bool))[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
+                     screen=lambda i, j: np.ones(len(i), bool))[1] == 1
 
 
 def test_sag_flips_make_no_face_below_the_floor():

@@ -217,7 +217,7 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
 
 def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray, sag,
               threshold: float, min_angle_deg: float, max_rounds: int = 4,
-              twin: np.ndarray | None = None, fixed=None, turned=None
+              twin: np.ndarray | None = None, fixed=None, turned=None, screen=None
               ) -> tuple[np.ndarray, int]:
     """Flip the interior edges farther than ``threshold`` from the input surface whose other
     diagonal is within it, whatever the Delaunay criterion says: an edge across a crease
@@ -255,6 +255,9 @@ def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray
     turned : callable ``turned(faces) -> (k,) bool``, optional
         The faces (k×3) not to make (those turned over against the input,
         :func:`.improve.turned_from_input`).
+    screen : callable ``screen(i, j) -> (k,) bool``, optional
+        The edges ``i–j`` that may be farther than ``threshold``, by a cheaper measure than
+        ``sag``; the others are not measured.
 
     Returns
     -------
@@ -274,6 +277,8 @@ def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray
     for _ in range(max_rounds):
         if len(h) == 0:
             break
+        if screen is not None:
+            h = h[screen(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])]
         old_sag = sag(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])
         h, old_sag = h[old_sag > threshold], old_sag[old_sag > threshold]
         (a, b, p, q), _, valid = flip_checks(X, uv, is_b, F, h, twin, 1.0)
