@@ -258,8 +258,8 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     from scipy.spatial import cKDTree
 
     far, d_all = far_input_points(S, tol)
-    taken = int(np.count_nonzero(d_all > remesh_reach(S))) if len(far) else 0
-    far, d = far[:taken], d_all[:taken]
+    kept = int(np.count_nonzero(d_all > remesh_reach(S))) if len(far) else 0   # a prefix
+    far, d = far[:kept], d_all[:kept]
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:

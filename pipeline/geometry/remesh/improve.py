@@ -107,10 +107,9 @@ The schedule (:func:`improve_remesh`):
     search leaves it, :attr:`.fidelity.Settled.reach`, at least ``SETTLE_TOL × L``) flipped
     where the other diagonal is within that distance, with no new angle below
     ``SAG_FLIP_MIN_DEG`` (or ``min_angle_deg`` if higher) and the old faces' and no new face
-    turned from the input
-    (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`: an edge across an input
-    crease, which the Delaunay flips keep, decides the remesh-to-input side there and, at the
-    crossing, the input-to-remesh side);
+    turned from the input (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`: an
+    edge across an input crease, which the Delaunay flips keep, decides the remesh-to-input
+    side there and, at the crossing, the input-to-remesh side);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -194,8 +193,8 @@ SAG_FLIP_TS = np.arange(1, 16) / 16
 SAG_FLIP_MIN_DEG = 30.0
 # the sag flips' first look at an edge: its sag at these t (a subset of SAG_FLIP_TS) must
 # exceed SAG_SCREEN_MARGIN × the threshold before it is measured at all SAG_FLIP_TS (the same
-# flips on the rows measured; the first round's measures on choi_human_brain at 20 000
-# vertices 0.13 -> 0.05 s CPU)
+# flips on the rows measured; the pass on choi_human_brain at 20 000 vertices 0.13 -> 0.05 s
+# CPU)
 SAG_SCREEN_TS = SAG_FLIP_TS[3::4]
 SAG_SCREEN_MARGIN = 0.5
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
