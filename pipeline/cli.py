@@ -293,14 +293,25 @@ def _on_sigterm(signum, frame):
     raise _Terminated()
 
 
-def entry() -> None:
-    """The console command (``sem-pipeline``, ``python -m pipeline``): the modules every
-    command imports (:mod:`.runner`: NumPy, SciPy, pydantic, the stages) imported with the
-    cyclic garbage collector paused, then :func:`main`, then :func:`exit_now` with its exit
-    code. (Imports make objects that all stay alive: the collector's ~150 passes over them
-    while they are made find nothing and cost about 0.06 s of CPU.)"""
-    import gc
+#: OpenBLAS threads of NumPy and SciPy in a command, unless ``OPENBLAS_NUM_THREADS`` is set:
+#: their dense operations here are small (per-face 2×2 and 3×2 matrices), and OpenBLAS's idle
+#: workers spin between them (0.2 s of CPU in a 5k remesh of a small mesh, no wall time saved);
+#: the sparse solves thread through MKL (:mod:`.geometry.solvers`), which this leaves alone
+OPENBLAS_THREADS = "1"
 
+
+def entry() -> None:
+    """The console command (``sem-pipeline``, ``python -m pipeline``): OpenBLAS on
+    :data:`OPENBLAS_THREADS` threads; the modules every command imports (:mod:`.runner`:
+    NumPy, SciPy, pydantic, the stages) imported with the cyclic garbage collector paused;
+    then :func:`main`, then :func:`exit_now` with its exit code. (Imports make objects that
+    all stay alive: the collector's ~150 passes over them while they are made find nothing
+    and cost about 0.03 s of CPU.)"""
+    import gc
+    import os
+
+    if "numpy" not in sys.modules:             # OpenBLAS reads it when NumPy loads it
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", OPENBLAS_THREADS)
     gc.disable()
     try:
         from . import runner  # noqa: F401
