@@ -259,7 +259,7 @@ def test_module_entry_point_exit_codes(tmp_path):
 
 
 @pytest.mark.parametrize("given, expected", [(None, "1"), ("2", "2")])
-def test_entry_runs_openblas_on_one_thread_unless_told(given, expected):
+def test_entry_runs_openblas_on_one_thread_unless_told(given, expected, tmp_path):
     """The console command starts NumPy with ``OPENBLAS_NUM_THREADS=1`` (its OpenBLAS workers
     would only spin), and keeps a value the user set."""
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
@@ -268,10 +268,11 @@ def test_entry_runs_openblas_on_one_thread_unless_told(given, expected):
     code = ("import atexit, os, sys\n"
             "atexit.register(lambda: print(os.environ.get('OPENBLAS_NUM_THREADS'),"
             " 'numpy' in sys.modules))\n"
-            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices', '500']\n"
+            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
+            " '500']\n"
             "from pipeline.cli import entry\n"
             "entry()\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
                           text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout.split() == [expected, "True"]
