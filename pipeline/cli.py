@@ -295,8 +295,9 @@ def _on_sigterm(signum, frame):
 
 #: OpenBLAS threads of NumPy and SciPy in a command, unless ``OPENBLAS_NUM_THREADS`` is set:
 #: their dense operations here are small (per-face 2×2 and 3×2 matrices), and OpenBLAS's idle
-#: workers spin between them (0.2 s of CPU in a 5k remesh of a small mesh, no wall time saved);
-#: the sparse solves thread through MKL (:mod:`.geometry.solvers`), which this leaves alone
+#: workers spin between them (0.2 s of CPU in a 5k remesh of a small mesh, for no gain in wall
+#: time); the sparse solves thread through MKL (:mod:`.geometry.solvers`), which this leaves
+#: alone. Processes the command starts (an experiment's workers) inherit the setting
 OPENBLAS_THREADS = "1"
 
 
