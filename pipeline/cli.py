@@ -293,6 +293,55 @@ def _on_sigterm(signum, frame):
     raise _Terminated()
 
 
+#: OpenBLAS threads of NumPy and SciPy in a command, unless ``OPENBLAS_NUM_THREADS`` is set:
+#: their dense operations here are small (per-face 2×2 and 3×2 matrices), and OpenBLAS's idle
+#: workers spin between them (0.2 s of CPU in a 5k remesh of a small mesh, for no gain in wall
+#: time); the sparse solves thread through MKL (:mod:`.geometry.solvers`), which this leaves
+#: alone. Processes the command starts (an experiment's workers) inherit the setting
+OPENBLAS_THREADS = "1"
+
+
+def entry() -> None:
+    """The console command (``sem-pipeline``, ``python -m pipeline``): OpenBLAS on
+    :data:`OPENBLAS_THREADS` threads; the modules every command imports (:mod:`.runner`:
+    NumPy, SciPy, pydantic, the stages) imported with the cyclic garbage collector paused;
+    then :func:`main`, then :func:`exit_now` with its exit code. (Imports make objects that
+    all stay alive: the collector's ~150 passes over them while they are made find nothing
+    and cost about 0.03 s of CPU.)"""
+    import gc
+    import os
+
+    if "numpy" not in sys.modules:             # OpenBLAS reads it when NumPy loads it
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", OPENBLAS_THREADS)
+    gc.disable()
+    try:
+        from . import runner  # noqa: F401
+    finally:
+        gc.enable()
+    exit_now(main())
+
+
+def exit_now(code: int) -> None:
+    """End the process with ``code`` once the work is done: the standard streams flushed and
+    the ``atexit`` handlers run, as at a normal exit, but without the interpreter's teardown,
+    which frees every module, array and library one by one (about 0.08 s of CPU after a
+    remesh, where the process ends anyway). With Python threads other than the main one still
+    running, a normal exit (it waits for them)."""
+    import atexit
+    import os
+    import threading
+
+    if threading.active_count() > 1:
+        sys.exit(code)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):       # a closed pipe or stream: nothing more to show
+            pass
+    atexit._run_exitfuncs()
+    os._exit(code)
+
+
 def main(argv=None) -> int:
     import signal
     import threading

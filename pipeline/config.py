@@ -17,7 +17,6 @@ import warnings
 from pathlib import Path
 from typing import Optional
 
-import yaml
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, create_model,
                       field_validator, model_validator)
 
@@ -134,34 +133,41 @@ def load_config(path: str | Path) -> tuple[Config, Path]:
     return config, base
 
 
-class StrictLoader(yaml.SafeLoader):
+def _strict_loader():
     """``yaml.SafeLoader`` that refuses a key given twice in one mapping (the safe loader
-    keeps the last silently)."""
+    keeps the last silently). Made on first use: a subcommand reads no YAML and does not
+    import PyYAML."""
+    import yaml
 
-    def construct_mapping(self, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            try:
-                duplicate = key in seen
-            except TypeError:                # an unhashable key: the base class reports it
-                break
-            if duplicate:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"key '{key}' is given twice in one mapping",
-                    key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep)
+    class StrictLoader(yaml.SafeLoader):
+        def construct_mapping(self, node, deep=False):
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    duplicate = key in seen
+                except TypeError:            # an unhashable key: the base class reports it
+                    break
+                if duplicate:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"key '{key}' is given twice in one mapping",
+                        key_node.start_mark)
+                seen.add(key)
+            return super().construct_mapping(node, deep)
+
+    return StrictLoader
 
 
 def read_yaml_mapping(path: Path) -> dict:
-    """The top-level mapping of a YAML file (:class:`StrictLoader`: safe, no duplicated keys);
-    one-line errors."""
+    """The top-level mapping of a YAML file (:func:`_strict_loader`: safe, no duplicated
+    keys); one-line errors."""
+    import yaml
+
     if not path.is_file():
         raise UserError(f"config file '{path}' not found; pass the path to a YAML file "
                         f"(examples in configs/)")
     try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=StrictLoader)
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_strict_loader())
     except OSError as exc:
         raise UserError(f"cannot read config '{path}': {exc.strerror}; check the path and "
                         f"permissions") from None

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -201,3 +204,75 @@ def test_missing_config_and_bad_arguments(tmp_path, capsys):
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1
     assert main(["parameterize", "x.obj", "-o", str(tmp_path), "--solver", "magic"]) == 2
+
+
+def _run_python(code: str):
+    """Run ``code`` in a fresh interpreter with block-buffered output to pipes."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                          text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def test_exit_now_flushes_runs_atexit_and_keeps_the_code(tmp_path):
+    """The console command ends without the interpreter's teardown, but what a normal exit
+    does for the user still happens: buffered output shown, atexit handlers run, the code."""
+    marker = tmp_path / "atexit.txt"
+    code, out, err = _run_python(
+        "import atexit, sys\n"
+        "from pipeline.cli import exit_now\n"
+        f"atexit.register(lambda: open({str(marker)!r}, 'w').write('ran'))\n"
+        "print('partial line, no newline', end='')\n"
+        "print('to stderr', end='', file=sys.stderr)\n"
+        "exit_now(5)\n"
+        "print('never')\n")
+    assert code == 5, err
+    assert out == "partial line, no newline"
+    assert err == "to stderr"
+    assert marker.read_text() == "ran"
+
+
+def test_exit_now_waits_for_running_threads(tmp_path):
+    """With a Python thread still working, the exit is a normal one: the thread finishes."""
+    marker = tmp_path / "thread.txt"
+    code, _, err = _run_python(
+        "import threading, time\n"
+        "from pipeline.cli import exit_now\n"
+        "def work():\n"
+        "    time.sleep(0.3)\n"
+        f"    open({str(marker)!r}, 'w').write('done')\n"
+        "threading.Thread(target=work).start()\n"
+        "exit_now(3)\n")
+    assert code == 3, err
+    assert marker.read_text() == "done"
+
+
+def test_module_entry_point_exit_codes(tmp_path):
+    """``python -m pipeline``: 0 on success with its closing line on stdout, 2 with one line on
+    a user mistake (through :func:`pipeline.cli.entry`)."""
+    code, out, err = run_cli("sample", "-o", tmp_path / "s", "--vertices", 400)
+    assert code == 0, err
+    assert out.strip() and all(Path(p).exists() for p in out.split())
+    code, _, err = run_cli("remesh", tmp_path / "missing.obj", "-o", tmp_path / "r",
+                           "--vertices", 500)
+    assert_one_line_error(code, err, "missing.obj")
+
+
+@pytest.mark.parametrize("given, expected", [(None, "1"), ("2", "2")])
+def test_entry_runs_openblas_on_one_thread_unless_told(given, expected, tmp_path):
+    """The console command starts NumPy with ``OPENBLAS_NUM_THREADS=1`` (its OpenBLAS workers
+    would only spin), and keeps a value the user set."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    code = ("import atexit, os, sys\n"
+            "atexit.register(lambda: print(os.environ.get('OPENBLAS_NUM_THREADS'),"
+            " 'numpy' in sys.modules))\n"
+            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
+            " '500']\n"
+            "from pipeline.cli import entry\n"
+            "entry()\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout.split() == [expected, "True"]

@@ -239,19 +239,21 @@ def test_settle_moves_a_vertex_onto_the_farthest_input_point_keeping_the_angles(
     input (:func:`remesh_reach`). :func:`settle_on_far_input` (tolerance 0.05, gap 0.1, floor
     20°) moves vertex 2 exactly onto the farthest point, without changing a face and without
     any face's smallest angle dropping below 20° and below what it was; the farthest point
-    is then 0.0613 away, and the next one no vertex can take."""
+    is then 0.0613 away, and the next one no vertex can take: the reach it reports is that
+    point's distance, the same as a new search finds."""
     S, _ = coarse_state(*creased_disk(1.0), 8)
     far, d = far_input_points(S, 0.05)
     assert len(far) == 94 and np.isclose(d[0], 0.06607, atol=1e-5)
     assert np.count_nonzero(d > remesh_reach(S)) == 72
     F0, before = S.F.copy(), smallest_angles_deg(S)
-    v = settle_on_far_input(S, 0.05, 0.1, 20.0, 0.1)
+    v, reach = settle_on_far_input(S, 0.05, 0.1, 20.0, 0.1)
     assert v.tolist() == [2] and S.log["settled_on_input"] == 1
     assert S.log["far_input_points_late"] == 72
     np.testing.assert_array_equal(S.uv[2], far[0])
     np.testing.assert_array_equal(S.F, F0)
     assert np.all(smallest_angles_deg(S) >= np.minimum(before, 20.0) - 1e-9)
     assert np.isclose(far_input_points(S, 0.05)[1][0], 0.06130, atol=1e-5)
+    assert reach == far_input_points(S, 0.05)[1][0]
 
 
 @pytest.mark.timeout(60)
@@ -259,10 +261,11 @@ def test_settle_stops_at_the_first_point_no_vertex_can_take():
     """The coarser remesh (4 rings) of the same disk: moving any of the vertices nearest to
     its farthest input point (0.1369) onto it would leave another input point as far where
     the vertex was, so nothing moves at all, even with no angle floor (the points after it
-    cannot lower the largest distance)."""
+    cannot lower the largest distance); the reach it reports is that point's distance."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
     uv0 = S.uv.copy()
-    assert len(settle_on_far_input(S, 0.05, 0.1, 0.0, np.inf)) == 0
+    v, reach = settle_on_far_input(S, 0.05, 0.1, 0.0, np.inf)
+    assert len(v) == 0
     np.testing.assert_array_equal(S.uv, uv0)
     far, d = far_input_points(S, 0.05)
-    assert len(far) == 2207 and np.isclose(d[0], 0.13689, atol=1e-5)
+    assert len(far) == 2207 and np.isclose(d[0], 0.13689, atol=1e-5) and reach == d[0]

@@ -151,3 +151,67 @@ def test_valence_flips_keep_the_twins():
     F2, flips = valence_flips(X, F, uv, rim, min_angle_deg=0.0, max_rounds=3, twin=twin)
     assert flips > 0
     assert np.array_equal(twin, topo.interior_edge_twins(F2))
+
+
+def _roof_quad():
+    """A quad ``a, b, p, q`` inside a square ring on the roof ``z = 1 − |x|`` (its ridge on
+    ``x = 0``, the disk the plane ``(x, y)``): ``p–q`` lies on the ridge, ``a–b`` crosses
+    it a whole unit below the ridge, and the angles opposite ``a–b`` (70.5° each) make it
+    Delaunay. Returns the corners' indices, ``uv``, ``X``, ``F`` and the exact sag of an
+    edge (the largest height of the roof above or below it at 33 points)."""
+    a, b, p, q, T1, T2, B1, B2 = range(8)
+    uv = np.array([[-1.0, 0], [1, 0], [0, 1], [0, -1], [-2, 2], [2, 2], [-2, -2], [2, -2]])
+    F = np.array([[a, b, p], [b, a, q], [a, p, T1], [p, T2, T1], [p, b, T2], [a, T1, B1],
+                  [a, B1, q], [q, B1, B2], [q, B2, b], [b, B2, T2]])
+    X = np.column_stack([uv, 1 - np.abs(uv[:, 0])])
+
+    def sag(i, j):
+        t = np.linspace(0, 1, 33)[None, :, None]
+        M = (1 - t) * X[np.asarray(i)][:, None] + t * X[np.asarray(j)][:, None]
+        return np.abs(1 - np.abs(M[..., 0]) - M[..., 2]).max(axis=1)
+
+    return (a, b, p, q), uv, X, F, sag
+
+
+def test_sag_flips_turn_an_edge_across_a_crease_onto_it():
+    """On the roof quad the Delaunay flips keep ``a–b``, a unit below the ridge; the sag flips
+    turn it into ``p–q`` on the ridge (the faces still counter-clockwise on the disk, the
+    twins given updated in place), and keep it below a threshold of the sag, on a fixed
+    edge or where a screen says it cannot be farther than the threshold."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh.flips import sag_flips
+
+    (a, b, p, q), uv, X, F, sag = _roof_quad()
+    assert np.all(signed_double_areas(uv, F) > 0)
+    assert np.allclose(sag([a, p], [b, q]), [1.0, 0.0])
+    rim = topo.boundary_vertices_mask(F, len(uv))
+    F0, _, _ = flip_edges(X, F, uv)
+    assert _has_edge(F0, a, b)
+    twin = topo.interior_edge_twins(F)
+    F1, flips = sag_flips(X, F, uv, rim, sag, 0.5, 20.0, twin=twin)
+    assert flips == 1 and _has_edge(F1, p, q) and not _has_edge(F1, a, b)
+    assert np.all(signed_double_areas(uv, F1) > 0) and is_disk(mesh_facts(X, F1))
+    assert np.array_equal(twin, topo.interior_edge_twins(F1))
+    assert sag_flips(X, F, uv, rim, sag, 1.5, 20.0)[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
+                     fixed=lambda i, j: np.ones(len(i), bool))[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
+                     screen=lambda i, j: np.zeros(len(i), bool))[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 20.0,
+                     screen=lambda i, j: np.ones(len(i), bool))[1] == 1
+
+
+def test_sag_flips_make_no_face_below_the_floor():
+    """The roof quad with ``q`` moved out to ``y = −8``: ``p–q`` would still lie on the ridge,
+    but the new faces would have 10° angles at ``q`` (the old faces' smallest is 14°): under a
+    12° floor it stays, with no floor it flips."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.remesh.flips import sag_flips
+
+    (a, b, p, q), uv, X, F, sag = _roof_quad()
+    uv[q], X[q] = [0, -8], [0, -8, 1]
+    uv[6:, 1] = X[6:, 1] = -9
+    assert np.all(signed_double_areas(uv, F) > 0)
+    rim = topo.boundary_vertices_mask(F, len(uv))
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 12.0)[1] == 0
+    assert sag_flips(X, F, uv, rim, sag, 0.5, 0.0)[1] == 1

@@ -207,9 +207,21 @@ def undo_sagging_snaps(S: RemeshState, moved: np.ndarray, old: tuple, max_sag: f
     return r
 
 
+class Settled(NamedTuple):
+    """What :func:`settle_on_far_input` did: the ``vertices`` (j,) it moved onto input points
+    and the input's ``reach`` left — the distance of the farthest input point it measured and
+    neither took nor skipped next to one taken (the point it stopped at, or the first nearer
+    than the remesh's own reach), or its tolerance: an estimate of the farthest distance of an
+    input point from the remesh after the moves (:func:`far_input_points`) without another
+    search."""
+
+    vertices: np.ndarray
+    reach: float
+
+
 def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
                         max_sag: float, fixed: np.ndarray | None = None,
-                        candidates: int = 8) -> np.ndarray:
+                        candidates: int = 8) -> Settled:
     """Put a remesh vertex exactly on each input point of :func:`far_input_points` (farther
     than ``tol`` from the remesh), farthest first, skipping those within ``min_gap`` on the
     surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
@@ -240,27 +252,29 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
 
     Returns
     -------
-    (j,) int
-        The vertices moved.
+    Settled
+        The vertices moved and the input's reach left.
     """
     from scipy.spatial import cKDTree
 
-    far, d = far_input_points(S, tol)
-    if len(far):
-        keep = d > remesh_reach(S)
-        far, d = far[keep], d[keep]
+    far, d_all = far_input_points(S, tol)
+    kept = int(np.count_nonzero(d_all > remesh_reach(S))) if len(far) else 0   # a prefix
+    far, d = far[:kept], d_all[:kept]
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:
         movable &= ~fixed
     free = np.flatnonzero(movable)
-    if len(far) == 0:
-        return np.zeros(0, np.int64)
+
+    def settled(put: list, stop: int) -> Settled:
+        return Settled(np.asarray(put, np.int64), float(d_all[stop]) if stop < len(d_all)
+                       else tol)
+
+    k = min(candidates, len(free))
+    if len(far) == 0 or k == 0:
+        return settled([], 0)
     f, b, _ = S.locator.locate_with_inside(far)
     P = lift(S.V_in, S.F_in, f, b)
-    k = min(candidates, len(free))
-    if k == 0:
-        return np.zeros(0, np.int64)
     J = free[np.asarray(cKDTree(S.uv[free]).query(far, k=k)[1]).reshape(len(far), k)]
     floor = np.radians(floor_deg)
     put: list[int] = []
@@ -278,8 +292,10 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
             break
         movable[v] = False
         put.append(v)
+    else:
+        i = len(far)
     S.tally("settled_on_input", len(put))
-    return np.asarray(put, np.int64)
+    return settled(put, i)
 
 
 def input_distance(S: RemeshState) -> MeshDistance:

@@ -14,6 +14,10 @@ leaves on curved regions (noses, lips, fingers, sulci) flip.
 :func:`valence_flips` flips towards regular valences instead (Botsch & Kobbelt 2004: 6 inside,
 4 on the rim), under the same checks for nearly planar quads, and only where the new faces'
 smallest 3D angle is at least the old faces' or ``min_angle_deg``.
+
+:func:`sag_flips` flips the edges farther than a threshold from the input surface whose other
+diagonal is within it, whatever the Delaunay criterion says (an edge across an input crease), under
+the same checks, the same angle rule and a test of the new faces against the input's normals.
 """
 
 from __future__ import annotations
@@ -202,19 +206,128 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
         (a, b, p, q), flat, valid = flip_checks(X, uv, is_b, F, h, twin, cos_max)
         ok = np.flatnonzero(flat & valid)
         ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
-        old = corner_angles(X, np.column_stack([a, b, p, b, a, q])[ok].reshape(-1, 3))
-        new = corner_angles(X, np.column_stack([p, a, q, q, b, p])[ok].reshape(-1, 3))
-        old, new = row_min(old.reshape(-1, 6)), row_min(new.reshape(-1, 6))
-        ok = ok[new >= np.minimum(old, floor)]
+        ok = ok[_angles_kept(X, a[ok], b[ok], p[ok], q[ok], floor)]
         if len(ok) == 0:
             break
         win = ok[independent_by(n, (a[ok], b[ok], p[ok], q[ok]), -gain[ok])]
-        f, c, g, d = h[win] // 3, h[win] % 3, twin[h[win]] // 3, twin[h[win]] % 3
-        _flipped_twins(twin, slot, f, c, g, d)
-        F[f] = np.column_stack([p[win], a[win], q[win]])
-        F[g] = np.column_stack([q[win], b[win], p[win]])
+        flip_in_place(F, twin, h[win], (a[win], b[win], p[win], q[win]), slot)
         total += len(win)
     return F, total
+
+
+def sag_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray, sag,
+              threshold: float, min_angle_deg: float, max_rounds: int = 4,
+              twin: np.ndarray | None = None, fixed=None, turned=None, screen=None
+              ) -> tuple[np.ndarray, int]:
+    """Flip the interior edges farther than ``threshold`` from the input surface whose other
+    diagonal is within it, whatever the Delaunay criterion says: an edge across a crease
+    of the input (a lip's, an eyelid's, a ridge narrower than the faces) sags into the fold
+    or bridges over it, while the diagonal along the crease lies on it.
+
+    An edge ``a–b`` with opposite corners ``p``, ``q`` flips when ``sag(p, q) ≤ threshold``
+    (not merely below ``sag(a, b)``: the measure can rank two diagonals across a crease
+    wrongly, and the flip must not make the remesh's side of the distance the larger),
+    the flip is valid (:func:`flip_edges`' checks other than the fold's), neither new face is
+    ``turned`` and the new faces' smallest 3D angle is at least ``min(old faces' smallest,
+    min_angle_deg)``. Each round flips a set of such edges no two of which share a face, the
+    farthest first; the next round looks at the edges of the flipped quads only.
+
+    Parameters
+    ----------
+    X : (n, 3) float
+        Lifted positions.
+    F : (m, 3) int
+        Faces, counter-clockwise on the disk; not modified.
+    uv : (n, 2) float
+        Disk positions.
+    boundary : (n,) bool
+        The boundary vertices.
+    sag : callable ``sag(i, j) -> (k,) float``
+        The distance of edges ``i–j`` from the input surface.
+    threshold : float
+        In the mesh's units.
+    min_angle_deg : float
+    max_rounds : int
+    twin : (3m,) int, optional
+        The half-edge twins of ``F``; updated in place to those of the result.
+    fixed : callable ``fixed(a, b) -> (k,) bool``, optional
+        The edges ``a–b`` never flipped (:meth:`.state.RemeshState.is_joined`).
+    turned : callable ``turned(faces) -> (k,) bool``, optional
+        The faces (k×3) not to make (those turned over against the input,
+        :func:`.improve.turned_from_input`).
+    screen : callable ``screen(i, j) -> (k,) bool``, optional
+        The edges ``i–j`` that may be farther than ``threshold``, by a cheaper measure than
+        ``sag``; the others are not measured.
+
+    Returns
+    -------
+    F : (m, 3) int
+        The flipped faces (a new array; still counter-clockwise on the disk).
+    flips : int
+    """
+    F = np.array(F, dtype=np.int64, copy=True)
+    X, uv = np.ascontiguousarray(X, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64)
+    m = len(F)
+    is_b = np.ascontiguousarray(boundary, dtype=bool).view(np.uint8)
+    floor = np.radians(min_angle_deg)
+    twin = topo.interior_edge_twins(F) if twin is None else twin
+    slot = np.arange(3 * m)
+    h = np.flatnonzero(twin > slot)
+    total = 0
+    for _ in range(max_rounds):
+        if len(h) == 0:
+            break
+        if screen is not None:
+            h = h[screen(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])]
+        old_sag = sag(F[h // 3, h % 3], F[h // 3, (h % 3 + 1) % 3])
+        h, old_sag = h[old_sag > threshold], old_sag[old_sag > threshold]
+        (a, b, p, q), _, valid = flip_checks(X, uv, is_b, F, h, twin, 1.0)
+        ok = np.flatnonzero(valid)
+        if fixed is not None:
+            ok = ok[~fixed(a[ok], b[ok])]
+        ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
+        ok = ok[sag(p[ok], q[ok]) <= threshold]
+        if turned is not None:
+            ok = ok[~turned(np.column_stack([p, a, q, q, b, p])[ok].reshape(-1, 3)
+                            ).reshape(-1, 2).any(axis=1)]
+        ok = ok[_angles_kept(X, a[ok], b[ok], p[ok], q[ok], floor)]
+        if len(ok) == 0:
+            break
+        win = ok[independent_by_faces(m, h[ok] // 3, twin[h[ok]] // 3, -old_sag[ok])]
+        changed = flip_in_place(F, twin, h[win], (a[win], b[win], p[win], q[win]), slot)
+        total += len(win)
+        h = _interior_edges_of(changed, twin, m)
+    return F, total
+
+
+def flip_in_place(F: np.ndarray, twin: np.ndarray, h: np.ndarray, quad: tuple,
+                  slot: np.ndarray | None = None) -> np.ndarray:
+    """Flip the interior half-edges ``h`` (k, no two in one face) of ``F``: the faces
+    ``a, b, p`` and ``b, a, q`` of each become ``p, a, q`` and ``q, b, p``.
+
+    Parameters
+    ----------
+    F : (m, 3) int
+        Changed in place.
+    twin : (3m,) int
+        Its half-edge twins; changed in place to those of the result.
+    h : (k,) int
+    quad : tuple of four (k,) int
+        ``a, b, p, q`` (as :func:`.._kernels.flip_checks` gives them).
+    slot : (3m,) int, optional
+        ``arange(3m)``, scratch (made if not given).
+
+    Returns
+    -------
+    (2k,) int
+        The changed faces.
+    """
+    a, b, p, q = quad
+    f, c, g, d = h // 3, h % 3, twin[h] // 3, twin[h] % 3
+    _flipped_twins(twin, np.arange(3 * len(F)) if slot is None else slot, f, c, g, d)
+    F[f] = np.column_stack([p, a, q])
+    F[g] = np.column_stack([q, b, p])
+    return np.concatenate([f, g])
 
 
 def _flipped_twins(twin: np.ndarray, slot: np.ndarray, f: np.ndarray, c: np.ndarray,
@@ -244,6 +357,15 @@ def _flipped_twins(twin: np.ndarray, slot: np.ndarray, f: np.ndarray, c: np.ndar
     twin[3 * f + 2] = 3 * g + 2                  # the new diagonal q→p / p→q
     twin[3 * g + 2] = 3 * f + 2
     slot[old] = old
+
+
+def _angles_kept(X: np.ndarray, a, b, p, q, floor: float) -> np.ndarray:
+    """Whether the new faces ``(p, a, q)`` and ``(q, b, p)`` of a flip of ``a–b`` (k each)
+    have a smallest 3D angle of at least the old faces' ``(a, b, p)``, ``(b, a, q)`` or
+    ``floor`` (radians), whichever is smaller (k bool)."""
+    old = corner_angles(X, np.column_stack([a, b, p, b, a, q]).reshape(-1, 3))
+    new = corner_angles(X, np.column_stack([p, a, q, q, b, p]).reshape(-1, 3))
+    return row_min(new.reshape(-1, 6)) >= np.minimum(row_min(old.reshape(-1, 6)), floor)
 
 
 def _shapes_kept(uv: np.ndarray, p, a, q, b) -> np.ndarray:

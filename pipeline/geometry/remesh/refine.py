@@ -30,11 +30,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import _closest_on_segments
-from ..rows import dots, norms, row_min
+from ..rows import norms, row_min
 from .domain import project
 from .halfedge import (DISK_SHAPE_MIN, disk_shape, edge_lengths, edge_table, independent_edges,
                        touching)
-from .sag import SAG_WALK, edge_sag_along, lift_samples, surface_middles
+from .sag import SAG_WALK, edge_sag_along, lift_samples, may_sag, surface_middles
 from .state import RemeshState
 
 SAG_SAMPLES = 7       # the sag is measured at t = 1/8 … 7/8 along an edge
@@ -312,17 +312,11 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         h, a, b, twin = _edges_at(S, active)
         if len(h) == 0:
             break
-        # cheap filter: an edge whose ends lie on nearly parallel input faces, with the edge in
-        # both tangent planes, is over a flat patch (sag 0) unless a feature narrower than the
-        # edge sits in between; only the others are probed along their length
-        na, nb = S.normals_in()[S.face[a]], S.normals_in()[S.face[b]]
-        e = S.X[b] - S.X[a]
-        probe = ((dots(na, nb) < np.cos(np.radians(10.0)))
-                 | (np.abs(dots(e, na)) > 0.5 * threshold)
-                 | (np.abs(dots(e, nb)) > 0.5 * threshold))
+        probe = may_sag(S, a, b, threshold)     # only the others are probed along their length
         h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
+        N_in = S.normals_in()
         sag, t_split = edge_sag_along(S, a, b, SAG_TS,
-                                      end_normals=(na[probe], nb[probe]))
+                                      end_normals=(N_in[S.face[a]], N_in[S.face[b]]))
         cand = np.flatnonzero(sag > threshold)
         if S.surface_middles and len(cand):
             cand = cand[split_balance(S, a[cand], b[cand], t_split[cand]) >= MIN_BALANCE]

@@ -13,6 +13,7 @@ import numpy as np
 
 from .._kernels import points_along, sag_along_block
 from ..locate import lift
+from ..rows import dots
 from .state import RemeshState
 
 SAG_BLOCK = 262144    # sample points per point-location query
@@ -63,6 +64,18 @@ def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) 
                            np.ascontiguousarray(T, dtype=np.float64).reshape(-1))
     mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
     return lift(S.V_in, S.F_in, mf, mb), mf
+
+
+def may_sag(S: RemeshState, a: np.ndarray, b: np.ndarray, threshold: float) -> np.ndarray:
+    """Which edges ``a–b`` (k) may be farther than ``threshold`` from the surface (k bool): a
+    cheap filter before :func:`edge_sag_along` — an edge whose ends lie on input faces within
+    10° of parallel, with the edge within ``threshold / 2`` of both tangent planes, is over a
+    flat patch (sag 0) unless a feature narrower than the edge sits in between."""
+    na, nb = S.normals_in()[S.face[a]], S.normals_in()[S.face[b]]
+    e = S.X[b] - S.X[a]
+    return ((dots(na, nb) < np.cos(np.radians(10.0)))
+            | (np.abs(dots(e, na)) > 0.5 * threshold)
+            | (np.abs(dots(e, nb)) > 0.5 * threshold))
 
 
 def edge_sag(S: RemeshState, a: np.ndarray, b: np.ndarray) -> np.ndarray:
