@@ -92,9 +92,11 @@ The schedule (:func:`improve_remesh`):
     far corner no operation can bring closer), or where that is not kept with the long edges
     of their caps split, the local operations after every round of insertions; where the
     pass's operations turned faces over, the fold repair's local operations again and the
-    minimum-angle ones after them. A face none of this raises stays: the report counts the
-    faces below the minimum and, among them, those an input corner too sharp for any fan forces
-    (:func:`.angles.forced_by_corners`), naming the corners; then ``EVEN_STEPS`` smoothing
+    minimum-angle ones after them, a group of folds sharing vertices at a time, undone where
+    they leave a smaller smallest angle and not every fold of the group undone. A face none
+    of this raises stays: the report counts the faces below the minimum and, among them,
+    those an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`),
+    naming the corners; then ``EVEN_STEPS`` smoothing
     steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
     even out the faces the steps since step 7 left uneven,
     under vetoes of every move that makes a face's smallest angle smaller than it was and than
@@ -133,6 +135,7 @@ import numpy as np
 
 from ..metrics import corner_angles
 from ..rows import norms, row_min
+from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
                             shortfall_order, unforced_shortfall)
@@ -589,7 +592,8 @@ class _Operations:
         (splits, or collapses of the shortest edges under the guards) and the operations
         again around the faces then below; where folds are left at the end (these operations
         judge angles, and near a fold they can turn faces over), the local operations judged
-        on the folds (:meth:`unfold`) and the minimum-angle ones again. Given ``kept``
+        on the folds and the minimum-angle ones again, a group of folds at a time
+        (:meth:`unfold_kept`). Given ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -622,9 +626,7 @@ class _Operations:
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg):
                 break
-        if self.folds(S).any():
-            self.unfold()
-            self.raise_angles(min_angle_deg)
+        self.unfold_kept(min_angle_deg)
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:
@@ -735,10 +737,41 @@ class _Operations:
             if len(folds()) >= n_folds:
                 self.restore(saved)
 
-    def unfold(self) -> None:
-        """The local operations around the folds (:func:`.unfold.unfold_locally`), the feature
-        vertices at them freed first (:meth:`release`)."""
-        bad = np.flatnonzero(self.folds(self.S))
+    def unfold_kept(self, min_angle_deg: float) -> None:
+        """Group after group of folds (faces turned over sharing vertices): the local
+        operations around it (:meth:`unfold`), then those around the faces below
+        ``min_angle_deg`` (:meth:`raise_angles`), undone unless they leave fewer folds and
+        either remove as many as the group had or leave no smaller smallest angle among the
+        faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
+        where the operations cannot undo a fold, what they leave skinny the minimum-angle
+        ones may not raise). A group undone is not tried again."""
+        S = self.S
+        tried = np.zeros((0, 3))
+        while True:
+            bad = np.flatnonzero(self.folds(S))
+            _, group = connected_components(S.F[bad], S.n)
+            fresh = ~at_points(S.X[S.F[bad, 0]], tried)
+            if not fresh.any():
+                return
+            at = bad[group == group[fresh.argmax()]]
+            before, saved, counted = unforced_shortfall(S, min_angle_deg), self.saved(), \
+                self.folds.kept()
+            corners = S.X[S.F[at].ravel()]
+            self.unfold(at)
+            self.raise_angles(min_angle_deg)
+            left = int(self.folds(S).sum())
+            if left >= len(bad) or (left > len(bad) - len(at) and
+                                    unforced_shortfall(S, min_angle_deg)[1] < before[1]):
+                self.restore(saved)
+                self.folds.restore(counted)
+                tried = np.vstack([tried, corners])
+
+    def unfold(self, bad: np.ndarray | None = None) -> None:
+        """The local operations around the folds ``bad`` (face indices; default: all of them,
+        :func:`.unfold.unfold_locally`), the feature vertices at them freed first
+        (:meth:`release`)."""
+        if bad is None:
+            bad = np.flatnonzero(self.folds(self.S))
         if len(bad):
             self.release(bad)
             unfold_locally(self.S, bad)
