@@ -306,6 +306,11 @@ class _Patch:
             return False
         return bool((disk_shape(self.S.uv, T) >= DISK_SHAPE_MIN).all())
 
+    def same_side(self, old, new) -> bool:
+        """Whether no new face of ``new`` turns over against the faces ``old`` it replaces
+        (:func:`_same_side`)."""
+        return _same_side(self.S.X, old, new)
+
     def sag_ok(self, a, b, before) -> bool:
         """Whether no edge ``a–b`` is farther than the tolerance from the surface, or farther
         than ``before`` (their sag before the operation, or None for new edges with no
@@ -409,7 +414,7 @@ class _Patch:
         after = self.better(old, new)
         if after is None or not self.shapes_ok(new):
             return None
-        if not _same_side(S.X, old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
+        if not self.same_side(old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
             return None
 
         def commit():
@@ -438,7 +443,7 @@ class _Patch:
         after = self.better(old, new)
         if after is None or not self.shapes_ok(new):
             return None
-        if not _same_side(S.X, [self.faces[t] for t in kept], new):
+        if not self.same_side([self.faces[t] for t in kept], new):
             return None
         if self.tol is not None:
             if not self.gap_ok(S.X[r], new):

@@ -65,10 +65,14 @@ The schedule (:func:`improve_remesh`):
    guards, the count given back by splits, each followed by flips;
 9. the rim's fans opened (:func:`.rim.open_rim_fans`: the interior edge across an angle wider
    than ``RIM_FAN_MAX_DEG`` at a rim vertex is split — the caps a reflex input corner leaves),
-   flips; then the folds repaired (:meth:`_Operations.repair_folds`): an edge between interior
-   corners of every face turned over against the input (:func:`turned_over_faces`: where the
-   map stretches the surface most, a face counter-clockwise on the disk can lift to one that
-   doubles back over the surface) collapsed, under the sag and gap guards, then under none;
+   flips; then the folds repaired (:meth:`_Operations.repair_folds`): the faces turned over
+   against the input (:func:`turned_over_faces`: where the map is strongly anisotropic and
+   its stretch turns from one input face to the next, a face counter-clockwise on the disk
+   can lift to one that doubles back over the surface) undone by flips, collapses and moves
+   judged on the folds they leave (:func:`.unfold.unfold_locally`: a move to the point of the
+   vertex's star on the disk that leaves the fewest folds); then an edge between interior
+   corners of every fold left collapsed, under the sag and gap guards, then under none, each
+   time followed by the local operations and undone if it leaves as many folds or more;
    here, in step 10 and in step 11 the feature vertices at the faces being repaired are freed
    (:meth:`_Operations.release`) and their kept edges dropped;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
@@ -86,11 +90,15 @@ The schedule (:func:`improve_remesh`):
     still below that no input corner forces refined at their off-centres
     (:meth:`_Operations.grade`, :mod:`.circumcentres`: the faces beside a short edge whose
     far corner no operation can bring closer), or where that is not kept with the long edges
-    of their caps split, the local operations after every round of insertions. A face none
-    of this raises stays: the report counts the faces below the minimum and, among them, those
-    an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`), naming the
-    corners; then ``EVEN_STEPS`` smoothing steps as in step 6 (:meth:`_Operations.even_out`; not
-    without ``relax_iterations``) that even out the faces the steps since step 7 left uneven,
+    of their caps split, the local operations after every round of insertions; where the
+    pass's operations turned faces over, the fold repair's local operations again and the
+    minimum-angle ones after them, a group of folds sharing vertices at a time, undone where
+    they leave a smaller smallest angle and not every fold of the group undone. A face none
+    of this raises stays: the report counts the faces below the minimum and, among them,
+    those an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`),
+    naming the corners; then ``EVEN_STEPS`` smoothing
+    steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
+    even out the faces the steps since step 7 left uneven,
     under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
     sag tolerance (:func:`sag_veto`), the followed vertices and their neighbours, the input
@@ -127,6 +135,7 @@ import numpy as np
 
 from ..metrics import corner_angles
 from ..rows import norms, row_min
+from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
                             shortfall_order, unforced_shortfall)
@@ -144,6 +153,7 @@ from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
+from .unfold import turned_over, unfold_locally
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -580,7 +590,11 @@ class _Operations:
         rim's vertices, those of its refinement among them, stay); last the local operations
         of :func:`.angles.raise_min_angles` around the faces still below, the count restored
         (splits, or collapses of the shortest edges under the guards) and the operations
-        again around the faces then below. Given ``kept`` (``(P, Q)``, k×3 and l×3 points),
+        again around the faces then below; where folds are left at the end (these operations
+        judge angles, and near a fold they can turn faces over), the local operations judged
+        on the folds and the minimum-angle ones again, a group of folds at a time
+        (:meth:`unfold_kept`). Given ``kept``
+        (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
         the rest, but not the feature vertices freed since (:meth:`lock_at`). The feature
@@ -612,6 +626,7 @@ class _Operations:
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg):
                 break
+        self.unfold_kept(min_angle_deg)
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:
@@ -685,7 +700,7 @@ class _Operations:
         before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
-        saved, log, n_folds, n0 = saved_state(S), dict(S.log), int(self.folds(S).sum()), S.n
+        saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
         counted = self.folds.kept()
         if not insert():
             return False
@@ -696,22 +711,81 @@ class _Operations:
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) >= shortfall_order(before) or \
                 (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
-            restore_state(S, saved)
+            self.restore(saved)
             self.folds.restore(counted)
-            S.log.clear()
-            S.log.update(log)
             return False
         return True
 
     def repair_folds(self, target: int, passes: int = 3) -> None:
-        """Collapse an edge between interior corners of every face turned over against the input
-        (:func:`turned_over_faces`), shortest first: under the sag and gap guards, then (the
-        folds left) under no guard but the result's validity, as the degenerate faces are; the
-        count given back by splits, then flips."""
-        folds = lambda: turned_over_faces(self.S)        # noqa: E731
-        self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False,
-                               guard=self.tol)
-        self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False)
+        """Undo the folds (:func:`turned_over_faces`) by the local operations judged on them
+        (:meth:`unfold`); then, for the folds left, collapse an edge between interior corners
+        of each, shortest first (:meth:`collapse_at_faces`), under the sag and gap guards, then
+        under none but the result's validity, each time followed by the local operations and
+        undone if it leaves as many folds or more (a collapse at a fold turns its neighbours
+        over where the map is that anisotropic)."""
+        S = self.S
+        folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731
+        self.unfold()
+        for guard in (self.tol, None):
+            n_folds = len(folds())
+            if n_folds == 0:
+                return
+            saved = self.saved()
+            self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False,
+                                   guard=guard)
+            self.unfold()
+            if len(folds()) >= n_folds:
+                self.restore(saved)
+
+    def unfold_kept(self, min_angle_deg: float) -> None:
+        """Group after group of folds (faces turned over sharing vertices): the local
+        operations around it (:meth:`unfold`), then those around the faces below
+        ``min_angle_deg`` (:meth:`raise_angles`), undone unless they leave fewer folds and
+        either remove as many as the group had or leave no smaller smallest angle among the
+        faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
+        where the operations cannot undo a fold, what they leave skinny the minimum-angle
+        ones may not raise). A group undone is not tried again."""
+        S = self.S
+        tried = np.zeros((0, 3))
+        while True:
+            bad = np.flatnonzero(self.folds(S))
+            _, group = connected_components(S.F[bad], S.n)
+            fresh = ~at_points(S.X[S.F[bad, 0]], tried)
+            if not fresh.any():
+                return
+            at = bad[group == group[fresh.argmax()]]
+            before, saved, counted = unforced_shortfall(S, min_angle_deg), self.saved(), \
+                self.folds.kept()
+            corners = S.X[S.F[at].ravel()]
+            self.unfold(at)
+            self.raise_angles(min_angle_deg)
+            left = int(self.folds(S).sum())
+            if left >= len(bad) or (left > len(bad) - len(at) and
+                                    unforced_shortfall(S, min_angle_deg)[1] < before[1]):
+                self.restore(saved)
+                self.folds.restore(counted)
+                tried = np.vstack([tried, corners])
+
+    def unfold(self, bad: np.ndarray | None = None) -> None:
+        """The local operations around the folds ``bad`` (face indices; default: all of them,
+        :func:`.unfold.unfold_locally`), the feature vertices at them freed first
+        (:meth:`release`)."""
+        if bad is None:
+            bad = np.flatnonzero(self.folds(self.S))
+        if len(bad):
+            self.release(bad)
+            unfold_locally(self.S, bad)
+
+    def saved(self) -> tuple:
+        """The state of the remesh and its log, for :meth:`restore`."""
+        return saved_state(self.S), dict(self.S.log)
+
+    def restore(self, saved: tuple) -> None:
+        """Put the remesh and its log back as :meth:`saved` returned them."""
+        state, log = saved
+        restore_state(self.S, state)
+        self.S.log.clear()
+        self.S.log.update(log)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
@@ -826,17 +900,14 @@ def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.nda
     centroid lies in the input map: folds, where the remesh doubles back over the surface (the
     definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
     the map instead of by closest point); given ``faces`` (k indices), those among them."""
-    input_normal = S.normals_in()
     F = S.F if faces is None else S.F[faces]
-    suspect = np.flatnonzero(turned_against(S.X, F, input_normal[S.face[F]]))
+    suspect = np.flatnonzero(turned_against(S.X, F, S.normals_in()[S.face[F]]))
     if faces is not None:
         suspect = faces[suspect]
     if len(suspect) == 0:
         return suspect
-    P = S.X[S.F[suspect]]
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    under, _ = S.locator.locate(project(S.uv[S.F[suspect]].mean(axis=1)))
-    return suspect[np.einsum("ij,ij->i", normal, input_normal[under]) < 0]
+    T = S.F[suspect]
+    return suspect[turned_over(S, S.X[T], S.uv[T], S.face[T])]
 
 
 def degenerate_faces(S: RemeshState) -> np.ndarray:

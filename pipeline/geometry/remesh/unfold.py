@@ -1,0 +1,213 @@
+"""Folds undone by local operations judged on the folds themselves.
+
+A face counter-clockwise on the domain can lift to one turned over against the input
+(:func:`turned_over`): its lift is the triangle through the lifts of its corners, not the
+image of the domain triangle, and where the map is strongly anisotropic and its stretch turns
+from one input face to the next (an input vertex where long thin faces meet, a narrow strip
+or the tip of a thin tube squeezed into little domain area) a face across a few input faces
+doubles back over the surface. Its angles do not show it (a fold can be equilateral), so the
+minimum-angle operations, which judge angles, leave it; collapsing it removes the surface it
+stands on and turns its neighbours over in turn.
+
+:func:`unfold_locally` takes the folds one at a time and makes, among the local operations of
+:mod:`.angles` at the fold — the flip of each of its interior edges, the collapse of each of
+its edges either way, the move of each of its free corners — the one that removes the most
+folds from the faces it changes, then leaves the largest smallest 3D angle
+(:class:`_FoldPatch`). A move goes to the point of the corner's star on the domain with the
+fewest faces of the star turned over, then the largest smallest angle (:func:`star_grid`: a
+barycentric grid over each face of the star, and the input vertices under the star — where
+the map is that anisotropic the good positions are a small part of the domain star, often at
+the input vertex where the stretch turns, which a pull-back step would miss), among those that
+keep the star counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain
+(:func:`.angles.star_shapes_ok`). Every operation removes a fold, so the pass ends; no sag or
+gap guard (the folds are where the remesh already leaves the surface) and no angle floor (the
+minimum-angle pass comes after and raises what the operations leave skinny).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..locate import lift
+from .angles import _Patch, star_shapes_ok, triangle_min_angles
+from .domain import project
+from .state import RemeshState
+
+GRID = 6                   # the barycentric grid over each face of a star: steps of 1/GRID
+OPERATIONS_PER_FOLD = 10   # the pass stops after this × the folds it started with
+FOLD_WEIGHT = 180.0        # an operation's score: this × the folds it removes + the smallest
+                           # angle (degrees) of the faces it makes
+
+
+def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray) -> np.ndarray:
+    """Whether each face with corners ``P`` on the surface, ``U`` on the domain and in the input
+    faces ``under`` is turned over against the input: its normal points against the input's
+    normal at each of its corners and at its domain centroid (located in the input map, from
+    the input face of its first corner).
+
+    Parameters
+    ----------
+    S : RemeshState
+        Its input map (normals, locator).
+    P : (k, 3, 3) float
+    U : (k, 3, 2) or (k, 3, 3) float
+    under : (k, 3) int
+
+    Returns
+    -------
+    (k,) bool
+    """
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    input_normal = S.normals_in()
+    out = np.all(np.einsum("ij,ikj->ik", normal, input_normal[under]) < 0, axis=1)
+    suspect = np.flatnonzero(out)
+    if len(suspect):
+        at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0])
+        out[suspect] = np.einsum("ij,ij->i", normal[suspect], input_normal[at]) < 0
+    return out
+
+
+def turned_over_rows(S: RemeshState, T: np.ndarray) -> np.ndarray:
+    """:func:`turned_over` for faces ``T`` (k×3 vertex indices) of ``S``; k bool."""
+    T = np.asarray(T, np.int64).reshape(-1, 3)
+    return turned_over(S, S.X[T], S.uv[T], S.face[T])
+
+
+def star_grid(uv: np.ndarray, star: np.ndarray, steps: int = GRID) -> np.ndarray:
+    """Domain points spread over the star of a vertex: for each face ``(v, B, C)`` of
+    ``star`` (the vertex first), the points ``(i·uv[v] + j·uv[B] + k·uv[C]) / steps`` with
+    ``i + j + k = steps`` and ``i ≥ 1`` (the opposite edge left out), projected onto the domain.
+
+    Parameters
+    ----------
+    uv : (n, 2) or (n, 3) float
+    star : (d, 3) int
+    steps : int
+
+    Returns
+    -------
+    (d · steps · (steps + 1) / 2, 2 or 3) float
+    """
+    ijk = np.array([(i, j, steps - i - j) for i in range(1, steps + 1)
+                    for j in range(steps - i + 1)], float) / steps
+    return project(np.einsum("gc,dck->dgk", ijk, uv[star]).reshape(-1, uv.shape[1]))
+
+
+def unfold_locally(S: RemeshState, folds: np.ndarray) -> int:
+    """The local operations around the faces ``folds`` (turned over), each made only where it
+    leaves fewer of the faces it changes turned over (module docstring); returns the number
+    made.
+
+    Parameters
+    ----------
+    S : RemeshState
+        Changed in place: faces rewritten, vertices moved, collapsed vertices dropped (the
+        others keep their order).
+    folds : (k,) int
+
+    Returns
+    -------
+    int
+    """
+    if len(folds) == 0:
+        return 0
+    patch = _FoldPatch(S, folds, None)
+    done = patch.unfold(OPERATIONS_PER_FOLD * len(folds))
+    patch.write_back()
+    S.tally("fold_operations", done)
+    return done
+
+
+class _FoldPatch(_Patch):
+    """The patch of :mod:`.angles` around some folds, its operations judged by the faces they
+    leave turned over (:func:`turned_over`) rather than by angles alone; no guards (``tol``
+    None)."""
+
+    def n_folds(self, tris) -> int:
+        """How many of the faces ``tris`` (lists of 3 vertices) are turned over."""
+        return int(turned_over_rows(self.S, tris).sum())
+
+    def better(self, old, new) -> float | None:
+        """The score of replacing the faces ``old`` by ``new`` (``FOLD_WEIGHT`` × the folds
+        removed + the smallest angle of ``new``) if ``new`` has fewer folds, else None."""
+        removed = self.n_folds(old) - self.n_folds(new)
+        return FOLD_WEIGHT * removed + self.min_angle(new) if removed > 0 else None
+
+    def same_side(self, old, new) -> bool:
+        """No test against the old faces' summed normal: it counts a fold's own turned normal
+        (:meth:`better` judges the faces against the input)."""
+        return True
+
+    def move(self, v):
+        """Move the free inner vertex ``v`` to the point of :func:`star_grid` (or an input
+        vertex under its star) with the fewest faces of its star turned over, then the largest
+        smallest angle, if that is fewer than now."""
+        S = self.S
+        if not self.inner[v] or S.is_rim[v] or S.locked[v]:
+            return None
+        ids = list(self.vf[v])
+        star = np.asarray([[f[(f.index(v) + i) % 3] for i in range(3)]
+                           for f in (self.faces[t] for t in ids)], np.int64)
+        now = self.n_folds(star)
+        if now == 0:
+            return None
+        best = unfolding_position(S, v, star)
+        if best is None or best[1] >= now:
+            return None
+        where, n_after, angle = best
+
+        def commit():
+            S.uv[v], S.face[v], S.bary[v], S.X[v] = where
+            return ids
+        return FOLD_WEIGHT * (now - n_after) + angle, commit
+
+    def unfold(self, max_operations: int) -> int:
+        """Fold after fold: the best operation at it (:meth:`.angles._Patch.options`), the
+        folds it makes taken up in turn, until none is left or none helps; returns the number
+        made."""
+        queue = [t for t in self.start if t in self.faces]
+        done = 0
+        while queue and done < max_operations:
+            t = queue.pop()
+            if t not in self.faces or not self.n_folds([self.faces[t]]):
+                continue
+            best = max((op for op in self.options(t) if op is not None),
+                       key=lambda op: op[0], default=None)
+            if best is None:
+                continue
+            done += 1
+            queue.extend(f for f in best[1]()
+                         if f in self.faces and self.n_folds([self.faces[f]]))
+        return done
+
+
+def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
+    """For vertex ``v`` of ``S`` and its ``star`` (d×3, ``v`` first): among the points of
+    :func:`star_grid` and the input vertices of the input faces under the star's corners that
+    keep the star counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain, the
+    one with the fewest faces of the star turned over, then the largest smallest 3D angle:
+    ``((uv, face, bary, X), folds, angle)``, or None if there is none."""
+    M = np.vstack([star_grid(S.uv, star), S.uv_in[np.unique(S.F_in[S.face[star]])]])
+    M = M[star_shapes_ok(S.uv, M, star[:, 1:])]
+    if len(M) == 0:
+        return None
+    mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
+    M, mf, mb = M[inside], mf[inside], mb[inside]
+    if len(M) == 0:
+        return None
+    P = lift(S.V_in, S.F_in, mf, mb)
+    j, d = len(M), len(star)
+    B, C = star[:, 1], star[:, 2]
+
+    def corners(at_v, of):
+        """The stars' corners: ``at_v`` (j rows) for ``v``, ``of[B]``, ``of[C]`` for the
+        others (j·d×3 rows)."""
+        reps = (j,) + (1,) * (of.ndim - 1)
+        return np.stack([np.repeat(at_v, d, axis=0), np.tile(of[B], reps), np.tile(of[C], reps)],
+                        axis=1)
+
+    Pc = corners(P, S.X)
+    n_folds = turned_over(S, Pc, corners(M, S.uv), corners(mf, S.face)).reshape(j, d).sum(axis=1)
+    angle = triangle_min_angles(Pc[:, 0], Pc[:, 1], Pc[:, 2]).reshape(j, d).min(axis=1)
+    c = np.lexsort((-angle, n_folds))[0]
+    return (M[c], mf[c], mb[c], P[c]), int(n_folds[c]), float(angle[c])
