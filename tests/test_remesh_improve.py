@@ -130,6 +130,18 @@ def _moved(S, v, to):
     return uv, face, bary, lift(S.V_in, S.F_in, face, bary)
 
 
+def _pushed_flat_state(seed: int):
+    """The flat disk's remesh with its interior vertices pushed up to 0.06 off their places
+    (on the disk, uniformly at random from ``seed``), and those vertices (indices)."""
+    S = _flat_or_tent_state(0.0)
+    rng = np.random.default_rng(seed)
+    inner = np.flatnonzero(~S.is_rim)
+    uv = S.uv.copy()
+    uv[inner] += rng.uniform(-0.06, 0.06, (len(inner), 2))
+    S.uv, S.face, S.bary, S.X = _moved(S, inner, uv[inner])
+    return S, inner
+
+
 def test_sag_veto_drops_a_move_that_bridges_the_tent_and_keeps_one_on_the_flat():
     """The centre vertex sits on the tent's apex; moved to (0.2, 0) its edge to the far
     neighbour (−0.3, 0) passes over the apex (the tent is 0.5 high there), far more than the
@@ -213,12 +225,7 @@ def test_even_out_evens_the_areas_and_keeps_angles_rim_and_kept_vertices():
     of their neighbours, and leaves no face's smallest angle below what it was and 20°."""
     from pipeline.geometry.remesh.improve import _Operations
 
-    S = _flat_or_tent_state(0.0)
-    rng = np.random.default_rng(1)
-    inner = np.flatnonzero(~S.is_rim)
-    uv = S.uv.copy()
-    uv[inner] += rng.uniform(-0.06, 0.06, (len(inner), 2))
-    S.uv, S.face, S.bary, S.X = _moved(S, inner, uv[inner])
+    S, inner = _pushed_flat_state(1)
     assert np.all(signed_double_areas(S.uv, S.F) > 0)
     area = lambda: np.linalg.norm(np.cross(S.X[S.F[:, 1]] - S.X[S.F[:, 0]],   # noqa: E731
                                            S.X[S.F[:, 2]] - S.X[S.F[:, 0]]), axis=1)
@@ -235,6 +242,40 @@ def test_even_out_evens_the_areas_and_keeps_angles_rim_and_kept_vertices():
     assert np.any(S.uv[~stay] != uv0[~stay])
     after = np.min(corner_angles(S.X, S.F), axis=1)
     assert np.all(after >= np.minimum(before, np.radians(20.0)) - 1e-12)
+    assert np.all(signed_double_areas(S.uv, S.F) > 0)
+
+
+def test_ring_veto_keeps_a_move_to_the_regular_place_and_drops_one_away_from_it():
+    """The flat disk's centre vertex has six neighbours on a regular hexagon: moved off the
+    centre its faces' smallest angles sum lower and their areas spread, so :func:`ring_veto`
+    drops the move; from there, the move back to the centre is kept unless the veto ``then``
+    drops it. No vertex that does not move is reported."""
+    from pipeline.geometry.remesh.improve import ring_veto
+
+    S = _flat_or_tent_state(0.0)
+    assert np.linalg.norm(S.uv[0]) == 0 and np.sum(S.F == 0) == 6
+    none = lambda uv, face, bary, X: np.zeros(len(uv), bool)           # noqa: E731
+    assert np.flatnonzero(ring_veto(S, none, *_moved(S, 0, [0.1, 0.0]))).tolist() == [0]
+    S.uv, S.face, S.bary, S.X = _moved(S, 0, [0.1, 0.0])
+    assert not ring_veto(S, none, *_moved(S, 0, [0.0, 0.0])).any()
+    first = lambda uv, face, bary, X: np.arange(len(uv)) == 0          # noqa: E731
+    assert np.flatnonzero(ring_veto(S, first, *_moved(S, 0, [0.0, 0.0]))).tolist() == [0]
+
+
+def test_even_out_ring_steps_raise_the_smallest_angles_and_keep_the_floor():
+    """Interior vertices of the flat disk's remesh pushed off their places: the ring steps of
+    :meth:`_Operations.even_out` alone (no evening steps) raise the mean smallest angle, move
+    no rim vertex and leave no face's smallest angle below what it was and 30°."""
+    from pipeline.geometry.remesh.improve import RING_FLOOR_DEG, _Operations
+
+    S, _ = _pushed_flat_state(2)
+    before = np.min(corner_angles(S.X, S.F), axis=1)
+    uv0 = S.uv.copy()
+    _Operations(S, 0.3, True, 20.0, 1.0, 0.2).even_out(0, 20.0, np.zeros((0, 3)), ring_steps=2)
+    after = np.min(corner_angles(S.X, S.F), axis=1)
+    assert after.mean() > before.mean()
+    assert np.array_equal(S.uv[S.is_rim], uv0[S.is_rim]) and np.any(S.uv != uv0)
+    assert np.all(after >= np.minimum(before, np.radians(RING_FLOOR_DEG)) - 1e-12)
     assert np.all(signed_double_areas(S.uv, S.F) > 0)
 
 
