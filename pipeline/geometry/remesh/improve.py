@@ -175,18 +175,15 @@ RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
 EVEN_STEPS = 4        # the last smoothing steps, under the angle and sag vetoes,
 EVEN_SAG_SAMPLES = 1  # their sag veto measuring at this many points along an edge (the
                       # middle: the folds stay put, below), the ends of the edges folded more
-EVEN_FOLD_DEG = 45.0  # than this staying (on the creased disks of test_remesh_fidelity the
-                      # farthest input point stays 0.24 and 0.23 L away, 0.27 and 0.28 L if
-                      # they move too; choi_hand 100k: Hausdorff 0.079 %, 0.090 % at 60°)
+EVEN_FOLD_DEG = 45.0  # than this staying (moving them too lets the farthest input point
+                      # drift away from the remesh at creases; test_remesh_fidelity)
 RING_STEPS = 2        # then smoothing steps keeping a vertex's move only where it raises the
 RING_FLOOR_DEG = 30.0  # sum of its faces' smallest angles without spreading their areas, no
                        # face's smallest angle below this (or the minimum-angle pass's) and what
-                       # it was (28 rows at 5k/20k: mean smallest angle +0.02-0.05°, area CV
-                       # not higher on any)
+                       # it was, so that the mean smallest angle rises and the area CV does not
 FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees the feature
-                             # vertices at the faces with an angle below this (16 rows at 30°:
-                             # mean smallest angle at least pymeshlab's on 13, 12 with none
-                             # freed; area CV at most 0.6 × its on 14, 12; RMS 2 % higher)
+                             # vertices at the faces with an angle below this (freeing
+                             # them trades a little RMS for mean smallest angle and area CV)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
@@ -194,27 +191,23 @@ GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no ea
 FOLLOW_GAPS = (0.4, 0.2)
 # the follow step's rim splits are this × L from the ends of the edge at least: a rim vertex
 # closer to another makes a rim face whose small angle no later pass raises (the rim's
-# vertices stay; igl_camel_b at 5000 vertices with 0.2 L: smallest angle 19.5 -> 8.3°)
+# vertices stay)
 FOLLOW_RIM_GAP = 0.5
 # after the minimum-angle pass and the last smoothing, the input points farther than this × L
 # from the remesh get a vertex moved onto them, farthest first, while one can be without a new
-# angle below the minimum (gpp_face at 5000 / 100 000 vertices: Hausdorff 0.234 -> 0.198 %,
-# 0.050 -> 0.038 %; choi_chinese_lion at 20 000: 0.183 -> 0.173 %)
+# angle below the minimum: the Hausdorff distance's input-to-remesh side
 SETTLE_TOL = 0.15
 # the last sag flips measure an edge at these t along it: finer than SAG_TS, as the point
 # where an edge crosses an input crease, where the Hausdorff distance is decided, is seldom
-# one of those (igl_lion at 100 000 vertices: 0.0731 -> 0.0714 %, igl_camel_b at 5000:
-# 0.3216 -> 0.3143 %)
+# one of those
 SAG_FLIP_TS = np.arange(1, 16) / 16
 # the sag flips make no face with a smallest angle below this (min_angle_deg if higher) and
 # the old faces' smallest: at the minimum angle's 20° they cost faces under 30° and smallest
-# angles (choi_human_face 5000: 23.70° -> 22.26°, ict_A_smile 5000: 0.356 -> 0.377 % under
-# 30°) for Hausdorff gains on rows pymeshlab wins anyway (igl_camel_b, gpp_bunny at 5000)
+# angles for little Hausdorff gain
 SAG_FLIP_MIN_DEG = 30.0
 # the sag flips' first look at an edge: its sag at these t (a subset of SAG_FLIP_TS) must
-# exceed SAG_SCREEN_MARGIN × the threshold before it is measured at all SAG_FLIP_TS (the same
-# flips on the rows measured; the pass on choi_human_brain at 20 000 vertices 0.13 -> 0.05 s
-# CPU)
+# exceed SAG_SCREEN_MARGIN × the threshold before it is measured at all SAG_FLIP_TS (a
+# cheap screen: the flips it misses are rare)
 SAG_SCREEN_TS = SAG_FLIP_TS[3::4]
 SAG_SCREEN_MARGIN = 0.5
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
