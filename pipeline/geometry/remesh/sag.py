@@ -73,11 +73,14 @@ def lift_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts: np.ndarray
     ``a–b`` at every ``t`` of ``ts``, sample-major (row ``j·k + i``: edge ``i`` at ``ts[j]``),
     as :func:`lift_samples` gives them, and the faces they are in.
 
-    With at least ``CHAIN_MIN`` edges, the points are located one ``t`` at a time, each from
+    With at least ``CHAIN_MIN`` edges on an input with more faces than the remesh (an edge
+    then spans several input faces), the points are located one ``t`` at a time, each from
     the face found for the previous ``t`` of the same edge on the way from its nearer end
     (the ``t ≤ 1/2`` in increasing order from ``face[a]``, the others in decreasing order
     from ``face[b]``): every walk crosses only the stretch between two samples. A point
     inside a face gets the same face and barycentrics whatever face its walk starts from.
+    Where the remesh is the finer, most samples lie in the face under an end and one query
+    costs less.
 
     Parameters
     ----------
@@ -94,7 +97,7 @@ def lift_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts: np.ndarray
     k, s = len(a), len(ts)
     ea, eb = np.tile(a, s), np.tile(b, s)
     T = np.repeat(ts, k)
-    if k < CHAIN_MIN or s == 1:
+    if k < CHAIN_MIN or s == 1 or len(S.F_in) <= len(S.F):
         return lift_samples(S, ea, eb, T[:, None])
     M, hint = points_along(np.ascontiguousarray(S.uv, dtype=np.float64),
                            np.ascontiguousarray(S.face, dtype=np.int64), ea, eb, T)
