@@ -212,3 +212,25 @@ def test_points_along_edges_are_the_numpy_formula_bit_for_bit(dim):
     assert np.array_equal(M, (1.0 - T) * uv[a] + T * uv[b])
     assert np.array_equal(hint, np.where(T[:, 0] <= 0.5, face[a], face[b]))
     assert hint[-3] == face[a[-3]] and hint[-1] == face[b[-1]]
+
+
+def test_samples_located_along_a_chain_are_those_located_from_the_ends():
+    """:func:`.sag.lift_along` locates the samples of many edges one ``t`` at a time from the
+    previous sample's face: on a coarse remesh of the tent (more than ``CHAIN_MIN`` edges) it
+    gives the very lifts and faces of :func:`.sag.lift_samples` (every walk from the nearer
+    end), bit for bit; the chains are the ``t ≤ 1/2`` upwards, the rest downwards."""
+    from pipeline.geometry.remesh.sag import CHAIN_MIN, lift_along, lift_samples, sample_chains
+    from remesh_helpers import coarse_state
+
+    low, high = sample_chains(np.array([0.875, 0.5, 0.125, 0.625, 0.25]))
+    assert low.tolist() == [2, 4, 1] and high.tolist() == [0, 3]
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.3)
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, rings=6)
+    E = topo.edges_with_faces(S.F)[0]
+    a, b = E[:, 0].copy(), E[:, 1].copy()
+    assert len(a) >= CHAIN_MIN
+    ts = np.arange(1, 8) / 8.0
+    P, mf = lift_along(S, a, b, ts)
+    s = len(ts)
+    want_P, want_f = lift_samples(S, np.tile(a, s), np.tile(b, s), np.repeat(ts, len(a))[:, None])
+    assert np.array_equal(P, want_P) and np.array_equal(mf, want_f)

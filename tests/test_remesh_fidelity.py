@@ -79,14 +79,25 @@ def test_follow_input_puts_a_locked_vertex_on_far_input_points_of_a_crease():
 def test_far_input_points_measure_only_the_midpoints_and_centroids_their_bounds_leave(
         monkeypatch):
     """On the coarse remesh of the creased disk (as above), :func:`far_input_points` measures
-    exactly the 4,777 interior vertices and then only the 1,842 midpoints and centroids that
-    are farther than 0.05 (2,207 far points less the 365 far vertices): the Lipschitz bound
-    of the corners' distances leaves 2,284 to measure, and the distance to the faces closest
-    to their corners bounds every near one of those within the tolerance."""
+    only 366 of the 4,777 interior vertices (the 365 far ones and one whose bound through the
+    remesh face over it is within the bounds' margin of 0.05: the input has about 30 vertices
+    per remesh face) and then only the 1,842 midpoints and centroids that are farther than
+    0.05 (2,207 far points less the 365 far vertices): the Lipschitz bound of the corners'
+    distances leaves 2,284 to measure, and the distance to the faces closest to their corners
+    bounds every near one of those within the tolerance. Measuring every vertex instead gives
+    the very same far points and distances."""
+    from pipeline.geometry.remesh import fidelity
+
     S, _ = coarse_state(*creased_disk(1.0), 4)
+    assert len(input_points(S).vertices) > 4 * fidelity.VERTICES_PER_FACE_TO_BOUND * len(S.F)
     measured = count_measured(monkeypatch)
-    far, _ = far_input_points(S, 0.05)
-    assert len(far) == 2207 and measured == [4777, 2207 - 365]
+    far, far_d = far_input_points(S, 0.05)
+    assert len(far) == 2207 and measured == [366, 2207 - 365]
+    monkeypatch.setattr(fidelity, "VERTICES_PER_FACE_TO_BOUND", np.inf)
+    measured.clear()
+    all_far, all_d = far_input_points(S, 0.05)
+    assert measured == [4777, 2207 - 365]
+    assert np.array_equal(far, all_far) and np.array_equal(far_d, all_d)
 
 
 @pytest.mark.timeout(120)

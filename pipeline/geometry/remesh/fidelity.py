@@ -32,10 +32,11 @@ from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
                               candidate_face_distances, closest_points_on_triangles, face_bounds,
-                              face_centroids, largest_distance, middle_bounds, middle_offsets)
+                              face_centroids, largest_distance, may_reach, middle_bounds,
+                              middle_offsets)
 from ..rows import norms, row_min
 from .corners import snap_vertices
-from .domain import project
+from .domain import locator, project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
 from .sag import edge_sag_along, lift_samples
@@ -108,7 +109,7 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
-    d_vertex[pts.vertices], f_vertex[pts.vertices] = measure(pts.P[:nv])
+    d_vertex[pts.vertices], f_vertex[pts.vertices] = vertex_distances(S, pts, tol, measure)
     mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
                                                  pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
@@ -122,6 +123,48 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     far = np.flatnonzero(d > tol)
     far = far[np.argsort(-d[far], kind="stable")]
     return pts.P_uv[far], d[far]
+
+
+#: from this many input vertices per remesh face, :func:`vertex_distances` bounds them
+#: through the remesh face over each on the domain before measuring any
+VERTICES_PER_FACE_TO_BOUND = 4.0
+
+
+def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The distances of the input vertices of ``pts`` to the remesh ``(S.X, S.F)`` where they
+    may exceed ``tol``, and upper bounds of them elsewhere; a face of the remesh at that
+    distance from each.
+
+    Where the input has at least ``VERTICES_PER_FACE_TO_BOUND`` vertices per remesh face (a
+    fine input remeshed coarsely), each vertex is first bounded by its exact distance to the
+    remesh face over it on the domain (a point location in the remesh's own triangulation,
+    :func:`.domain.locator`); only the vertices whose bound may reach ``tol``
+    (:func:`..remesh_quality.may_reach`) are measured (``measure``). A bound at most ``tol``
+    leaves the vertex, and every midpoint or centroid bounded through it, no farther than
+    ``tol``, as its distance would.
+
+    Parameters
+    ----------
+    S : RemeshState
+    pts : InputPoints
+    tol : float
+    measure : MeshDistance
+        Of ``(S.X, S.F)``.
+
+    Returns
+    -------
+    distance : (v,) float
+    face : (v,) int
+    """
+    nv = len(pts.vertices)
+    if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
+        return measure(pts.P[:nv])
+    face, _ = locator(S.uv, S.F).locate(pts.P_uv[:nv])
+    d = candidate_face_distances(pts.P[:nv], face[:, None], measure)
+    ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
+    d[ask], face[ask] = measure(pts.P[ask])
+    return d, face
 
 
 def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None

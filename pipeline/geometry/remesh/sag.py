@@ -18,6 +18,7 @@ from .state import RemeshState
 
 SAG_BLOCK = 262144    # sample points per point-location query
 SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
+CHAIN_MIN = 64        # edges from which the samples along them are located one t at a time
 
 
 def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
@@ -64,6 +65,62 @@ def lift_samples(S: RemeshState, ea: np.ndarray, eb: np.ndarray, T: np.ndarray) 
                            np.ascontiguousarray(T, dtype=np.float64).reshape(-1))
     mf, mb, _ = S.locator.relocate(M, hint, walk=SAG_WALK)
     return lift(S.V_in, S.F_in, mf, mb), mf
+
+
+def lift_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The lifts (eq. 1) of the domain points ``(1 − t)·uv[a] + t·uv[b]`` of every edge
+    ``a–b`` at every ``t`` of ``ts``, sample-major (row ``j·k + i``: edge ``i`` at ``ts[j]``),
+    as :func:`lift_samples` gives them, and the faces they are in.
+
+    With at least ``CHAIN_MIN`` edges on an input with more faces than the remesh (an edge
+    then spans several input faces), the points are located one ``t`` at a time, each from
+    the face found for the previous ``t`` of the same edge on the way from its nearer end
+    (the ``t ≤ 1/2`` in increasing order from ``face[a]``, the others in decreasing order
+    from ``face[b]``): every walk crosses only the stretch between two samples. A point
+    inside a face gets the same face and barycentrics whatever face its walk starts from.
+    Where the remesh is the finer, most samples lie in the face under an end and one query
+    costs less.
+
+    Parameters
+    ----------
+    S : RemeshState
+    a, b : (k,) int
+    ts : (s,) float
+        In ``[0, 1]``.
+
+    Returns
+    -------
+    P : (s·k, 3) float
+    face : (s·k,) int
+    """
+    k, s = len(a), len(ts)
+    ea, eb = np.tile(a, s), np.tile(b, s)
+    T = np.repeat(ts, k)
+    if k < CHAIN_MIN or s == 1 or len(S.F_in) <= len(S.F):
+        return lift_samples(S, ea, eb, T[:, None])
+    M, hint = points_along(np.ascontiguousarray(S.uv, dtype=np.float64),
+                           np.ascontiguousarray(S.face, dtype=np.int64), ea, eb, T)
+    mf = np.empty(s * k, np.int64)
+    mb = np.empty((s * k, 3))
+    for order in sample_chains(ts):
+        start = None
+        for j in order:
+            rows = slice(j * k, (j + 1) * k)
+            mf[rows], mb[rows], _ = S.locator.relocate(
+                M[rows], hint[rows] if start is None else mf[start], walk=SAG_WALK)
+            start = rows
+    return lift(S.V_in, S.F_in, mf, mb), mf
+
+
+def sample_chains(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The indices of ``ts`` (s) in the order :func:`lift_along` locates them: those with
+    ``t ≤ 1/2`` by increasing ``t`` (from an edge's first end), the others by decreasing
+    ``t`` (from its second end)."""
+    ts = np.asarray(ts)
+    order = np.argsort(ts, kind="stable")
+    low = ts[order] <= 0.5
+    return order[low], order[~low][::-1]
 
 
 def may_sag(S: RemeshState, a: np.ndarray, b: np.ndarray, threshold: float) -> np.ndarray:
@@ -131,8 +188,7 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
         # all samples of a block of edges in one query (sample-major), each located from the
         # face under the nearer end; the offsets and their largest normal components compiled
         e = slice(lo, min(lo + step, k))
-        T = np.repeat(ts, e.stop - lo)[:, None]
-        P, mf = lift_samples(S, np.tile(a[e], s), np.tile(b[e], s), T)
+        P, mf = lift_along(S, a[e], b[e], ts)
         sag_along_block(np.ascontiguousarray(P), np.ascontiguousarray(mf, dtype=np.int64),
                         N_in, X, a, b, ts, n_a, n_b, lo, best, t_best)
     return best, t_best
