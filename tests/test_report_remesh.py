@@ -42,6 +42,25 @@ def test_table_verdicts_and_page(tmp_path):
     assert "Green: best of the three compared methods" in text
 
 
+def test_verdicts_name_a_baseline_that_is_not_a_disk():
+    """A baseline whose output is two disks (χ = 2, 2 loops, 2 components) loses the topology
+    line, which the table marks no winner on; ours, a disk, wins it."""
+    methods = _methods()
+    sem = methods["sem"]
+    V2 = np.vstack([sem.V, sem.V + [10.0, 0.0, 0.0]])
+    F2 = np.vstack([sem.F, sem.F + len(sem.V)])
+    V, F = methods["input"].V, methods["input"].F
+    methods["fast_simplification"] = Method("fast_simplification", V2, F2, 0.5,
+                                            remesh_quality(V, F, V2, F2, 2000, 0))
+    better, worse = verdicts(comparison_table(methods), methods)["fast_simplification"]
+    assert ("one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented: "
+            "yes, a disk vs no (χ = 2, 2 loops, 2 components)") in better
+    assert not any(t.startswith("one disk") for t in worse)
+    methods["sem"], methods["fast_simplification"] = methods["fast_simplification"], sem
+    better, worse = verdicts(comparison_table(methods), methods)["fast_simplification"]
+    assert any(t.startswith("one disk") and t.endswith("vs yes, a disk") for t in worse)
+
+
 def test_page_without_baselines_says_so(tmp_path):
     """--no-compare: only the input and ours were measured; the caption names neither a
     comparison nor empty baseline notes."""

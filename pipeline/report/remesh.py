@@ -64,14 +64,26 @@ def _fmt(x, digits=2, pct=False):
     return f"{x:.{digits}f}"
 
 
+TOPOLOGY = "one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented"
+
+
+def topology(q: dict) -> str:
+    """What a quality dict says of the mesh's topology: ``yes, …`` for a disk or a closed genus-0
+    surface, else ``no (χ, loops, components)``."""
+    if q["is_disk"]:
+        return "yes, a disk"
+    if q.get("is_sphere"):
+        return "yes, closed genus 0"
+    f = q["facts"]
+    return (f"no (χ = {f['euler_characteristic']}, {f['boundary_loops']} loops, "
+            f"{f['components']} components)")
+
+
 ROWS = [
     # (label, unit, getter, better: 'low'|'high'|None, digits, pct)
     ("vertices", "count", lambda q, m: q["facts"]["vertices"], None, 0, False),
     ("faces", "count", lambda q, m: q["facts"]["faces"], None, 0, False),
-    ("one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented", "",
-     lambda q, m: "yes, a disk" if q["is_disk"] else "yes, closed genus 0" if q.get("is_sphere")
-     else f"no (χ = {q['facts']['euler_characteristic']}, {q['facts']['boundary_loops']} loops, "
-     f"{q['facts']['components']} components)", None, 0, False),
+    (TOPOLOGY, "", lambda q, m: topology(q), None, 0, False),
     ("degenerate faces", "count", lambda q, m: q["facts"]["degenerate_faces"], "low", 0, False),
     ("faces turned over against the input (folds)", "count",
      lambda q, m: q.get("distance", {}).get("turned_over_faces"), "low", 0, False),
@@ -131,7 +143,8 @@ def _best(row) -> set:
 
 def verdicts(rows, methods) -> dict[str, tuple[list[str], list[str]]]:
     """Per baseline: the measures where ours is better, and those where it is worse (ties
-    are left out)."""
+    are left out); the topology counts where one mesh is a disk or closed genus 0 and the
+    other is not."""
     out = {}
     for other in ("pymeshlab_isotropic", "fast_simplification"):
         if other not in methods or not methods[other].ok:
@@ -139,6 +152,9 @@ def verdicts(rows, methods) -> dict[str, tuple[list[str], list[str]]]:
         better, worse = [], []
         for row in rows:
             a, b = row["values"].get("sem"), row["values"].get(other)
+            if row["measure"] == TOPOLOGY and isinstance(a, str) and isinstance(b, str) \
+                    and a.startswith("yes") != b.startswith("yes"):
+                (better if a.startswith("yes") else worse).append(f"{TOPOLOGY}: {a} vs {b}")
             if row["better"] is None or not all(isinstance(x, (int, float, np.integer,
                                                                 np.floating)) for x in (a, b)):
                 continue
