@@ -325,13 +325,15 @@ def exit_now(code: int) -> None:
     """End the process with ``code`` once the work is done: the standard streams flushed and
     the ``atexit`` handlers run, as at a normal exit, but without the interpreter's teardown,
     which frees every module, array and library one by one (about 0.08 s of CPU after a
-    remesh, where the process ends anyway). With Python threads other than the main one still
-    running, a normal exit (it waits for them)."""
+    remesh, where the process ends anyway). A normal exit with Python threads other than the
+    main one still running (it waits for them) or under a profiler or tracer (``python -m
+    cProfile``, coverage: they write their results at the normal exit)."""
     import atexit
     import os
     import threading
 
-    if threading.active_count() > 1:
+    if threading.active_count() > 1 or sys.getprofile() is not None \
+            or sys.gettrace() is not None:
         sys.exit(code)
     for stream in (sys.stdout, sys.stderr):
         try:

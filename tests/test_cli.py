@@ -247,6 +247,18 @@ def test_exit_now_waits_for_running_threads(tmp_path):
     assert marker.read_text() == "done"
 
 
+def test_entry_under_cprofile_writes_the_profile(tmp_path):
+    """``python -m cProfile -o F -m pipeline ...``: the profiler writes its results at the
+    normal exit, which the command then takes (cProfile itself swallows the exit code)."""
+    profile = tmp_path / "cli.prof"
+    result = subprocess.run([sys.executable, "-m", "cProfile", "-o", str(profile), "-m",
+                             "pipeline", "remesh", str(tmp_path / "missing.obj"), "-o",
+                             str(tmp_path / "r"), "--vertices", "500"],
+                            capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert "missing.obj' does not exist" in result.stderr
+    assert profile.stat().st_size > 0
+
+
 def test_module_entry_point_exit_codes(tmp_path):
     """``python -m pipeline``: 0 on success with its closing line on stdout, 2 with one line on
     a user mistake (through :func:`pipeline.cli.entry`)."""
