@@ -115,9 +115,6 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         if len(cand) == 0:
             break
         h, viol = h[cand], viol[cand]
-        t = twin[h]
-        f, c = h // 3, h % 3
-        g, d = t // 3, t % 3
         (a, b, p, q), ok, valid = flip_checks(X, uv, is_b, F, h, twin, cos_max)
         if sag is not None:
             # a folded quad may still flip when the new edge is no farther from the input
@@ -134,13 +131,8 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
         sel = np.flatnonzero(ok)
         if len(sel) == 0:
             break
-        win = sel[independent_by_faces(m, f[sel], g[sel], -viol[sel])]
-        f, g, c, d = f[win], g[win], c[win], d[win]
-        a, b, p, q = a[win], b[win], p[win], q[win]
-        _flipped_twins(twin, slot, f, c, g, d)
-        F[f] = np.column_stack([p, a, q])
-        F[g] = np.column_stack([q, b, p])
-        changed = np.concatenate([f, g])
+        win = sel[independent_by_faces(m, h[sel] // 3, twin[h[sel]] // 3, -viol[sel])]
+        changed = flip_in_place(F, twin, h[win], (a[win], b[win], p[win], q[win]), slot)
         cot.reshape(m, 3)[changed] = _opposite_cots(X, F[changed])
         if have is not None:
             have[changed] = True
