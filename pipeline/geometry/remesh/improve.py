@@ -158,7 +158,7 @@ from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
-from .unfold import turned_over, unfold_locally
+from .unfold import turned_over_rows, unfold_locally
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -914,14 +914,8 @@ def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.nda
     centroid lies in the input map: folds, where the remesh doubles back over the surface (the
     definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
     the map instead of by closest point); given ``faces`` (k indices), those among them."""
-    F = S.F if faces is None else S.F[faces]
-    suspect = np.flatnonzero(turned_against(S.X, F, S.normals_in()[S.face[F]]))
-    if faces is not None:
-        suspect = faces[suspect]
-    if len(suspect) == 0:
-        return suspect
-    T = S.F[suspect]
-    return suspect[turned_over(S, S.X[T], S.uv[T], S.face[T])]
+    faces = np.arange(len(S.F)) if faces is None else np.asarray(faces)
+    return faces[turned_over_rows(S, S.F[faces])]
 
 
 def degenerate_faces(S: RemeshState) -> np.ndarray:
@@ -1015,7 +1009,7 @@ def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
 def turned_over_at(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     """Whether each of the ``faces`` (k indices) of ``S`` is turned over
     (:func:`turned_over_faces`; k bool): the measure of a :class:`.face_memo.FaceMemo`."""
-    return np.isin(faces, turned_over_faces(S, faces))
+    return turned_over_rows(S, S.F[faces])
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:

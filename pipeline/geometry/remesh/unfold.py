@@ -31,7 +31,7 @@ import numpy as np
 from ..locate import lift
 from .angles import _Patch, star_shapes_ok, triangle_min_angles
 from .domain import project
-from .state import RemeshState
+from .state import RemeshState, triangles_turned_against
 
 GRID = 6                   # the barycentric grid over each face of a star: steps of 1/GRID
 OPERATIONS_PER_FOLD = 10   # the pass stops after this × the folds it started with
@@ -57,13 +57,14 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray)
     -------
     (k,) bool
     """
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     input_normal = S.normals_in()
-    out = np.all(np.einsum("ij,ikj->ik", normal, input_normal[under]) < 0, axis=1)
+    out = triangles_turned_against(P, input_normal[under])
     suspect = np.flatnonzero(out)
     if len(suspect):
+        Q = P[suspect]
+        normal = np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])
         at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0])
-        out[suspect] = np.einsum("ij,ij->i", normal[suspect], input_normal[at]) < 0
+        out[suspect] = np.einsum("ij,ij->i", normal, input_normal[at]) < 0
     return out
 
 
