@@ -715,7 +715,6 @@ class _Operations:
         if before[0] == 0:
             return False
         saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
-        counted = self.folds.kept()
         if not insert():
             return False
         added = np.zeros(S.n, bool)
@@ -726,7 +725,6 @@ class _Operations:
         if shortfall_order(after) >= shortfall_order(before) or \
                 (pareto and after[1] < before[1]) or self.folds(S).sum() > n_folds:
             self.restore(saved)
-            self.folds.restore(counted)
             return False
         return True
 
@@ -768,8 +766,7 @@ class _Operations:
             if not fresh.any():
                 return
             at = bad[group == group[fresh.argmax()]]
-            before, saved, counted = unforced_shortfall(S, min_angle_deg), self.saved(), \
-                self.folds.kept()
+            before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
             corners = S.X[S.F[at].ravel()]
             self.unfold(at)
             self.raise_angles(min_angle_deg)
@@ -777,7 +774,6 @@ class _Operations:
             if left >= len(bad) or (left > len(bad) - len(at) and
                                     unforced_shortfall(S, min_angle_deg)[1] < before[1]):
                 self.restore(saved)
-                self.folds.restore(counted)
                 tried = np.vstack([tried, corners])
 
     def unfold(self, bad: np.ndarray | None = None) -> None:
@@ -791,15 +787,18 @@ class _Operations:
             unfold_locally(self.S, bad)
 
     def saved(self) -> tuple:
-        """The state of the remesh and its log, for :meth:`restore`."""
-        return saved_state(self.S), dict(self.S.log)
+        """The state of the remesh, its log and the fold counts (:attr:`folds`), for
+        :meth:`restore`."""
+        return saved_state(self.S), dict(self.S.log), self.folds.kept()
 
     def restore(self, saved: tuple) -> None:
-        """Put the remesh and its log back as :meth:`saved` returned them."""
-        state, log = saved
+        """Put the remesh and its log back as :meth:`saved` returned them, and the fold
+        counts with them (the next count recomputes none of the faces put back)."""
+        state, log, counted = saved
         restore_state(self.S, state)
         self.S.log.clear()
         self.S.log.update(log)
+        self.folds.restore(counted)
 
     def repair_degenerate(self, target: int, passes: int = 3) -> None:
         """Collapse an edge of every degenerate face (:func:`degenerate_faces`), shortest
