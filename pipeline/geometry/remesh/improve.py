@@ -146,14 +146,14 @@ from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
                             shortfall_order, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import snap_vertices
-from .domain import on_sphere, project
+from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .fidelity import Settled, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
-from .refine import SAG_SAMPLES, SAG_TS, refine_by_sag, split_long_edges
+from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
@@ -197,9 +197,9 @@ FOLLOW_RIM_GAP = 0.5
 # from the remesh get a vertex moved onto them, farthest first, while one can be without a new
 # angle below the minimum: the Hausdorff distance's input-to-remesh side
 SETTLE_TOL = 0.15
-# the last sag flips measure an edge at these t along it: finer than SAG_TS, as the point
-# where an edge crosses an input crease, where the Hausdorff distance is decided, is seldom
-# one of those
+# the last sag flips measure an edge at these t along it: finer than refine.SAG_TS, as the
+# point where an edge crosses an input crease, where the Hausdorff distance is decided, is
+# seldom one of those
 SAG_FLIP_TS = np.arange(1, 16) / 16
 # the sag flips make no face with a smallest angle below this (min_angle_deg if higher) and
 # the old faces' smallest: at the minimum angle's 20° they cost faces under 30° and smallest
