@@ -288,3 +288,22 @@ def test_entry_runs_openblas_on_one_thread_unless_told(given, expected, tmp_path
                           text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout.split() == [expected, "True"]
+
+
+def test_entry_freezes_what_the_imports_made(tmp_path):
+    """The console command imports its modules with the collector paused and then freezes
+    what they made (``gc.freeze``), so no later collection goes over those objects again;
+    the collector is back on for the command's own work."""
+    code = ("import atexit, gc\n"
+            "atexit.register(lambda: print(gc.isenabled(), gc.get_freeze_count()))\n"
+            "import sys\n"
+            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
+            " '500']\n"
+            "from pipeline.cli import entry\n"
+            "entry()\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 2, proc.stderr
+    enabled, frozen = proc.stdout.split()
+    assert enabled == "True"
+    assert int(frozen) > 50_000           # NumPy, SciPy, pydantic and the stages' objects
