@@ -31,3 +31,18 @@ def test_row_helpers_match_numpy():
     assert np.array_equal(cross(a, b), np.cross(a, b))            # the same arithmetic
     assert np.allclose(norms(a), np.linalg.norm(a, axis=1), rtol=1e-15, atol=0)
     assert np.allclose(dots(a, b), (a * b).sum(1), rtol=1e-13, atol=1e-15)
+
+
+def test_at_points_finds_the_rows_equal_bit_for_bit():
+    """A row is found when all three coordinates have a point's bits: not for a point that
+    shares only its first coordinate, nor for -0.0 against 0.0; repeated points and points
+    absent from the rows change nothing."""
+    from pipeline.geometry.remesh.state import at_points
+
+    X = np.array([[0.0, 1.0, 2.0], [-0.0, 1.0, 2.0], [0.5, 0.25, 0.125], [0.5, 0.25, 0.0],
+                  [3.0, 4.0, 5.0], [0.5, 0.25, 0.125]])
+    P = np.array([[0.0, 1.0, 2.0], [0.5, 0.25, 0.125], [0.5, 0.25, 0.125], [7.0, 8.0, 9.0],
+                  [3.0, 4.0, 5.0 + 1e-15]])
+    assert at_points(X, P).tolist() == [True, False, True, False, False, True]
+    assert at_points(X, P[:0]).tolist() == [False] * 6
+    assert at_points(X[:0], P).tolist() == []

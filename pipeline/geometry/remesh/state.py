@@ -21,13 +21,24 @@ from ..rows import cross, dots, norms
 
 
 def at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """Which rows of ``X`` (n bool) are exactly one of the points ``P`` (k×3): how locks are
-    carried through operations that renumber the vertices (a locked vertex keeps its
-    position)."""
-    if len(P) == 0:
-        return np.zeros(len(X), bool)
-    key = {p.tobytes() for p in np.ascontiguousarray(P)}
-    return np.fromiter((x.tobytes() in key for x in np.ascontiguousarray(X)), bool, len(X))
+    """Which rows of ``X`` (n×3) are exactly, bit for bit, one of the points ``P`` (k×3): how
+    locks are carried through operations that renumber the vertices (a locked vertex keeps its
+    position). Only the rows whose first coordinate has the bits of one of ``P``'s are
+    compared whole (the points are few, the rows many).
+
+    Returns
+    -------
+    (n,) bool
+    """
+    out = np.zeros(len(X), bool)
+    if len(P) == 0 or len(X) == 0:
+        return out
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    P = np.ascontiguousarray(P, dtype=np.float64)
+    rows = np.flatnonzero(np.isin(X[:, 0].view(np.uint64), P[:, 0].view(np.uint64)))
+    key = {p.tobytes() for p in P}
+    out[rows] = [X[i].tobytes() in key for i in rows.tolist()]
+    return out
 
 
 def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
