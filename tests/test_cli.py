@@ -307,3 +307,18 @@ def test_entry_freezes_what_the_imports_made(tmp_path):
     enabled, frozen = proc.stdout.split()
     assert enabled == "True"
     assert int(frozen) > 50_000           # NumPy, SciPy, pydantic and the stages' objects
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
+@pytest.mark.parametrize("given, expected", [(None, "True"), ("2", "False")])
+def test_keep_freed_memory_applies_unless_a_malloc_variable_is_set(given, expected):
+    """The command's ``malloc`` settings go through glibc's ``mallopt``, and a ``MALLOC_*``
+    variable the user set wins over them."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+    if given is not None:
+        env["MALLOC_ARENA_MAX"] = given
+    code = "from pipeline.cli import keep_freed_memory\nprint(keep_freed_memory())\n"
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True,
+                          text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == expected
