@@ -303,10 +303,8 @@ OPENBLAS_THREADS = "1"
 #: glibc ``malloc`` settings of a command (``mallopt``), unless a ``MALLOC_*`` variable sets
 #: its own: blocks up to 32 MiB (the most glibc's own sliding limit reaches) from the heap,
 #: not each from its own ``mmap``, and freed heap memory given back to the system only past
-#: 256 MiB at its top. By default the arrays of a remesh, freed and made again step after
-#: step, came back from the system as fresh pages each time: 70k page faults and 0.1 s of
-#: system CPU in a 20k remesh of gpp_face (34k faults and 0.06 s with these, the imports'
-#: own 27k included)
+#: 256 MiB at its top. The arrays of a remesh are freed and made again step after step; with
+#: glibc's defaults each came back from the system as fresh pages (a page fault per page)
 MALLOC_OPTIONS = {-3: 32 << 20,          # M_MMAP_THRESHOLD
                   -1: 256 << 20}         # M_TRIM_THRESHOLD
 
