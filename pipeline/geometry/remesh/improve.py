@@ -591,12 +591,12 @@ class _Operations:
         locked = S.X[S.locked].copy()
         d = d.copy()
         put = []
+        after = unforced_shortfall(S, min_angle_deg)
         for _ in range(SETTLE_INSERTIONS):
             i = int(np.argmax(d))
             if d[i] <= beyond:
                 break
-            before, n_folds, saved = (unforced_shortfall(S, min_angle_deg),
-                                      int(self.folds(S).sum()), self.saved())
+            before, n_folds, saved = after, int(self.folds(S).sum()), self.saved()
             F_before = S.F.copy()
             v = insert_vertices(S, far[i:i + 1], counts="settle")
             self.flip(since=F_before)
@@ -605,8 +605,9 @@ class _Operations:
             near = norms(P - point) < NEAR_INSERTION * self.L
             d_after = d.copy()
             d_after[near] = distances_near(S, P[near], point, (NEAR_INSERTION + 1) * self.L)
-            around = S.F[touching(S.F, at_points(S.X, point[None]))]
-            if (shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before)
+            around = S.F[touching(S.F, np.all(S.X == point, axis=1))]
+            after = unforced_shortfall(S, min_angle_deg)
+            if (shortfall_order(after) > shortfall_order(before)
                     or self.folds(S).sum() > n_folds or turned_from_nearest(S, around).any()
                     or d_after.max() >= d[i]):
                 self.restore(saved)
