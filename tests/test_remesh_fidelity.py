@@ -316,11 +316,11 @@ def test_settle_inserts_a_vertex_where_no_vertex_can_take_the_farthest_point():
     can move onto the farthest input point (0.137, farther than 0.25 L), so vertices are
     inserted instead, the first exactly there; each is kept only where it leaves no more faces
     below 20° and no smaller smallest angle, no more folds, and the farthest of the points
-    nearer. Six insertions (the operations around them collapse four vertices) leave that
-    point on the remesh, none of the points it measures farther than 0.25 L, 11 faces below
-    20° and the inserted vertices unlocked."""
+    nearer. Its five insertions (the operations around them collapse four vertices) leave
+    that point on the remesh, the farthest of the points it measures 0.1016 away (its reach),
+    11 faces below 20° and the inserted vertices unlocked."""
     from pipeline.geometry.remesh.circumcentres import unforced_shortfall
-    from pipeline.geometry.remesh.improve import _Operations
+    from pipeline.geometry.remesh.improve import SETTLE_INSERTIONS, _Operations
 
     S, _ = coarse_state(*creased_disk(1.0), 4)
     L = float(np.mean(np.linalg.norm(S.X[S.F[:, 0]] - S.X[S.F[:, 1]], axis=1)))
@@ -329,10 +329,12 @@ def test_settle_inserts_a_vertex_where_no_vertex_can_take_the_farthest_point():
     assert np.isclose(L, 0.29306, atol=1e-5) and before[0] == 16
     n0 = S.n
     settled = _Operations(S, L, True, 20.0, 0.5, 0.2).settle(20.0, np.zeros((0, 3)), 0.25 * L)
-    assert S.log["settled_on_input"] == 0 and S.log["settle_inserted"] == 6
+    assert S.log["settled_on_input"] == 0 and S.log["settle_inserted"] == SETTLE_INSERTIONS == 5
     assert np.flatnonzero(np.all(S.uv == far[0], axis=1)).tolist() == [settled.vertices[0]]
     assert MeshDistance(S.X, S.F)(S.X[settled.vertices[:1]])[0][0] == 0.0
-    assert settled.reach == 0.25 * L and len(settled.left) == 0
+    assert np.isclose(settled.reach, 0.10156, atol=1e-5) and settled.reach == settled.distances[0]
+    np.testing.assert_allclose(MeshDistance(S.X, S.F)(settled.left)[0], settled.distances,
+                               atol=1e-12)
     after = unforced_shortfall(S, 20.0)
     assert after[0] == 11 and after[1] >= before[1]
-    assert S.n == n0 + 2 and len(settled.vertices) == 6 and not S.locked.any()
+    assert S.n == n0 + 1 and len(settled.vertices) == 5 and not S.locked.any()

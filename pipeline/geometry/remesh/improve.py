@@ -210,7 +210,7 @@ SETTLE_TOL = 0.15
 # where the settle step stops at an input point farther than the follow tolerance, a vertex
 # is inserted there instead (the minimum-angle operations around it), at most this many
 # times a round
-SETTLE_INSERTIONS = 10
+SETTLE_INSERTIONS = 5
 # after an insertion, the input points within this × L of it are measured again (against the
 # faces within one more L of it): the operations around it change the remesh there alone
 NEAR_INSERTION = 2.0
@@ -568,10 +568,11 @@ class _Operations:
                                           insert_beyond)
         if len(put) == 0:
             return settled
-        kept = d > insert_beyond
+        left = np.flatnonzero(d > insert_beyond)
+        left = left[np.argsort(-d[left], kind="stable")]            # farthest first
         return Settled(np.flatnonzero(at_points(S.X, np.vstack([moved, put]))),
-                       float(d[kept].max(initial=insert_beyond)), settled.left_uv[beyond][kept],
-                       settled.left[beyond][kept], d[kept])
+                       float(d[left[0]]) if len(left) else insert_beyond,
+                       settled.left_uv[beyond][left], settled.left[beyond][left], d[left])
 
     def insert_at_far_input(self, min_angle_deg: float, far: np.ndarray, P: np.ndarray,
                             d: np.ndarray, beyond: float) -> tuple[np.ndarray, np.ndarray]:
