@@ -165,6 +165,29 @@ def test_the_human_face_remesh_follows_the_input_between_its_snapped_points():
     assert abs(len(r.V) - 20000) <= 400 and is_disk(mesh_facts(r.V, r.F))
 
 
+@pytest.mark.timeout(300)
+def test_the_bunny_remesh_stays_on_the_surface_on_both_sides():
+    """gpp_bunny (1.4k vertices, input edges about 2 L) through its 2-step paper map,
+    remeshed at 5,000 vertices: no sample of the remesh is farther than 0.23 L from the input
+    (0.20 L measured; 0.29 L when the second refinement's smoothing steps could move vertices
+    off the creases its splits caught) and no input sample farther than 0.27 L from the remesh
+    (0.24 L)."""
+    from conftest import require_data
+    from pipeline.geometry.remesh_quality import surface_distance
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = load_stage(require_data("meshes", "gpp_bunny.obj")).mesh
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    L = r.info["improve"]["target_edge_length"]
+    out = surface_distance(mesh.V, mesh.F, r.V, r.F)
+    assert out["output_to_input"]["max"] <= 0.23 * L
+    assert out["input_to_output"]["max"] <= 0.27 * L
+
+
 def test_the_alligator_remesh_keeps_its_rim_on_the_input_boundary():
     """c3d_alligator (6,232 faces) through its 2-step paper map, remeshed at 5,000 vertices:
     every input boundary vertex is within 0.1 L of the remesh (0.05 L measured). The
@@ -257,7 +280,7 @@ def test_settle_moves_a_vertex_onto_the_farthest_input_point_keeping_the_angles(
     assert len(far) == 94 and np.isclose(d[0], 0.06607, atol=1e-5)
     assert np.count_nonzero(d > remesh_reach(S)) == 72
     F0, before = S.F.copy(), smallest_angles_deg(S)
-    v, reach = settle_on_far_input(S, 0.05, 0.1, 20.0, 0.1)
+    v, reach, *_ = settle_on_far_input(S, 0.05, 0.1, 20.0, 0.1)
     assert v.tolist() == [2] and S.log["settled_on_input"] == 1
     assert S.log["far_input_points_late"] == 72
     np.testing.assert_array_equal(S.uv[2], far[0])
@@ -275,8 +298,43 @@ def test_settle_stops_at_the_first_point_no_vertex_can_take():
     cannot lower the largest distance); the reach it reports is that point's distance."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
     uv0 = S.uv.copy()
-    v, reach = settle_on_far_input(S, 0.05, 0.1, 0.0, np.inf)
-    assert len(v) == 0
+    settled = settle_on_far_input(S, 0.05, 0.1, 0.0, np.inf)
+    assert len(settled.vertices) == 0
     np.testing.assert_array_equal(S.uv, uv0)
     far, d = far_input_points(S, 0.05)
-    assert len(far) == 2207 and np.isclose(d[0], 0.13689, atol=1e-5) and reach == d[0]
+    assert len(far) == 2207 and np.isclose(d[0], 0.13689, atol=1e-5) and settled.reach == d[0]
+    left = d > remesh_reach(S)
+    np.testing.assert_array_equal(settled.left_uv, far[left])
+    np.testing.assert_array_equal(settled.distances, d[left])
+    np.testing.assert_allclose(MeshDistance(S.X, S.F)(settled.left)[0], d[left], atol=1e-12)
+
+
+@pytest.mark.timeout(60)
+def test_settle_inserts_a_vertex_where_no_vertex_can_take_the_farthest_point():
+    """The same 4-ring remesh (16 faces below 20°, the smallest 8.6°), settled with the
+    improvement's operations (L = its mean edge length, 0.293; sag tolerance 0.2 L): no vertex
+    can move onto the farthest input point (0.137, farther than 0.25 L), so vertices are
+    inserted instead, the first exactly there; each is kept only where it leaves no more faces
+    below 20° and no smaller smallest angle, no more folds, and the farthest of the points
+    nearer. Its five insertions (the operations around them collapse four vertices) leave
+    that point on the remesh, the farthest of the points it measures 0.1016 away (its reach),
+    11 faces below 20° and the inserted vertices unlocked."""
+    from pipeline.geometry.remesh.circumcentres import unforced_shortfall
+    from pipeline.geometry.remesh.improve import SETTLE_INSERTIONS, _Operations
+
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    L = float(np.mean(np.linalg.norm(S.X[S.F[:, 0]] - S.X[S.F[:, 1]], axis=1)))
+    far, d = far_input_points(S, 0.05)
+    before = unforced_shortfall(S, 20.0)
+    assert np.isclose(L, 0.29306, atol=1e-5) and before[0] == 16
+    n0 = S.n
+    settled = _Operations(S, L, True, 20.0, 0.5, 0.2).settle(20.0, np.zeros((0, 3)), 0.25 * L)
+    assert S.log["settled_on_input"] == 0 and S.log["settle_inserted"] == SETTLE_INSERTIONS == 5
+    assert np.flatnonzero(np.all(S.uv == far[0], axis=1)).tolist() == [settled.vertices[0]]
+    assert MeshDistance(S.X, S.F)(S.X[settled.vertices[:1]])[0][0] == 0.0
+    assert np.isclose(settled.reach, 0.10156, atol=1e-5) and settled.reach == settled.distances[0]
+    np.testing.assert_allclose(MeshDistance(S.X, S.F)(settled.left)[0], settled.distances,
+                               atol=1e-12)
+    after = unforced_shortfall(S, 20.0)
+    assert after[0] == 11 and after[1] >= before[1]
+    assert S.n == n0 + 1 and len(settled.vertices) == 5 and not S.locked.any()

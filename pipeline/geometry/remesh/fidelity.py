@@ -256,10 +256,16 @@ class Settled(NamedTuple):
     neither took nor skipped next to one taken (the point it stopped at, or the first nearer
     than the remesh's own reach), or its tolerance: an estimate of the farthest distance of an
     input point from the remesh after the moves (:func:`far_input_points`) without another
-    search."""
+    search; and the input points from the one it stopped at on that are farther than the
+    remesh's own reach (:func:`remesh_reach`), farthest first: their domain positions
+    ``left_uv`` (k×2 or k×3), their points ``left`` (k×3) on the surface and their
+    ``distances`` (k,) as measured before the moves."""
 
     vertices: np.ndarray
     reach: float
+    left_uv: np.ndarray
+    left: np.ndarray
+    distances: np.ndarray
 
 
 def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
@@ -309,15 +315,17 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
         movable &= ~fixed
     free = np.flatnonzero(movable)
 
-    def settled(put: list, stop: int) -> Settled:
+    def settled(put: list, stop: int, P: np.ndarray) -> Settled:
         return Settled(np.asarray(put, np.int64), float(d_all[stop]) if stop < len(d_all)
-                       else tol)
+                       else tol, far[stop:], P[stop:], d[stop:])
 
     k = min(candidates, len(free))
-    if len(far) == 0 or k == 0:
-        return settled([], 0)
+    if len(far) == 0:
+        return settled([], 0, np.zeros((0, 3)))
     f, b, _ = S.locator.locate_with_inside(far)
     P = lift(S.V_in, S.F_in, f, b)
+    if k == 0:
+        return settled([], 0, P)
     J = free[np.asarray(cKDTree(S.uv[free]).query(far, k=k)[1]).reshape(len(far), k)]
     floor = np.radians(floor_deg)
     put: list[int] = []
@@ -338,7 +346,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     else:
         i = len(far)
     S.tally("settled_on_input", len(put))
-    return settled(put, i)
+    return settled(put, i, P)
 
 
 def input_distance(S: RemeshState) -> MeshDistance:

@@ -44,7 +44,11 @@ The schedule (:func:`improve_remesh`):
    which the smoothing then shapes;
 7. the sag refinement again (the smoothing moves vertices off the folds the first one
    caught), the count restored, then ``pinned_relax_iterations`` smoothing steps and valence
-   flips as in step 6 with the new sag vertices pinned; then ``RESHAPE_STEPS`` × (a smoothing
+   flips as in step 6 with the new sag vertices pinned and the moves that take an edge
+   farther from the surface than the sag tolerance at its middle vetoed (:func:`sag_veto`:
+   without it the steps slide the vertices around the new ones off the creases they caught,
+   gpp_bunny at 5k vertices: edges 0.21 L from the surface before them, 0.29 L after); then
+   ``RESHAPE_STEPS`` × (a smoothing
    step of the vertices around the faces with an angle below ``RESHAPE_DEG`` — the splits
    and collapses just made leave them skinny — under a veto of every move that takes an edge
    farther from the surface than the sag tolerance, flips) (:meth:`_Operations.reshape`; not
@@ -113,13 +117,18 @@ The schedule (:func:`improve_remesh`):
     ``SETTLE_TOL × L`` from the remesh and than any remesh edge's middle from the input,
     farthest first, while one can be without a new angle below ``min_angle_deg``, a fold, an
     edge farther than the sag tolerance from the surface or another input point left as far
-    (:func:`.fidelity.settle_on_far_input`); the steps keep the first ones in place (their
-    neighbours move); after the second, the edges farther from the surface (at
-    ``SAG_FLIP_TS``) than the farthest input point from the remesh (as the settle step's own
-    search leaves it, :attr:`.fidelity.Settled.reach`, at least ``SETTLE_TOL × L``) flipped
-    where the other diagonal is within that distance, with no new angle below
-    ``SAG_FLIP_MIN_DEG`` (or ``min_angle_deg`` if higher) and the old faces' and no new face
-    turned from the input (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`: an
+    (:func:`.fidelity.settle_on_far_input`), and where it stops at a point farther than
+    ``follow_input × L`` (a hole the minimum-angle operations left at a crease the follow step
+    covered, too wide for any vertex to move into), up to ``SETTLE_INSERTIONS`` vertices
+    inserted at the farthest points instead, each with the minimum-angle operations around
+    it and kept only where it leaves no more or worse faces below ``min_angle_deg``, no more
+    folds and the farthest point nearer (:meth:`_Operations.insert_at_far_input`); the steps
+    keep the first ones in place (their neighbours move); after the second, the edges farther
+    from the surface (at ``SAG_FLIP_TS``) than the farthest input point from the remesh (as
+    the settle step's own search leaves it, :attr:`.fidelity.Settled.reach`, at least
+    ``SETTLE_TOL × L``) flipped where the other diagonal is within that distance, with no new
+    angle below ``SAG_FLIP_MIN_DEG`` (or ``min_angle_deg`` if higher) and the old faces' and no
+    new face turned from the input (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`: an
     edge across an input crease, which the Delaunay flips keep, decides the remesh-to-input
     side there and, at the crossing, the input-to-remesh side);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
@@ -139,18 +148,19 @@ import numpy as np
 
 from ..laplacian import face_double_areas
 from ..metrics import corner_angles
-from ..rows import norms, row_min
+from ..remesh_quality import closest_points_on_triangles
+from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
                             shortfall_order, unforced_shortfall)
 from .collapse import collapse_short_edges
-from .corners import snap_vertices
+from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
-from .fidelity import Settled, settle_on_far_input
+from .fidelity import Settled, input_distance, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
@@ -197,6 +207,13 @@ FOLLOW_RIM_GAP = 0.5
 # from the remesh get a vertex moved onto them, farthest first, while one can be without a new
 # angle below the minimum: the Hausdorff distance's input-to-remesh side
 SETTLE_TOL = 0.15
+# where the settle step stops at an input point farther than the follow tolerance, a vertex
+# is inserted there instead (the minimum-angle operations around it), at most this many
+# times a round
+SETTLE_INSERTIONS = 5
+# after an insertion, the input points within this × L of it are measured again (against the
+# faces within one more L of it): the operations around it change the remesh there alone
+NEAR_INSERTION = 2.0
 # the last sag flips measure an edge at these t along it: finer than refine.SAG_TS, as the
 # point where an edge crosses an input crease, where the Hausdorff distance is decided, is
 # seldom one of those
@@ -336,7 +353,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.guarantee(target, min_angle_deg, kept=(followed, corners))
         lap("guarantee")
     settle = follow_input > 0 and ops.tol is not None
-    settled = (ops.settle(min_angle_deg, followed).vertices if settle
+    settled = (ops.settle(min_angle_deg, followed, follow_input * L).vertices if settle
                else np.zeros(0, np.int64))
     lap("settle")
     if relax_iterations > 0 and EVEN_STEPS > 0:
@@ -345,7 +362,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         S.locked[settled] = False
         lap("even")
         if settle:
-            reach = ops.settle(min_angle_deg, np.vstack([followed, S.X[settled]])).reach
+            reach = ops.settle(min_angle_deg, np.vstack([followed, S.X[settled]]),
+                               follow_input * L).reach
             ops.flip_sagging(reach, max(min_angle_deg, SAG_FLIP_MIN_DEG))
             lap("settle")
     ops.repair_degenerate(target)
@@ -405,10 +423,11 @@ class _Operations:
         S.set_faces(F, twin)
         S.tally("sag_flips", k)
 
-    def smooth(self) -> None:
+    def smooth(self, veto=None) -> None:
         """A smoothing step that also evens out the areas of every vertex's faces (weight
-        ``AREA_EQUALIZE``), then flips towards regular valences (:meth:`flip_valence`)."""
-        self.relax(equalize=AREA_EQUALIZE)
+        ``AREA_EQUALIZE``), without the moves ``veto`` drops, then flips towards regular
+        valences (:meth:`flip_valence`)."""
+        self.relax(veto=veto, equalize=AREA_EQUALIZE)
         self.flip_valence()
 
     def flip_valence(self) -> None:
@@ -527,29 +546,93 @@ class _Operations:
                 S.locked &= ~at_points(S.X, free_rim)
                 self.flip()
 
-    def settle(self, min_angle_deg: float, followed: np.ndarray) -> Settled:
+    def settle(self, min_angle_deg: float, followed: np.ndarray, insert_beyond: float
+               ) -> Settled:
         """A vertex moved onto each input point farther than ``SETTLE_TOL × L`` from the
         remesh, farthest first, while one can be without a new angle below ``min_angle_deg``,
         a new fold, an edge farther than the sag tolerance from the surface or another input
         point left as far (:func:`.fidelity.settle_on_far_input`; the vertices at
-        ``followed``, k×3 points, stay). Returns the vertices moved."""
+        ``followed``, k×3 points, stay); where it stops at a point farther than
+        ``insert_beyond`` (the follow tolerance), vertices inserted at the points left
+        instead (:meth:`insert_at_far_input`). Returns the vertices moved and inserted and
+        the input's reach left."""
         S = self.S
-        return settle_on_far_input(S, SETTLE_TOL * self.L, FOLLOW_GAPS[1] * self.L,
-                                   min_angle_deg, self.tol, fixed=at_points(S.X, followed))
+        settled = settle_on_far_input(S, SETTLE_TOL * self.L, FOLLOW_GAPS[1] * self.L,
+                                      min_angle_deg, self.tol, fixed=at_points(S.X, followed))
+        beyond = settled.distances > insert_beyond
+        if not beyond.any():
+            return settled
+        moved = S.X[settled.vertices]
+        put, d = self.insert_at_far_input(min_angle_deg, settled.left_uv[beyond],
+                                          settled.left[beyond], settled.distances[beyond],
+                                          insert_beyond)
+        if len(put) == 0:
+            return settled
+        left = np.flatnonzero(d > insert_beyond)
+        left = left[np.argsort(-d[left], kind="stable")]            # farthest first
+        return Settled(np.flatnonzero(at_points(S.X, np.vstack([moved, put]))),
+                       float(d[left[0]]) if len(left) else insert_beyond,
+                       settled.left_uv[beyond][left], settled.left[beyond][left], d[left])
+
+    def insert_at_far_input(self, min_angle_deg: float, far: np.ndarray, P: np.ndarray,
+                            d: np.ndarray, beyond: float) -> tuple[np.ndarray, np.ndarray]:
+        """Up to ``SETTLE_INSERTIONS`` times, while one is farther than ``beyond``: a vertex
+        inserted at the farthest of the input points ``far`` (k×2 domain positions; ``P`` k×3
+        on the surface, ``d`` (k,) their distances from the remesh) that no existing vertex
+        could be moved onto
+        (:meth:`settle`: a hole the minimum-angle pass's collapses left at a crease the
+        follow step covered), then flips and the minimum-angle operations around the faces
+        below ``min_angle_deg`` (:meth:`raise_angles`), the new vertex staying; undone, and
+        the insertions ended, where that leaves more faces below the minimum or a smaller
+        smallest angle among them (:func:`.circumcentres.unforced_shortfall`), more folds
+        (also by the report's test, :func:`turned_from_nearest`, at the new vertex), or the
+        farthest of the points no nearer (:func:`distances_near`). Returns the points
+        inserted (j×3) and the points' distances after them (k,)."""
+        S = self.S
+        locked = S.X[S.locked].copy()
+        d = d.copy()
+        put = []
+        after = unforced_shortfall(S, min_angle_deg)
+        for _ in range(SETTLE_INSERTIONS):
+            i = int(np.argmax(d))
+            if d[i] <= beyond:
+                break
+            before, n_folds, saved = after, int(self.folds(S).sum()), self.saved()
+            F_before = S.F.copy()
+            v = insert_vertices(S, far[i:i + 1], counts="settle")
+            self.flip(since=F_before)
+            point = S.X[v][0]
+            self.raise_angles(min_angle_deg, norms(S.X - point) < NEAR_INSERTION * self.L)
+            near = norms(P - point) < NEAR_INSERTION * self.L
+            d_after = d.copy()
+            d_after[near] = distances_near(S, P[near], point, (NEAR_INSERTION + 1) * self.L)
+            around = S.F[touching(S.F, np.all(S.X == point, axis=1))]
+            after = unforced_shortfall(S, min_angle_deg)
+            if (shortfall_order(after) > shortfall_order(before)
+                    or self.folds(S).sum() > n_folds or turned_from_nearest(S, around).any()
+                    or d_after.max() >= d[i]):
+                self.restore(saved)
+                break
+            put.append(point)
+            d = d_after
+        S.locked = at_points(S.X, locked)
+        return np.reshape(put, (-1, 3)), d
 
     def refine_pinned(self, target: int, budget: int, relax_iterations: int) -> None:
         """Sag refinement again after the relaxation (which moves vertices off the folds the
         first one caught), the count restored by guarded collapses, then ``relax_iterations``
         smoothing steps (:meth:`smooth`) with the new sag vertices pinned where they catch the
-        surface."""
+        surface, without the moves that take an edge farther from the surface than the sag
+        tolerance at its middle (:func:`sag_veto` at ``EVEN_SAG_SAMPLES`` points)."""
         S = self.S
         corners = S.X[S.locked].copy()
         n0 = S.n
         self.refine(budget)
         S.locked[n0:] = True
         self.restore_count(target)
+        veto = partial(sag_veto, S, self.tol, samples=EVEN_SAG_SAMPLES)
         for _ in range(relax_iterations):
-            self.smooth()
+            self.smooth(veto)
         S.locked = at_points(S.X, corners)
 
     def even_out(self, steps: int, min_angle_deg: float, kept: np.ndarray,
@@ -679,10 +762,13 @@ class _Operations:
         self.flip(since=F_before)
         self.raise_angles(min_angle_deg)
 
-    def raise_angles(self, min_angle_deg: float) -> None:
+    def raise_angles(self, min_angle_deg: float, at: np.ndarray | None = None) -> None:
         """The local operations of :func:`.angles.raise_min_angles` around the faces with a 3D
-        angle below ``min_angle_deg``, their feature vertices freed first (:meth:`release`)."""
+        angle below ``min_angle_deg`` (with a corner among the vertices ``at``, n bool, if
+        given), their feature vertices freed first (:meth:`release`)."""
         bad = skinny_faces(self.S.X, self.S.F, min_angle_deg)
+        if at is not None:
+            bad = bad[at[self.S.F[bad]].any(axis=1)]
         self.release(bad)
         raise_min_angles(self.S, min_angle_deg, self.tol, bad)
 
@@ -905,6 +991,37 @@ def turned_from_input(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     of its corners (k bool; :func:`.state.turned_against`, the first test of
     :func:`turned_over_faces`)."""
     return turned_against(S.X, faces, S.normals_in()[S.face[faces]])
+
+
+def distances_near(S: RemeshState, P: np.ndarray, centre: np.ndarray, radius: float
+                   ) -> np.ndarray:
+    """The distances (k,) of the points ``P`` (k×3) to the faces of ``S`` with a corner within
+    ``radius`` of ``centre`` (3,): their distances to the remesh where those faces hold their
+    nearest points."""
+    near = norms(S.X - centre) < radius
+    T = S.X[S.F[touching(S.F, near)]]
+    k, m = len(P), len(T)
+    if k == 0 or m == 0:
+        return np.full(k, np.inf)
+    Q = np.repeat(P, m, axis=0)
+    C = closest_points_on_triangles(Q, *(np.tile(T[:, c], (k, 1)) for c in range(3)))
+    return norms(Q - C).reshape(k, m).min(axis=1)
+
+
+def turned_from_nearest(S: RemeshState, faces: np.ndarray) -> np.ndarray:
+    """Whether each of the ``faces`` (k×3) faces away from the input faces nearest to its
+    centroid and to each of its corners (k bool): the report's test of a fold
+    (:func:`..remesh_quality.turned_over_faces`), which at a crease narrower than the remesh
+    can pick the input face across it where the map's face under a corner
+    (:func:`turned_over_faces`) does not."""
+    P = np.vstack([S.X[faces].mean(axis=1), S.X[faces.ravel()]])
+    _, nearest = S.of_input(input_distance)(P)
+    k = len(faces)
+    N_in = S.normals_in()[nearest]
+    normal = np.cross(S.X[faces[:, 1]] - S.X[faces[:, 0]], S.X[faces[:, 2]] - S.X[faces[:, 0]])
+    centroid_side = dots(normal, N_in[:k]) < 0
+    corner_side = np.einsum("ij,ikj->ik", normal, N_in[k:].reshape(k, 3, 3)) < 0
+    return centroid_side & corner_side.all(axis=1)
 
 
 def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.ndarray:
