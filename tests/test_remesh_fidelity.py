@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.locate import PointLocator
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
 from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input,
