@@ -337,3 +337,26 @@ def test_settle_inserts_a_vertex_where_no_vertex_can_take_the_farthest_point():
     after = unforced_shortfall(S, 20.0)
     assert after[0] == 11 and after[1] >= before[1]
     assert S.n == n0 + 1 and len(settled.vertices) == 5 and not S.locked.any()
+
+
+@pytest.mark.timeout(300)
+def test_a_stretched_remesh_ends_where_a_far_input_point_takes_no_vertex(tmp_path):
+    """igl_lion stretched ×6 along x (a long, strongly squeezed disk map), remeshed at 2,000
+    vertices through its 2-step map: the settle step meets a far input point that no face
+    around it on the disk holds, so no vertex can be inserted there; the insertions end and
+    the remesh is one disk of about the requested count (the insertion used to index the
+    vertex it had not made)."""
+    from conftest import require_data
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.io.meshio import read_mesh, write_obj
+    from pipeline.stages.load import load_stage
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    raw = read_mesh(require_data("meshes", "igl_lion.obj"))
+    path = write_obj(tmp_path / "lion_x6.obj", raw.V * np.array([6.0, 1.0, 1.0]), raw.faces)
+    mesh = load_stage(path).mesh
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=2000))
+    assert r.info["improve"]["settle_inserted"] >= 1
+    assert is_disk(mesh_facts(r.V, r.F)) and abs(len(r.V) - 2000) <= 40

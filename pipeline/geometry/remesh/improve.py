@@ -586,8 +586,11 @@ class _Operations:
         the insertions ended, where that leaves more faces below the minimum or a smaller
         smallest angle among them (:func:`.circumcentres.unforced_shortfall`), more folds
         (also by the report's test, :func:`turned_from_nearest`, at the new vertex), or the
-        farthest of the points no nearer (:func:`distances_near`). Returns the points
-        inserted (j×3) and the points' distances after them (k,)."""
+        farthest of the points no nearer (:func:`distances_near`); ended too where no vertex
+        goes in (:func:`.corners.insert_vertices` finds no face around the point that holds
+        it: where the map squeezes the remesh, the point's nearest vertices on the disk need
+        not surround it). Returns the points inserted (j×3) and the points' distances after
+        them (k,)."""
         S = self.S
         locked = S.X[S.locked].copy()
         d = d.copy()
@@ -600,6 +603,9 @@ class _Operations:
             before, n_folds, saved = after, int(self.folds(S).sum()), self.saved()
             F_before = S.F.copy()
             v = insert_vertices(S, far[i:i + 1], counts="settle")
+            if len(v) == 0:             # no face around the point took it (corners.locate_near)
+                self.restore(saved)
+                break
             self.flip(since=F_before)
             point = S.X[v][0]
             self.raise_angles(min_angle_deg, norms(S.X - point) < NEAR_INSERTION * self.L)
