@@ -595,12 +595,12 @@ class _Operations:
         locked = S.X[S.locked].copy()
         d = d.copy()
         put = []
-        after = unforced_shortfall(S, min_angle_deg)
+        after, folds = unforced_shortfall(S, min_angle_deg), int(self.folds(S).sum())
         for _ in range(SETTLE_INSERTIONS):
             i = int(np.argmax(d))
             if d[i] <= beyond:
                 break
-            before, n_folds, saved = after, int(self.folds(S).sum()), self.saved()
+            before, n_folds, saved = after, folds, self.saved()
             F_before = S.F.copy()
             v = insert_vertices(S, far[i:i + 1], counts="settle")
             if len(v) == 0:             # no face around the point took it (corners.locate_near)
@@ -613,10 +613,9 @@ class _Operations:
             d_after = d.copy()
             d_after[near] = distances_near(S, P[near], point, (NEAR_INSERTION + 1) * self.L)
             around = S.F[touching(S.F, np.all(S.X == point, axis=1))]
-            after = unforced_shortfall(S, min_angle_deg)
-            if (shortfall_order(after) > shortfall_order(before)
-                    or self.folds(S).sum() > n_folds or turned_from_nearest(S, around).any()
-                    or d_after.max() >= d[i]):
+            after, folds = unforced_shortfall(S, min_angle_deg), int(self.folds(S).sum())
+            if (shortfall_order(after) > shortfall_order(before) or folds > n_folds
+                    or turned_from_nearest(S, around).any() or d_after.max() >= d[i]):
                 self.restore(saved)
                 break
             put.append(point)
