@@ -241,6 +241,41 @@ def test_mobius_is_not_orientable():
         topo.orient_faces_consistently(F)
 
 
+def test_lexicographic_order_is_lexsorts_order():
+    """The order of the rows by x, y, z with ties in index order, as ``np.lexsort`` gives it:
+    on a grid (every x repeated, runs of equal x and y), with exact duplicate rows, signed
+    zeros (equal) and random rows without ties."""
+    from pipeline.geometry.repair import lexicographic_order
+
+    rng = np.random.default_rng(3)
+    g = rng.integers(0, 4, size=(400, 3)).astype(float)
+    g[rng.random(400) < 0.2, 0] = -0.0
+    g[rng.random(400) < 0.2, 1] = -0.0
+    for P in (g, rng.standard_normal((300, 3)), np.r_[g, g[::-1]], g[:1], g[:0]):
+        assert np.array_equal(lexicographic_order(P), np.lexsort((P[:, 2], P[:, 1], P[:, 0])))
+
+
+def test_duplicate_faces_are_the_repeated_corner_sets():
+    """A face is a duplicate when an earlier face has its three vertices in any order: the
+    packed-key path and the lexicographic path (indices too large to pack) mark the same
+    faces, those of the definition."""
+    from pipeline.geometry.repair import _duplicate_mask, sorted_corners
+
+    rng = np.random.default_rng(4)
+    F = rng.integers(0, 12, size=(500, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    assert np.array_equal(sorted_corners(F), np.sort(F, axis=1))
+    seen, expected = set(), []
+    for row in F.tolist():
+        key = tuple(sorted(row))
+        expected.append(key in seen)
+        seen.add(key)
+    assert 0 < sum(expected) < len(F)
+    assert _duplicate_mask(F).tolist() == expected
+    big = F + 2 ** 40                                # n³ does not fit in 62 bits
+    assert _duplicate_mask(big).tolist() == expected
+
+
 # --------------------------------------------------------------------------------------------
 # repair on constructed meshes
 

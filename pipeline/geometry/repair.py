@@ -189,16 +189,52 @@ def _degenerate_mask(F: np.ndarray) -> np.ndarray:
 
 
 def _duplicate_mask(F: np.ndarray) -> np.ndarray:
-    """True for every face whose vertex set already occurred in an earlier face."""
+    """True for every face whose vertex set already occurred in an earlier face.
+
+    Each face's sorted corners ``(i, j, k)`` packed into one key ``(i·n + j)·n + k`` (``n``
+    above the largest index) when it fits in int64, and the keys sorted with their face
+    indices (:func:`.topology.sort_with_index`: equal keys in face order), else the corners
+    sorted lexicographically (stable): both put the faces of one vertex set together, earliest
+    first."""
     if len(F) == 0:
         return np.zeros(0, bool)
-    s = np.sort(F, axis=1)
-    order = np.lexsort((s[:, 2], s[:, 1], s[:, 0]))     # stable: earlier face first in a group
-    ss = s[order]
-    same = np.r_[False, np.all(ss[1:] == ss[:-1], axis=1)]
+    s = sorted_corners(F)
+    n = int(s[:, 2].max()) + 1
+    if int(s[:, 0].min()) >= 0 and 3 * n.bit_length() <= 62:
+        keys, order = topo.sort_with_index((s[:, 0] * n + s[:, 1]) * n + s[:, 2])
+        same = np.r_[False, keys[1:] == keys[:-1]]
+    else:
+        order = np.lexsort((s[:, 2], s[:, 1], s[:, 0]))
+        ss = s[order]
+        same = np.r_[False, np.all(ss[1:] == ss[:-1], axis=1)]
     dup = np.zeros(len(F), bool)
     dup[order[same]] = True
     return dup
+
+
+def sorted_corners(F: np.ndarray) -> np.ndarray:
+    """Each row of ``F`` (m, 3) sorted ascending (m, 3): ``np.sort(F, axis=1)``'s values, by
+    minimum, maximum and the remaining corner (faster than sorting the short rows)."""
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    lo = np.minimum(np.minimum(a, b), c)
+    hi = np.maximum(np.maximum(a, b), c)
+    return np.stack([lo, a + b + c - lo - hi, hi], axis=1)
+
+
+def lexicographic_order(P: np.ndarray) -> np.ndarray:
+    """The stable lexicographic order of the rows of ``P`` (k, 3) floats: the order of
+    ``np.lexsort((P[:, 2], P[:, 1], P[:, 0]))`` (ties in index order). A stable sort of the
+    first column, then the rows of equal first coordinates (few in measured data) sorted by
+    the other two."""
+    order = np.argsort(P[:, 0], kind="stable")
+    xs = P[order, 0]
+    tie = xs[1:] == xs[:-1]
+    if tie.any():
+        pos = np.flatnonzero(np.r_[tie, False] | np.r_[False, tie])
+        run = np.cumsum(np.r_[True, ~tie])[pos]           # equal-x run of each tied position
+        sub = order[pos]                                   # in index order within a run
+        order[pos] = sub[np.lexsort((P[sub, 2], P[sub, 1], run))]
+    return order
 
 
 def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.ndarray:
@@ -214,7 +250,7 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     if k < 2:
         return rep
     P = V[idx]
-    order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))      # stable: lowest index first in a group
+    order = lexicographic_order(P)                         # stable: lowest index first in a group
     Ps = P[order]
     new = np.r_[True, np.any(Ps[1:] != Ps[:-1], axis=1)]
     group = np.cumsum(new) - 1

@@ -426,6 +426,8 @@ def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
     interior edge links ``(t1, s)`` with ``(t2, s)`` when the pair is consistent and with
     ``(t2, 1−s)`` when it is not; the surface is orientable iff ``(t, 0)`` and ``(t, 1)`` always
     land in different components, and the component of ``(t, 0)`` tells the class of ``t``.
+    Without inconsistent pairs the two copies are not linked and nothing flips (returned
+    before the graph is built).
     """
     F = _as_faces(F)
     m = len(F)
@@ -437,6 +439,8 @@ def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
     h2 = twin[h1]
     t1, t2 = h1 // 3, h2 // 3
     inconsistent = a[h1] == a[h2]
+    if not inconsistent.any():          # no copy links to the other: nothing to flip
+        return F, 0
     r = np.r_[t1, t1 + m]
     c = np.r_[np.where(inconsistent, t2 + m, t2), np.where(inconsistent, t2, t2 + m)]
     G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(2 * m, 2 * m)).tocsr()
