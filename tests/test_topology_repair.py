@@ -241,6 +241,30 @@ def test_mobius_is_not_orientable():
         topo.orient_faces_consistently(F)
 
 
+def test_components_are_the_vertex_sharing_classes_numbered_by_first_face():
+    """Faces sharing a vertex are in one component (the partition scipy's graph components
+    give on the vertex graph), components numbered in order of their first face; unused
+    vertices and a larger ``n`` change nothing; an index outside ``[0, n)`` is an error."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components as graph_components
+
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        n = int(rng.integers(5, 200))
+        F = rng.integers(0, n, size=(int(rng.integers(1, 120)), 3))
+        count, lab = topo.connected_components(F, n + trial % 3)
+        r, c = F[:, [0, 1]].ravel(), F[:, [1, 2]].ravel()
+        _, vlab = graph_components(sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)),
+                                   directed=False)
+        flab = vlab[F[:, 0]]
+        _, first = np.unique(flab, return_index=True)
+        rank = {int(flab[f]): k for k, f in enumerate(sorted(first))}
+        assert count == len(first)
+        assert lab.tolist() == [rank[int(x)] for x in flab]
+    with pytest.raises(ValueError):
+        topo.connected_components(np.array([[0, 1, 5]]), 5)
+
+
 def test_lexicographic_order_is_lexsorts_order():
     """The order of the rows by x, y, z with ties in index order, as ``np.lexsort`` gives it:
     on a grid (every x repeated, runs of equal x and y), with exact duplicate rows, signed
