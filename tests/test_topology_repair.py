@@ -265,6 +265,34 @@ def test_components_are_the_vertex_sharing_classes_numbered_by_first_face():
         topo.connected_components(np.array([[0, 1, 5]]), 5)
 
 
+def test_weld_map_joins_the_points_within_tol_transitively():
+    """The representative of every point is the lowest index among the points linked to it
+    by steps of at most ``tol`` (brute force over all pairs), whether the tree is asked or the
+    coordinate runs prove no pair close (:func:`may_be_near`): a lattice (every coordinate
+    repeated), exact copies, copies moved by 0.4·tol (welded, also in chains) and by 3·tol
+    along one axis (kept apart)."""
+    from scipy.sparse.csgraph import connected_components as graph_components
+
+    from pipeline.geometry.repair import may_be_near, weld_map
+
+    rng = np.random.default_rng(6)
+    tol = 1e-3
+    L = rng.integers(0, 5, size=(120, 3)).astype(float) * 0.1
+    L = L[np.unique(L, axis=0, return_index=True)[1]]
+    axis = rng.integers(0, 3, size=len(L))
+    shift = np.zeros_like(L)
+    shift[np.arange(len(L)), axis] = 1.0
+    for P in (L, np.r_[L, L[:7]], np.r_[L, L[:9] + 3 * tol * shift[:9]],
+              np.r_[L, L[:9] + 0.4 * tol * shift[:9], L[:9] + 0.8 * tol * shift[:9]]):
+        D = np.sqrt(((P[:, None, :] - P[None, :, :]) ** 2).sum(-1))
+        _, lab = graph_components(D <= tol, directed=False)
+        lowest = {int(c): int(np.flatnonzero(lab == c)[0]) for c in np.unique(lab)}
+        assert weld_map(P, tol).tolist() == [lowest[int(c)] for c in lab]
+    assert not may_be_near(L[np.lexsort((L[:, 2], L[:, 1], L[:, 0]))], tol)
+    Q = np.r_[L, L[:1] + 0.9 * tol * shift[:1]]
+    assert may_be_near(Q[np.lexsort((Q[:, 2], Q[:, 1], Q[:, 0]))], tol)
+
+
 def test_lexicographic_order_is_lexsorts_order():
     """The order of the rows by x, y, z with ties in index order, as ``np.lexsort`` gives it:
     on a grid (every x repeated, runs of equal x and y), with exact duplicate rows, signed

@@ -241,7 +241,8 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     """Representative vertex for every vertex: the lowest index among the (``active``) vertices
     within ``tol`` of it, transitively. Exact duplicates are grouped by a lexicographic sort of
     the coordinates; near duplicates with ``cKDTree.query_pairs`` on one vertex per exact group
-    (skipped when ``tol`` is 0). Inactive vertices map to themselves.
+    (skipped when ``tol`` is 0, or when no two of them are that close in every coordinate:
+    :func:`may_be_near`). Inactive vertices map to themselves.
     """
     n = len(V)
     rep = np.arange(n, dtype=np.int64)
@@ -258,7 +259,7 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     local_rep = np.empty(k, np.int64)
     local_rep[order] = first_sorted[group]
     rows, cols = [np.arange(k)], [local_rep]
-    if tol > 0 and len(first_sorted) > 1:
+    if tol > 0 and len(first_sorted) > 1 and may_be_near(P[first_sorted], tol):
         from scipy.spatial import cKDTree
 
         pairs = cKDTree(P[first_sorted]).query_pairs(tol, output_type="ndarray")
@@ -275,6 +276,35 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     np.minimum.at(lowest, lab, np.arange(k))   # idx is sorted: lowest local = lowest input
     rep[idx] = idx[lowest[lab]]
     return rep
+
+
+#: relative margin of :func:`may_be_near` over ``tol``: far above the rounding of a coordinate
+#: difference and of the tree's squared distances
+NEAR_MARGIN = 1e-6
+
+
+def may_be_near(P: np.ndarray, tol: float) -> bool:
+    """Whether two of the distinct points ``P`` (k, 3), sorted by their first coordinate, may
+    lie within ``tol`` of each other: whether two differ by at most ``tol·(1 + NEAR_MARGIN)``
+    in every coordinate. Necessary for a distance ≤ ``tol``; False proves there is no such
+    pair. Found coordinate by coordinate: the runs of the sorted first coordinates with steps
+    within the margin, in them the runs of the second, then of the third (few points are left
+    after the first in measured data)."""
+    reach = tol * (1 + NEAR_MARGIN)
+    idx = np.arange(len(P))
+    group = np.zeros(len(P), np.int64)
+    for axis in range(P.shape[1]):
+        if axis:
+            order = np.lexsort((P[idx, axis], group))
+            idx, group = idx[order], group[order]
+        x = P[idx, axis]
+        close = (x[1:] - x[:-1] <= reach) & (group[1:] == group[:-1])
+        if not close.any():
+            return False
+        keep = np.r_[close, False] | np.r_[False, close]
+        run = np.cumsum(np.r_[True, ~close])
+        idx, group = idx[keep], run[keep]
+    return True
 
 
 def count_boundary_loops(F: np.ndarray) -> int:
