@@ -121,6 +121,139 @@ def test_obj_errors_are_one_line_user_errors(tmp_path, text, match):
     assert "\n" not in str(exc.value)
 
 
+def _read_general(path, monkeypatch):
+    """``read_mesh`` with the compiled pass declining every file: the general parser's result
+    (or its error)."""
+    import pipeline.io._obj as compiled
+
+    with monkeypatch.context() as m:
+        m.setattr(compiled, "obj_numbers", lambda raw: None)
+        return read_mesh(path)
+
+
+def _same_raw_mesh(a: RawMesh, b: RawMesh) -> bool:
+    same_faces = (np.array_equal(a.faces, b.faces) and a.faces.dtype == b.faces.dtype
+                  if a.all_triangles and b.all_triangles else
+                  not a.all_triangles and not b.all_triangles and len(a.faces) == len(b.faces)
+                  and all(np.array_equal(x, y) for x, y in zip(a.faces, b.faces)))
+    colors = (a.colors is None and b.colors is None) or (
+        a.colors is not None and b.colors is not None and np.array_equal(a.colors, b.colors))
+    return (a.V.dtype == b.V.dtype and np.array_equal(a.V.view(np.int64), b.V.view(np.int64))
+            and same_faces and colors)
+
+
+# every number form the compiled pass reads, with the double float() makes of it
+_NUMBERS = ["0", "-0", "+0.0", "1.", ".5", "-.5", "+1.5", "007.25", "1e5", "1E-30", "-2.5e+3",
+            "0.1", "0.3", "1e22", "1e23", "9007199254740993", "9007199254740992.5",
+            "123456789012345678901234", "0.000000000000000000000000123", "4.9e-324",
+            "2.2250738585072011e-308", "1.7976931348623157e308", "3.14159265358979323846",
+            "-0.03506127", "11.77162916", "1e-22", "1.5e-23", "8.98846567431158e307"]
+
+
+def _number_texts(k: int, seed: int) -> list[str]:
+    """``_NUMBERS`` and ``k`` random doubles in the forms files hold: shortest repr, fixed
+    decimals (6, 8 and 12 digits), %.17g and %.6e."""
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(k) * 10.0 ** rng.integers(-12, 12, k)
+    forms = [repr, lambda v: f"{v:.6f}", lambda v: f"{v:.8f}", lambda v: f"{v:.12f}",
+             lambda v: f"{v:.17g}", lambda v: f"{v:.6e}"]
+    return _NUMBERS + [forms[i % len(forms)](float(v)) for i, v in enumerate(x)]
+
+
+def test_obj_compiled_numbers_are_float_of_each_token():
+    """Every vertex number the compiled pass reads is bit for bit ``float()`` of its token:
+    the short decimals (exact integer and power of ten) and the others alike."""
+    from pipeline.io._obj import obj_numbers
+
+    tokens = _number_texts(3000, 1)
+    tokens += ["1"] * (-len(tokens) % 3)
+    lines = [" ".join(tokens[i:i + 3]) for i in range(0, len(tokens), 3)]
+    out = obj_numbers(("".join(f"v {s}\n" for s in lines) + "f 1 2 3\n").encode())
+    assert out is not None
+    expected = np.array([float(t) for t in tokens])
+    assert np.array_equal(out[0].view(np.int64), expected.view(np.int64))
+    assert out[1].tolist() == [3] * len(lines)
+
+
+def test_obj_compiled_pass_reads_every_form_as_the_general_parser(tmp_path, monkeypatch):
+    """An OBJ with every form the compiled pass reads — comments (whole-line and trailing),
+    other statements (vt, vn, g, o, usemtl, s, mtllib), tabs and leading blanks, ``\r\n`` and
+    lone ``\r`` line ends, a UTF-8 comment, vertex lines with a w coordinate and with
+    colours, polygons, ``v/vt``, ``v/vt/vn``, ``v//vn`` and relative tokens, leading-zero
+    indices, no final newline — gives the general parser's arrays exactly."""
+    from pipeline.io._obj import obj_numbers
+
+    nums = [t for t in _number_texts(600, 2) if abs(float(t)) <= 1e60]   # read_mesh's limit
+    nums += ["1"] * (-len(nums) % 3)
+    vlines = [f"v {a} {b} {c}" for a, b, c in zip(nums[::3], nums[1::3], nums[2::3])]
+    n = len(vlines)
+    lines = ["# comment ü", "mtllib x.mtl", "o thing", "\tg group", "usemtl m", "s off"]
+    for i, v in enumerate(vlines):
+        lines.append(v + ("  # trailing" if i % 7 == 0 else "") + (" 1.0" if i % 11 == 0 else ""))
+        if i % 5 == 0:
+            lines.append(f"vt {i * 0.01} 0.5\r")
+        if i >= 3 and i % 3 == 0:
+            j = i + 1                                   # the vertex just read
+            lines += [f"f {j - 2} {j - 1} {j}",
+                      f"  f\t{j - 3}/1/1 {j - 2}/2/1\t{j - 1}/3/1 {j}/1/1",   # a quad
+                      f"f -1//1 -2//1 -3//1 # relative",
+                      f"f 00{j - 2}/1 {j - 1}/2 {j}/3\r"]
+    text = "\n".join(lines).replace("o thing\n", "o thing\r")   # one lone CR line end
+    p = write_text(tmp_path / "forms.obj", text)
+    assert obj_numbers(p.read_bytes()) is not None              # the compiled pass reads it
+    fast, general = read_mesh(p), _read_general(p, monkeypatch)
+    assert len(fast.V) == n and not fast.all_triangles
+    assert _same_raw_mesh(fast, general)
+    rgb = "".join(f"v {i} {i % 3} 0.5 {i / 9:.3f} 0.25 1\n" for i in range(9)) + "f 1 2 3\n"
+    p = write_text(tmp_path / "rgb.obj", rgb)
+    fast, general = read_mesh(p), _read_general(p, monkeypatch)
+    assert fast.colors is not None and fast.all_triangles and _same_raw_mesh(fast, general)
+
+
+@pytest.mark.parametrize("text, compiled", [
+    ("# nothing\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", True),
+    ("f 1 2 3\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n", True),
+    ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", True),
+    ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", False),   # two errors: the first one's message
+    ("v\t\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 2 3 4\n", True),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf # no indices\n", True),
+    ("v 0 0 1e999\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", False),
+    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", False),
+    ("v 0 0 0\nv 1 zero 0\nv 0 1 0\nf 1 2 3\n", False),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", False),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 +3\n", False),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3-\n", False),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n", False),
+    ("v 0 0 0\nv 1\x000 0\nv 0 1 0\nf 1 2 3\n", False),
+    ("v 0 0 0\nv 1 0\xa00\nv 0 1 0\nf 1 2 3\n", False),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\x0b4\n", False),
+    ("v 1.2.3 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", False),
+])
+def test_obj_errors_and_results_are_the_general_parsers(tmp_path, monkeypatch, text, compiled):
+    """Files the compiled pass reads (``compiled``) and files it leaves to the general
+    parser give that parser's result or its error message, word for word."""
+    from pipeline.io._obj import obj_numbers
+
+    p = tmp_path / "bad.obj"
+    p.write_bytes(text.encode("utf-8"))
+    assert (obj_numbers(p.read_bytes()) is not None) == compiled
+    results = []
+    for read in (read_mesh, lambda q: _read_general(q, monkeypatch)):
+        try:
+            results.append(read(p))
+        except UserError as exc:
+            results.append(str(exc))
+    if isinstance(results[0], str):
+        assert results[0] == results[1] and "\n" not in results[0]
+    else:
+        assert _same_raw_mesh(*results)
+
+
 def test_missing_file_and_unknown_extension(tmp_path):
     with pytest.raises(UserError, match="does not exist"):
         read_mesh(tmp_path / "nope.obj")

@@ -42,6 +42,30 @@ def test_quality_of_an_equilateral_lattice():
     assert is_disk(mesh_facts(V, F))
 
 
+def test_triangle_quality_is_its_definitions_bit_for_bit():
+    """The angle extremes and edge lengths behind triangle_quality are numpy's reductions of
+    their definitions, bit for bit, on a noisy height field at scales from 1e-6 to 1e6: the
+    smallest and largest corner angle of each face, and the edges' Euclidean lengths; and a
+    bounding-box diagonal is the norm of the extents."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry.metrics import corner_angles
+    from pipeline.geometry.remesh_quality import _unique_edge_lengths, bounding_box_diagonal
+
+    _, V0, F = height_field(25)
+    rng = np.random.default_rng(7)
+    for scale in (1e-6, 1.0, 1e6):
+        V = (V0 + rng.normal(scale=0.01, size=V0.shape)) * scale
+        ang = np.degrees(corner_angles(V, F))
+        q = triangle_quality(V, F)
+        assert q["min_angle_deg"] == ang.min(axis=1).min()
+        assert q["max_angle_deg"] == ang.max(axis=1).max()
+        assert np.array_equal(q["_per_face_min_angle"], ang.min(axis=1))
+        E, _ = topo.edges_with_faces(F)
+        assert np.array_equal(_unique_edge_lengths(V, F),
+                              np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1))
+        assert bounding_box_diagonal(V) == float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+
+
 def test_point_triangle_distance_is_exact():
     rng = np.random.default_rng(0)
     A, B, C = rng.normal(size=(3, 300, 3))

@@ -241,6 +241,93 @@ def test_mobius_is_not_orientable():
         topo.orient_faces_consistently(F)
 
 
+def test_components_are_the_vertex_sharing_classes_numbered_by_first_face():
+    """Faces sharing a vertex are in one component (the partition scipy's graph components
+    give on the vertex graph), components numbered in order of their first face; unused
+    vertices and a larger ``n`` change nothing; an index outside ``[0, n)`` is an error."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components as graph_components
+
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        n = int(rng.integers(5, 200))
+        F = rng.integers(0, n, size=(int(rng.integers(1, 120)), 3))
+        count, lab = topo.connected_components(F, n + trial % 3)
+        r, c = F[:, [0, 1]].ravel(), F[:, [1, 2]].ravel()
+        _, vlab = graph_components(sp.coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)),
+                                   directed=False)
+        flab = vlab[F[:, 0]]
+        _, first = np.unique(flab, return_index=True)
+        rank = {int(flab[f]): k for k, f in enumerate(sorted(first))}
+        assert count == len(first)
+        assert lab.tolist() == [rank[int(x)] for x in flab]
+    with pytest.raises(ValueError):
+        topo.connected_components(np.array([[0, 1, 5]]), 5)
+
+
+def test_weld_map_joins_the_points_within_tol_transitively():
+    """The representative of every point is the lowest index among the points linked to it
+    by steps of at most ``tol`` (brute force over all pairs), whether the tree is asked or the
+    coordinate runs prove no pair close (:func:`may_be_near`): a lattice (every coordinate
+    repeated), exact copies, copies moved by 0.4·tol (welded, also in chains) and by 3·tol
+    along one axis (kept apart)."""
+    from scipy.sparse.csgraph import connected_components as graph_components
+
+    from pipeline.geometry.repair import may_be_near, weld_map
+
+    rng = np.random.default_rng(6)
+    tol = 1e-3
+    L = rng.integers(0, 5, size=(120, 3)).astype(float) * 0.1
+    L = L[np.unique(L, axis=0, return_index=True)[1]]
+    axis = rng.integers(0, 3, size=len(L))
+    shift = np.zeros_like(L)
+    shift[np.arange(len(L)), axis] = 1.0
+    for P in (L, np.r_[L, L[:7]], np.r_[L, L[:9] + 3 * tol * shift[:9]],
+              np.r_[L, L[:9] + 0.4 * tol * shift[:9], L[:9] + 0.8 * tol * shift[:9]]):
+        D = np.sqrt(((P[:, None, :] - P[None, :, :]) ** 2).sum(-1))
+        _, lab = graph_components(D <= tol, directed=False)
+        lowest = {int(c): int(np.flatnonzero(lab == c)[0]) for c in np.unique(lab)}
+        assert weld_map(P, tol).tolist() == [lowest[int(c)] for c in lab]
+    assert not may_be_near(L[np.lexsort((L[:, 2], L[:, 1], L[:, 0]))], tol)
+    Q = np.r_[L, L[:1] + 0.9 * tol * shift[:1]]
+    assert may_be_near(Q[np.lexsort((Q[:, 2], Q[:, 1], Q[:, 0]))], tol)
+
+
+def test_lexicographic_order_is_lexsorts_order():
+    """The order of the rows by x, y, z with ties in index order, as ``np.lexsort`` gives it:
+    on a grid (every x repeated, runs of equal x and y), with exact duplicate rows, signed
+    zeros (equal) and random rows without ties."""
+    from pipeline.geometry.repair import lexicographic_order
+
+    rng = np.random.default_rng(3)
+    g = rng.integers(0, 4, size=(400, 3)).astype(float)
+    g[rng.random(400) < 0.2, 0] = -0.0
+    g[rng.random(400) < 0.2, 1] = -0.0
+    for P in (g, rng.standard_normal((300, 3)), np.r_[g, g[::-1]], g[:1], g[:0]):
+        assert np.array_equal(lexicographic_order(P), np.lexsort((P[:, 2], P[:, 1], P[:, 0])))
+
+
+def test_duplicate_faces_are_the_repeated_corner_sets():
+    """A face is a duplicate when an earlier face has its three vertices in any order: the
+    packed-key path and the lexicographic path (indices too large to pack) mark the same
+    faces, those of the definition."""
+    from pipeline.geometry.repair import _duplicate_mask, sorted_corners
+
+    rng = np.random.default_rng(4)
+    F = rng.integers(0, 12, size=(500, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 0] != F[:, 2])]
+    assert np.array_equal(sorted_corners(F), np.sort(F, axis=1))
+    seen, expected = set(), []
+    for row in F.tolist():
+        key = tuple(sorted(row))
+        expected.append(key in seen)
+        seen.add(key)
+    assert 0 < sum(expected) < len(F)
+    assert _duplicate_mask(F).tolist() == expected
+    big = F + 2 ** 40                                # n³ does not fit in 62 bits
+    assert _duplicate_mask(big).tolist() == expected
+
+
 # --------------------------------------------------------------------------------------------
 # repair on constructed meshes
 

@@ -351,6 +351,48 @@ def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     return twin_arr
 
 
+cdef inline int64_t _root(int64_t* parent, int64_t v) noexcept nogil:
+    """The root of ``v``'s set, halving the path on the way."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+def face_components(const int64_t[:, ::1] F, int64_t n):
+    """``(count, labels)``: the faces of ``F`` (m, 3) over ``n`` vertices linked when they share
+    a vertex, each face's component numbered by first face (component 0 holds face 0, the next
+    new one in face order is 1, ...). A union-find over the vertices joined along each face's
+    corners, then one pass in face order. Raises ValueError for an index outside ``[0, n)``."""
+    cdef Py_ssize_t t, c, m = F.shape[0]
+    cdef int64_t u, w, count = 0
+    for t in range(m):
+        for c in range(3):
+            if F[t, c] < 0 or F[t, c] >= n:
+                raise ValueError(f"face index {F[t, c]} is outside [0, {n})")
+    parent_arr = np.arange(n, dtype=np.int64)
+    label_arr = np.full(n, -1, dtype=np.int64)
+    out_arr = np.empty(m, dtype=np.int64)
+    cdef int64_t[::1] parent_view = parent_arr, label = label_arr, out = out_arr
+    cdef int64_t* parent = &parent_view[0] if n else NULL
+    with nogil:
+        for t in range(m):
+            for c in range(2):
+                u = _root(parent, F[t, c])
+                w = _root(parent, F[t, c + 1])
+                if u < w:
+                    parent[w] = u
+                elif w < u:
+                    parent[u] = w
+        for t in range(m):
+            u = _root(parent, F[t, 0])
+            if label[u] < 0:
+                label[u] = count
+                count += 1
+            out[t] = label[u]
+    return int(count), out_arr
+
+
 def fans_per_vertex(const int64_t[::1] a, const int64_t[::1] twin, int64_t n):
     """The number of fans at every vertex of a consistently oriented mesh with manifold edges
     (half-edge ``h`` from ``a[h]``, ``twin`` −1 on the boundary): rotating about the tail of

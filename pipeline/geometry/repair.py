@@ -189,23 +189,60 @@ def _degenerate_mask(F: np.ndarray) -> np.ndarray:
 
 
 def _duplicate_mask(F: np.ndarray) -> np.ndarray:
-    """True for every face whose vertex set already occurred in an earlier face."""
+    """True for every face whose vertex set already occurred in an earlier face.
+
+    Each face's sorted corners ``(i, j, k)`` packed into one key ``(i·n + j)·n + k`` (``n``
+    above the largest index) when it fits in int64, and the keys sorted with their face
+    indices (:func:`.topology.sort_with_index`: equal keys in face order), else the corners
+    sorted lexicographically (stable): both put the faces of one vertex set together, earliest
+    first."""
     if len(F) == 0:
         return np.zeros(0, bool)
-    s = np.sort(F, axis=1)
-    order = np.lexsort((s[:, 2], s[:, 1], s[:, 0]))     # stable: earlier face first in a group
-    ss = s[order]
-    same = np.r_[False, np.all(ss[1:] == ss[:-1], axis=1)]
+    s = sorted_corners(F)
+    n = int(s[:, 2].max()) + 1
+    if int(s[:, 0].min()) >= 0 and 3 * n.bit_length() <= 62:
+        keys, order = topo.sort_with_index((s[:, 0] * n + s[:, 1]) * n + s[:, 2])
+        same = np.r_[False, keys[1:] == keys[:-1]]
+    else:
+        order = np.lexsort((s[:, 2], s[:, 1], s[:, 0]))
+        ss = s[order]
+        same = np.r_[False, np.all(ss[1:] == ss[:-1], axis=1)]
     dup = np.zeros(len(F), bool)
     dup[order[same]] = True
     return dup
+
+
+def sorted_corners(F: np.ndarray) -> np.ndarray:
+    """Each row of ``F`` (m, 3) sorted ascending (m, 3): ``np.sort(F, axis=1)``'s values, by
+    minimum, maximum and the remaining corner (faster than sorting the short rows)."""
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    lo = np.minimum(np.minimum(a, b), c)
+    hi = np.maximum(np.maximum(a, b), c)
+    return np.stack([lo, a + b + c - lo - hi, hi], axis=1)
+
+
+def lexicographic_order(P: np.ndarray) -> np.ndarray:
+    """The stable lexicographic order of the rows of ``P`` (k, 3) floats: the order of
+    ``np.lexsort((P[:, 2], P[:, 1], P[:, 0]))`` (ties in index order). A stable sort of the
+    first column, then the rows of equal first coordinates (few in measured data) sorted by
+    the other two."""
+    order = np.argsort(P[:, 0], kind="stable")
+    xs = P[order, 0]
+    tie = xs[1:] == xs[:-1]
+    if tie.any():
+        pos = np.flatnonzero(np.r_[tie, False] | np.r_[False, tie])
+        run = np.cumsum(np.r_[True, ~tie])[pos]           # equal-x run of each tied position
+        sub = order[pos]                                   # in index order within a run
+        order[pos] = sub[np.lexsort((P[sub, 2], P[sub, 1], run))]
+    return order
 
 
 def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.ndarray:
     """Representative vertex for every vertex: the lowest index among the (``active``) vertices
     within ``tol`` of it, transitively. Exact duplicates are grouped by a lexicographic sort of
     the coordinates; near duplicates with ``cKDTree.query_pairs`` on one vertex per exact group
-    (skipped when ``tol`` is 0). Inactive vertices map to themselves.
+    (skipped when ``tol`` is 0, or when no two of them are that close in every coordinate:
+    :func:`may_be_near`). Inactive vertices map to themselves.
     """
     n = len(V)
     rep = np.arange(n, dtype=np.int64)
@@ -214,7 +251,7 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     if k < 2:
         return rep
     P = V[idx]
-    order = np.lexsort((P[:, 2], P[:, 1], P[:, 0]))      # stable: lowest index first in a group
+    order = lexicographic_order(P)                         # stable: lowest index first in a group
     Ps = P[order]
     new = np.r_[True, np.any(Ps[1:] != Ps[:-1], axis=1)]
     group = np.cumsum(new) - 1
@@ -222,7 +259,7 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     local_rep = np.empty(k, np.int64)
     local_rep[order] = first_sorted[group]
     rows, cols = [np.arange(k)], [local_rep]
-    if tol > 0 and len(first_sorted) > 1:
+    if tol > 0 and len(first_sorted) > 1 and may_be_near(P[first_sorted], tol):
         from scipy.spatial import cKDTree
 
         pairs = cKDTree(P[first_sorted]).query_pairs(tol, output_type="ndarray")
@@ -239,6 +276,35 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
     np.minimum.at(lowest, lab, np.arange(k))   # idx is sorted: lowest local = lowest input
     rep[idx] = idx[lowest[lab]]
     return rep
+
+
+#: relative margin of :func:`may_be_near` over ``tol``: far above the rounding of a coordinate
+#: difference and of the tree's squared distances
+NEAR_MARGIN = 1e-6
+
+
+def may_be_near(P: np.ndarray, tol: float) -> bool:
+    """Whether two of the distinct points ``P`` (k, 3), sorted by their first coordinate, may
+    lie within ``tol`` of each other: whether two differ by at most ``tol·(1 + NEAR_MARGIN)``
+    in every coordinate. Necessary for a distance ≤ ``tol``; False proves there is no such
+    pair. Found coordinate by coordinate: the runs of the sorted first coordinates with steps
+    within the margin, in them the runs of the second, then of the third (few points are left
+    after the first in measured data)."""
+    reach = tol * (1 + NEAR_MARGIN)
+    idx = np.arange(len(P))
+    group = np.zeros(len(P), np.int64)
+    for axis in range(P.shape[1]):
+        if axis:
+            order = np.lexsort((P[idx, axis], group))
+            idx, group = idx[order], group[order]
+        x = P[idx, axis]
+        close = (x[1:] - x[:-1] <= reach) & (group[1:] == group[:-1])
+        if not close.any():
+            return False
+        keep = np.r_[close, False] | np.r_[False, close]
+        run = np.cumsum(np.r_[True, ~close])
+        idx, group = idx[keep], run[keep]
+    return True
 
 
 def count_boundary_loops(F: np.ndarray) -> int:

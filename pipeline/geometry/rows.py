@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cross", "norms", "dots", "row_min", "nonzero_rows"]
+__all__ = ["cross", "norms", "dots", "row_min", "row_max", "nonzero_rows"]
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -39,9 +39,20 @@ def norms(a: np.ndarray) -> np.ndarray:
 def row_min(a: np.ndarray) -> np.ndarray:
     """The smallest entry per row (k×c → k), column by column: the values of
     ``a.min(axis=1)`` (a NaN in a row gives NaN)."""
+    return _by_columns(np.minimum, a)
+
+
+def row_max(a: np.ndarray) -> np.ndarray:
+    """The largest entry per row (k×c → k), column by column: the values of
+    ``a.max(axis=1)`` (a NaN in a row gives NaN)."""
+    return _by_columns(np.maximum, a)
+
+
+def _by_columns(ufunc, a: np.ndarray) -> np.ndarray:
+    """``ufunc`` (a binary ufunc) folded over the columns of ``a`` (k×c → k)."""
     out = a[:, 0].copy()
     for c in range(1, a.shape[1]):
-        np.minimum(out, a[:, c], out=out)
+        ufunc(out, a[:, c], out=out)
     return out
 
 

@@ -274,25 +274,13 @@ def interior_edge_twins(F) -> np.ndarray:
 def connected_components(F, n: int | None = None) -> tuple[int, np.ndarray]:
     """Connected components of the faces (faces sharing a vertex are connected).
 
-    Returns ``(count, labels)`` with ``labels`` (m) in ``0..count-1``, numbered by first face.
+    Returns ``(count, labels)`` with ``labels`` (m) in ``0..count-1``, numbered by first face
+    (compiled union-find: :func:`._kernels.face_components`).
     """
     F = _as_faces(F)
     if F.size == 0:
         return 0, np.zeros(0, np.int64)
-    n = _n_of(F, n)
-    rows = F[:, [0, 1]].ravel()
-    cols = F[:, [1, 2]].ravel()
-    G = sp.coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(n, n)).tocsr()
-    _, vlab = _cc(G, directed=False)
-    flab = vlab[F[:, 0]]
-    m = len(F)
-    first = np.full(int(vlab.max()) + 1, m, dtype=np.int64)
-    np.minimum.at(first, flab, np.arange(m))
-    present = np.flatnonzero(first < m)
-    # renumber so that component 0 contains face 0, component 1 the next new face, ...
-    rank = np.full(len(first), -1, dtype=np.int64)
-    rank[present[np.argsort(first[present], kind="stable")]] = np.arange(len(present))
-    return len(present), rank[flab]
+    return _kernels.face_components(np.ascontiguousarray(F, dtype=np.int64), _n_of(F, n))
 
 
 def nonmanifold_edges(F) -> np.ndarray:
@@ -426,6 +414,8 @@ def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
     interior edge links ``(t1, s)`` with ``(t2, s)`` when the pair is consistent and with
     ``(t2, 1−s)`` when it is not; the surface is orientable iff ``(t, 0)`` and ``(t, 1)`` always
     land in different components, and the component of ``(t, 0)`` tells the class of ``t``.
+    Without inconsistent pairs the two copies are not linked and nothing flips (returned
+    before the graph is built).
     """
     F = _as_faces(F)
     m = len(F)
@@ -437,6 +427,8 @@ def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
     h2 = twin[h1]
     t1, t2 = h1 // 3, h2 // 3
     inconsistent = a[h1] == a[h2]
+    if not inconsistent.any():          # no copy links to the other: nothing to flip
+        return F, 0
     r = np.r_[t1, t1 + m]
     c = np.r_[np.where(inconsistent, t2 + m, t2), np.where(inconsistent, t2, t2 + m)]
     G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(2 * m, 2 * m)).tocsr()

@@ -142,7 +142,8 @@ _OBJ_VF = re.compile(r"^[ \t]*([vf])[ \t]+([^#\r\n]*)", re.M)
 _SLASH = re.compile(r"/[^\s]*")
 
 
-def _obj_vertices(vlines: list[str], where: str) -> tuple[np.ndarray, np.ndarray | None]:
+def _obj_vertex_numbers(vlines: list[str], where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The numbers of the ``v`` lines' texts ``vlines`` and the count on each line."""
     counts = np.fromiter((len(s.split()) for s in vlines), dtype=np.int64, count=len(vlines))
     try:
         flat = _parse_floats(" ".join(vlines))
@@ -156,6 +157,13 @@ def _obj_vertices(vlines: list[str], where: str) -> tuple[np.ndarray, np.ndarray
                     f"fix the file"
                 ) from None
         raise UserError(f"{where}: unparsable vertex data; fix the file") from None
+    return flat, counts
+
+
+def _obj_vertices(flat: np.ndarray, counts: np.ndarray, where: str
+                  ) -> tuple[np.ndarray, np.ndarray | None]:
+    """Positions and colours from the ``v`` lines' numbers ``flat`` and their per-line
+    ``counts``."""
     if len(flat) != counts.sum() or counts.min() < 3:
         raise UserError(f"{where}: a vertex line has fewer than 3 coordinates; fix the file")
     if np.all(counts == counts[0]):
@@ -194,41 +202,66 @@ def _obj_face_indices(flines: list[str], where: str) -> tuple[np.ndarray, np.nda
         raise UserError(f"{where}: unparsable face data; fix the file") from None
     if len(flat) != counts.sum():
         raise UserError(f"{where}: unparsable face data; fix the file")
+    return flat, counts
+
+
+def _check_face_counts(counts: np.ndarray, where: str) -> None:
     if counts.min() < 3:
         i = int(np.argmax(counts < 3))
         raise UserError(
             f"{where}: face line {i + 1} has {int(counts[i])} vertices (need ≥ 3); fix the file"
         )
-    return flat, counts
+
+
+def _vertices_before(text: str) -> np.ndarray:
+    """For each ``f`` line of the OBJ ``text``, the ``v`` lines before it."""
+    kinds = [k for k, _ in _OBJ_VF.findall(text)]
+    is_v = np.fromiter((k == "v" for k in kinds), dtype=bool, count=len(kinds))
+    return np.cumsum(is_v)[~is_v]
 
 
 def _read_obj(path: Path) -> RawMesh:
+    """An OBJ file: its ``v`` and ``f`` numbers read in one compiled pass
+    (:func:`._obj.obj_numbers`), or, for a file that pass leaves (anything but decimal
+    numbers and integer face tokens in those statements), by the regular expressions and
+    numpy's parsers here; both give the same numbers, and every error comes from the
+    checks here in the same order."""
+    from ._obj import obj_numbers
+
     where = str(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        raw = path.read_bytes()
     except OSError as exc:
         raise UserError(f"cannot read '{path}': {exc.strerror}; check the path and permissions")
-    vlines = _OBJ_V.findall(text)
-    if not vlines:
+    numbers = obj_numbers(raw)
+    if numbers is None:
+        # the text as read_text reads it: universal newlines
+        text = raw.decode("utf-8", errors="replace").replace("\r\n", "\n").replace("\r", "\n")
+        vlines, flines = _OBJ_V.findall(text), _OBJ_F.findall(text)
+        n_v, n_f = len(vlines), len(flines)
+    else:
+        vflat, vcounts, flat, counts, v_before = numbers
+        n_v, n_f = len(vcounts), len(counts)
+    if not n_v:
         raise UserError(f"{where}: no vertices ('v' lines) found; pass a non-empty OBJ mesh")
-    flines = _OBJ_F.findall(text)
-    if not flines:
+    if not n_f:
         raise UserError(
             f"{where}: no faces ('f' lines) found; pass a surface mesh, not a point cloud"
         )
-    V, C = _obj_vertices(vlines, where)
+    if numbers is None:
+        vflat, vcounts = _obj_vertex_numbers(vlines, where)
+    V, C = _obj_vertices(vflat, vcounts, where)
     n = len(V)
-    flat, counts = _obj_face_indices(flines, where)
+    if numbers is None:
+        flat, counts = _obj_face_indices(flines, where)
+    _check_face_counts(counts, where)
     if np.any(flat == 0):
         raise UserError(
             f"{where}: face index 0 is invalid in OBJ (indices are 1-based); fix the file"
         )
     if np.any(flat < 0):
         # relative indices: -1 is the last vertex defined before this face line
-        kinds = [k for k, _ in _OBJ_VF.findall(text)]
-        is_v = np.fromiter((k == "v" for k in kinds), dtype=bool, count=len(kinds))
-        nv_before = np.cumsum(is_v)[~is_v]               # per face line
-        base = np.repeat(nv_before, counts)
+        base = np.repeat(_vertices_before(text) if numbers is None else v_before, counts)
         idx = np.where(flat < 0, base + flat, flat - 1)
     else:
         idx = flat - 1
