@@ -21,6 +21,7 @@ from ..locate import lift
 from ..metrics import corner_angles
 from ..rows import dots, norms
 from .halfedge import edge_table, independent_edges
+from .ragged import narrow_teeth
 from .refine import split_edges, split_keeps_shape
 from .sampling import arc_parameters
 from .state import RemeshState
@@ -38,7 +39,8 @@ def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray
     return norms(P - (A + t[:, None] * e))
 
 
-def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
+def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
+             tol: float | None = None):
     """For every rim edge of ``S``, the input boundary vertex (polygon corner) farthest from it
     among those the polygon passes between its ends.
 
@@ -58,6 +60,10 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
         The farthest corner of each (−1 where the polygon has none between the ends).
     gap : (r,) float
         Its distance to the chord ``X[a]``–``X[b]`` (0 where there is none).
+    width : (r,) float
+        Given ``tol``: the length along the chord of the run of boundary vertices around it
+        farther than ``tol`` from the chord (:func:`run_widths`; 0 where there is none, and
+        everywhere without ``tol``).
     """
     h, a, b, twin = edge_table(S.F, twin=S.twins())
     rim = twin < 0
@@ -72,7 +78,26 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     by = np.lexsort((-d, e))                    # per edge, the farthest corner first
     first = by[np.r_[True, e[by][1:] != e[by][:-1]]]
     corner[e[first]], gap[e[first]] = first, d[first]
-    return h, a, b, corner, gap
+    width = np.zeros(len(h))
+    if tol is not None:
+        width[e[first]] = run_widths(corners_X, S.X[a[e]], S.X[b[e]], e, d > tol)[first]
+    return h, a, b, corner, gap, width
+
+
+def run_widths(P: np.ndarray, A: np.ndarray, B: np.ndarray, edge: np.ndarray,
+               beyond: np.ndarray) -> np.ndarray:
+    """For each boundary vertex ``P`` (k×3, in polygon order) cut off by the chord ``A``–``B``
+    (k×3 each) of the rim edge ``edge`` (k,): the length along the chord spanned by the run of
+    consecutive vertices of the same edge that are all ``beyond`` (k bool) the tolerance and
+    include it (k,; 0 where it is not beyond)."""
+    e = B - A
+    t = dots(P - A, e) / np.maximum(norms(e), 1e-300)
+    run = np.cumsum(np.r_[True, (edge[1:] != edge[:-1]) | ~beyond[1:] | ~beyond[:-1]])
+    lo = np.full(run[-1] + 1, np.inf)
+    hi = np.full(run[-1] + 1, -np.inf)
+    np.minimum.at(lo, run, t)
+    np.maximum.at(hi, run, t)
+    return np.where(beyond, hi[run] - lo[run], 0.0)
 
 
 def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
@@ -89,8 +114,9 @@ def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
     corner_s = arc_parameters(S.polygon, S.polygon)
     done = 0
     for _ in range(max_rounds):
-        h, a, b, corner, gap = rim_gaps(S, corners_X, corner_s)
-        cand = np.flatnonzero(gap > tol)
+        h, a, b, corner, gap, width = rim_gaps(S, corners_X, corner_s, tol)
+        chord = norms(S.X[a] - S.X[b])
+        cand = np.flatnonzero((gap > tol) & ~narrow_teeth(gap, chord, width, tol))
         P = corners_X[corner[cand]]
         cand = cand[np.minimum(norms(P - S.X[a[cand]]), norms(P - S.X[b[cand]])) >= min_gap]
         twin = np.full(len(cand), -1, np.int64)
