@@ -30,8 +30,6 @@ from .domain import on_sphere
 from .fidelity import input_distance
 from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
-from .ragged import straighten_rim
-from .rim import RIM_TOL
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
 from .state import RemeshState
@@ -141,12 +139,6 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                           pattern, polygon=uv[boundary], relax=rim_relax, seed=seed)
     corners = boundary_corners(V, F, boundary, corner_angle_deg)
     snapped = snap_rim(samples, uv[corners]) if len(corners) else np.zeros(0, np.int64)
-    if improve and samples.polygon is not None:
-        fixed = np.zeros(samples.n_rim, bool)
-        fixed[snapped] = True
-        samples.points[:samples.n_rim] = straighten_rim(
-            samples.rim, uv[boundary], V[boundary],
-            RIM_TOL * refine_sag * samples.spacing / np.sqrt(ratio), fixed)
     lap("sample")
     F_out = triangulate_samples(samples)
     lap("delaunay")
