@@ -208,7 +208,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
         F0 = S.F.copy()
-        k = insert_round(S, min_angle_deg, caps)
+        at_folds = np.zeros(S.n, bool)
+        at_folds[S.F[folds()].ravel()] = True
+        k = insert_round(S, min_angle_deg, caps, skip=at_folds)
         if k == 0:
             break
         flip(F0)
@@ -243,12 +245,15 @@ def restore_state(S: RemeshState, saved: dict) -> None:
     S.set_faces(saved["F"])
 
 
-def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False) -> int:
+def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
+                 skip: np.ndarray | None = None) -> int:
     """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
-    encroaches), worst face first, none in a face another one of the round touches; returns
-    how many."""
+    encroaches), worst face first, none in a face another one of the round touches nor for a
+    face with a corner among the vertices ``skip`` (n bool); returns how many."""
     bad, _ = unforced_below(S, min_angle_deg)
+    if skip is not None:
+        bad = bad[~skip[S.F[bad]].any(axis=1)]
     if len(bad) == 0:
         return 0
     T = S.F[bad]
