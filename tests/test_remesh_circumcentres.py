@@ -103,6 +103,23 @@ def test_a_face_on_a_short_rim_edge_is_graded_to_the_minimum():
     assert np.abs(S.X[:, 2]).max() == 0.0
 
 
+def test_a_face_at_a_fold_gets_no_insertion():
+    """On the short rim edge, with the faces at one of its locked ends counted as folds (the
+    fold repair's to mend), the face below 20° on that edge has a corner on a fold: no round
+    inserts a vertex for it and the remesh is unchanged (one fold-making insertion would undo
+    a whole round's others, judged on the fold count)."""
+    S = _short_rim_edge_state()
+    F0, X0 = S.F.copy(), S.X.copy()
+    before = unforced_shortfall(S, 20.0)
+    v = int(np.flatnonzero(S.locked)[0])
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    k = refine_at_circumcentres(S, 20.0, lambda F: ops.flip(since=F),
+                                lambda: np.flatnonzero((S.F == v).any(axis=1)))
+    assert k == 0 and S.log["circumcentre_insertions"] == 0
+    assert np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
+    assert unforced_shortfall(S, 20.0) == before
+
+
 def test_rounds_stop_after_patience_rounds_that_beat_no_earlier_state():
     """On the short rim edge, with flips alone after each round, the first round leaves the
     faces worse than the start (the inserted vertex not yet settled): with a patience of one

@@ -23,7 +23,9 @@ after the round (:func:`.angles.raise_min_angles`) move the new vertex, which th
 around the cap's own corners (a crumpled input, a corner on a ridge) keep from moving.
 
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
-(no two touching one face), then the caller's ``flip`` around them (flips, and in
+(no two touching one face) and none for a face with a corner on a fold (the fold repair's to
+mend: an insertion there turns faces over where the map's stretch turns, and a round judged on
+the fold count is then lost with all its other insertions), then the caller's ``flip`` around them (flips, and in
 :meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
