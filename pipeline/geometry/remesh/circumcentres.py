@@ -25,8 +25,8 @@ around the cap's own corners (a crumpled input, a corner on a ridge) keep from m
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
 (no two touching one face) and none for a face with a corner on a fold (the fold repair's to
 mend: an insertion there turns faces over where the map's stretch turns, and a round judged on
-the fold count is then lost with all its other insertions), then the caller's ``flip`` around them (flips, and in
-:meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
+the fold count is then lost with all its other insertions), then the caller's ``flip`` around
+them (flips, and in :meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
 after that many in a row that beat no earlier state, none); the remesh ends as the best state:
