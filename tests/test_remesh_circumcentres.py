@@ -64,23 +64,24 @@ def test_a_cap_is_split_on_its_long_edge_at_the_foot_of_its_altitude():
     assert cap_split(S, 2) == (6, EDGE_BARY)
 
 
-def _short_rim_edge_state():
+def _short_rim_edge_state(extras=(1,)):
     """A flat disk remesh: the centre, 6 vertices at 0.4, 12 at 0.75 and 24 rim vertices on
-    the unit circle (input map points), plus one rim vertex at the input point next to one of
-    them (a rim edge of 0.026, 1/10 of the others), both ends locked (kept boundary corners):
-    the face on that short edge has an angle far below 20° at its interior corner."""
+    the unit circle (input map points ``loop[::10]``), plus a rim vertex at the input point
+    ``loop[e]`` next to one of them for each ``e`` of ``extras`` (a rim edge of 0.026, 1/10 of
+    the others), both ends locked (kept boundary corners): the face on that short edge has an
+    angle far below 20° at its interior corner."""
     uv_in, F_in, V_in, loop, loc = disk_map(0.0)
     rim = loop[::10]
-    extra = loop[1]
     inner = np.vstack([np.zeros((1, 2)),
                        0.4 * disk_points(1, 6)[1:], 0.75 * disk_points(2, 6)[7:]])
-    uv = np.vstack([inner, uv_in[rim], uv_in[[extra]]])
+    uv = np.vstack([inner, uv_in[rim], uv_in[loop[list(extras)]]])
     F = ccw_delaunay(uv)
     face, bary = loc.locate(uv)
     is_rim = np.arange(len(uv)) >= len(inner)
     S = RemeshState(lift(V_in, F_in, face, bary), F, uv, is_rim, face, bary, V_in, F_in,
                     uv_in, loc, uv_in[loop])
-    S.locked[[len(inner), len(uv) - 1]] = True
+    for i, e in enumerate(extras):
+        S.locked[[len(inner) + (e - 1) // 10, len(uv) - len(extras) + i]] = True
     return S
 
 
@@ -101,6 +102,32 @@ def test_a_face_on_a_short_rim_edge_is_graded_to_the_minimum():
     assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))
     assert np.array_equal(S.uv[S.locked], kept)
     assert np.abs(S.X[:, 2]).max() == 0.0
+
+
+def test_a_round_that_turns_faces_over_is_made_again_without_the_faces_at_folds():
+    """Two short rim edges, at ``loop[1]`` and across the disk at ``loop[121]``; a stand-in
+    for the fold test counts as turned over the faces at the first edge's locked end ``v``
+    and those with a vertex added within 0.3 of it (an insertion there turns faces over). The
+    first round inserts at both edges and adds folds; made again without the faces at a fold,
+    it grades the far edge alone: its faces reach 20°, no vertex is added near ``v``, and
+    the face on the first edge stays below (judged whole, the round would be undone, no
+    vertex kept)."""
+    S = _short_rim_edge_state((1, 121))
+    n0 = S.n
+    v, far, w, far_extra = np.flatnonzero(S.locked)     # loop[0], loop[120], loop[1], loop[121]
+
+    def folds():
+        new = (np.arange(S.n) >= n0) & (np.linalg.norm(S.uv - S.uv[v], axis=1) < 0.3)
+        return np.flatnonzero((S.F == v).any(axis=1) | new[S.F].any(axis=1))
+
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    k = refine_at_circumcentres(S, 20.0, lambda F: ops.flip(since=F), folds)
+    assert k >= 1 and S.n == n0 + k
+    assert np.linalg.norm(S.uv[n0:] - S.uv[v], axis=1).min() >= 0.3
+    A = np.degrees(corner_angles(S.X, S.F)).min(axis=1)
+    at_w = np.isin(S.F, [far, far_extra]).any(axis=1)
+    at_v = (S.F == v).any(axis=1) & (S.F == w).any(axis=1)
+    assert A[at_w].min() >= 20.0 and A[at_v].min() < 20.0
 
 
 def test_rounds_stop_after_patience_rounds_that_beat_no_earlier_state():

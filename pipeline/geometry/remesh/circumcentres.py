@@ -24,7 +24,11 @@ around the cap's own corners (a crumpled input, a corner on a ridge) keep from m
 
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
 (no two touching one face), then the caller's ``flip`` around them (flips, and in
-:meth:`.improve._Operations.grade` the local operations). The rounds go on while there are faces
+:meth:`.improve._Operations.grade` the local operations); a round that leaves more faces turned
+over than at the start is made again without the faces with a corner on a fold before or after
+it (:func:`fold_free_round`: the fold repair's to mend; an insertion there turns faces over
+where the map's stretch turns, and the round, judged on the fold count, would be lost with all
+its other insertions). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
 after that many in a row that beat no earlier state, none); the remesh ends as the best state:
@@ -44,7 +48,7 @@ from .corners import locate_near
 from .domain import on_sphere
 from .halfedge import DISK_SHAPE_MIN, disk_shape
 from .refine import split_edges, split_faces, split_keeps_shape
-from .state import RemeshState
+from .state import RemeshState, at_points
 
 ROUNDS = 6            # at most this many rounds of insertions, none after one that leaves
 RUNAWAY = 2           # more than this × (the best round's count of faces to refine + 1)
@@ -207,11 +211,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     for _ in range(rounds):
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
-        F0 = S.F.copy()
-        k = insert_round(S, min_angle_deg, caps)
+        k = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds)
         if k == 0:
             break
-        flip(F0)
         done += k
         after = unforced_shortfall(S, min_angle_deg)
         if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
@@ -223,6 +225,32 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])
     return best[2]
+
+
+def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, folds,
+                    n_folds: int) -> int:
+    """A round of insertions (:func:`insert_round`) and the caller's ``flip(F_before)``;
+    where that leaves more than ``n_folds`` faces turned over (``folds()``, indices), the
+    round made again from the start without the faces with a corner on a fold before or after
+    it (their vertices found by position, :func:`.state.at_points`): the fold repair's to
+    mend, and one fold-making insertion would lose the round its other insertions. Returns
+    how many vertices the round kept inserted."""
+    F0, start = S.F.copy(), saved_state(S)
+    k = insert_round(S, min_angle_deg, caps)
+    if k == 0:
+        return 0
+    flip(F0)
+    turned = folds()
+    if len(turned) <= n_folds:
+        return k
+    P = S.X[S.F[turned].ravel()]
+    restore_state(S, start)
+    skip = at_points(S.X, P)
+    skip[S.F[folds()].ravel()] = True
+    k = insert_round(S, min_angle_deg, caps, skip=skip)
+    if k:
+        flip(F0)
+    return k
 
 
 def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
@@ -243,12 +271,15 @@ def restore_state(S: RemeshState, saved: dict) -> None:
     S.set_faces(saved["F"])
 
 
-def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False) -> int:
+def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
+                 skip: np.ndarray | None = None) -> int:
     """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
-    encroaches), worst face first, none in a face another one of the round touches; returns
-    how many."""
+    encroaches), worst face first, none in a face another one of the round touches nor for a
+    face with a corner among the vertices ``skip`` (n bool); returns how many."""
     bad, _ = unforced_below(S, min_angle_deg)
+    if skip is not None:
+        bad = bad[~skip[S.F[bad]].any(axis=1)]
     if len(bad) == 0:
         return 0
     T = S.F[bad]
