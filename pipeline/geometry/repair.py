@@ -57,7 +57,12 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     colour). Holes are closed in the order of their smallest vertex index, each fan starting at
     the hole's first boundary half-edge in face order, which reproduces the ICT ``*_disk`` files
     exactly.
-13. **leaf faces** (paper Def. 4, all three corners on the boundary): the longest interior edge
+13. **flap necks**: an interior vertex whose neighbours are all boundary vertices is a *flap*
+    hanging on the rest by the interior edges of its link (both ends on the boundary); the map
+    would have to squeeze it into the circular segment of such an edge and wraps it twice
+    around the vertex instead (the boundary image runs backwards). Each such edge is split at
+    its 3D midpoint with its two faces (``flap_necks_split``). Then
+    **leaf faces** (paper Def. 4, all three corners on the boundary): the longest interior edge
     of each leaf is split at its 3D midpoint together with the face across it (the midpoint is an
     interior vertex, so neither half is a leaf; no new leaves can appear); repeated until no leaf
     is left (``leaf_faces_split`` = leaves found, ``leaf_split_vertices_added``). With
@@ -78,7 +83,7 @@ centroid (true for eye/mouth openings).
 ``component_faces_dropped``, ``faces_reoriented``, ``zero_area_faces_flipped``,
 ``zero_area_faces_removed``, ``decimated_from_faces`` / ``decimated_to_faces`` (``None`` when not
 decimated), ``boundary_loops_found``, ``closed`` (bool: no boundary, the sphere is the
-domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``leaf_faces_split``,
+domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``flap_necks_split``, ``leaf_faces_split``,
 ``leaf_split_vertices_added``, ``output_vertices``, ``output_faces``, ``boundary_vertices``.
 
 A closed result has ``boundary`` = an empty int64 array (:attr:`RepairedMesh.closed`).
@@ -715,21 +720,58 @@ def _split_leaves(M: _Mesh, name: str) -> tuple[int, int]:
             splits.append((h, int(twin[h])))
         if not splits:  # pragma: no cover - every round splits at least the first free leaf
             raise RuntimeError("leaf splitting made no progress")
-        S = np.asarray(splits, np.int64)
-        t1, c1 = S[:, 0] // 3, S[:, 0] % 3
-        t2, c2 = S[:, 1] // 3, S[:, 1] % 3
-        u, w, x = F[t1, c1], F[t1, (c1 + 1) % 3], F[t1, (c1 + 2) % 3]
-        y = F[t2, (c2 + 2) % 3]
-        Cm = 0.5 * (M.C[u] + M.C[w]) if M.C is not None else None
-        mid = M.append_vertices(0.5 * (M.V[u] + M.V[w]), Cm)
-        F = F.copy()
-        F[t1] = np.stack([u, mid, x], axis=1)
-        F[t2] = np.stack([w, mid, y], axis=1)
-        extra = np.vstack([np.stack([mid, w, x], axis=1), np.stack([mid, u, y], axis=1)])
-        M.F = np.vstack([F, extra])
-        is_b = np.r_[is_b, np.zeros(len(mid), bool)]
-        added += len(mid)
+        added += _split_edges(M, np.asarray(splits, np.int64))
+        is_b = np.r_[is_b, np.zeros(M.n - len(is_b), bool)]
     return found, added
+
+
+def _split_edges(M: _Mesh, S: np.ndarray) -> int:
+    """Split interior edges at their 3D midpoints, each with its two faces (two faces → four).
+
+    ``S`` (k×2) holds a half-edge ``3·face + corner`` (corner → next corner) of each edge and
+    its twin; no two rows may share a face. The midpoints (interior vertices) are appended.
+    Returns k."""
+    F = M.F
+    t1, c1 = S[:, 0] // 3, S[:, 0] % 3
+    t2, c2 = S[:, 1] // 3, S[:, 1] % 3
+    u, w, x = F[t1, c1], F[t1, (c1 + 1) % 3], F[t1, (c1 + 2) % 3]
+    y = F[t2, (c2 + 2) % 3]
+    Cm = 0.5 * (M.C[u] + M.C[w]) if M.C is not None else None
+    mid = M.append_vertices(0.5 * (M.V[u] + M.V[w]), Cm)
+    F = F.copy()
+    F[t1] = np.stack([u, mid, x], axis=1)
+    F[t2] = np.stack([w, mid, y], axis=1)
+    extra = np.vstack([np.stack([mid, w, x], axis=1), np.stack([mid, u, y], axis=1)])
+    M.F = np.vstack([F, extra])
+    return len(mid)
+
+
+def _split_flap_necks(M: _Mesh) -> tuple[int, int]:
+    """Split the *neck* of every flap: an interior vertex all of whose neighbours are boundary
+    vertices has a star hanging on the rest of the disk by the link edges that are interior
+    (chords, both ends on the boundary). A disk map with the boundary on the circle must put
+    the star inside the circular segment cut off by such a chord, far too thin for its area,
+    and an equiareal map then wraps the star twice around the vertex (angle sum 4π: every
+    face positive, but the boundary image runs backwards and overlaps itself). Splitting each
+    chord at its midpoint (with its two faces) gives the neck an interior vertex that the map
+    can move inwards, as a leaf split does (:func:`_split_leaves`).
+
+    Returns ``(flap_vertices, vertices_added)``; ``(0, 0)`` leaves ``M`` untouched."""
+    F = M.F
+    is_b = topo.boundary_vertices_mask(F, M.n)
+    flap = ~is_b & ~has_interior_neighbour(F, is_b)
+    if not flap.any():
+        return 0, 0
+    twin = topo.interior_edge_twins(F)
+    h = (3 * np.arange(len(F))[:, None] + np.arange(3)).ravel()
+    opposite = flap[F[:, [2, 0, 1]]].ravel()               # the corner opposite each half-edge
+    h = h[opposite & (twin >= 0)]                          # interior edges facing a flap vertex
+    h = np.where(twin[h] < h, twin[h], h)                  # one half-edge per edge
+    h = np.unique(h)
+    if len(h) == 0:
+        return 0, 0                                        # the star is the whole disk
+    added = _split_edges(M, np.column_stack([h, twin[h]]))
+    return int(np.count_nonzero(flap)), added
 
 
 def _check_genus(M: _Mesh, loops: int, name: str) -> None:
@@ -833,7 +875,7 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
         "component_faces_dropped": 0, "faces_reoriented": 0, "zero_area_faces_flipped": 0,
         "zero_area_faces_removed": 0, "decimated_from_faces": None, "decimated_to_faces": None,
         "boundary_loops_found": 0, "closed": False, "genus": 0, "faces_flipped_outward": 0,
-        "holes_closed": 0, "leaf_faces_split": 0,
+        "holes_closed": 0, "flap_necks_split": 0, "leaf_faces_split": 0,
         "leaf_split_vertices_added": 0, "output_vertices": 0, "output_faces": 0,
         "boundary_vertices": 0,
     }
@@ -944,7 +986,15 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             )
         closed_holes = _close_holes(M, loops, report, messages)
 
-    # 13. leaf faces (none on a closed surface) -----------------------------------------------
+    # 13. flap necks, then leaf faces (none on a closed surface) ------------------------------
+    if loops:
+        flaps, added = _split_flap_necks(M)
+        report["flap_necks_split"] = added
+        if added:
+            messages.append(
+                f"split the {_plural(added, 'neck edge')} of {_plural(flaps, 'flap')} (an "
+                f"interior vertex with only boundary neighbours) at the midpoint"
+            )
     is_b = topo.boundary_vertices_mask(M.F, M.n)
     n_leaves = len(topo.leaf_faces(M.F, is_b)) if loops else 0
     if n_leaves:
