@@ -57,17 +57,19 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     colour). Holes are closed in the order of their smallest vertex index, each fan starting at
     the hole's first boundary half-edge in face order, which reproduces the ICT ``*_disk`` files
     exactly.
-13. **flap necks**: an interior vertex whose neighbours are all boundary vertices is a *flap*
-    hanging on the rest by the interior edges of its link (both ends on the boundary); the map
-    would have to squeeze it into the circular segment of such an edge and wraps it twice
-    around the vertex instead (the boundary image runs backwards). Each such edge is split at
-    its 3D midpoint with its two faces (``flap_necks_split``). Then
-    **leaf faces** (paper Def. 4, all three corners on the boundary): the longest interior edge
+13. **leaf faces** (paper Def. 4, all three corners on the boundary): the longest interior edge
     of each leaf is split at its 3D midpoint together with the face across it (the midpoint is an
     interior vertex, so neither half is a leaf; no new leaves can appear); repeated until no leaf
     is left (``leaf_faces_split`` = leaves found, ``leaf_split_vertices_added``). With
     ``split_leaf_faces: false`` leaves are an error. No leaves also means every boundary vertex
-    has an interior neighbour (paper Def. 1(ii)).
+    has an interior neighbour (paper Def. 1(ii)). Then **flap necks**: an interior vertex
+    whose neighbours are all boundary vertices is a *flap* hanging on the rest by the interior
+    edges of its link (both ends on the boundary); the map would have to squeeze it into the
+    circular segment of such an edge and wraps it twice around the vertex instead (the
+    boundary image runs backwards). Each such edge is split at its 3D midpoint with its two
+    faces (``flap_necks_split``; the new faces all have the interior midpoint as a corner, so
+    no leaf appears). Only flaps of the mesh before the leaf splits count (a leaf split's
+    midpoint may have only boundary neighbours; it lies inside its leaf's triangle).
 14. **final invariants** (one component, manifold, consistently oriented; for a disk: one
     boundary loop, Euler characteristic 1, no leaves, every boundary vertex next to an interior
     one; for a closed surface: Euler characteristic 2 and outward faces) are checked; a failure
@@ -746,7 +748,14 @@ def _split_edges(M: _Mesh, S: np.ndarray) -> int:
     return len(mid)
 
 
-def _split_flap_necks(M: _Mesh) -> tuple[int, int]:
+def _flap_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """Whether each of the ``n`` vertices of ``F`` (m×3) is interior with only boundary
+    neighbours (n,) bool."""
+    is_b = topo.boundary_vertices_mask(F, n)
+    return ~is_b & ~has_interior_neighbour(F, is_b)
+
+
+def _split_flap_necks(M: _Mesh, among: np.ndarray) -> tuple[int, int]:
     """Split the *neck* of every flap: an interior vertex all of whose neighbours are boundary
     vertices has a star hanging on the rest of the disk by the link edges that are interior
     (chords, both ends on the boundary). A disk map with the boundary on the circle must put
@@ -754,12 +763,17 @@ def _split_flap_necks(M: _Mesh) -> tuple[int, int]:
     and an equiareal map then wraps the star twice around the vertex (angle sum 4π: every
     face positive, but the boundary image runs backwards and overlaps itself). Splitting each
     chord at its midpoint (with its two faces) gives the neck an interior vertex that the map
-    can move inwards, as a leaf split does (:func:`_split_leaves`).
+    can move inwards, as a leaf split does (:func:`_split_leaves`). Only the flaps among the
+    first ``len(among)`` vertices where ``among`` (bool) is true are split: the input's own
+    flaps, not the leaf splits' midpoints (those the map lays out inside their leaf).
 
     Returns ``(flap_vertices, vertices_added)``; ``(0, 0)`` leaves ``M`` untouched."""
+    if not among.any():
+        return 0, 0
     F = M.F
-    is_b = topo.boundary_vertices_mask(F, M.n)
-    flap = ~is_b & ~has_interior_neighbour(F, is_b)
+    flap = _flap_vertices(F, M.n)
+    flap[len(among):] = False
+    flap[:len(among)] &= among
     if not flap.any():
         return 0, 0
     twin = topo.interior_edge_twins(F)
@@ -986,15 +1000,8 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             )
         closed_holes = _close_holes(M, loops, report, messages)
 
-    # 13. flap necks, then leaf faces (none on a closed surface) ------------------------------
-    if loops:
-        flaps, added = _split_flap_necks(M)
-        report["flap_necks_split"] = added
-        if added:
-            messages.append(
-                f"split the {_plural(added, 'neck edge')} of {_plural(flaps, 'flap')} (an "
-                f"interior vertex with only boundary neighbours) at the midpoint"
-            )
+    # 13. leaf faces, then flap necks (none on a closed surface) ------------------------------
+    flaps_found = _flap_vertices(M.F, M.n) if loops else np.zeros(M.n, bool)
     is_b = topo.boundary_vertices_mask(M.F, M.n)
     n_leaves = len(topo.leaf_faces(M.F, is_b)) if loops else 0
     if n_leaves:
@@ -1010,6 +1017,14 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             f"split {_plural(found, 'leaf face')} (all corners on the boundary) by inserting "
             f"{_plural(added, 'edge midpoint')}"
         )
+    if loops:
+        flaps, added = _split_flap_necks(M, flaps_found)
+        report["flap_necks_split"] = added
+        if added:
+            messages.append(
+                f"split the {_plural(added, 'neck edge')} of {_plural(flaps, 'flap')} (an "
+                f"interior vertex with only boundary neighbours) at the midpoint"
+            )
 
     # 14. final invariants --------------------------------------------------------------------
     edited = bool(np.any(M.src < 0)) or bool(report["zero_area_faces_flipped"]) \
