@@ -62,7 +62,14 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     interior vertex, so neither half is a leaf; no new leaves can appear); repeated until no leaf
     is left (``leaf_faces_split`` = leaves found, ``leaf_split_vertices_added``). With
     ``split_leaf_faces: false`` leaves are an error. No leaves also means every boundary vertex
-    has an interior neighbour (paper Def. 1(ii)).
+    has an interior neighbour (paper Def. 1(ii)). Then **flap necks**: an interior vertex
+    whose neighbours are all boundary vertices is a *flap* hanging on the rest by the interior
+    edges of its link (both ends on the boundary); the map would have to squeeze it into the
+    circular segment of such an edge and wraps it twice around the vertex instead (the
+    boundary image runs backwards). Each such edge is split at its 3D midpoint with its two
+    faces (``flap_necks_split``; the new faces all have the interior midpoint as a corner, so
+    no leaf appears). Only flaps of the mesh before the leaf splits count (a leaf split's
+    midpoint may have only boundary neighbours; it lies inside its leaf's triangle).
 14. **final invariants** (one component, manifold, consistently oriented; for a disk: one
     boundary loop, Euler characteristic 1, no leaves, every boundary vertex next to an interior
     one; for a closed surface: Euler characteristic 2 and outward faces) are checked; a failure
@@ -78,7 +85,7 @@ centroid (true for eye/mouth openings).
 ``component_faces_dropped``, ``faces_reoriented``, ``zero_area_faces_flipped``,
 ``zero_area_faces_removed``, ``decimated_from_faces`` / ``decimated_to_faces`` (``None`` when not
 decimated), ``boundary_loops_found``, ``closed`` (bool: no boundary, the sphere is the
-domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``leaf_faces_split``,
+domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``flap_necks_split``, ``leaf_faces_split``,
 ``leaf_split_vertices_added``, ``output_vertices``, ``output_faces``, ``boundary_vertices``.
 
 A closed result has ``boundary`` = an empty int64 array (:attr:`RepairedMesh.closed`).
@@ -715,21 +722,70 @@ def _split_leaves(M: _Mesh, name: str) -> tuple[int, int]:
             splits.append((h, int(twin[h])))
         if not splits:  # pragma: no cover - every round splits at least the first free leaf
             raise RuntimeError("leaf splitting made no progress")
-        S = np.asarray(splits, np.int64)
-        t1, c1 = S[:, 0] // 3, S[:, 0] % 3
-        t2, c2 = S[:, 1] // 3, S[:, 1] % 3
-        u, w, x = F[t1, c1], F[t1, (c1 + 1) % 3], F[t1, (c1 + 2) % 3]
-        y = F[t2, (c2 + 2) % 3]
-        Cm = 0.5 * (M.C[u] + M.C[w]) if M.C is not None else None
-        mid = M.append_vertices(0.5 * (M.V[u] + M.V[w]), Cm)
-        F = F.copy()
-        F[t1] = np.stack([u, mid, x], axis=1)
-        F[t2] = np.stack([w, mid, y], axis=1)
-        extra = np.vstack([np.stack([mid, w, x], axis=1), np.stack([mid, u, y], axis=1)])
-        M.F = np.vstack([F, extra])
-        is_b = np.r_[is_b, np.zeros(len(mid), bool)]
-        added += len(mid)
+        added += _split_edges(M, np.asarray(splits, np.int64))
+        is_b = np.r_[is_b, np.zeros(M.n - len(is_b), bool)]
     return found, added
+
+
+def _split_edges(M: _Mesh, S: np.ndarray) -> int:
+    """Split interior edges at their 3D midpoints, each with its two faces (two faces → four).
+
+    ``S`` (k×2) holds a half-edge ``3·face + corner`` (corner → next corner) of each edge and
+    its twin; no two rows may share a face. The midpoints (interior vertices) are appended.
+    Returns k."""
+    F = M.F
+    t1, c1 = S[:, 0] // 3, S[:, 0] % 3
+    t2, c2 = S[:, 1] // 3, S[:, 1] % 3
+    u, w, x = F[t1, c1], F[t1, (c1 + 1) % 3], F[t1, (c1 + 2) % 3]
+    y = F[t2, (c2 + 2) % 3]
+    Cm = 0.5 * (M.C[u] + M.C[w]) if M.C is not None else None
+    mid = M.append_vertices(0.5 * (M.V[u] + M.V[w]), Cm)
+    F = F.copy()
+    F[t1] = np.stack([u, mid, x], axis=1)
+    F[t2] = np.stack([w, mid, y], axis=1)
+    extra = np.vstack([np.stack([mid, w, x], axis=1), np.stack([mid, u, y], axis=1)])
+    M.F = np.vstack([F, extra])
+    return len(mid)
+
+
+def _flap_vertices(F: np.ndarray, n: int) -> np.ndarray:
+    """Whether each of the ``n`` vertices of ``F`` (m×3) is interior with only boundary
+    neighbours (n,) bool."""
+    is_b = topo.boundary_vertices_mask(F, n)
+    return ~is_b & ~has_interior_neighbour(F, is_b)
+
+
+def _split_flap_necks(M: _Mesh, among: np.ndarray) -> tuple[int, int]:
+    """Split the *neck* of every flap: an interior vertex all of whose neighbours are boundary
+    vertices has a star hanging on the rest of the disk by the link edges that are interior
+    (chords, both ends on the boundary). A disk map with the boundary on the circle must put
+    the star inside the circular segment cut off by such a chord, far too thin for its area,
+    and an equiareal map then wraps the star twice around the vertex (angle sum 4π: every
+    face positive, but the boundary image runs backwards and overlaps itself). Splitting each
+    chord at its midpoint (with its two faces) gives the neck an interior vertex that the map
+    can move inwards, as a leaf split does (:func:`_split_leaves`). Only the flaps among the
+    first ``len(among)`` vertices where ``among`` (bool) is true are split: the input's own
+    flaps, not the leaf splits' midpoints (those the map lays out inside their leaf).
+
+    Returns ``(flap_vertices, vertices_added)``; ``(0, 0)`` leaves ``M`` untouched."""
+    if not among.any():
+        return 0, 0
+    F = M.F
+    flap = _flap_vertices(F, M.n)
+    flap[len(among):] = False
+    flap[:len(among)] &= among
+    if not flap.any():
+        return 0, 0
+    twin = topo.interior_edge_twins(F)
+    h = (3 * np.arange(len(F))[:, None] + np.arange(3)).ravel()
+    opposite = flap[F[:, [2, 0, 1]]].ravel()               # the corner opposite each half-edge
+    h = h[opposite & (twin >= 0)]                          # interior edges facing a flap vertex
+    h = np.where(twin[h] < h, twin[h], h)                  # one half-edge per edge
+    h = np.unique(h)
+    if len(h) == 0:
+        return 0, 0                                        # the star is the whole disk
+    added = _split_edges(M, np.column_stack([h, twin[h]]))
+    return int(np.count_nonzero(flap)), added
 
 
 def _check_genus(M: _Mesh, loops: int, name: str) -> None:
@@ -833,7 +889,7 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
         "component_faces_dropped": 0, "faces_reoriented": 0, "zero_area_faces_flipped": 0,
         "zero_area_faces_removed": 0, "decimated_from_faces": None, "decimated_to_faces": None,
         "boundary_loops_found": 0, "closed": False, "genus": 0, "faces_flipped_outward": 0,
-        "holes_closed": 0, "leaf_faces_split": 0,
+        "holes_closed": 0, "flap_necks_split": 0, "leaf_faces_split": 0,
         "leaf_split_vertices_added": 0, "output_vertices": 0, "output_faces": 0,
         "boundary_vertices": 0,
     }
@@ -944,7 +1000,8 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             )
         closed_holes = _close_holes(M, loops, report, messages)
 
-    # 13. leaf faces (none on a closed surface) -----------------------------------------------
+    # 13. leaf faces, then flap necks (none on a closed surface) ------------------------------
+    flaps_found = _flap_vertices(M.F, M.n) if loops else np.zeros(M.n, bool)
     is_b = topo.boundary_vertices_mask(M.F, M.n)
     n_leaves = len(topo.leaf_faces(M.F, is_b)) if loops else 0
     if n_leaves:
@@ -960,6 +1017,14 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             f"split {_plural(found, 'leaf face')} (all corners on the boundary) by inserting "
             f"{_plural(added, 'edge midpoint')}"
         )
+    if loops:
+        flaps, added = _split_flap_necks(M, flaps_found)
+        report["flap_necks_split"] = added
+        if added:
+            messages.append(
+                f"split the {_plural(added, 'neck edge')} of {_plural(flaps, 'flap')} (an "
+                f"interior vertex with only boundary neighbours) at the midpoint"
+            )
 
     # 14. final invariants --------------------------------------------------------------------
     edited = bool(np.any(M.src < 0)) or bool(report["zero_area_faces_flipped"]) \
