@@ -11,14 +11,6 @@ such vertex (its image is a polygon corner, so the new vertex lifts onto the inp
 itself), in rounds until the rim is within the tolerance everywhere or a split would make a
 needle or a face too thin on the disk. Rim vertices do not move in smoothing, and the
 collapses' gap guard refuses to remove one that stands out farther than the sag tolerance.
-
-A ragged boundary vertex (:func:`ragged_corners`: the tip of a spur narrower than a right
-angle, or the bottom of a notch, by its input angle sum) is never split at: a rim vertex there
-has a sharp or reflex corner whose faces no later step can raise above the minimum angle
-(nor, where the map squeezes the spur, keep from folding), and it cannot be moved or removed
-without cutting the boundary vertex off again. The chord crosses the spur or the notch instead
-(the farthest other vertex it cuts off is split at), so the input-to-remesh distance there
-grows by the spur's or the notch's depth at most.
 """
 
 from __future__ import annotations
@@ -46,8 +38,7 @@ def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray
     return norms(P - (A + t[:, None] * e))
 
 
-def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
-             allowed: np.ndarray | None = None):
+def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     """For every rim edge of ``S``, the input boundary vertex (polygon corner) farthest from it
     among those the polygon passes between its ends.
 
@@ -58,15 +49,13 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
         The input boundary vertices, in polygon order.
     corner_s : (k,) float
         Their arc lengths along the polygon.
-    allowed : (k,) bool, optional
-        The corners that may be chosen (default: all).
 
     Returns
     -------
     h, a, b : (r,) int
         The rim half-edges ``a → b`` (counter-clockwise, as the polygon runs) and their ends.
     corner : (r,) int
-        The farthest allowed corner of each (−1 where the polygon has none between the ends).
+        The farthest corner of each (−1 where the polygon has none between the ends).
     gap : (r,) float
         Its distance to the chord ``X[a]``–``X[b]`` (0 where there is none).
     """
@@ -78,13 +67,10 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
     # the rim edge each corner falls on: the last one starting at or before it (cyclically)
     e = order[(np.searchsorted(s_a[order], corner_s, side="right") - 1) % len(order)]
     d = segment_distances(corners_X, S.X[a[e]], S.X[b[e]])
-    if allowed is not None:
-        d = np.where(allowed, d, -1.0)
     corner = np.full(len(h), -1, np.int64)
     gap = np.zeros(len(h))
     by = np.lexsort((-d, e))                    # per edge, the farthest corner first
     first = by[np.r_[True, e[by][1:] != e[by][:-1]]]
-    first = first[d[first] >= 0]
     corner[e[first]], gap[e[first]] = first, d[first]
     return h, a, b, corner, gap
 
@@ -92,20 +78,18 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
 def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
                max_rounds: int = 8) -> int:
     """Split rim edges that leave an input boundary vertex farther than ``tol`` at that vertex
-    (the farthest first; no ragged vertex, :func:`ragged_corners`), in rounds of independent
-    splits; a split is skipped when the vertex is within ``min_gap`` of an end of the edge (a
-    needle) or a new face would be too thin on the disk (:func:`.refine.split_keeps_shape`).
-    At most ``budget`` splits; returns their number. A closed remesh (no polygon) has no rim:
-    nothing to do."""
+    (the farthest first), in rounds of independent splits; a split is skipped when the vertex
+    is within ``min_gap`` of an end of the edge (a needle) or a new face would be too thin on
+    the disk (:func:`.refine.split_keeps_shape`). At most ``budget`` splits; returns their
+    number. A closed remesh (no polygon) has no rim: nothing to do."""
     if tol is None or budget <= 0 or len(S.polygon) == 0:
         return 0
     f, bary, _ = S.locator.locate_with_inside(S.polygon)
     corners_X = lift(S.V_in, S.F_in, f, bary)
     corner_s = arc_parameters(S.polygon, S.polygon)
-    allowed = ~ragged_corners(S.angle_sums_in()[S.F_in[f, np.argmax(bary, axis=1)]])
     done = 0
     for _ in range(max_rounds):
-        h, a, b, corner, gap = rim_gaps(S, corners_X, corner_s, allowed)
+        h, a, b, corner, gap = rim_gaps(S, corners_X, corner_s)
         cand = np.flatnonzero(gap > tol)
         P = corners_X[corner[cand]]
         cand = cand[np.minimum(norms(P - S.X[a[cand]]), norms(P - S.X[b[cand]])) >= min_gap]
@@ -122,18 +106,6 @@ def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
             break
     S.tally("rim_splits", done)
     return done
-
-
-#: an input boundary vertex whose angle sum is below this (the tip of a spur, a tooth narrower
-#: than a right angle) or above 360° less it (the bottom of a notch), in degrees, is ragged:
-#: the rim refinement splits no chord there
-RAGGED_DEG = 90.0
-
-
-def ragged_corners(angle_sums: np.ndarray) -> np.ndarray:
-    """Which input boundary vertices, given their angle sums (k, degrees), are ragged (k bool):
-    the sum below ``RAGGED_DEG`` or above 360° less it."""
-    return (angle_sums < RAGGED_DEG) | (angle_sums > 360.0 - RAGGED_DEG)
 
 
 #: a face whose angle at a rim vertex is wider than this (degrees) has its opposite edge split
