@@ -748,10 +748,9 @@ def _split_edges(M: _Mesh, S: np.ndarray) -> int:
     return len(mid)
 
 
-def _flap_vertices(F: np.ndarray, n: int) -> np.ndarray:
-    """Whether each of the ``n`` vertices of ``F`` (m×3) is interior with only boundary
-    neighbours (n,) bool."""
-    is_b = topo.boundary_vertices_mask(F, n)
+def _flap_vertices(F: np.ndarray, is_b: np.ndarray) -> np.ndarray:
+    """Whether each vertex of ``F`` (m×3) is interior with only boundary neighbours (n,) bool,
+    given which are on the boundary (``is_b``, n bool)."""
     return ~is_b & ~has_interior_neighbour(F, is_b)
 
 
@@ -771,7 +770,7 @@ def _split_flap_necks(M: _Mesh, among: np.ndarray) -> tuple[int, int]:
     if not among.any():
         return 0, 0
     F = M.F
-    flap = _flap_vertices(F, M.n)
+    flap = _flap_vertices(F, topo.boundary_vertices_mask(F, M.n))
     flap[len(among):] = False
     flap[:len(among)] &= among
     if not flap.any():
@@ -1001,8 +1000,8 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
         closed_holes = _close_holes(M, loops, report, messages)
 
     # 13. leaf faces, then flap necks (none on a closed surface) ------------------------------
-    flaps_found = _flap_vertices(M.F, M.n) if loops else np.zeros(M.n, bool)
     is_b = topo.boundary_vertices_mask(M.F, M.n)
+    flaps_found = _flap_vertices(M.F, is_b) if loops else np.zeros(M.n, bool)
     n_leaves = len(topo.leaf_faces(M.F, is_b)) if loops else 0
     if n_leaves:
         if not opts.split_leaf_faces:
