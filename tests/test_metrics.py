@@ -147,7 +147,8 @@ def test_angular_distortion_of_a_shear():
 SUMMARY_KEYS = {
     "total_area_distortion_eq28", "face_area_distortion", "local_area_ratio_mean",
     "local_area_ratio_sd", "angular_distortion_mean_deg", "angular_distortion_sd_deg",
-    "flipped_faces", "stretch_energy", "energy_ratio", "surface_area", "image_area",
+    "flipped_faces", "boundary_self_crossings", "stretch_energy", "energy_ratio",
+    "surface_area", "image_area",
     "anisotropy_median", "anisotropy_p90", "anisotropy_area_above_10",
 }  # fmt: skip
 
@@ -162,7 +163,7 @@ def test_distortion_summary_hand_values():
         "local_area_ratio_mean": 1.0625,
         "local_area_ratio_sd": float(np.sqrt(np.mean((R - 1.0625) ** 2))),
         "angular_distortion_mean_deg": 15.0, "angular_distortion_sd_deg": float(ang.std()),
-        "flipped_faces": 0, "stretch_energy": 2.5, "energy_ratio": 10 / 9,
+        "flipped_faces": 0, "boundary_self_crossings": 0, "stretch_energy": 2.5, "energy_ratio": 10 / 9,
         "surface_area": 1.0, "image_area": 1.5,
         # face 1 is mapped identically (K = 1); face 0 by A = [[2, −1], [0, 1]]:
         # AᵀA has eigenvalues 3 ± √5, so K = (3 + √5)/2; equal areas → median 1, p90 K
@@ -171,8 +172,9 @@ def test_distortion_summary_hand_values():
     }  # fmt: skip
     for k, v in expected.items():
         assert s[k] == pytest.approx(v, rel=1e-14, abs=1e-14), k
-    assert type(s["flipped_faces"]) is int
-    assert all(type(v) is float for k, v in s.items() if k != "flipped_faces")
+    counts = {"flipped_faces", "boundary_self_crossings"}
+    assert all(type(s[k]) is int for k in counts)
+    assert all(type(v) is float for k, v in s.items() if k not in counts)
     # the shear: mean angular distortion is exactly (2·45 + 2·atan½ + 2·(45 − atan½))/6 = 30°
     sh = metrics.distortion_summary(SQUARE_V, SQUARE_F, ID @ np.array([[1.0, 1.0], [0.0, 1.0]]).T)
     assert sh["angular_distortion_mean_deg"] == pytest.approx(30.0, abs=1e-12)
@@ -292,3 +294,29 @@ def test_energy_ratio_lower_bound_and_equality_for_affine_maps(ddisk):
         E = metrics.stretch_energy(V3, F, uv)
         area_M = independent_areas(V3, F).sum()
         assert E == pytest.approx(np.linalg.det(A) ** 2 * area_M, rel=1e-12)
+
+
+def _circle(n: int) -> np.ndarray:
+    t = 2 * np.pi * np.arange(n) / n
+    return np.column_stack([np.cos(t), np.sin(t)])
+
+
+def test_boundary_self_crossings_of_constructed_polygons():
+    loop = np.arange(40)
+    assert metrics.boundary_self_crossings(_circle(40), loop) == 0
+    # two neighbours swapped: the boundary runs backwards over one edge; chords 9→11 and
+    # 10→12 of the circle cross, the other pairs stay apart
+    assert metrics.boundary_self_crossings(_circle(40), loop[[*range(10), 11, 10, *range(12, 40)]]) == 1
+    # a figure eight: one crossing point, where one edge of each lobe meets
+    t = 2 * np.pi * (np.arange(41) + 0.5) / 41
+    assert metrics.boundary_self_crossings(np.column_stack([np.sin(t), np.sin(2 * t)]),
+                                           np.arange(41)) == 1
+    # a vertex on a non-adjacent edge (touching), and an overlap on one line, both count
+    touch = np.array([[0.0, 0], [2, 0], [2, 1], [1, 0], [0, 1]])
+    assert metrics.boundary_self_crossings(touch, np.arange(5)) == 2
+    overlap = np.array([[0.0, 0], [3, 0], [3, 1], [2, 0], [1, 0], [1, -1]])
+    assert metrics.boundary_self_crossings(overlap, np.arange(6)) == 3     # 0–2, 0–3, 0–4
+    # two long edges next to short ones, each cutting across the arc once: found from the
+    # long edges' side (the arc's edges look only as far as their own length)
+    P = np.vstack([_circle(200)[:101], [[0.0, 2.0]]])
+    assert metrics.boundary_self_crossings(P, np.arange(len(P))) == 2

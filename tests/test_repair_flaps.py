@@ -5,14 +5,19 @@ twice around its vertex, the boundary image runs backwards and the remesh fails.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial import Delaunay
 
 from pipeline.cli import main
+from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
 from pipeline.geometry.laplacian import face_double_areas
-from pipeline.geometry.repair import has_interior_neighbour, repair_mesh
-from pipeline.geometry.sem import stretch_energy_minimization
+from pipeline.geometry.repair import RepairedMesh, has_interior_neighbour, repair_mesh
+from pipeline.geometry.sem import SEMOptions, stretch_energy_minimization
 from pipeline.io.meshio import read_mesh
+from pipeline.stages.parameterize import (ParameterizationFailed, parameterize_stage,
+                                          write_parameterization)
+from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
 NB = 200                        # boundary vertices of the disk; the flap is one edge wide
 
@@ -95,3 +100,26 @@ def test_run_remeshes_a_disk_with_a_flap(tmp_path):
     Fo = np.asarray(out.faces)
     assert len(topo.boundary_loops(Fo, out.V)) == 1
     assert topo.euler_characteristic(Fo, len(out.V)) == 1
+
+
+def _unrepaired(V, F) -> RepairedMesh:
+    """The flap disk as the map stage would get it without the repair's neck split."""
+    boundary = topo.boundary_loops(F, V)[0]
+    return RepairedMesh(V, F, None, np.arange(len(V)), boundary, np.zeros(0, dtype=np.int64))
+
+
+def test_a_map_that_wraps_the_flap_twice_is_a_failure_not_a_map(tmp_path):
+    """Every face of the unrepaired flap's map is positive, yet the map is not one-to-one: the
+    boundary image crosses itself, and the stage says so instead of passing the map on."""
+    V, F, _ = flap_disk()
+    p = parameterize_stage(_unrepaired(V, F), SEMOptions())
+    assert p.flipped_faces == 0
+    assert p.boundary_self_crossings == p.metrics["distortion"]["boundary_self_crossings"] > 0
+    assert not p.ok and p.metrics["status"] == "failed"
+    assert "boundary image crosses itself" in p.problem
+    with pytest.raises(ParameterizationFailed, match="crosses itself"):
+        write_parameterization(p, tmp_path / "map", figures=False)
+    assert (tmp_path / "map" / "metrics.json").exists()            # written for diagnosis
+    assert not (tmp_path / "map" / "parameterization.npz").exists()     # the map is not
+    with pytest.raises(UserError, match="boundary image crosses itself"):
+        remesh_stage(p.mesh, p.uv, RemeshConfig(vertices=2000))

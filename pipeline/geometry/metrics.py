@@ -11,7 +11,7 @@ import numpy as np
 
 from . import _kernels
 from .laplacian import face_double_areas
-from .topology import _as_faces
+from .topology import _as_faces, boundary_loops
 
 
 def as_complex_points(uv: np.ndarray) -> np.ndarray:
@@ -34,6 +34,61 @@ def signed_double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
 def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Indices of image faces with non-positive signed area (flipped or collapsed)."""
     return np.flatnonzero(signed_double_areas(uv, F) <= 0.0)
+
+
+def boundary_self_crossings(uv: np.ndarray, boundary: np.ndarray) -> int:
+    """How many pairs of non-adjacent edges of the closed polygon ``uv[boundary]`` meet
+    (cross, touch or overlap); 0 when the boundary image is a simple closed curve.
+
+    With every face positively oriented, a disk map is one-to-one exactly when its boundary
+    image is simple: the number of faces covering an image point is the boundary's winding
+    number around it. A map can have no flipped face and still wind twice around an interior
+    vertex (angle sum 4π); its boundary then runs backwards somewhere and crosses itself.
+
+    Candidate pairs come from a k-d tree of the edge midpoints: two meeting edges have
+    midpoints at most the longer one's length apart, so each edge asks only within its own
+    length.
+
+    Parameters
+    ----------
+    uv : (n, 2) float array
+        The map.
+    boundary : (b,) int array
+        The boundary loop's vertices in order.
+    """
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(uv, dtype=np.float64)[np.asarray(boundary)]
+    b = len(P)
+    if b < 4:
+        return 0
+    A, B = P, np.roll(P, -1, axis=0)
+    lengths = np.hypot(*(B - A).T)
+    near = cKDTree((A + B) / 2).query_ball_point((A + B) / 2, lengths, return_sorted=False)
+    i = np.repeat(np.arange(b), [len(q) for q in near])
+    j = np.fromiter((k for q in near for k in q), dtype=np.intp, count=len(i))
+    gap = (j - i) % b
+    longer = (lengths[i] > lengths[j]) | ((lengths[i] == lengths[j]) & (i < j))
+    keep = (gap > 1) & (gap < b - 1) & longer        # each pair once, not neighbours
+    i, j = i[keep], j[keep]
+
+    def side(p, q, r):
+        return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1])
+                       - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+    a, c = side(A[i], B[i], A[j]), side(A[i], B[i], B[j])
+    d, e = side(A[j], B[j], A[i]), side(A[j], B[j], B[i])
+    meet = (a * c <= 0) & (d * e <= 0)
+    collinear = (a == 0) & (c == 0)
+    if collinear.any():                       # on one line: they meet when their spans overlap
+        k = np.flatnonzero(collinear)
+        axis = np.argmax(np.abs(B[i[k]] - A[i[k]]), axis=1)[:, None]
+        span_i = np.sort(np.hstack([np.take_along_axis(A[i[k]], axis, 1),
+                                    np.take_along_axis(B[i[k]], axis, 1)]), axis=1)
+        span_j = np.sort(np.hstack([np.take_along_axis(A[j[k]], axis, 1),
+                                    np.take_along_axis(B[j[k]], axis, 1)]), axis=1)
+        meet[k] = (span_i[:, 0] <= span_j[:, 1]) & (span_j[:, 0] <= span_i[:, 1])
+    return int(np.count_nonzero(meet))
 
 
 def stretch_energy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
@@ -178,9 +233,14 @@ def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
             "anisotropy_area_above_10": float(A[K > ANISOTROPY_LIMIT].sum() / A.sum())}
 
 
-def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
+def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
+                       boundary: np.ndarray | None = None) -> dict:
     """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``
-    (the surface and image areas and their vertex sums computed once for all of them)."""
+    (the surface and image areas and their vertex sums computed once for all of them), and the
+    two fold counts: flipped faces and :func:`boundary_self_crossings` of the loop
+    ``boundary`` (by default the longest boundary loop of ``F``)."""
+    if boundary is None:
+        boundary = max(boundary_loops(F), key=len)
     n = len(V)
     A = face_double_areas(V, F)
     a = signed_double_areas(uv, F)
@@ -197,6 +257,7 @@ def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> dict:
         "angular_distortion_mean_deg": float(ang.mean()),
         "angular_distortion_sd_deg": float(ang.std()),
         "flipped_faces": int(len(flipped_faces(uv, F))),
+        "boundary_self_crossings": boundary_self_crossings(uv, boundary),
         "stretch_energy": stretch_energy(V, F, uv, A),
         "energy_ratio": energy_ratio(V, F, uv, A),
         "surface_area": float(A.sum() / 2),

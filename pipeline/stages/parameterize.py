@@ -38,7 +38,8 @@ is on the disk. ``tol``, ``patience``, ``min_step`` and ``solver`` are passed on
 section's defaults are the disk's, so ``tol``, ``patience`` and ``min_step`` only when set
 explicitly).
 
-A map with flipped (folded) faces is a failure: its ``metrics.json`` (status ``failed``),
+A map with flipped (folded) faces, or a disk map whose boundary image crosses itself (it wraps
+part of the mesh twice with every face positive), is a failure: its ``metrics.json`` (status ``failed``),
 report and figures are written for diagnosis, the map files are not, and
 :class:`ParameterizationFailed` is raised.
 """
@@ -66,7 +67,8 @@ if TYPE_CHECKING:                  # the sphere's modules are imported when a sp
 
 
 class ParameterizationFailed(RuntimeError):
-    """SEM ended with flipped faces (exit code 1: the input is valid, the method failed)."""
+    """SEM ended with flipped faces or a self-crossing boundary (exit code 1: the input is
+    valid, the method failed)."""
 
 
 @dataclass
@@ -98,8 +100,26 @@ class Parameterization:
         return self.sem.measures["folded_faces"]
 
     @property
+    def boundary_self_crossings(self) -> int:
+        """Pairs of boundary image edges that meet (disk only; see
+        :func:`~pipeline.geometry.metrics.boundary_self_crossings`)."""
+        return self.metrics.get("distortion", {}).get("boundary_self_crossings", 0)
+
+    @property
     def ok(self) -> bool:
-        return self.flipped_faces == 0
+        """One-to-one: no flipped (folded) face and, on the disk, a simple boundary image."""
+        return self.flipped_faces == 0 and self.boundary_self_crossings == 0
+
+    @property
+    def problem(self) -> str:
+        """What makes the map fail, for error messages ('' when :attr:`ok`)."""
+        if self.flipped_faces:
+            what = "folded" if self.domain == "sphere" else "flipped"
+            return f"{self.flipped_faces} {what} faces remain"
+        if self.boundary_self_crossings:
+            return (f"the boundary image crosses itself ({self.boundary_self_crossings} edge "
+                    f"pairs meet): the map wraps part of the mesh around twice")
+        return ""
 
 
 def resolve_domain(domain: str, closed: bool, welded: int = 0) -> str:
@@ -138,10 +158,11 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                         f"{interior} interior; {exc}): a mesh this small or degenerate has no "
                         f"SEM map; pass a finer mesh") from None
     t0 = time.perf_counter()
-    distortion = distortion_summary(mesh.V, mesh.F, result.uv)
+    distortion = distortion_summary(mesh.V, mesh.F, result.uv, mesh.boundary)
     timings = dict(result.timings, metrics=time.perf_counter() - t0)
     metrics = {
-        "status": "ok" if result.flipped_faces == 0 else "failed",
+        "status": "ok" if result.flipped_faces == distortion["boundary_self_crossings"] == 0
+                  else "failed",
         "domain": "disk",
         "mesh": _mesh_counts(mesh),
         "parameterization": {"method": "SEM (Yueh et al. 2019, Algorithm 1)",
@@ -272,9 +293,8 @@ def write_parameterization(p: Parameterization, out_dir: str | Path, extra_metri
         report.write_report(tmp, metrics, [f.name for f in figs])
         written["report"] = out_dir / "report.html"
     if not p.ok:
-        what = "folded" if p.domain == "sphere" else "flipped"
         raise ParameterizationFailed(
-            f"parameterization failed: {p.flipped_faces} {what} faces remain after "
+            f"parameterization failed: {p.problem} after "
             f"{p.sem.iterations} iterations (status {p.sem.status}); see {out_dir / 'metrics.json'}")
     return written
 

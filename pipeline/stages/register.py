@@ -232,10 +232,9 @@ class Registration:
 
 def _parameterize(face: Face, opts: SEMOptions, progress):
     p = parameterize_stage(face.mesh, opts, progress(face.label) if progress else None)
-    folds = p.flipped_faces
-    if folds:
+    if not p.ok:
         raise ParameterizationFailed(
-            f"{face.label} parameterization failed: {folds} flipped faces remain "
+            f"{face.label} parameterization failed: {p.problem} "
             f"(status {p.sem.status}); the registration needs fold-free {p.domain} maps")
     return p
 

@@ -31,7 +31,7 @@ from pydantic import Field, field_validator, model_validator
 
 from ..errors import UserError
 from ..geometry.locate import lift
-from ..geometry.metrics import signed_double_areas
+from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.remesh_quality import DISTANCE_SAMPLES
 from ..geometry.repair import RepairedMesh
@@ -142,6 +142,10 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
         raise UserError(f"remesh: the {'disk' if uv.shape[1] == 2 else 'sphere'} map has "
                         f"{flipped} flipped faces; remeshing needs a bijective map "
                         f"(parameterize with mode 'converged')")
+    if uv.shape[1] == 2 and (crossings := boundary_self_crossings(uv, mesh.boundary)):
+        raise UserError(f"remesh: the disk map's boundary image crosses itself ({crossings} "
+                        f"edge pairs meet), so it wraps part of the mesh twice; remeshing needs "
+                        f"a bijective map (parameterize with mode 'converged')")
 
 
 def _outward(F: np.ndarray, S: np.ndarray) -> np.ndarray:
@@ -416,8 +420,8 @@ def _run(ctx: Context) -> dict:
     rc, intake, p = ctx.section("remesh"), ctx.artifacts["intake"], \
         ctx.artifacts["parameterization"]
     if not p.ok:
-        raise ParameterizationFailed(f"parameterization failed: {p.flipped_faces} flipped "
-                                     f"faces remain; remeshing needs a bijective map")
+        raise ParameterizationFailed(f"parameterization failed: {p.problem}; remeshing needs "
+                                     f"a bijective map")
     mesh = intake.mesh
     if rc.landmarks is not None:
         landmarks = read_landmarks(ctx.path(rc.landmarks), mesh)
