@@ -309,6 +309,47 @@ def test_entry_freezes_what_the_imports_made(tmp_path):
     assert int(frozen) > 50_000           # NumPy, SciPy, pydantic and the stages' objects
 
 
+def test_entry_leaves_the_deferred_numpy_modules_unrun(tmp_path):
+    """The console command imports SciPy without running the NumPy submodules of
+    ``DEFERRED_MODULES`` (SciPy only looks them up); each is a module on its package and in
+    ``sys.modules``, and runs, whole, when first used."""
+    code = ("import atexit, sys\n"
+            "def report():\n"
+            "    import numpy\n"
+            "    from pipeline.cli import DEFERRED_MODULES\n"
+            "    ran = [n for n in ('numpy.f2py.crackfortran', 'numpy.testing._private.utils',"
+            " 'numpy.ma.core', 'numpy.polynomial.legendre') if n in sys.modules]\n"
+            "    lazy = all(n in sys.modules for n in DEFERRED_MODULES)\n"
+            "    x = numpy.polynomial.legendre.leggauss(2)[0][1]\n"
+            "    print(ran, lazy, 'scipy.sparse' in sys.modules, numpy.ma.masked_array([1, 2],"
+            " [0, 1]).sum(), round(x * x * 3, 9))\n"
+            "atexit.register(report)\n"
+            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
+            " '500']\n"
+            "from pipeline.cli import entry\n"
+            "entry()\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout.split() == ["[]", "True", "True", "1", "1.0"]
+
+
+def test_defer_imports_skips_imported_and_missing_modules(tmp_path):
+    """:func:`pipeline.cli.defer_imports` makes only modules not yet imported lazy, skips
+    names that do not exist, and a lazy module runs on first attribute access."""
+    code = ("import sys, json\n"
+            "from pipeline.cli import defer_imports\n"
+            "made = defer_imports(['json', 'email.mime.text', 'email.no_such_module'])\n"
+            "before = 'email.mime.nonmultipart' in sys.modules\n"   # what it imports
+            "import email.mime.text\n"
+            "after = email.mime.text.MIMEText('x').get_payload()\n"
+            "print(made, before, after)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["['email.mime.text']", "False", "x"]
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")
 @pytest.mark.parametrize("given, expected", [(None, "True"), ("2", "False")])
 def test_keep_freed_memory_applies_unless_a_malloc_variable_is_set(given, expected):
