@@ -326,11 +326,12 @@ def keep_freed_memory() -> bool:
 
 
 #: NumPy submodules that NumPy itself imports only on first use (through its module
-#: ``__getattr__``) and no command uses, but that SciPy's array-API layer loads with
+#: ``__getattr__``) and a remesh does not use, but that SciPy's array-API layer loads with
 #: ``scipy.sparse`` (it copies NumPy's whole namespace, which looks each of them up):
 #: ``numpy.f2py`` (and ``charset_normalizer`` with it), ``numpy.testing`` (``unittest``),
-#: ``numpy.ma``, ``numpy.polynomial``; about 0.08 s of CPU in every command
-DEFERRED_MODULES = ("numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial")
+#: ``numpy.polynomial`` (the sample surface's quadrature); about 0.08 s of CPU in every
+#: command. (``numpy.ma`` is not among them: SciPy's Delaunay triangulation uses it.)
+DEFERRED_MODULES = ("numpy.f2py", "numpy.testing", "numpy.polynomial")
 
 
 def defer_imports(names) -> list[str]:
