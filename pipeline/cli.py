@@ -325,10 +325,49 @@ def keep_freed_memory() -> bool:
     return all(mallopt(option, value) == 1 for option, value in MALLOC_OPTIONS.items())
 
 
+#: NumPy submodules that NumPy itself imports only on first use (through its module
+#: ``__getattr__``) and a remesh does not use, but that SciPy's array-API layer loads with
+#: ``scipy.sparse`` (it copies NumPy's whole namespace, which looks each of them up):
+#: ``numpy.f2py`` (and ``charset_normalizer`` with it), ``numpy.testing`` (``unittest``),
+#: ``numpy.polynomial`` (the sample surface's quadrature); about 0.08 s of CPU in every
+#: command. (``numpy.ma`` is not among them: SciPy's Delaunay triangulation uses it.)
+DEFERRED_MODULES = ("numpy.f2py", "numpy.testing", "numpy.polynomial")
+
+
+def defer_imports(names) -> list[str]:
+    """Make each module of ``names`` (dotted names whose parent package can be imported) a
+    lazy module (:class:`importlib.util.LazyLoader`): registered in ``sys.modules`` and on its
+    parent package, its code run on the first access to one of its attributes, so a module
+    only looked up costs nothing and one used works as usual. A module already imported, or
+    one that does not exist, is left as it is. Returns the names made lazy."""
+    import importlib.util
+
+    out = []
+    for name in names:
+        if name in sys.modules:
+            continue
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            continue
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+            continue
+        spec.loader = importlib.util.LazyLoader(spec.loader)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+        parent, _, child = name.rpartition(".")
+        if parent:
+            setattr(sys.modules[parent], child, module)
+        out.append(name)
+    return out
+
+
 def entry() -> None:
     """The console command (``sem-pipeline``, ``python -m pipeline``): OpenBLAS on
     :data:`OPENBLAS_THREADS` threads, ``malloc`` keeping freed memory
-    (:func:`keep_freed_memory`); the modules every command imports (:mod:`.runner`:
+    (:func:`keep_freed_memory`), the unused NumPy submodules of :data:`DEFERRED_MODULES`
+    lazy (:func:`defer_imports`); the modules every command imports (:mod:`.runner`:
     NumPy, SciPy, pydantic, the stages) imported with the cyclic garbage collector paused,
     and what they made then frozen (``gc.freeze``: left out of every later collection);
     then :func:`main`, then :func:`exit_now` with its exit code. (Imports make objects that
@@ -343,6 +382,7 @@ def entry() -> None:
     keep_freed_memory()
     gc.disable()
     try:
+        defer_imports(DEFERRED_MODULES)
         from . import runner  # noqa: F401
     finally:
         gc.freeze()

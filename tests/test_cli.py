@@ -270,6 +270,22 @@ def test_module_entry_point_exit_codes(tmp_path):
     assert_one_line_error(code, err, "missing.obj")
 
 
+def run_entry_on_a_missing_mesh(tmp_path, before: str, env=None):
+    """``sem-pipeline remesh missing.obj`` through :func:`pipeline.cli.entry` in a fresh
+    interpreter that first runs the code ``before`` (atexit hooks that print what to check):
+    the finished process."""
+    code = (before + "import sys\n"
+            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
+            " '500']\n"
+            "from pipeline.cli import entry\n"
+            "entry()\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60,
+                          env=dict(os.environ if env is None else env, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 2, proc.stderr
+    return proc
+
+
 @pytest.mark.parametrize("given, expected", [(None, "1"), ("2", "2")])
 def test_entry_runs_openblas_on_one_thread_unless_told(given, expected, tmp_path):
     """The console command starts NumPy with ``OPENBLAS_NUM_THREADS=1`` (its OpenBLAS workers
@@ -277,16 +293,10 @@ def test_entry_runs_openblas_on_one_thread_unless_told(given, expected, tmp_path
     env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
     if given is not None:
         env["OPENBLAS_NUM_THREADS"] = given
-    code = ("import atexit, os, sys\n"
-            "atexit.register(lambda: print(os.environ.get('OPENBLAS_NUM_THREADS'),"
-            " 'numpy' in sys.modules))\n"
-            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
-            " '500']\n"
-            "from pipeline.cli import entry\n"
-            "entry()\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=60, env=dict(env, PYTHONPATH=str(REPO)))
-    assert proc.returncode == 2, proc.stderr
+    proc = run_entry_on_a_missing_mesh(
+        tmp_path, "import atexit, os, sys\n"
+                  "atexit.register(lambda: print(os.environ.get('OPENBLAS_NUM_THREADS'),"
+                  " 'numpy' in sys.modules))\n", env)
     assert proc.stdout.split() == [expected, "True"]
 
 
@@ -294,19 +304,47 @@ def test_entry_freezes_what_the_imports_made(tmp_path):
     """The console command imports its modules with the collector paused and then freezes
     what they made (``gc.freeze``), so no later collection goes over those objects again;
     the collector is back on for the command's own work."""
-    code = ("import atexit, gc\n"
-            "atexit.register(lambda: print(gc.isenabled(), gc.get_freeze_count()))\n"
-            "import sys\n"
-            "sys.argv = ['sem-pipeline', 'remesh', 'missing.obj', '-o', 'out', '--vertices',"
-            " '500']\n"
-            "from pipeline.cli import entry\n"
-            "entry()\n")
-    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
-    assert proc.returncode == 2, proc.stderr
+    proc = run_entry_on_a_missing_mesh(
+        tmp_path, "import atexit, gc\n"
+                  "atexit.register(lambda: print(gc.isenabled(), gc.get_freeze_count()))\n")
     enabled, frozen = proc.stdout.split()
     assert enabled == "True"
     assert int(frozen) > 50_000           # NumPy, SciPy, pydantic and the stages' objects
+
+
+def test_entry_leaves_the_deferred_numpy_modules_unrun(tmp_path):
+    """The console command imports SciPy without running the NumPy submodules of
+    ``DEFERRED_MODULES`` (SciPy only looks them up); each is a module on its package and in
+    ``sys.modules``, and runs, whole, when first used."""
+    proc = run_entry_on_a_missing_mesh(
+        tmp_path, "import atexit, sys\n"
+                  "def report():\n"
+                  "    import numpy\n"
+                  "    from pipeline.cli import DEFERRED_MODULES\n"
+                  "    ran = [n for n in ('numpy.f2py.crackfortran',"
+                  " 'numpy.testing._private.utils', 'numpy.polynomial.legendre')"
+                  " if n in sys.modules]\n"
+                  "    lazy = all(n in sys.modules for n in DEFERRED_MODULES)\n"
+                  "    x = numpy.polynomial.legendre.leggauss(2)[0][1]\n"
+                  "    print(ran, lazy, 'scipy.sparse' in sys.modules, round(x * x * 3, 9))\n"
+                  "atexit.register(report)\n")
+    assert proc.stdout.split() == ["[]", "True", "True", "1.0"]
+
+
+def test_defer_imports_skips_imported_and_missing_modules(tmp_path):
+    """:func:`pipeline.cli.defer_imports` makes only modules not yet imported lazy, skips
+    names that do not exist, and a lazy module runs on first attribute access."""
+    code = ("import sys, json\n"
+            "from pipeline.cli import defer_imports\n"
+            "made = defer_imports(['json', 'email.mime.text', 'email.no_such_module'])\n"
+            "before = 'email.mime.nonmultipart' in sys.modules\n"   # what it imports
+            "import email.mime.text\n"
+            "after = email.mime.text.MIMEText('x').get_payload()\n"
+            "print(made, before, after)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["['email.mime.text']", "False", "x"]
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's mallopt")

@@ -91,6 +91,7 @@ def test_baselines_hit_the_vertex_count(face_map):
         pytest.skip("pymeshlab not installed")
     b = baselines.isotropic_remesh(mesh.V, mesh.F, 1500)
     assert abs(len(b.V) - 1500) <= 0.05 * 1500 and len(b.runs) >= 1
+    assert 0 < b.cpu_seconds < b.seconds_all_runs * 64   # the reported call's, all threads
 
 
 def test_a_baseline_that_fails_costs_its_column_not_the_remesh(face_map, monkeypatch):
