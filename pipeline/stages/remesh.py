@@ -51,7 +51,7 @@ class ImproveConfig(Section):
     max_dihedral_deg: float = Field(20.0, ge=0.0, le=90.0)   # flip only flatter quads
     refine_sag: float = Field(0.2, ge=0.0)   # split edges farther than this × spacing from
     refine_budget: float = Field(0.3, ge=0.0, le=1.0)   # the surface (≤ this × vertices)
-    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this
+    corner_angle_deg: float = Field(30.0, ge=0.0)   # keep input corners sharper than this (at L)
     isotropic_iterations: int = Field(4, ge=0, le=50)   # split/collapse/flip/relax rounds
     final_relax_iterations: int = Field(6, ge=0, le=50)   # relax + flips after the count
     pinned_relax_iterations: int = Field(2, ge=0, le=50)  # after the second sag refinement

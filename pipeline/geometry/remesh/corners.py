@@ -1,8 +1,10 @@
 """Sharp corners of the input keep a vertex of the remesh.
 
 Where the boundary turns sharply, or the surface comes to a point (cone tips, spikes), a
-uniform remesh would cut the corner off. Such input vertices are found by their angle sums
-(:func:`boundary_corners`, :func:`interior_corners`); boundary ones get a rim sample moved onto
+uniform remesh would cut the corner off. Such input vertices are found by their angle sums,
+judged at the remesh's scale where the input is finer than the remesh, so that a scan's
+noise is not taken for corners (:func:`boundary_corners`, :func:`interior_corners`,
+:func:`_corners_at_scale`); boundary ones get a rim sample moved onto
 them before triangulation (:func:`.sampling.snap_rim`), interior ones get the nearest remesh
 vertex moved exactly onto them (:func:`snap_vertices`), or a new vertex
 (:func:`insert_vertices`) when none can move there, also when the map has put the tip beyond
@@ -23,13 +25,20 @@ from .refine import split_edges, split_faces
 from .state import RemeshState
 
 NEAR_VERTICES = 24     # a target is located among the faces at its 24 nearest remesh vertices
+CORNER_REACH = 1.0     # × L: the scale at which an interior corner is judged
+RIM_REACH = 0.5        # × L: the same for a boundary corner
+NOISE_NEIGHBOURS = 64  # the nearest input vertices that give the noise level around a vertex
+MIN_NEIGHBOURS = 16    # fewer of them within the reach: the vertex-by-vertex rule
+NOISE_SHARE = 0.25     # a noise level above this × corner_angle_deg: a noisy input
+STANDS_OUT = 6.0       # a corner stands out from the noise level by this factor
 
 
-def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float
-                     ) -> np.ndarray:
-    """Boundary vertices where the boundary turns sharply on the surface: the angles of the
-    faces at the vertex sum to less than ``180° − angle_deg`` or more than ``180° + angle_deg``
-    (a flat boundary has 180°).
+def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float,
+                     length: float = 0.0) -> np.ndarray:
+    """Boundary vertices where the boundary turns sharply at the scale ``length`` of a remesh:
+    the angles of the faces at the vertex sum to less than ``180° − angle_deg`` or more than
+    ``180° + angle_deg`` (a flat boundary has 180°), and the vertex is a corner within
+    ``RIM_REACH × length`` (:func:`_corners_at_scale`).
 
     Parameters
     ----------
@@ -39,6 +48,8 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
         The boundary loop.
     angle_deg : float
         The tolerance; 0 or None: no corners.
+    length : float
+        The remesh's target edge length (mesh units); 0: each vertex on its own.
 
     Returns
     -------
@@ -47,30 +58,126 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
     """
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    return boundary[_sharpest_first(_angle_sum_deviation(V, F, 180.0)[boundary], angle_deg)]
+    value = _turning(V, F)
+    sharp = boundary[_sharpest_first(np.abs(value[boundary]), angle_deg)]
+    return sharp[_corners_at_scale(V, value, sharp, RIM_REACH * length, angle_deg)]
 
 
-def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float) -> np.ndarray:
-    """Interior vertices that are sharp points of the surface: the angles of their faces sum
-    to less than ``360° − angle_deg`` (a cone tip) or more than ``360° + angle_deg`` (a saddle
-    spike). Parameters and result as in :func:`boundary_corners`, without ``boundary``."""
+def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: float = 0.0
+                     ) -> np.ndarray:
+    """Interior vertices that are sharp points of the surface at the scale ``length`` of a
+    remesh: the angles of their faces sum to less than ``360° − angle_deg`` (a cone tip) or
+    more than ``360° + angle_deg`` (a saddle spike), and the vertex is a corner within
+    ``CORNER_REACH × length`` (:func:`_corners_at_scale`). Parameters and result as in
+    :func:`boundary_corners`, without ``boundary``."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    dev = _angle_sum_deviation(V, F, 360.0)
+    value = _turning(V, F)
+    dev = np.abs(value)
     dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
-    return _sharpest_first(dev, angle_deg)
+    sharp = _sharpest_first(dev, angle_deg)
+    return sharp[_corners_at_scale(V, value, sharp, CORNER_REACH * length, angle_deg)]
 
 
-def _angle_sum_deviation(V: np.ndarray, F: np.ndarray, flat_deg: float) -> np.ndarray:
-    """Per vertex (n), how far in degrees the angles of its faces sum from ``flat_deg``."""
-    return np.abs(np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
-                  - flat_deg)
+def _turning(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Per vertex (n), in degrees: the angle defect ``360° − (sum of the angles of its
+    faces)`` of an interior vertex, the turning ``180° − (sum)`` of a boundary vertex (0
+    where a degenerate face leaves it undefined)."""
+    total = np.degrees(np.bincount(F.ravel(), corner_angles(V, F).ravel(), len(V)))
+    flat = np.where(topo.boundary_vertices_mask(F, len(V)), 180.0, 360.0)
+    return np.nan_to_num(flat - total, nan=0.0)
 
 
 def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
     """The indices where ``dev`` exceeds ``angle_deg``, largest first."""
     sharp = np.flatnonzero(dev > angle_deg)
     return sharp[np.argsort(-dev[sharp])]
+
+
+def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach: float,
+                      angle_deg: float) -> np.ndarray:
+    """Which of the sharp vertices (k bool) are corners at the scale ``reach``.
+
+    Around each sharp vertex, its ``NOISE_NEIGHBOURS`` nearest input vertices in 3D (itself
+    excluded) give the noise level: the median distance of their ``value`` from its mean.
+    A sharp vertex with fewer than ``MIN_NEIGHBOURS`` of them within ``reach`` is a corner,
+    as vertex by vertex: the input is about as coarse as the remesh there. Otherwise it is a
+    corner where it stands out:
+
+    - noise level at most ``NOISE_SHARE × angle_deg`` (a clean input, finer than the
+      remesh): ``|value|`` above ``STANDS_OUT`` times the noise level;
+    - noise level above that (a noisy scan, whose per-vertex defects of both signs are as
+      large as ``angle_deg``): its *held* value, the ``value`` of those neighbours and its
+      own summed with the weights :func:`_smooth` of their distance within
+      ``min(reach, distance to the farthest of them)``, taken with its own sign, above both
+      ``angle_deg`` and ``STANDS_OUT`` times the noise level, and the largest held value
+      among the noisy sharp vertices of its sign within ``reach`` (:func:`_peaks`). Noise
+      spikes are paid back by the vertices around them and hold little; a cone tip, or a
+      tight fold of the surface, holds its defect.
+
+    The opposite sign never competes, so a sharp vertex next to an opposite one (a cone tip
+    by a saddle) is judged on its own. Every query has at most ``NOISE_NEIGHBOURS``
+    answers: the cost is ``k × NOISE_NEIGHBOURS`` whatever ``reach``.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    value : (n,) float
+        Angle defect or turning per vertex (degrees, :func:`_turning`).
+    sharp : (k,) int
+        The sharp vertices, sharpest first.
+    reach : float
+        Mesh units; 0: each vertex on its own (all are corners).
+    angle_deg : float
+        The sharpness tolerance that chose ``sharp``.
+    """
+    keep = np.ones(len(sharp), bool)
+    if reach <= 0 or len(sharp) == 0 or len(V) <= MIN_NEIGHBOURS:
+        return keep
+    from scipy.spatial import cKDTree
+
+    dist, near = cKDTree(V).query(V[sharp], k=min(NOISE_NEIGHBOURS + 1, len(V)))
+    other = near != sharp[:, None]
+    around = np.where(other, value[near], np.nan)
+    noise = np.nanmedian(np.abs(around - np.nanmean(around, axis=1)[:, None]), axis=1)
+    dense = (other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    noisy = dense & (noise > NOISE_SHARE * angle_deg)
+    keep[dense] = (np.abs(value[sharp]) > STANDS_OUT * noise)[dense]
+    if noisy.any():
+        r = np.minimum(reach, dist[:, -1])[:, None]
+        held = (_smooth(dist, r) * value[near]).sum(axis=1) * np.sign(value[sharp])
+        at = sharp[noisy]
+        held = held[noisy]
+        keep[noisy] = ((held > np.maximum(angle_deg, STANDS_OUT * noise[noisy]))
+                       & _peaks(V[at], value[at], held, reach))
+    return keep
+
+
+def _smooth(dist: np.ndarray, reach) -> np.ndarray:
+    """The weights ``(1 − (dist/reach)²)²``: 1 at distance 0, 0 from ``reach`` on."""
+    return (1.0 - np.minimum(dist / reach, 1.0) ** 2) ** 2
+
+
+def _peaks(P: np.ndarray, sign: np.ndarray, score: np.ndarray, reach: float) -> np.ndarray:
+    """Which points (k bool) have no point of the same ``sign`` within ``reach`` with a
+    larger ``score`` (on a tie, a lower index), among their ``NOISE_NEIGHBOURS`` nearest of
+    that sign."""
+    from scipy.spatial import cKDTree
+
+    peak = np.ones(len(P), bool)
+    for side in (sign > 0, sign < 0):
+        idx = np.flatnonzero(side)
+        if len(idx) < 2:
+            continue
+        dist, near = cKDTree(P[idx]).query(P[idx], k=min(NOISE_NEIGHBOURS + 1, len(idx)),
+                                           distance_upper_bound=reach)
+        found = np.isfinite(dist)
+        j = idx[np.where(found, near, 0)]
+        theirs, mine = score[j], score[idx][:, None]
+        later = (theirs == mine) & (j < idx[:, None])
+        beats = found & (j != idx[:, None]) & ((theirs > mine) | later)
+        peak[idx] = ~beats.any(axis=1)
+    return peak
 
 
 def _apart_on_surface(S: RemeshState, targets_uv: np.ndarray, min_gap: float,

@@ -164,7 +164,7 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     if improve:
         S = RemeshState(X, F_out, P.copy(), np.zeros(n, bool), face, bary, V, F, S_in, locator,
                         np.zeros((0, 3)), surface_middles=True)
-        corners = S_in[interior_corners(V, F, corner_angle_deg)]
+        corners = S_in[interior_corners(V, F, corner_angle_deg, L)]
         imp.update(improve_state(S, L, vertices, corners, min_angle_deg=min_angle_deg,
                                  refine_sag=refine_sag,
                                  sag_floor=refine_sag * target_length(V, F, len(V)),

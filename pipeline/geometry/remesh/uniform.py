@@ -137,7 +137,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     ratio = area_scale(V, F, uv)
     samples = sample_disk(vertices, None if spacing is None else spacing * np.sqrt(ratio),
                           pattern, polygon=uv[boundary], relax=rim_relax, seed=seed)
-    corners = boundary_corners(V, F, boundary, corner_angle_deg)
+    L = samples.spacing / np.sqrt(ratio)                                 # target length in 3D
+    corners = boundary_corners(V, F, boundary, corner_angle_deg, L)
     snapped = snap_rim(samples, uv[corners]) if len(corners) else np.zeros(0, np.int64)
     lap("sample")
     F_out = triangulate_samples(samples)
@@ -152,9 +153,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     input_tree = None
     if improve:
         S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped)
-        L = samples.spacing / np.sqrt(ratio)                             # target length in 3D
         imp.update(improve_state(
-            S, L, vertices, uv[interior_corners(V, F, corner_angle_deg)],
+            S, L, vertices, uv[interior_corners(V, F, corner_angle_deg, L)],
             relax_iterations=relax_iterations, flips=flips, max_dihedral_deg=max_dihedral_deg,
             relax_step=relax_step, refine_sag=refine_sag, refine_budget=refine_budget,
             isotropic_iterations=isotropic_iterations,
