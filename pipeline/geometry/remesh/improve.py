@@ -96,13 +96,14 @@ The schedule (:func:`improve_remesh`):
     far corner no operation can bring closer), or where that is not kept with the long edges
     of their caps split, the local operations after every round of insertions; where the
     pass's operations turned faces over, the fold repair's local operations again and the
-    minimum-angle ones after them, a group of folds sharing vertices at a time, undone where
-    they leave a smaller smallest angle and not every fold of the group undone; last, at the
-    faces still below that no input corner forces, the local operations under sag and gap
-    guards ``LAST_RESORT`` times looser (:meth:`_Operations.last_resort`: a vertex on a crease
-    or bump narrower than the remesh, where only its removal or a move off it raises the
-    angle), kept only where they leave fewer such faces or a larger smallest angle and no more
-    folds. A face none of this raises stays: the report counts the faces below the minimum and, among them,
+    minimum-angle ones after them (also under the looser guards below), a group of folds
+    sharing vertices at a time, undone where they leave a smaller smallest angle and not every
+    fold of the group undone; last, at the faces still below that no input corner forces, the
+    local operations under sag and gap guards ``LAST_RESORT`` times looser
+    (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
+    where only its removal or a move off it raises the angle), kept only where they leave
+    fewer such faces or a larger smallest angle and no more folds, and the count restored. A
+    face none of this raises stays: the report counts the faces below the minimum and, among them,
     those an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`),
     naming the corners; then ``EVEN_STEPS`` smoothing
     steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
@@ -702,7 +703,8 @@ class _Operations:
         judge angles, and near a fold they can turn faces over), the local operations judged
         on the folds and the minimum-angle ones again, a group of folds at a time
         (:meth:`unfold_kept`); last those at the faces still below under looser guards
-        (:meth:`last_resort`). Given ``kept``
+        (:meth:`last_resort`) and the count restored (:meth:`restore_angle_count`). Given
+        ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -737,6 +739,7 @@ class _Operations:
                 break
         self.unfold_kept(min_angle_deg)
         self.last_resort(min_angle_deg)
+        self.restore_angle_count(target, min_angle_deg)
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -874,7 +877,9 @@ class _Operations:
     def unfold_kept(self, min_angle_deg: float) -> None:
         """Group after group of folds (faces turned over sharing vertices): the local
         operations around it (:meth:`unfold`), then those around the faces below
-        ``min_angle_deg`` (:meth:`raise_angles`), undone unless they leave fewer folds and
+        ``min_angle_deg`` (:meth:`raise_angles`, then :meth:`last_resort`: the faces a fold's
+        undoing leaves skinny stand where the input turns, on a crease the guards keep the
+        vertices on), undone unless they leave fewer folds and
         either remove as many as the group had or leave no smaller smallest angle among the
         faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
         where the operations cannot undo a fold, what they leave skinny the minimum-angle
@@ -892,6 +897,7 @@ class _Operations:
             corners = S.X[S.F[at].ravel()]
             self.unfold(at)
             self.raise_angles(min_angle_deg)
+            self.last_resort(min_angle_deg)
             left = int(self.folds(S).sum())
             if left >= len(bad) or (left > len(bad) - len(at) and
                                     unforced_shortfall(S, min_angle_deg)[1] < before[1]):
