@@ -102,11 +102,11 @@ The schedule (:func:`improve_remesh`):
     local operations under sag and gap guards ``LAST_RESORT`` times looser
     (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
     where only its removal or a move off it raises the angle), kept only where they leave
-    fewer such faces or a larger smallest angle and no more folds, and the count restored. A
-    face none of this raises stays: the report counts the faces below the minimum and, among them,
-    those an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`),
-    naming the corners; then ``EVEN_STEPS`` smoothing
-    steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
+    fewer such faces or a larger smallest angle and no more folds, the vertices their
+    collapses removed given back. A face none of this raises stays: the report counts the
+    faces below the minimum and, among them, those an input corner too sharp for any fan
+    forces (:func:`.angles.forced_by_corners`), naming the corners; then ``EVEN_STEPS``
+    smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
     even out the faces the steps since step 7 left uneven,
     under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
@@ -703,8 +703,7 @@ class _Operations:
         judge angles, and near a fold they can turn faces over), the local operations judged
         on the folds and the minimum-angle ones again, a group of folds at a time
         (:meth:`unfold_kept`); last those at the faces still below under looser guards
-        (:meth:`last_resort`) and the count restored (:meth:`restore_angle_count`). Given
-        ``kept``
+        (:meth:`last_resort`). Given ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -739,16 +738,16 @@ class _Operations:
                 break
         self.unfold_kept(min_angle_deg)
         self.last_resort(min_angle_deg)
-        self.restore_angle_count(target, min_angle_deg)
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
         ``min_angle_deg`` that no input corner forces (:func:`.circumcentres.unforced_below`),
-        under sag and gap guards ``LAST_RESORT`` times looser, one factor after the other, each
-        undone unless it leaves fewer such faces, or as many with a larger smallest angle, and
-        no more folds: the guards keep a vertex on a crease narrower than the remesh (a
-        valence-3 vertex followed onto it, a cap beside it) where only its removal or a move
-        off the crease raises the angle."""
+        under sag and gap guards ``LAST_RESORT`` times looser, one factor after the other, the
+        vertices their collapses removed given back by splits that make no face below the
+        minimum (:func:`.angles.split_for_count`), each undone unless it leaves fewer such
+        faces, or as many with a larger smallest angle, and no more folds: the guards keep a
+        vertex on a crease narrower than the remesh (a valence-3 vertex followed onto it, a cap
+        beside it) where only its removal or a move off the crease raises the angle."""
         S = self.S
         if self.tol is None:
             return
@@ -759,7 +758,10 @@ class _Operations:
             before, saved, n_folds = unforced_shortfall(S, min_angle_deg), self.saved(), \
                 int(self.folds(S).sum())
             self.release(bad)
+            n0 = S.n
             raise_min_angles(S, min_angle_deg, scale * self.tol, bad)
+            if S.n < n0:
+                split_for_count(S, n0 - S.n, min_angle_deg)
             if shortfall_order(unforced_shortfall(S, min_angle_deg)) >= \
                     shortfall_order(before) or self.folds(S).sum() > n_folds:
                 self.restore(saved)
