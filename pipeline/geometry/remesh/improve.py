@@ -751,20 +751,22 @@ class _Operations:
         S = self.S
         if self.tol is None:
             return
+        bad, worst = unforced_below(S, min_angle_deg)
         for scale in LAST_RESORT:
-            bad, _ = unforced_below(S, min_angle_deg)
             if len(bad) == 0:
                 return
-            before, saved, n_folds = unforced_shortfall(S, min_angle_deg), self.saved(), \
-                int(self.folds(S).sum())
+            saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
             self.release(bad)
-            n0 = S.n
-            raise_min_angles(S, min_angle_deg, scale * self.tol, bad)
-            if S.n < n0:
-                split_for_count(S, n0 - S.n, min_angle_deg)
-            if shortfall_order(unforced_shortfall(S, min_angle_deg)) >= \
-                    shortfall_order(before) or self.folds(S).sum() > n_folds:
-                self.restore(saved)
+            after = None
+            if raise_min_angles(S, min_angle_deg, scale * self.tol, bad):
+                if S.n < n0:
+                    split_for_count(S, n0 - S.n, min_angle_deg)
+                after = unforced_below(S, min_angle_deg)
+            if after is None or self.folds(S).sum() > n_folds or \
+                    _shortfall(after[1]) >= _shortfall(worst):
+                self.restore(saved)              # (also the faces' order, where none was made)
+            else:
+                bad, worst = after
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:
@@ -1186,6 +1188,12 @@ def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
     corners = np.zeros(S.n, bool)
     corners[S.F[changed].ravel()] = True
     return corners
+
+
+def _shortfall(worst: np.ndarray) -> tuple[int, float]:
+    """:func:`.circumcentres.shortfall_order` of the faces below the minimum with the smallest
+    angles ``worst`` (k, degrees; :func:`.circumcentres.unforced_below`)."""
+    return shortfall_order((len(worst), float(worst.min(initial=180.0))))
 
 
 def _ring(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
