@@ -206,3 +206,59 @@ def test_star_shapes_ok_drops_exactly_the_positions_that_fold_or_flatten_the_sta
     BC = np.array([[0, 1], [1, 2], [2, 3], [3, 0]])
     M = np.array([[0.0, 0.0], [0.3, 0.2], [0.6, 0.6], [0.5, 0.5], [-0.2, -0.7]])
     assert star_shapes_ok(ring, M, BC).tolist() == [True, True, False, False, True]
+
+
+def _rim_cap_on_a_bump(height: float):
+    """The 37-vertex remesh of the unit disk (:func:`test_remesh_improve._flat_or_tent_state`'s
+    points) with the inner corner ``p`` of a face on a rim edge ``a–b`` moved (on the disk)
+    almost onto that edge, over an input with a cone of ``height`` and radius 0.05 whose apex
+    is exactly there (an input vertex): ``p`` stands on the bump's tip, the face a cap with
+    small angles at ``a`` and ``b``. Returns the state and ``p``."""
+    from remesh_helpers import ccw_delaunay, disk_points
+
+    uv = 0.9 * disk_points(3, 6)
+    F = ccw_delaunay(uv)
+    rim = np.linalg.norm(uv, axis=1) > 0.85
+    t = np.flatnonzero(rim[F].sum(axis=1) == 2)[0]
+    p, a, b = np.roll(F[t], -np.flatnonzero(~rim[F[t]])[0])
+    uv[p] = 0.02 * uv[p] + 0.49 * (uv[a] + uv[b])
+    uv_in = np.vstack([disk_points(40, 6), uv[p]])
+    F_in = ccw_delaunay(uv_in)
+    V_in = np.column_stack([uv_in, height * np.maximum(
+        0.0, 1.0 - np.linalg.norm(uv_in - uv[p], axis=1) / 0.05)])
+    loop = topo.boundary_loops(F_in)[0]
+    loc = PointLocator(uv_in, F_in, loop)
+    face, bary = loc.locate(uv)
+    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, rim, face, bary, V_in, F_in, uv_in, loc,
+                    uv_in[loop])
+    return S, int(p)
+
+
+def test_a_cap_on_a_bump_the_guards_keep_is_raised_by_the_last_resort():
+    """``p`` is 0.04 above the rim edge it nearly lies on (tolerance 0.02, ``L`` 0.1): its
+    faces' smallest angles are under 20° on the surface. On the flat disk the guarded local
+    operations raise every face to 20°; on the bump every operation that raises the cap moves
+    or removes ``p`` and leaves the bump's tip farther than the tolerance from the remesh (the
+    gap guard), so one face stays below, no input corner forcing it.
+    :meth:`_Operations.last_resort` (guards 2 and 4 times looser) raises it: every face at
+    20° or more, one counter-clockwise disk, the tip within 4 × the tolerance of the
+    remesh."""
+    from pipeline.geometry.remesh.circumcentres import unforced_shortfall
+    from pipeline.geometry.remesh.improve import LAST_RESORT, _Operations
+    from pipeline.geometry.remesh_quality import point_mesh_distance
+
+    S, _ = _rim_cap_on_a_bump(0.0)
+    assert _smallest(S) < 20.0
+    raise_min_angles(S, 20.0, 0.02, skinny_faces(S.X, S.F, 20.0))
+    assert _smallest(S) >= 20.0
+    S, p = _rim_cap_on_a_bump(0.04)
+    tip = S.X[p].copy()
+    assert tip[2] == pytest.approx(0.04, abs=1e-12) and _smallest(S) < 20.0
+    ops = _Operations(S, 0.1, True, 20.0, 0.5, 0.2)
+    assert ops.tol == pytest.approx(0.02)
+    raise_min_angles(S, 20.0, ops.tol, skinny_faces(S.X, S.F, 20.0))
+    assert unforced_shortfall(S, 20.0)[0] == 1 and _smallest(S) < 20.0
+    ops.last_resort(20.0)
+    assert _smallest(S) >= 20.0 and unforced_shortfall(S, 20.0) == (0, 180.0)
+    assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))
+    assert point_mesh_distance(tip[None], S.X, S.F)[0][0] <= LAST_RESORT[-1] * ops.tol

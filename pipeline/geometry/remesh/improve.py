@@ -96,12 +96,17 @@ The schedule (:func:`improve_remesh`):
     far corner no operation can bring closer), or where that is not kept with the long edges
     of their caps split, the local operations after every round of insertions; where the
     pass's operations turned faces over, the fold repair's local operations again and the
-    minimum-angle ones after them, a group of folds sharing vertices at a time, undone where
-    they leave a smaller smallest angle and not every fold of the group undone. A face none
-    of this raises stays: the report counts the faces below the minimum and, among them,
-    those an input corner too sharp for any fan forces (:func:`.angles.forced_by_corners`),
-    naming the corners; then ``EVEN_STEPS`` smoothing
-    steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
+    minimum-angle ones after them (also under the looser guards below), a group of folds
+    sharing vertices at a time, undone where they leave a smaller smallest angle and not every
+    fold of the group undone; last, at the faces still below that no input corner forces, the
+    local operations under sag and gap guards ``LAST_RESORT`` times looser
+    (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
+    where only its removal or a move off it raises the angle), kept only where they leave
+    fewer such faces or a larger smallest angle and no more folds, the vertices their
+    collapses removed given back. A face none of this raises stays: the report counts the
+    faces below the minimum and, among them, those an input corner too sharp for any fan
+    forces (:func:`.angles.forced_by_corners`), naming the corners; then ``EVEN_STEPS``
+    smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
     even out the faces the steps since step 7 left uneven,
     under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
@@ -153,7 +158,7 @@ from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
-                            shortfall_order, unforced_shortfall)
+                            shortfall_order, unforced_below, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -179,6 +184,8 @@ VALENCE_MIN_DEG = 35.0   # its valence flips keep the new faces' angles above th
 LOOSE = 2.0           # the minimum-angle pass's last collapses: guards this much looser
 NEEDLE_DEG = 5.0      # the minimum-angle pass ends with unguarded collapses below this angle,
 NEEDLE_PASSES = 3     # at most this many
+LAST_RESORT = (2.0, 4.0)   # the minimum-angle pass's last local operations, at the faces still
+                           # below that no input corner forces: guards this many times looser
 LONG_EDGE = 3.0       # after the sag refinement, split edges longer than this × L once
 RESHAPE_STEPS = 4     # smoothing steps around the faces the pinned refinement left skinny,
 RESHAPE_DEG = 35.0    # those with an angle below this, under the sag veto
@@ -695,7 +702,8 @@ class _Operations:
         again around the faces then below; where folds are left at the end (these operations
         judge angles, and near a fold they can turn faces over), the local operations judged
         on the folds and the minimum-angle ones again, a group of folds at a time
-        (:meth:`unfold_kept`). Given ``kept``
+        (:meth:`unfold_kept`); last those at the faces still below under looser guards
+        (:meth:`last_resort`). Given ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -729,6 +737,36 @@ class _Operations:
             if not self.grade(target, min_angle_deg):
                 break
         self.unfold_kept(min_angle_deg)
+        self.last_resort(min_angle_deg)
+
+    def last_resort(self, min_angle_deg: float) -> None:
+        """The local operations of :func:`.angles.raise_min_angles` at the faces still below
+        ``min_angle_deg`` that no input corner forces (:func:`.circumcentres.unforced_below`),
+        under sag and gap guards ``LAST_RESORT`` times looser, one factor after the other, the
+        vertices their collapses removed given back by splits that make no face below the
+        minimum (:func:`.angles.split_for_count`), each undone unless it leaves fewer such
+        faces, or as many with a larger smallest angle, and no more folds: the guards keep a
+        vertex on a crease narrower than the remesh (a valence-3 vertex followed onto it, a cap
+        beside it) where only its removal or a move off the crease raises the angle."""
+        S = self.S
+        if self.tol is None:
+            return
+        bad, worst = unforced_below(S, min_angle_deg)
+        for scale in LAST_RESORT:
+            if len(bad) == 0:
+                return
+            saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
+            self.release(bad)
+            after = None
+            if raise_min_angles(S, min_angle_deg, scale * self.tol, bad):
+                if S.n < n0:
+                    split_for_count(S, n0 - S.n, min_angle_deg)
+                after = unforced_below(S, min_angle_deg)
+            if after is None or self.folds(S).sum() > n_folds or \
+                    _shortfall(after[1]) >= _shortfall(worst):
+                self.restore(saved)              # (also the faces' order, where none was made)
+            else:
+                bad, worst = after
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:
@@ -843,7 +881,9 @@ class _Operations:
     def unfold_kept(self, min_angle_deg: float) -> None:
         """Group after group of folds (faces turned over sharing vertices): the local
         operations around it (:meth:`unfold`), then those around the faces below
-        ``min_angle_deg`` (:meth:`raise_angles`), undone unless they leave fewer folds and
+        ``min_angle_deg`` (:meth:`raise_angles`, then :meth:`last_resort`: the faces a fold's
+        undoing leaves skinny stand where the input turns, on a crease the guards keep the
+        vertices on), undone unless they leave fewer folds and
         either remove as many as the group had or leave no smaller smallest angle among the
         faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
         where the operations cannot undo a fold, what they leave skinny the minimum-angle
@@ -861,6 +901,7 @@ class _Operations:
             corners = S.X[S.F[at].ravel()]
             self.unfold(at)
             self.raise_angles(min_angle_deg)
+            self.last_resort(min_angle_deg)
             left = int(self.folds(S).sum())
             if left >= len(bad) or (left > len(bad) - len(at) and
                                     unforced_shortfall(S, min_angle_deg)[1] < before[1]):
@@ -1147,6 +1188,12 @@ def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
     corners = np.zeros(S.n, bool)
     corners[S.F[changed].ravel()] = True
     return corners
+
+
+def _shortfall(worst: np.ndarray) -> tuple[int, float]:
+    """:func:`.circumcentres.shortfall_order` of the faces below the minimum with the smallest
+    angles ``worst`` (k, degrees; :func:`.circumcentres.unforced_below`)."""
+    return shortfall_order((len(worst), float(worst.min(initial=180.0))))
 
 
 def _ring(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
