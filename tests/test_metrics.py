@@ -316,6 +316,10 @@ def test_boundary_self_crossings_of_constructed_polygons():
     assert metrics.boundary_self_crossings(touch, np.arange(5)) == 2
     overlap = np.array([[0.0, 0], [3, 0], [3, 1], [2, 0], [1, 0], [1, -1]])
     assert metrics.boundary_self_crossings(overlap, np.arange(6)) == 3     # 0–2, 0–3, 0–4
+    # a point that is not finite: its two edges count, no k-d tree is asked
+    P = _circle(40)
+    P[7] = np.nan
+    assert metrics.boundary_self_crossings(P, loop) == 2
     # two long edges next to short ones, each cutting across the arc once: found from the
     # long edges' side (the arc's edges look only as far as their own length)
     P = np.vstack([_circle(200)[:101], [[0.0, 2.0]]])

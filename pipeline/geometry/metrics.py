@@ -38,7 +38,8 @@ def flipped_faces(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def boundary_self_crossings(uv: np.ndarray, boundary: np.ndarray) -> int:
     """How many pairs of non-adjacent edges of the closed polygon ``uv[boundary]`` meet
-    (cross, touch or overlap); 0 when the boundary image is a simple closed curve.
+    (cross, touch or overlap); 0 when the boundary image is a simple closed curve. A point
+    that is not finite makes no curve: then the count is that of the edges at such points.
 
     With every face positively oriented, a disk map is one-to-one exactly when its boundary
     image is simple: the number of faces covering an image point is the boundary's winding
@@ -60,6 +61,9 @@ def boundary_self_crossings(uv: np.ndarray, boundary: np.ndarray) -> int:
 
     P = np.asarray(uv, dtype=np.float64)[np.asarray(boundary)]
     b = len(P)
+    finite = np.isfinite(P).all(axis=1)
+    if not finite.all():                      # no curve at all: every edge at such a point
+        return int(np.count_nonzero(~(finite & np.roll(finite, -1))))
     if b < 4:
         return 0
     A, B = P, np.roll(P, -1, axis=0)
