@@ -75,6 +75,14 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     return h, a, b, corner, gap
 
 
+def rim_corners(S: RemeshState) -> tuple[np.ndarray, np.ndarray]:
+    """The input boundary's vertices (the image polygon's corners) on the surface (k×3: located
+    in the input map and lifted) and their arc lengths along the polygon (k); a value of the
+    input map (:meth:`.state.RemeshState.of_input`)."""
+    f, bary, _ = S.locator.locate_with_inside(S.polygon)
+    return lift(S.V_in, S.F_in, f, bary), arc_parameters(S.polygon, S.polygon)
+
+
 def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
                max_rounds: int = 8) -> int:
     """Split rim edges that leave an input boundary vertex farther than ``tol`` at that vertex
@@ -84,9 +92,7 @@ def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
     number. A closed remesh (no polygon) has no rim: nothing to do."""
     if tol is None or budget <= 0 or len(S.polygon) == 0:
         return 0
-    f, bary, _ = S.locator.locate_with_inside(S.polygon)
-    corners_X = lift(S.V_in, S.F_in, f, bary)
-    corner_s = arc_parameters(S.polygon, S.polygon)
+    corners_X, corner_s = S.of_input(rim_corners)
     done = 0
     for _ in range(max_rounds):
         h, a, b, corner, gap = rim_gaps(S, corners_X, corner_s)
