@@ -186,3 +186,40 @@ def test_real_mesh_rounds_with_the_local_operations_leave_no_unforced_face():
     assert r.info["improve"]["circumcentre_insertions"] > 0
     assert below["unforced_faces"] == 0 and below["faces"] == below["at_input_corners"] > 0
     assert abs(len(r.V) - 20000) <= 0.02 * 20000 and is_disk(mesh_facts(r.V, r.F))
+
+
+def test_a_short_edge_between_kept_vertices_is_graded_on_the_sphere():
+    """The sphere's remesh is refined as the disk's: an icosphere (642 vertices) mapped by
+    itself, with a vertex added at 1/10 of an edge from vertex 0 and both locked (a short
+    edge between kept corners, no input corner: the input is smooth). The faces on that edge
+    have their far angle far below 20°; the refinement inserts vertices at their
+    off-centres, on the unit sphere, and leaves none below 20°, every face outward, the two
+    kept vertices where they were."""
+    from test_remesh_sphere import icosphere
+
+    from pipeline.geometry.locate_sphere import SphereLocator
+    from pipeline.geometry.remesh.domain import project
+    from pipeline.geometry.remesh.sphere import hull_triangulation
+    from pipeline.geometry.sphere import triple_products
+
+    V, F = icosphere(3)
+    near = np.argsort(np.linalg.norm(V - V[0], axis=1))[1]
+    uv = np.vstack([V, project(V[[0]] + 0.1 * (V[[near]] - V[[0]]))])
+    T = hull_triangulation(uv)
+    loc = SphereLocator(V, F)
+    face, bary = loc.locate(uv)
+    S = RemeshState(lift(V, F, face, bary), T, uv, np.zeros(len(uv), bool), face, bary, V, F,
+                    V, loc, np.zeros((0, 3)), surface_middles=True)
+    S.locked[[0, len(V)]] = True
+    kept, n0 = S.uv[S.locked].copy(), S.n
+    before = unforced_shortfall(S, 20.0)
+    assert before[0] >= 2 and before[1] < 10.0
+    L = float(np.linalg.norm(V[near] - V[0]))
+    ops = _Operations(S, L, True, 20.0, 0.5, 0.2)
+    k = refine_at_circumcentres(S, 20.0, lambda F0: ops.flip(since=F0),
+                                lambda: turned_over_faces(S))
+    assert k >= 1 and S.n == n0 + k
+    assert unforced_shortfall(S, 20.0) == (0, 180.0)
+    assert np.allclose(np.linalg.norm(S.uv, axis=1), 1.0, atol=1e-12)
+    assert np.all(triple_products(S.uv, S.F) > 0)
+    assert np.array_equal(S.uv[S.locked], kept)

@@ -45,7 +45,7 @@ from ..locate import lift
 from ..rows import norms, row_min
 from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
-from .domain import on_sphere
+from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape
 from .refine import split_edges, split_faces, split_keeps_shape
 from .state import RemeshState, at_points
@@ -110,31 +110,35 @@ def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
                       steps: int = NEWTON_STEPS) -> np.ndarray:
     """Domain points whose lifts come near the 3D points ``C``: from the first guesses ``c``,
     ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face
-    under ``c`` (:meth:`.state.RemeshState.pullback`): where the map's stretch changes within a
-    remesh face, the face's own affine map carries a point of its plane far from where it
-    lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS`` times,
-    then not made.
+    under ``c`` (:meth:`.state.RemeshState.pullback`), each point put back on the domain
+    (:func:`.domain.project`: on the sphere, normalised): where the map's stretch changes
+    within a remesh face, the face's own affine map carries a point of its plane far from
+    where it lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS``
+    times, then not made.
 
     Parameters
     ----------
     S : RemeshState
-    c : (k, 2) float
+    c : (k, 2) or (k, 3) float
+        Disk points, or points of the sphere's ambient space.
     C : (k, 3) float
 
     Returns
     -------
-    (k, 2) float
+    (k, 2) or (k, 3) float
+        On the domain.
     """
-    c = np.array(c, dtype=np.float64)
+    c = project(np.array(c, dtype=np.float64))
     J = S.pullback()
     miss = _miss(S, c, C)
     for _ in range(steps):
         mf, mb = S.locator.locate(c)
         step = np.einsum("ijk,ik->ij", J[mf], C - lift(S.V_in, S.F_in, mf, mb))
         for _ in range(HALVINGS):
-            nxt = _miss(S, c + step, C)
+            trial = project(c + step)
+            nxt = _miss(S, trial, C)
             better = nxt < miss
-            c[better] += step[better]
+            c[better] = trial[better]
             miss[better] = nxt[better]
             step[better] = 0.0
             step *= 0.5
@@ -142,8 +146,8 @@ def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
 
 
 def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """How far (k) the lifts of the domain points ``c`` (k×2) are from the 3D points ``C``
-    (k×3); infinite for a point outside the input map."""
+    """How far (k) the lifts of the domain points ``c`` (k×2 or k×3) are from the 3D points
+    ``C`` (k×3); infinite for a point outside the input map."""
     mf, mb, inside = S.locator.locate_with_inside(c)
     return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf)
 
@@ -183,7 +187,7 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     Parameters
     ----------
     S : RemeshState
-        Changed in place (vertices appended, faces rewritten); on the disk only.
+        Changed in place (vertices appended, faces rewritten); on the disk or the sphere.
     min_angle_deg : float
     flip : callable ``flip(F_before)``
         Flips around the faces changed since ``F_before`` (m×3), and any other operations
@@ -202,8 +206,6 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     -------
     int
     """
-    if on_sphere(S.uv):
-        return 0
     done = 0
     n_folds = len(folds())
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
