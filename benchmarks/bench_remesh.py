@@ -108,7 +108,8 @@ def load(name: str):
 
 
 def parameterize(mesh):
-    """The remesh command's own map (``mode: auto``) and its seconds."""
+    """The remesh command's own map (``mode: auto``: the disk or, for a closed mesh, the
+    sphere) and its seconds."""
     from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.parameterize import parameterize_stage
 
@@ -268,7 +269,7 @@ def bench_remesh(names, counts, repeat):
         for n in counts:
             runs = []
             for _ in range(repeat):
-                r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=n))
+                r = remesh_stage(mesh, p.image, RemeshConfig(vertices=n))
                 sub = r.info["improve"].get("seconds", {})
                 runs.append([r.seconds.get(k, 0.0) for k in STEPS] + [sub.get(k, 0.0)
                                                                       for k in SUB])
@@ -357,7 +358,7 @@ def main(argv=None):
     ap.add_argument("--no-cli", action="store_true",
                     help="with --compare: no ours/cli rows (the command end to end)")
     ap.add_argument("--closed", action="store_true",
-                    help="with --compare: the closed genus-0 meshes through the sphere map "
+                    help="the closed genus-0 meshes through the sphere map "
                          "(default meshes: all of them; default counts 5000 20000)")
     args = ap.parse_args(argv)
     # defaults by mode; a value given on the command line is kept even when it equals
