@@ -87,10 +87,12 @@ def boundary_self_crossings(uv: np.ndarray, boundary: np.ndarray) -> int:
     if collinear.any():                       # on one line: they meet when their spans overlap
         k = np.flatnonzero(collinear)
         axis = np.argmax(np.abs(B[i[k]] - A[i[k]]), axis=1)[:, None]
-        span_i = np.sort(np.hstack([np.take_along_axis(A[i[k]], axis, 1),
-                                    np.take_along_axis(B[i[k]], axis, 1)]), axis=1)
-        span_j = np.sort(np.hstack([np.take_along_axis(A[j[k]], axis, 1),
-                                    np.take_along_axis(B[j[k]], axis, 1)]), axis=1)
+
+        def span(e):                          # (lo, hi) of the edges e along that axis
+            return np.sort(np.hstack([np.take_along_axis(A[e], axis, 1),
+                                      np.take_along_axis(B[e], axis, 1)]), axis=1)
+
+        span_i, span_j = span(i[k]), span(j[k])
         meet[k] = (span_i[:, 0] <= span_j[:, 1]) & (span_j[:, 0] <= span_i[:, 1])
     return int(np.count_nonzero(meet))
 

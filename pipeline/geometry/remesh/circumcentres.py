@@ -161,8 +161,13 @@ def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def unforced_shortfall(S: RemeshState, min_angle_deg: float) -> tuple[int, float]:
     """The faces below ``min_angle_deg`` that no input corner forces: how many, and their
     smallest angle (degrees; 180 when there are none)."""
-    _, A = unforced_below(S, min_angle_deg)
-    return len(A), float(A.min(initial=180.0))
+    return shortfall_of(unforced_below(S, min_angle_deg)[1])
+
+
+def shortfall_of(worst: np.ndarray) -> tuple[int, float]:
+    """:func:`unforced_shortfall` of the faces whose smallest angles are ``worst`` (k,
+    degrees, e.g. :func:`unforced_below`'s): how many, and the smallest (180 when none)."""
+    return len(worst), float(worst.min(initial=180.0))
 
 
 def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np.ndarray]:

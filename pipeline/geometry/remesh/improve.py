@@ -106,8 +106,8 @@ The schedule (:func:`improve_remesh`):
     collapses removed given back. A face none of this raises stays: the report counts the
     faces below the minimum and, among them, those an input corner too sharp for any fan
     forces (:func:`.angles.forced_by_corners`), naming the corners; then ``EVEN_STEPS``
-    smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without ``relax_iterations``) that
-    even out the faces the steps since step 7 left uneven,
+    smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
+    ``relax_iterations``) that even out the faces the steps since step 7 left uneven,
     under vetoes of every move that makes a face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
     sag tolerance (:func:`sag_veto`), the followed vertices and their neighbours, the input
@@ -158,7 +158,8 @@ from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
 from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
-                            shortfall_order, unforced_below, unforced_shortfall)
+                            shortfall_of, shortfall_order, unforced_below,
+                            unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -763,7 +764,8 @@ class _Operations:
                     split_for_count(S, n0 - S.n, min_angle_deg)
                 after = unforced_below(S, min_angle_deg)
             if after is None or self.folds(S).sum() > n_folds or \
-                    _shortfall(after[1]) >= _shortfall(worst):
+                    shortfall_order(shortfall_of(after[1])) >= \
+                    shortfall_order(shortfall_of(worst)):
                 self.restore(saved)              # (also the faces' order, where none was made)
             else:
                 bad, worst = after
@@ -1188,12 +1190,6 @@ def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
     corners = np.zeros(S.n, bool)
     corners[S.F[changed].ravel()] = True
     return corners
-
-
-def _shortfall(worst: np.ndarray) -> tuple[int, float]:
-    """:func:`.circumcentres.shortfall_order` of the faces below the minimum with the smallest
-    angles ``worst`` (k, degrees; :func:`.circumcentres.unforced_below`)."""
-    return shortfall_order((len(worst), float(worst.min(initial=180.0))))
 
 
 def _ring(F: np.ndarray, mark: np.ndarray) -> np.ndarray:
