@@ -184,8 +184,9 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
     isotropic explicit remeshing (10 iterations, target length solved for the count), measured
     by the same evaluator (:func:`pipeline.geometry.remesh_quality.remesh_quality`). Seconds:
     ours = map + remesh (median of ``repeat`` remesh runs), pymeshlab = its call (the reported
-    run; its CPU seconds, all its threads, after the row). With ``cli``, also the row ``ours/cli``: the mesh ``sem-pipeline remesh`` writes with
-    its defaults and the command's wall seconds end to end (:func:`cli_remesh`). ``*`` marks our
+    run; its CPU seconds, all its threads, after the row). With ``cli``, also the row
+    ``ours/cli``: the mesh ``sem-pipeline remesh`` writes with its defaults and the command's
+    wall seconds end to end (:func:`cli_remesh`). ``*`` marks our
     value where it is at least as good as pymeshlab's; ``area CV`` needs ≤ 0.6 × pymeshlab's
     for the mark, the seconds of ``ours/cli`` less than pymeshlab's call."""
     from pipeline.geometry.remesh_quality import remesh_quality

@@ -163,7 +163,8 @@ def test_distortion_summary_hand_values():
         "local_area_ratio_mean": 1.0625,
         "local_area_ratio_sd": float(np.sqrt(np.mean((R - 1.0625) ** 2))),
         "angular_distortion_mean_deg": 15.0, "angular_distortion_sd_deg": float(ang.std()),
-        "flipped_faces": 0, "boundary_self_crossings": 0, "stretch_energy": 2.5, "energy_ratio": 10 / 9,
+        "flipped_faces": 0, "boundary_self_crossings": 0, "stretch_energy": 2.5,
+        "energy_ratio": 10 / 9,
         "surface_area": 1.0, "image_area": 1.5,
         # face 1 is mapped identically (K = 1); face 0 by A = [[2, −1], [0, 1]]:
         # AᵀA has eigenvalues 3 ± √5, so K = (3 + √5)/2; equal areas → median 1, p90 K
@@ -306,7 +307,8 @@ def test_boundary_self_crossings_of_constructed_polygons():
     assert metrics.boundary_self_crossings(_circle(40), loop) == 0
     # two neighbours swapped: the boundary runs backwards over one edge; chords 9→11 and
     # 10→12 of the circle cross, the other pairs stay apart
-    assert metrics.boundary_self_crossings(_circle(40), loop[[*range(10), 11, 10, *range(12, 40)]]) == 1
+    swapped = loop[[*range(10), 11, 10, *range(12, 40)]]
+    assert metrics.boundary_self_crossings(_circle(40), swapped) == 1
     # a figure eight: one crossing point, where one edge of each lobe meets
     t = 2 * np.pi * (np.arange(41) + 0.5) / 41
     assert metrics.boundary_self_crossings(np.column_stack([np.sin(t), np.sin(2 * t)]),

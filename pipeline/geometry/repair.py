@@ -85,8 +85,9 @@ centroid (true for eye/mouth openings).
 ``component_faces_dropped``, ``faces_reoriented``, ``zero_area_faces_flipped``,
 ``zero_area_faces_removed``, ``decimated_from_faces`` / ``decimated_to_faces`` (``None`` when not
 decimated), ``boundary_loops_found``, ``closed`` (bool: no boundary, the sphere is the
-domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``flap_necks_split``, ``leaf_faces_split``,
-``leaf_split_vertices_added``, ``output_vertices``, ``output_faces``, ``boundary_vertices``.
+domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``flap_necks_split``,
+``leaf_faces_split``, ``leaf_split_vertices_added``, ``output_vertices``, ``output_faces``,
+``boundary_vertices``.
 
 A closed result has ``boundary`` = an empty int64 array (:attr:`RepairedMesh.closed`).
 If the input is already a clean disk or an outward closed genus-0 surface, ``V``/``F`` are

@@ -39,8 +39,8 @@ section's defaults are the disk's, so ``tol``, ``patience`` and ``min_step`` onl
 explicitly).
 
 A map with flipped (folded) faces, or a disk map whose boundary image crosses itself (it wraps
-part of the mesh twice with every face positive), is a failure: its ``metrics.json`` (status ``failed``),
-report and figures are written for diagnosis, the map files are not, and
+part of the mesh twice with every face positive), is a failure: its ``metrics.json`` (status
+``failed``), report and figures are written for diagnosis, the map files are not, and
 :class:`ParameterizationFailed` is raised.
 """
 
