@@ -535,3 +535,18 @@ def test_gauss_newton_system_factored_in_single_precision_from_its_size(ddisk, m
     assert 0 < np.abs(g_single - g_double).max() <= 1e-3 * move
     for gn in (double, single):
         gn.release()
+
+
+@pytest.mark.parametrize("mode", ["paper", "converged"])
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_one_interior_vertex_at_the_centre_gives_no_0_over_0(mode):
+    """A square cut into four faces at its centre: the harmonic map sends the centre to 0, so
+    eq. (19)'s right-hand side ``−L_IBᵀ f_I`` is 0 and eq. (21) has no direction for any
+    boundary vertex (0/0). Those vertices keep their places instead; the map comes out finite,
+    every boundary vertex on the unit circle and every face positive."""
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 0]], float)
+    F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    uv = stretch_energy_minimization(V, F, np.array([0, 1, 2, 3]), SEMOptions(mode=mode)).uv
+    assert np.all(np.isfinite(uv))
+    np.testing.assert_allclose(np.hypot(uv[:4, 0], uv[:4, 1]), 1.0, atol=1e-12)
+    assert np.all(metrics.signed_double_areas(uv, F) > 0)

@@ -245,7 +245,10 @@ def _energy_and_ratio(a2: np.ndarray, double_area: np.ndarray, area_M: float
     (m,), the double face areas ``double_area`` (m,) they are measured against and their
     surface area ``area_M``."""
     E = float(0.5 * np.sum(a2 * a2 / double_area))
-    return E, E * area_M / (np.abs(a2).sum() / 2) ** 2
+    image_area = np.abs(a2).sum() / 2
+    if not image_area > 0:                  # every face collapsed: no ratio to the bound
+        return E, np.inf
+    return E, E * area_M / image_area ** 2
 
 
 #: A face whose area is below this share of the mean face area counts as having that area in
@@ -298,11 +301,22 @@ def _sem_update(problem: _Problem, f: np.ndarray, blocks, inversion: bool) -> np
         fI = fI / np.abs(fI) ** 2
     fB = solve_complex(problem.solver_B, L_BB, -(L_IB.T @ fI))        # eq. (19)
     fB = fB - fB.mean()                                               # eq. (20)
-    fB = fB / np.abs(fB)                                              # eq. (21)
+    fB = _onto_circle(fB, f[B])                                       # eq. (21)
     g = np.empty_like(f)
     g[B] = fB
     g[I] = solve_complex(problem.solver_I, L_II, -(L_IB @ fB), x0=f[I])  # eq. (22)
     return g
+
+
+def _onto_circle(z: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    """Eq. (21): each boundary value ``z`` (k,) divided by its modulus; a value of modulus 0
+    (eq. (19)'s right-hand side vanishes there, as for a mesh whose only interior vertex maps
+    to the centre) has no direction and keeps its ``previous`` place (k,)."""
+    r = np.abs(z)
+    placed = r > 0
+    if placed.all():
+        return z / r
+    return np.where(placed, z / np.where(placed, r, 1.0), previous)
 
 
 def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks,
@@ -328,9 +342,10 @@ def gradient_step(problem: _Problem, f: np.ndarray, w: np.ndarray, blocks,
 
 
 def damped(f: np.ndarray, g: np.ndarray, alpha: float, boundary: np.ndarray) -> np.ndarray:
-    """``f + α (g − f)`` with the boundary projected back onto the unit circle."""
+    """``f + α (g − f)`` with the boundary projected back onto the unit circle (a boundary
+    vertex the step takes to the centre keeps its place in ``f``)."""
     h = f + alpha * (g - f)
-    h[boundary] /= np.abs(h[boundary])
+    h[boundary] = _onto_circle(h[boundary], f[boundary])
     return h
 
 
