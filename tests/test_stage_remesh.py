@@ -94,6 +94,22 @@ def test_baselines_hit_the_vertex_count(face_map):
     assert 0 < b.cpu_seconds < b.seconds_all_runs * 64   # the reported call's, all threads
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_baseline_search_clips_a_near_flat_secant_to_its_range():
+    """A count that hardly moves with the parameter (pymeshlab on a noisy scan, whose crease
+    test marks most edges as features) gives a secant slope near 0 and a step in log x of
+    thousands: the next x is the range's end, with no overflow on the way."""
+    from pipeline.stages import baselines
+
+    def run(x):
+        count = int(60000 - 10 * x)
+        return count, count
+
+    _, runs, best = baselines._secant(5000, 1.0, run, -2.0, 0.02, 4, 1 / 8, 8.0)
+    assert [round(x, 12) for x, _ in runs[2:]] == [8.0, 8.0]
+    assert runs[best][1] == min(c for _, c in runs)
+
+
 def test_a_baseline_that_fails_costs_its_column_not_the_remesh(face_map, monkeypatch):
     """A comparison library raising on an input (fast_simplification's ValueError, say): the
     remesh and the other columns are measured, the failed column is empty with the reason, and

@@ -64,8 +64,10 @@ def _secant(target: int, x0: float, run, slope0: float, tol: float, max_runs: in
                 slope = slope0
         else:
             slope = slope0
-        x = float(np.clip(np.exp(np.log(x) + (np.log(target) - np.log(max(count, 1))) / slope),
-                          lo, hi))
+        # the step in log x, clipped before exp: a near-flat secant (a count that hardly
+        # moves with x) asks for a step far beyond the range
+        x = float(np.exp(np.clip(np.log(x) + (np.log(target) - np.log(max(count, 1))) / slope,
+                                 np.log(lo), np.log(hi))))
     i = int(np.argmin([abs(c - target) for _, c in runs]))
     return results[i], runs, i
 
