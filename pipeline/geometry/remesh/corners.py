@@ -124,28 +124,12 @@ def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach:
 
 def ragged_boundary(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float,
                     corners: np.ndarray) -> np.ndarray:
-    """Which boundary vertices are ragged: sharp at the input's own scale (the boundary turns
-    there by more than ``angle_deg``, as :func:`boundary_corners` judges a vertex on its own)
-    but not among ``corners``, the corners at the remesh's scale — a scan's spurs, teeth and
+    """Which boundary vertices (b bool, in the loop's order) are ragged: sharp at the input's
+    own scale (the boundary turns there by more than ``angle_deg``, 0 or None: none is
+    ragged) but not among ``corners`` (k int), the corners at the remesh's scale
+    (:func:`boundary_corners`, whose other parameters these are) — a scan's spurs, teeth and
     notches, a few input edges across, which the rim crosses instead of following
-    (:func:`.rim.refine_rim`).
-
-    Parameters
-    ----------
-    V : (n, 3) float
-    F : (m, 3) int
-    boundary : (b,) int
-        The boundary loop.
-    angle_deg : float
-        The tolerance; 0 or None: none is ragged.
-    corners : (k,) int
-        The corners at the remesh's scale (:func:`boundary_corners`).
-
-    Returns
-    -------
-    (b,) bool
-        In the loop's order.
-    """
+    (:func:`.rim.refine_rim`)."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(len(boundary), bool)
     return (np.abs(_turning(V, F)[boundary]) > angle_deg) & ~np.isin(boundary, corners)
