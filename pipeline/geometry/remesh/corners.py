@@ -3,13 +3,13 @@
 Where the boundary turns sharply, or the surface comes to a point (cone tips, spikes), a
 uniform remesh would cut the corner off. Such input vertices are found by their angle sums,
 judged at the remesh's scale where the input is finer than the remesh, so that a scan's
-noise is not taken for corners (:func:`boundary_corners`, :func:`interior_corners`,
-:func:`_corners_at_scale`); boundary ones get a rim sample moved onto
-them before triangulation (:func:`.sampling.snap_rim`), interior ones get the nearest remesh
-vertex moved exactly onto them (:func:`snap_vertices`), or a new vertex
-(:func:`insert_vertices`) when none can move there, also when the map has put the tip beyond
-the remesh's rim, between a rim chord and the image polygon. Either way the vertex is locked:
-never moved or removed afterwards.
+noise and its ragged border are not taken for corners (:func:`boundary_corners`,
+:func:`interior_corners`, :func:`_corners_at_scale`, :func:`ragged_boundary`); boundary ones
+get a rim sample moved onto them before triangulation (:func:`.sampling.snap_rim`), interior
+ones get the nearest remesh vertex moved exactly onto them (:func:`snap_vertices`), or a new
+vertex (:func:`insert_vertices`) when none can move there, also when the map has put the tip
+beyond the remesh's rim, between a rim chord and the image polygon. Either way the vertex is
+locked: never moved or removed afterwards.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import numpy as np
 from .. import topology as topo
 from ..locate import lift
 from ..metrics import corner_angles
+from ..rows import norms
 from .domain import locator, on_sphere
 from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by_faces, touching, vertex_faces
 from .refine import split_edges, split_faces
@@ -37,8 +38,11 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
                      length: float = 0.0) -> np.ndarray:
     """Boundary vertices where the boundary turns sharply at the scale ``length`` of a remesh:
     the angles of the faces at the vertex sum to less than ``180° − angle_deg`` or more than
-    ``180° + angle_deg`` (a flat boundary has 180°), and the vertex is a corner within
-    ``RIM_REACH × length`` (:func:`_corners_at_scale`).
+    ``180° + angle_deg`` (a flat boundary has 180°), the vertex is a corner within
+    ``RIM_REACH × length`` (:func:`_corners_at_scale`) and, where the input is finer than
+    the remesh (:func:`_dense` within ``length``), the boundary still turns there when
+    followed at the scale ``length`` (:func:`_turns_along_loop`: a scan's spurs, teeth and
+    notches do not).
 
     Parameters
     ----------
@@ -59,8 +63,76 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
     value = _turning(V, F)
-    sharp = boundary[_sharpest_first(np.abs(value[boundary]), angle_deg)]
-    return sharp[_corners_at_scale(V, value, sharp, RIM_REACH * length, angle_deg)]
+    at = _sharpest_first(np.abs(value[boundary]), angle_deg)
+    sharp = boundary[at]
+    keep = _corners_at_scale(V, value, sharp, RIM_REACH * length, angle_deg)
+    dense = _dense(V, sharp, length)
+    keep[dense] &= _turns_along_loop(V[boundary], value[boundary], at[dense],
+                                     length, angle_deg)
+    return sharp[keep]
+
+
+def _dense(V: np.ndarray, at: np.ndarray, reach: float) -> np.ndarray:
+    """Which vertices ``at`` (k,) have at least ``MIN_NEIGHBOURS`` other vertices of ``V``
+    within ``reach`` (k bool): where the input is finer than that scale."""
+    if reach <= 0 or len(at) == 0 or len(V) <= MIN_NEIGHBOURS:
+        return np.zeros(len(at), bool)
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(V).query(V[at], k=MIN_NEIGHBOURS + 1, distance_upper_bound=reach)
+    return np.isfinite(dist[:, -1])
+
+
+def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach: float,
+                      angle_deg: float) -> np.ndarray:
+    """Which loop vertices ``at`` (k,) still turn sharply when the boundary is followed at the
+    scale ``reach`` (k bool): the turnings of the loop vertices within ``reach`` of each along
+    the loop (arc length, both ways, itself included), summed with the weights
+    :func:`_smooth` of that arc length, come to more than ``angle_deg`` in its own turning's
+    sign. A spur, a tooth or a notch narrower than ``reach`` turns the loop out and back in:
+    its turnings cancel; a corner's do not. A vertex whose loop edges are both longer than
+    ``reach`` is judged on its own (it is sharp).
+
+    Parameters
+    ----------
+    P : (b, 3) float
+        The boundary loop's vertices, in order.
+    turning : (b,) float
+        Their turnings (degrees, :func:`_turning`).
+    at : (k,) int
+        Positions in the loop.
+    reach : float
+        Mesh units; 0: every vertex on its own.
+    angle_deg : float
+    """
+    b = len(P)
+    if reach <= 0 or len(at) == 0 or b < 3:
+        return np.ones(len(at), bool)
+    s = np.r_[0.0, np.cumsum(norms(np.roll(P, -1, axis=0) - P))]
+    length = s[-1]
+    s3 = np.r_[s[:-1] - length, s[:-1], s[:-1] + length]           # the loop three times round
+    reach = min(reach, 0.5 * length)
+    lo = np.searchsorted(s3, s[at] - reach, side="left")
+    hi = np.searchsorted(s3, s[at] + reach, side="right")
+    j = lo[:, None] + np.arange(int((hi - lo).max()))
+    inside = j < hi[:, None]
+    j = np.minimum(j, len(s3) - 1)
+    w = np.where(inside, _smooth(np.abs(s3[j] - s[at][:, None]), reach), 0.0)
+    held = (w * turning[j % b]).sum(axis=1) * np.sign(turning[at])
+    return held > angle_deg
+
+
+def ragged_boundary(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float,
+                    corners: np.ndarray) -> np.ndarray:
+    """Which boundary vertices (b bool, in the loop's order) are ragged: sharp at the input's
+    own scale (the boundary turns there by more than ``angle_deg``, 0 or None: none is
+    ragged) but not among ``corners`` (k int), the corners at the remesh's scale
+    (:func:`boundary_corners`, whose other parameters these are) — a scan's spurs, teeth and
+    notches, a few input edges across, which the rim crosses instead of following
+    (:func:`.rim.refine_rim`)."""
+    if angle_deg is None or angle_deg <= 0:
+        return np.zeros(len(boundary), bool)
+    return (np.abs(_turning(V, F)[boundary]) > angle_deg) & ~np.isin(boundary, corners)
 
 
 def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: float = 0.0

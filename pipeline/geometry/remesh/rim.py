@@ -11,6 +11,12 @@ such vertex (its image is a polygon corner, so the new vertex lifts onto the inp
 itself), in rounds until the rim is within the tolerance everywhere or a split would make a
 needle or a face too thin on the disk. Rim vertices do not move in smoothing, and the
 collapses' gap guard refuses to remove one that stands out farther than the sag tolerance.
+
+A ragged boundary vertex (``S.ragged``, :func:`.corners.ragged_boundary`: sharp at the input's
+own scale, but a spur's, a tooth's or a notch's, not a corner at the remesh's) is never split
+at: a rim vertex there would have a sharp or reflex corner that no later step could raise to
+the minimum angle nor move or remove. The chord crosses it (the farthest other vertex it cuts
+off is split at), so the input-to-remesh distance there grows by the tooth's depth at most.
 """
 
 from __future__ import annotations
@@ -55,7 +61,8 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     h, a, b : (r,) int
         The rim half-edges ``a → b`` (counter-clockwise, as the polygon runs) and their ends.
     corner : (r,) int
-        The farthest corner of each (−1 where the polygon has none between the ends).
+        The farthest corner of each, none of ``S.ragged`` (−1 where the polygon has none
+        between the ends).
     gap : (r,) float
         Its distance to the chord ``X[a]``–``X[b]`` (0 where there is none).
     """
@@ -66,11 +73,12 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     order = np.argsort(s_a, kind="stable")
     # the rim edge each corner falls on: the last one starting at or before it (cyclically)
     e = order[(np.searchsorted(s_a[order], corner_s, side="right") - 1) % len(order)]
-    d = segment_distances(corners_X, S.X[a[e]], S.X[b[e]])
+    d = np.where(S.ragged, -1.0, segment_distances(corners_X, S.X[a[e]], S.X[b[e]]))
     corner = np.full(len(h), -1, np.int64)
     gap = np.zeros(len(h))
     by = np.lexsort((-d, e))                    # per edge, the farthest corner first
     first = by[np.r_[True, e[by][1:] != e[by][:-1]]]
+    first = first[d[first] >= 0]
     corner[e[first]], gap[e[first]] = first, d[first]
     return h, a, b, corner, gap
 
@@ -86,10 +94,10 @@ def rim_corners(S: RemeshState) -> tuple[np.ndarray, np.ndarray]:
 def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,
                max_rounds: int = 8) -> int:
     """Split rim edges that leave an input boundary vertex farther than ``tol`` at that vertex
-    (the farthest first), in rounds of independent splits; a split is skipped when the vertex
-    is within ``min_gap`` of an end of the edge (a needle) or a new face would be too thin on
-    the disk (:func:`.refine.split_keeps_shape`). At most ``budget`` splits; returns their
-    number. A closed remesh (no polygon) has no rim: nothing to do."""
+    (the farthest first, none of ``S.ragged``), in rounds of independent splits; a split is
+    skipped when the vertex is within ``min_gap`` of an end of the edge (a needle) or a new
+    face would be too thin on the disk (:func:`.refine.split_keeps_shape`). At most ``budget``
+    splits; returns their number. A closed remesh (no polygon) has no rim: nothing to do."""
     if tol is None or budget <= 0 or len(S.polygon) == 0:
         return 0
     corners_X, corner_s = S.of_input(rim_corners)

@@ -132,6 +132,9 @@ class RemeshState:
         The image polygon ``uv_in[boundary]``.
     locked : (n,) bool
         Vertices never moved or removed (snapped corners); none by default.
+    ragged : (k,) bool
+        The polygon's corners (input boundary vertices) that the rim crosses rather than
+        follows (:func:`.corners.ragged_boundary`); none by default.
     joined : (k, 2) int
         Vertex pairs whose edge is kept (the input's feature lines, :mod:`.features`): no flip
         removes it and no split divides it; their ends are locked. None by default.
@@ -159,6 +162,7 @@ class RemeshState:
     polygon: np.ndarray
     locked: np.ndarray | None = None
     joined: np.ndarray | None = None
+    ragged: np.ndarray | None = None
     log: dict = field(default_factory=dict)
     surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
@@ -172,6 +176,8 @@ class RemeshState:
             self.locked = np.zeros(len(self.uv), bool)
         if self.joined is None:
             self.joined = np.zeros((0, 2), np.int64)
+        if self.ragged is None:
+            self.ragged = np.zeros(len(self.polygon), bool)
 
     @property
     def n(self) -> int:

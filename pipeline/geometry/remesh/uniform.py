@@ -25,7 +25,7 @@ from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
 from ..remesh_quality import MeshDistance
 from .angles import corner_angles_deg, forced_corners, input_vertex_under
-from .corners import boundary_corners, interior_corners
+from .corners import boundary_corners, interior_corners, ragged_boundary
 from .domain import on_sphere
 from .fidelity import input_distance
 from .halfedge import double_areas
@@ -149,10 +149,12 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     lap("lift")
     lifted = (X, F_out)
     uv_out = samples.points
-    imp = {"enabled": bool(improve), "rim_corners_snapped": int(len(snapped))}
+    ragged = ragged_boundary(V, F, boundary, corner_angle_deg, corners)
+    imp = {"enabled": bool(improve), "rim_corners_snapped": int(len(snapped)),
+           "rim_ragged_vertices": int(ragged.sum())}
     input_tree = None
     if improve:
-        S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped)
+        S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped, ragged)
         imp.update(improve_state(
             S, L, vertices, uv[interior_corners(V, F, corner_angle_deg, L)],
             relax_iterations=relax_iterations, flips=flips, max_dihedral_deg=max_dihedral_deg,
@@ -284,13 +286,14 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
             "input_corners": per}
 
 
-def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped) -> RemeshState:
+def _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped, ragged
+           ) -> RemeshState:
     """The lifted samples as a :class:`.state.RemeshState`: the rim samples on the rim, the
-    snapped rim corners locked."""
+    snapped rim corners locked, the ``ragged`` boundary vertices (b bool) the rim crosses."""
     n = len(samples.points)
     is_rim = np.zeros(n, bool)
     is_rim[:samples.n_rim] = True
     locked = np.zeros(n, bool)
     locked[snapped] = True
     return RemeshState(X, F_out, samples.points, is_rim, face, bary, V, F, uv, locator,
-                       uv[boundary], locked, surface_middles=True)
+                       uv[boundary], locked, ragged=ragged, surface_middles=True)
