@@ -241,3 +241,48 @@ def test_only_consecutive_feature_points_with_vertices_are_joined():
     v = np.array([10, 11, -1, 13, 14, 15, 16, 16])
     chain = np.array([0, 0, 0, 0, 0, 1, 1, 2])
     assert consecutive_pairs(v, chain).tolist() == [[10, 11], [13, 14], [15, 16]]
+
+
+def grooved_square(n: int = 121, half_width: float = 0.017, depth: float = 0.4,
+                   end: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """The square [-1, 1]² (an n × n grid) with a V groove along v = 0, ``depth`` deep and
+    ``half_width`` wide on either side, full depth from the rim at u = -1 to u = 0, then
+    tapering to nothing at u = ``end``: a fold of 175° along its bottom (one grid line),
+    ending inside the surface as a closed mouth's slit does at its corner."""
+    t = np.linspace(-1.0, 1.0, n)
+    u, v = np.meshgrid(t, t, indexing="ij")
+    taper = np.clip((end - u) / end, 0.0, 1.0)
+    z = -depth * np.clip(1.0 - np.abs(v) / half_width, 0.0, None) * taper
+    i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    F = np.vstack([np.column_stack([i, i + n, i + n + 1]), np.column_stack([i, i + n + 1, i + 1])])
+    return np.column_stack([u.ravel(), v.ravel(), z.ravel()]), F
+
+
+@pytest.mark.timeout(120)
+def test_remesh_command_follows_a_fold_that_turns_back():
+    """The grooved square through the remesh stage's defaults at 5000 vertices (its SEM map,
+    as the command makes it): the groove's bottom folds by 175°, and the default feature
+    lines (``FOLD_BACK_DEG``) keep vertices and edges along it, so no input point is farther
+    than 0.3 L from the remesh (0.25 L; with ``feature_angle_deg`` 0, 0.42 L), with the
+    smallest angle at least 20°, no face turned over, one disk and the count within 2 %."""
+    from pipeline.geometry.remesh.features import FOLD_BACK_DEG
+    from pipeline.geometry.remesh_quality import remesh_quality
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import ImproveConfig, RemeshConfig, remesh_stage
+
+    V, F = grooved_square()
+    _, angle = feature_edges(V, F, FOLD_BACK_DEG)
+    assert np.degrees(angle.max()) > 170.0
+    mesh = repair_mesh(V, F, name="grooved")
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    assert ImproveConfig().feature_angle_deg == FOLD_BACK_DEG
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    L = r.info["improve"]["target_edge_length"]
+    q = remesh_quality(mesh.V, mesh.F, r.V, r.F)
+    assert r.info["improve"]["features_joined"] > 0
+    assert q["distance"]["input_to_output"]["max"] < 0.3 * L
+    assert q["triangles"]["min_angle_deg"] >= 20.0
+    assert q["distance"]["turned_over_faces"] == 0
+    assert q["is_disk"] and abs(len(r.V) - 5000) <= 100

@@ -33,6 +33,7 @@ from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
+from ..geometry.remesh.features import FOLD_BACK_DEG
 from ..geometry.remesh_quality import DISTANCE_SAMPLES
 from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
@@ -59,9 +60,9 @@ class ImproveConfig(Section):
     follow_input: float = Field(0.25, ge=0.0)   # a vertex on input points (vertices, edge and
                                                 # face middles) farther than this × spacing
                                                 # from the remesh (0: none)
-    feature_angle_deg: float = Field(0.0, ge=0.0, le=180.0)   # vertices and edges kept along
-                                                # input edges folded more than this (0: none;
-                                                # disk maps only)
+    feature_angle_deg: float = Field(FOLD_BACK_DEG, ge=0.0, le=180.0)   # vertices and edges
+                                                # kept along input edges folded more than this
+                                                # (0: none; disk maps only)
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim

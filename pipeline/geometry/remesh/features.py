@@ -44,6 +44,12 @@ from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
 from .state import RemeshState, at_points, face_normals, turned_against
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
+# the remesh command's default threshold: the folds that turn back (a lip's or a lid's fold, a
+# sulcus, a mouth corner); without feature lines the follow step snaps vertices onto such a
+# fold 0.2–0.4 L apart with no edge along it, the fold repair and the minimum-angle pass take
+# them off again (the faces across the fold are needles), and no vertex can be put back
+# without one (choi_human_face at 100k vertices: an input point 0.51 L from the remesh)
+FOLD_BACK_DEG = 90.0
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
 MIN_LENGTH = 0.8     # chains shorter than this × L are dropped
 FEATURE_GAP = 0.6    # feature vertices are at least this × L apart on the surface

@@ -62,7 +62,10 @@ The schedule (:func:`improve_remesh`):
    than the sag tolerance from the surface, flips, as many guarded collapses of the shortest
    edges as vertices were added (none of the rim's), flips; then again for the points still
    that far, ``FOLLOW_GAPS[1] × L`` apart (those within the first gap of a snapped point,
-   left by the first round, between the snapped ones); after the smoothing, which would move
+   left by the first round, between the snapped ones), and once more at that gap (a snap moves
+   the nearest free vertex, which can uncover an input point it held: scan_noisy at 5k
+   vertices, a lid's fold point 0.13 L from the remesh before the second round, 0.43 L after
+   it); after the smoothing, which would move
    the vertices next to them off the creases again, and locked until the minimum-angle pass
    (step 10), whose collapses keep them and whose later operations may move them;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
@@ -205,8 +208,9 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
-# least (from each other and from the locked vertices, those of the rounds before among them)
-FOLLOW_GAPS = (0.4, 0.2)
+# least (from each other and from the locked vertices, those of the rounds before among them);
+# the last round takes the points the snaps of the one before uncovered
+FOLLOW_GAPS = (0.4, 0.2, 0.2)
 # the follow step's rim splits are this × L from the ends of the edge at least: a rim vertex
 # closer to another makes a rim face whose small angle no later pass raises (the rim's
 # vertices stay)
