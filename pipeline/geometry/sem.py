@@ -672,8 +672,9 @@ def _converged_iterations(problem, f, value, opt, record):
     steps go quiet (``gn_tol``, ``gn_patience``) or fail, it goes on with the boundary angles as
     unknowns too (where the boundary limits the energy, the interior alone ends well above the
     long gradient schedule's map; moving the boundary from the start crawls on meshes with
-    faces that have three boundary vertices). When that goes quiet, the next step is a SEM or gradient step,
-    and Gauss–Newton resumes only if that step makes progress; otherwise the iteration ends."""
+    faces that have three boundary vertices). When that goes quiet, the next step is a SEM or
+    gradient step, and Gauss–Newton resumes only if that step makes progress; otherwise the
+    iteration ends."""
     max_iter = opt.iterations()
     gain = PHASE_A_GAIN[opt.descent]
     patience_a = opt.patience if opt.descent == "gradient" else 1
