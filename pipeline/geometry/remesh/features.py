@@ -48,7 +48,7 @@ FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this
 # sulcus, a mouth corner); without feature lines the follow step snaps vertices onto such a
 # fold 0.2–0.4 L apart with no edge along it, the fold repair and the minimum-angle pass take
 # them off again (the faces across the fold are needles), and no vertex can be put back
-# without one (choi_human_face at 100k vertices: an input point 0.51 L from the remesh)
+# without one: the fold's far side is left half an edge or more from the remesh
 FOLD_BACK_DEG = 90.0
 TURN_DEG = 60.0      # a chain ends where its line turns by more than this
 MIN_LENGTH = 0.8     # chains shorter than this × L are dropped

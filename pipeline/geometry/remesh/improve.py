@@ -63,9 +63,8 @@ The schedule (:func:`improve_remesh`):
    edges as vertices were added (none of the rim's), flips; then again for the points still
    that far, ``FOLLOW_GAPS[1] × L`` apart (those within the first gap of a snapped point,
    left by the first round, between the snapped ones), and once more at that gap (a snap moves
-   the nearest free vertex, which can uncover an input point it held: scan_noisy at 5k
-   vertices, a lid's fold point 0.13 L from the remesh before the second round, 0.43 L after
-   it); after the smoothing, which would move
+   the nearest free vertex, which can uncover an input point it held, such as a point on a
+   lid's fold); after the smoothing, which would move
    the vertices next to them off the creases again, and locked until the minimum-angle pass
    (step 10), whose collapses keep them and whose later operations may move them;
 8. up to ``SLIVER_PASSES`` collapses of the slivers the last steps left, under the same
