@@ -76,7 +76,8 @@ class RemeshConfig(Section):
     spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
                                                                "mesh's units")
     pattern: Literal[PATTERNS] = Field(
-        "jittered", description="disk sampling pattern")
+        "jittered", description="sampling pattern (on the sphere: jittered or hexagonal, the "
+                                "Fibonacci lattice with or without seeded offsets)")
     rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
                                                        "the rim")
     seed: int = Field(0, description="jittered and blue noise seed")
@@ -176,12 +177,15 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
     F = mesh.F
     if uv.shape[1] == 3:
-        from ..geometry.remesh.sphere import sphere_remesh
+        from ..geometry.remesh.sphere import SPHERE_PATTERNS, sphere_remesh
 
+        if options.pattern not in SPHERE_PATTERNS:
+            raise UserError(f"remesh: pattern '{options.pattern}' has no sphere version (the "
+                            f"mesh is closed); use one of {', '.join(SPHERE_PATTERNS)}")
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
-                          **imp.model_dump())
+                          pattern=options.pattern, seed=options.seed, **imp.model_dump())
     else:
         r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
                            spacing=options.spacing, pattern=options.pattern,
