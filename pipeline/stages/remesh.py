@@ -149,6 +149,16 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
                         f"a bijective map (parameterize with mode 'converged')")
 
 
+def _check_sphere_pattern(pattern: str) -> None:
+    """Refuse a sampling pattern that has no sphere version (a closed mesh's remesh samples
+    the sphere, :data:`..geometry.remesh.sphere.SPHERE_PATTERNS`)."""
+    from ..geometry.remesh.sphere import SPHERE_PATTERNS
+
+    if pattern not in SPHERE_PATTERNS:
+        raise UserError(f"remesh: pattern '{pattern}' has no sphere version (the mesh is "
+                        f"closed); use one of {', '.join(SPHERE_PATTERNS)}")
+
+
 def _outward(F: np.ndarray, S: np.ndarray) -> np.ndarray:
     """The faces ``F`` ordered so that the sphere map ``S`` (n×3) turns them outward
     (``det[s0, s1, s2] > 0``): reversed when most of them are inward (a mesh oriented
@@ -177,11 +187,9 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     imp = options.improve or ImproveConfig(corner_angle_deg=0.0)
     F = mesh.F
     if uv.shape[1] == 3:
-        from ..geometry.remesh.sphere import SPHERE_PATTERNS, sphere_remesh
+        from ..geometry.remesh.sphere import sphere_remesh
 
-        if options.pattern not in SPHERE_PATTERNS:
-            raise UserError(f"remesh: pattern '{options.pattern}' has no sphere version (the "
-                            f"mesh is closed); use one of {', '.join(SPHERE_PATTERNS)}")
+        _check_sphere_pattern(options.pattern)
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
@@ -450,12 +458,15 @@ def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
 
 
 def _check(ctx: Context) -> None:
-    """Refuse a spacing that gives too few vertices, and a request that needs more memory
-    than the limit (:mod:`pipeline.limits`), before the map is computed."""
+    """Refuse a spacing that gives too few vertices, a request that needs more memory than
+    the limit (:mod:`pipeline.limits`) and, for a closed mesh, a pattern with no sphere
+    version, before the map is computed."""
     from ..geometry.laplacian import face_double_areas
     from ..limits import check_memory
 
     rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
+    if len(mesh.boundary) == 0:                  # closed: remeshed on the sphere
+        _check_sphere_pattern(rc.pattern)
     area = float(face_double_areas(mesh.V, mesh.F).sum() / 2)
     n = expected_vertices(rc, area)
     if rc.spacing is not None:
