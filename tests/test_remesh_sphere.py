@@ -13,7 +13,8 @@ from pipeline.geometry.locate import lift
 from pipeline.geometry.locate_sphere import SphereLocator
 from pipeline.geometry.remesh.domain import project
 from pipeline.geometry.remesh.halfedge import disk_shape, double_areas
-from pipeline.geometry.remesh.sphere import fibonacci_sphere, hull_triangulation, sphere_remesh
+from pipeline.geometry.remesh.sphere import (SPHERE_JITTER, fibonacci_sphere, hull_triangulation,
+                                             jittered_sphere, sphere_remesh, sphere_spacing)
 from pipeline.geometry.remesh_quality import is_sphere, mesh_facts, remesh_quality
 from pipeline.geometry.repair import RepairedMesh
 from pipeline.geometry.sphere import triple_products
@@ -65,6 +66,46 @@ def test_fibonacci_samples_are_even():
     F = hull_triangulation(P)
     A = np.linalg.norm(np.cross(P[F[:, 1]] - P[F[:, 0]], P[F[:, 2]] - P[F[:, 0]]), axis=1)
     assert A.std() / A.mean() < 0.15
+
+
+def test_jittered_samples_stay_in_their_lattice_cells():
+    n = 3000
+    P, Q = fibonacci_sphere(n), jittered_sphere(n, seed=3)
+    assert np.allclose(np.linalg.norm(Q, axis=1), 1.0, atol=1e-12)
+    moved = np.linalg.norm(Q - P, axis=1)        # tangent offset ≤ √2 · h/2, then normalised
+    h = sphere_spacing(n)
+    assert moved.max() <= SPHERE_JITTER * h / np.sqrt(2) and moved.mean() > 0.2 * h
+    assert np.array_equal(Q, jittered_sphere(n, seed=3))
+    assert not np.array_equal(Q, jittered_sphere(n, seed=4))
+    assert is_sphere(mesh_facts(Q, hull_triangulation(Q)))
+
+
+def bumpy_sphere(seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An icosphere (2562 vertices) with 12 seeded Gaussian bumps of height 0.15 pushed out
+    radially, its faces and its radial map onto the unit sphere (bijective, not equiareal)."""
+    S, F = icosphere(4)
+    C = np.random.default_rng(seed).normal(size=(12, 3))
+    C /= np.linalg.norm(C, axis=1)[:, None]
+    bumps = np.exp(-((S[:, None, :] - C[None]) ** 2).sum(-1) / 0.08).sum(1)
+    return S * (1 + 0.15 * bumps)[:, None], F, S
+
+
+@pytest.mark.parametrize("n", [1200, 2000])
+def test_jittered_samples_let_the_improvement_unshear_the_lattice(n):
+    """The Fibonacci lattice is locally a sheared hexagonal one, and a topologically regular
+    patch is a fixed point of the improvement's smoothing: from the exact lattice the remesh of
+    a bumpy sphere keeps its shear (mean smallest angle 49.4°, 49.5°), from the jittered one
+    (the default) it does not (50.7°, 50.6°)."""
+    V, F, S = bumpy_sphere()
+
+    def mean_smallest(pattern=None):
+        kw = {} if pattern is None else {"pattern": pattern}
+        r = sphere_remesh(V, F, S, vertices=n, **kw)
+        assert len(r.V) == n
+        return remesh_quality(V, F, r.V, r.F, 5000)["triangles"]["mean_min_angle_deg"]
+
+    assert mean_smallest() > 50.2
+    assert mean_smallest("hexagonal") < 50.0
 
 
 def test_domain_determinant_is_the_disks_with_points_read_as_u_v_1():
@@ -146,7 +187,7 @@ def test_surface_middles_balance_the_split_on_the_surface():
     from pipeline.geometry.remesh.state import RemeshState
 
     S, F = icosphere(4)
-    r = sphere_remesh(S, F, S, vertices=500, improve=False)
+    r = sphere_remesh(S, F, S, vertices=500, improve=False, pattern="hexagonal")
     st = RemeshState(r.V, r.F, r.uv, np.zeros(len(r.V), bool), r.face, r.bary, S, F, S,
                      SphereLocator(S, F), np.zeros((0, 3)))
     a, b = r.F[:50, 0], r.F[:50, 1]
@@ -160,6 +201,12 @@ def test_stage_refuses_a_folded_sphere_map():
     bad[0] = -bad[0]
     with pytest.raises(UserError, match="sphere map has .* flipped faces"):
         remesh_stage(closed_mesh(S, F), bad, RemeshConfig(vertices=200))
+
+
+def test_stage_refuses_a_disk_only_pattern_on_a_sphere():
+    S, F = icosphere(1)
+    with pytest.raises(UserError, match="pattern 'blue_noise' has no sphere version"):
+        remesh_stage(closed_mesh(S, F), S, RemeshConfig(vertices=200, pattern="blue_noise"))
 
 
 # ------------------------------------------------------------------------ a real mesh

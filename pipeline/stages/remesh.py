@@ -77,7 +77,8 @@ class RemeshConfig(Section):
     spacing: Optional[float] = Field(None, gt=0.0, description="or: target edge length in the "
                                                                "mesh's units")
     pattern: Literal[PATTERNS] = Field(
-        "jittered", description="disk sampling pattern")
+        "jittered", description="sampling pattern (on the sphere: jittered or hexagonal, the "
+                                "Fibonacci lattice with or without seeded offsets)")
     rim_relax: int = Field(3, ge=0, le=50, description="ODT sweeps of the lattice band along "
                                                        "the rim")
     seed: int = Field(0, description="jittered and blue noise seed")
@@ -149,6 +150,16 @@ def _check_map(mesh: RepairedMesh, uv: np.ndarray) -> None:
                         f"a bijective map (parameterize with mode 'converged')")
 
 
+def _check_sphere_pattern(pattern: str) -> None:
+    """Refuse a sampling pattern that has no sphere version (a closed mesh's remesh samples
+    the sphere, :data:`..geometry.remesh.sphere.SPHERE_PATTERNS`)."""
+    from ..geometry.remesh.sphere import SPHERE_PATTERNS
+
+    if pattern not in SPHERE_PATTERNS:
+        raise UserError(f"remesh: pattern '{pattern}' has no sphere version (the mesh is "
+                        f"closed); use one of {', '.join(SPHERE_PATTERNS)}")
+
+
 def _outward(F: np.ndarray, S: np.ndarray) -> np.ndarray:
     """The faces ``F`` ordered so that the sphere map ``S`` (n×3) turns them outward
     (``det[s0, s1, s2] > 0``): reversed when most of them are inward (a mesh oriented
@@ -179,10 +190,11 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     if uv.shape[1] == 3:
         from ..geometry.remesh.sphere import sphere_remesh
 
+        _check_sphere_pattern(options.pattern)
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
-                          **imp.model_dump())
+                          pattern=options.pattern, seed=options.seed, **imp.model_dump())
     else:
         r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
                            spacing=options.spacing, pattern=options.pattern,
@@ -447,12 +459,15 @@ def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
 
 
 def _check(ctx: Context) -> None:
-    """Refuse a spacing that gives too few vertices, and a request that needs more memory
-    than the limit (:mod:`pipeline.limits`), before the map is computed."""
+    """Refuse a spacing that gives too few vertices, a request that needs more memory than
+    the limit (:mod:`pipeline.limits`) and, for a closed mesh, a pattern with no sphere
+    version, before the map is computed."""
     from ..geometry.laplacian import face_double_areas
     from ..limits import check_memory
 
     rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
+    if len(mesh.boundary) == 0:                  # closed: remeshed on the sphere
+        _check_sphere_pattern(rc.pattern)
     area = float(face_double_areas(mesh.V, mesh.F).sum() / 2)
     n = expected_vertices(rc, area)
     if rc.spacing is not None:

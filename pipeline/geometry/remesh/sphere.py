@@ -4,7 +4,15 @@ sphere): sample → triangulate → locate → lift → improve.
 1. **Sample** the unit sphere evenly: the Fibonacci (golden-angle spiral) lattice of ``n``
    points (:func:`fibonacci_sphere`), deterministic and about as even as a point set on the
    sphere gets. The map is equiareal, so even on the sphere means an even area density on the
-   surface.
+   surface. Pattern ``jittered`` (the remesh's default, as on the disk,
+   :mod:`.sampling`) moves every point by a seeded offset in its tangent plane
+   (:func:`jittered_sphere`): the lattice is locally a sheared hexagonal one (its hull's mean
+   smallest angle is 47°, 96 % of the vertices of valence 6 at 20k points), and a
+   topologically regular patch is a fixed point of the improvement's smoothing however it
+   is sheared (every 1-ring is point-symmetric) and makes no Delaunay flip while its angles
+   stay below 90°, so without the offsets the lattice's and the map's shear survive the
+   improvement; ``hexagonal`` keeps the exact lattice (the other disk patterns have no
+   sphere version).
 2. **Triangulate**: the spherical Delaunay triangulation of points on a sphere is their convex
    hull (:func:`hull_triangulation`), every face turned outward (``det[p0, p1, p2] > 0``).
 3. **Locate** every sample in the spherical image of the input mesh
@@ -25,6 +33,7 @@ import numpy as np
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..locate_sphere import SphereLocator
+from ..sphere_newton import tangent_basis
 from .corners import interior_corners
 from .improve import Stopwatch
 from .landmarks import carry_landmarks
@@ -34,6 +43,12 @@ from .uniform import (RemeshResult, built_input_distance, check_remesh, check_to
                       improve_state)
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
+SPHERE_PATTERNS = ("jittered", "hexagonal")
+# jittered: offsets uniform in [−SPHERE_JITTER/2, SPHERE_JITTER/2] × h along each tangent axis,
+# each point anywhere in the square of side h about its lattice point (twice the disk's
+# sampling.JITTER: the Fibonacci lattice is sheared before the map shears it; the remesh's
+# mean smallest angle, igl_decimated_max at 20k: 48.75° exact, 50.4° at 0.5, 51.2° at 1.0)
+SPHERE_JITTER = 1.0
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:
@@ -55,6 +70,38 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
     phi = GOLDEN_ANGLE * i
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def sphere_spacing(n: int) -> float:
+    """The side of the equilateral triangles of ``2n − 4`` faces covering the unit sphere's
+    area ``4π``: ``√(8π / (√3 (2n − 4)))``, the spacing of ``n`` points spread evenly on it."""
+    return float(np.sqrt(8 * np.pi / (np.sqrt(3) * (2 * n - 4))))
+
+
+def jittered_sphere(n: int, seed: int = 0, jitter: float = SPHERE_JITTER) -> np.ndarray:
+    """The Fibonacci lattice of :func:`fibonacci_sphere`, each point moved by a seeded uniform
+    offset in ``[−jitter/2, jitter/2] · h`` along each axis of its tangent plane
+    (:func:`..sphere_newton.tangent_basis`; ``h`` = :func:`sphere_spacing` of ``n``) and put
+    back on the sphere (the disk's ``jittered`` pattern, :mod:`.sampling`, with offsets of
+    ``SPHERE_JITTER``).
+
+    Parameters
+    ----------
+    n : int
+        At least 4.
+    seed : int
+    jitter : float
+
+    Returns
+    -------
+    (n, 3) float
+        Unit vectors.
+    """
+    P = fibonacci_sphere(n)
+    e1, e2 = tangent_basis(P)
+    t = jitter * sphere_spacing(n) * (np.random.default_rng(seed).random((n, 2)) - 0.5)
+    P = P + t[:, :1] * e1 + t[:, 1:] * e2
+    return P / np.linalg.norm(P, axis=1, keepdims=True)
 
 
 def hull_triangulation(P: np.ndarray) -> np.ndarray:
@@ -99,7 +146,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
                   vertices: int | None = None, spacing: float | None = None,
                   improve: bool = True, corner_angle_deg: float = 30.0,
                   refine_sag: float = 0.2, min_angle_deg: float = 20.0,
-                  landmarks: dict | None = None, **params) -> RemeshResult:
+                  landmarks: dict | None = None, pattern: str = "jittered", seed: int = 0,
+                  **params) -> RemeshResult:
     """Remesh a closed genus-0 mesh uniformly through its bijective equiareal sphere map
     (module docstring).
 
@@ -129,6 +177,11 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         The improvement's minimum-angle pass threshold (0: no pass).
     landmarks : dict, optional
         ``{name: input vertex index}``.
+    pattern : {"jittered", "hexagonal"}
+        The samples: the Fibonacci lattice with seeded offsets (:func:`jittered_sphere`) or
+        exact (:func:`fibonacci_sphere`).
+    seed : int
+        For ``jittered``.
     **params
         The improvement's other keywords (``flips``, ``relax_iterations``, ``relax_step``, …;
         :func:`.improve.improve_remesh`, its defaults when left out); the stage passes the
@@ -138,7 +191,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     -------
     RemeshResult
         ``uv`` holds the vertices' sphere positions (n×3); ``samples.pattern`` is
-        ``"fibonacci"``, with ``samples.spacing`` the mean sample spacing on the unit sphere.
+        ``"fibonacci"`` or ``"fibonacci_jittered"``, with ``samples.spacing`` the mean sample
+        spacing on the unit sphere (:func:`sphere_spacing`).
     """
     seconds = dict.fromkeys(("sample", "delaunay", "locate", "lift", "improve", "landmarks"),
                             0.0)
@@ -146,9 +200,10 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
     locator = SphereLocator(S_in, F)
     lap("locate")
     n = int(vertices) if vertices is not None else vertices_for_spacing(V, F, spacing)
-    P = fibonacci_sphere(n)
-    samples = DiskSamples(P, 0, float(np.sqrt(8 * np.pi / (np.sqrt(3) * (2 * n - 4)))),
-                          "fibonacci")
+    jittered = pattern == "jittered"
+    P = jittered_sphere(n, seed) if jittered else fibonacci_sphere(n)
+    samples = DiskSamples(P, 0, sphere_spacing(n),
+                          "fibonacci_jittered" if jittered else "fibonacci")
     lap("sample")
     F_out = hull_triangulation(P)
     lap("delaunay")
