@@ -76,20 +76,32 @@ def _unwrap(annotation):
     return annotation
 
 
-def _add_field(parser, section: str, key: str, field, default=None) -> None:
+def _nested_model(field):
+    """The model of a nested section (``remesh.improve``), or None for a plain key."""
     from pydantic import BaseModel
 
+    ann = _unwrap(field.annotation)
+    return ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
+
+
+def _add_field(parser, section: str, key: str, field, default=None) -> None:
+    """The flag of the config key ``section.key`` (a dotted path); the keys of a nested
+    section marked ``nested_flags`` get flags of their own (``remesh.improve.min_angle_deg``
+    → ``--min-angle-deg``)."""
     ann = _unwrap(field.annotation)
     extra = field.json_schema_extra or {}
     dest = f"{section}.{key}"
     default = field.get_default(call_default_factory=True) if default is None else default
     flag = extra.get("flag") or "--" + key.replace("_", "-")
     help_text = field.description or ""
-    if isinstance(ann, type) and issubclass(ann, BaseModel):
+    if _nested_model(field) is not None:
         if default is not None:          # a nested section that can be switched off
             parser.add_argument(f"--no-{key.replace('_', '-')}", dest=dest,
                                 action="store_const", const=None, default=argparse.SUPPRESS,
                                 help=f"{help_text} (config: {dest}: false)".strip())
+        if extra.get("nested_flags"):      # its keys as flags too (none of them taken)
+            for sub, sub_field in _nested_model(field).model_fields.items():
+                _add_field(parser, dest, sub, sub_field)
         return
     if ann is bool:
         name = flag if default is False else f"--no-{key.replace('_', '-')}"
@@ -133,26 +145,55 @@ def stage_config(stage_name: str, args) -> dict:
     stage = find(stage_name)
     data: dict = {}
     given = {**stage.command_defaults, **vars(args)}
+    names = _flag_names(stage)
     for section, model, positional in _sections(stage):
-        node = data.setdefault(section, {})
-        for key in positional:
-            node[key] = given[key]
-        for key in model.model_fields:
-            if f"{section}.{key}" in given:
-                node[key] = given[f"{section}.{key}"]
-        if not node and section != stage.name:
-            del data[section]
+        node = {key: given[key] for key in positional}
+        try:
+            node.update(_given_keys(given, (section,), model, names))
+        except UserError as exc:
+            raise UserError(f"sem-pipeline {stage_name}: {exc}") from None
+        if node or section == stage.name:
+            data[section] = node
     return data
 
 
+def _given_keys(given: dict, path: tuple, model, names: dict) -> dict:
+    """The keys of the section at ``path`` (of ``model``) that the arguments ``given`` set,
+    nested sections as dicts of theirs; a nested section switched off (``--no-improve``) with
+    some of its keys given is a user error."""
+    node = {}
+    for key, field in model.model_fields.items():
+        dest = ".".join((*path, key))
+        sub = _nested_model(field)
+        inner = _given_keys(given, (*path, key), sub, names) if sub is not None else {}
+        if dest in given and inner:
+            spelled = ", ".join(names[(*path, key, k)] for k in inner)
+            raise UserError(f"--no-{key.replace('_', '-')} switches {dest} off, and {spelled} "
+                            f"set{'s' if len(inner) == 1 else ''} part of it: give one or the "
+                            "other")
+        if dest in given:
+            node[key] = given[dest]
+        elif inner:
+            node[key] = inner
+    return node
+
+
 def _flag_names(stage) -> dict[tuple, str]:
-    """Config key → how the subcommand spells it (``('remesh', 'vertices')`` → ``--vertices``)."""
+    """Config key → how the subcommand spells it (``('remesh', 'vertices')`` → ``--vertices``,
+    ``('remesh', 'improve', 'flips')`` → ``--flips``)."""
     out = {}
-    for section, model, positional in _sections(stage):
+
+    def spell(path, model, positional=()):
         for key, field in model.model_fields.items():
             extra = field.json_schema_extra or {}
-            out[(section, key)] = key.upper() if key in positional else \
-                extra.get("flag") or "--" + key.replace("_", "-")
+            switch = _unwrap(field.annotation) is bool and field.get_default() is True
+            out[(*path, key)] = key.upper() if key in positional else \
+                extra.get("flag") or ("--no-" if switch else "--") + key.replace("_", "-")
+            if _nested_model(field) is not None:
+                spell((*path, key), _nested_model(field))
+
+    for section, model, positional in _sections(stage):
+        spell((section,), model, positional)
     return out
 
 

@@ -103,10 +103,13 @@ def format_validation_error(exc: ValidationError, source: str,
                             names: dict[tuple, str] | None = None) -> str:
     """The first error of a pydantic validation as one line naming the key and the fix
     (``model``: the validated model, for the 'did you mean' hint; default :class:`Config`;
-    ``names``: how a command line spells a key, ``('remesh', 'vertices')`` → ``--vertices``)."""
+    ``names``: how a command line spells a key, ``('remesh', 'vertices')`` → ``--vertices``,
+    a nested section's ``('remesh', 'improve', 'flips')`` → ``--flips``)."""
     err = exc.errors()[0]
     loc = tuple(err["loc"])
-    where = (names or {}).get(loc[:2]) or ".".join(str(p) for p in loc) or "(top level)"
+    names = names or {}
+    where = names.get(loc[:3]) or names.get(loc[:2]) or ".".join(str(p) for p in loc) \
+        or "(top level)"
     if err["type"] == "extra_forbidden":
         valid = _model_fields(model or Config, loc)
         close = difflib.get_close_matches(str(loc[-1]), valid, n=1)

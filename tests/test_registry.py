@@ -123,11 +123,36 @@ def test_subcommand_flags_are_derived_from_the_sections():
     sub = next(a for a in parser._actions if a.dest == "command").choices
     assert {s.name for s in STAGES if s.command} == set(sub) - {"run", "experiment", "sample"}
     flags = {o for a in sub["remesh"]._actions for o in a.option_strings}
-    # every remesh, parameterize and repair key has a flag (booleans as --x / --no-x)
-    for model in (Config.model_fields["remesh"].annotation.__args__[0],
+    # every remesh (remesh.improve's too), parameterize and repair key has a flag (booleans
+    # as --x / --no-x)
+    remesh = Config.model_fields["remesh"].annotation.__args__[0]
+    for model in (remesh, remesh.model_fields["improve"].annotation.__args__[0],
                   Config.model_fields["parameterize"].annotation,
                   Config.model_fields["repair"].annotation):
         for name, field in model.model_fields.items():
             spelled = (field.json_schema_extra or {}).get("flag") or \
                 "--" + name.replace("_", "-")
             assert spelled in flags or "--no-" + name.replace("_", "-") in flags, name
+
+
+def test_a_nested_sections_flags_set_its_keys_and_clash_with_switching_it_off(tmp_path, capsys):
+    """``--feature-angle-deg 0 --no-flips`` is ``remesh: {improve: {feature_angle_deg: 0,
+    flips: false}}``; a bad value is named by its flag; ``--no-improve`` with one of its keys
+    is one line, exit 2, and nothing written."""
+    from pipeline.cli import build_parser, main, stage_config
+
+    args = build_parser().parse_args(["remesh", "m.obj", "-o", "x", "--feature-angle-deg", "0",
+                                      "--no-flips", "--vertices", "900"])
+    assert stage_config("remesh", args)["remesh"] == {
+        "vertices": 900, "improve": {"flips": False, "feature_angle_deg": 0.0}}
+    args = build_parser().parse_args(["remesh", "m.obj", "-o", "x"])
+    assert "improve" not in stage_config("remesh", args)["remesh"]
+    out = tmp_path / "out"
+    for extra, words in ((["--min-angle-deg", "-1"], "--min-angle-deg: Input should be"),
+                         (["--no-improve", "--no-flips", "--min-angle-deg", "10"],
+                          "--no-improve switches remesh.improve off, and --no-flips, "
+                          "--min-angle-deg set part of it")):
+        assert main(["remesh", "no_such_mesh.obj", "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err, err
+        assert not out.exists()

@@ -83,7 +83,8 @@ class RemeshConfig(Section):
                                                        "the rim")
     seed: int = Field(0, description="jittered and blue noise seed")
     improve: Optional[ImproveConfig] = Field(
-        ImproveConfig(), description="the quality pass (off: the paper's plain lift)")
+        ImproveConfig(), description="the quality pass (off: the paper's plain lift)",
+        json_schema_extra={"nested_flags": True})          # --min-angle-deg, --no-flips, ...
     compare: bool = Field(True, description="measure the plain lift, pymeshlab and decimation "
                                             "at the same vertex count beside ours")
     report: bool = Field(True, description="report.html and figures")
