@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.remesh.corners import _turning, boundary_corners, interior_corners
+from pipeline.geometry.remesh.corners import vertex_turning, boundary_corners, interior_corners
 
 
 def square_grid(k: int, height) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +61,7 @@ def test_a_sharp_vertex_next_to_an_opposite_one_stays_a_corner():
     ring = topo.vertex_neighbours(F, len(V))[saddle].indices
     ring = ring[np.argsort(np.arctan2(*(V[ring, :2] - V[saddle, :2]).T[::-1]))]
     V[ring, 2] = np.where(np.arange(len(ring)) % 2 == 0, 1.0, -1.0) * 0.8 * h
-    value = _turning(V, F)
+    value = vertex_turning(V, F)
     assert value[spike] > 60.0 and value[saddle] < -60.0
     each = interior_corners(V, F, 30.0)
     assert {spike, saddle} <= set(each.tolist())

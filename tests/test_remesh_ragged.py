@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import Delaunay
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.remesh.corners import (_turning, _turns_along_loop, boundary_corners,
+from pipeline.geometry.remesh.corners import (vertex_turning, _turns_along_loop, boundary_corners,
                                               ragged_boundary)
 from pipeline.geometry.remesh.rim import refine_rim
 from test_corners_scale import square_grid
@@ -41,7 +41,7 @@ def test_a_spur_and_a_notch_are_ragged_the_square_corners_are_not():
     h = 2.0 / (k - 1)
     V, F, spur, notch = toothed_square(k)
     loop = topo.boundary_loops(F)[0]
-    value = _turning(V, F)
+    value = vertex_turning(V, F)
     assert np.allclose(value[spur], [-63.43494882, -63.43494882, 126.86989765])
     assert np.allclose(value[notch], [-135.0, 90.0, 45.0])
     square = {0, k - 1, k * (k - 1), k * k - 1}

@@ -35,7 +35,7 @@ STANDS_OUT = 6.0       # a corner stands out from the noise level by this factor
 
 
 def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float,
-                     length: float = 0.0) -> np.ndarray:
+                     length: float = 0.0, turning: np.ndarray | None = None) -> np.ndarray:
     """Boundary vertices where the boundary turns sharply at the scale ``length`` of a remesh:
     the angles of the faces at the vertex sum to less than ``180° − angle_deg`` or more than
     ``180° + angle_deg`` (a flat boundary has 180°), the vertex is a corner within
@@ -54,6 +54,8 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
         The tolerance; 0 or None: no corners.
     length : float
         The remesh's target edge length (mesh units); 0: each vertex on its own.
+    turning : (n,) float, optional
+        :func:`vertex_turning` of ``(V, F)`` when already computed.
 
     Returns
     -------
@@ -62,25 +64,37 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
     """
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    value = _turning(V, F)
+    value = vertex_turning(V, F) if turning is None else turning
     at = _sharpest_first(np.abs(value[boundary]), angle_deg)
     sharp = boundary[at]
-    keep = _corners_at_scale(V, value, sharp, RIM_REACH * length, angle_deg)
-    dense = _dense(V, sharp, length)
+    nearest = _nearest(V, sharp, length)              # one query serves both scales
+    keep = _corners_at_scale(V, value, sharp, RIM_REACH * length, angle_deg, nearest)
+    dense = _dense(nearest, sharp, length)
     keep[dense] &= _turns_along_loop(V[boundary], value[boundary], at[dense],
                                      length, angle_deg)
     return sharp[keep]
 
 
-def _dense(V: np.ndarray, at: np.ndarray, reach: float) -> np.ndarray:
-    """Which vertices ``at`` (k,) have at least ``MIN_NEIGHBOURS`` other vertices of ``V``
-    within ``reach`` (k bool): where the input is finer than that scale."""
+def _nearest(V: np.ndarray, at: np.ndarray, reach: float):
+    """``(distances, indices)`` (k×K) of the ``K = NOISE_NEIGHBOURS + 1`` vertices of ``V``
+    nearest to each of ``V[at]`` (itself among them; all of ``V`` when fewer), or None where
+    nothing is judged at a scale: ``reach`` 0, no vertex asked, or at most
+    ``MIN_NEIGHBOURS`` vertices in all."""
     if reach <= 0 or len(at) == 0 or len(V) <= MIN_NEIGHBOURS:
-        return np.zeros(len(at), bool)
+        return None
     from scipy.spatial import cKDTree
 
-    dist, _ = cKDTree(V).query(V[at], k=MIN_NEIGHBOURS + 1, distance_upper_bound=reach)
-    return np.isfinite(dist[:, -1])
+    return cKDTree(V).query(V[at], k=min(NOISE_NEIGHBOURS + 1, len(V)))
+
+
+def _dense(nearest, at: np.ndarray, reach: float) -> np.ndarray:
+    """Which vertices ``at`` (k,) have at least ``MIN_NEIGHBOURS`` other vertices strictly
+    closer than ``reach`` among their :func:`_nearest` ``nearest`` (None: none) (k bool):
+    where the input is finer than that scale."""
+    if nearest is None:
+        return np.zeros(len(at), bool)
+    dist, near = nearest
+    return ((near != at[:, None]) & (dist < reach)).sum(axis=1) >= MIN_NEIGHBOURS
 
 
 def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach: float,
@@ -98,7 +112,7 @@ def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach:
     P : (b, 3) float
         The boundary loop's vertices, in order.
     turning : (b,) float
-        Their turnings (degrees, :func:`_turning`).
+        Their turnings (degrees, :func:`vertex_turning`).
     at : (k,) int
         Positions in the loop.
     reach : float
@@ -123,20 +137,22 @@ def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach:
 
 
 def ragged_boundary(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_deg: float,
-                    corners: np.ndarray) -> np.ndarray:
+                    corners: np.ndarray, turning: np.ndarray | None = None) -> np.ndarray:
     """Which boundary vertices (b bool, in the loop's order) are ragged: sharp at the input's
     own scale (the boundary turns there by more than ``angle_deg``, 0 or None: none is
     ragged) but not among ``corners`` (k int), the corners at the remesh's scale
-    (:func:`boundary_corners`, whose other parameters these are) — a scan's spurs, teeth and
+    (:func:`boundary_corners`, whose other parameters these are, ``turning`` among them) — a
+    scan's spurs, teeth and
     notches, a few input edges across, which the rim crosses instead of following
     (:func:`.rim.refine_rim`)."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(len(boundary), bool)
-    return (np.abs(_turning(V, F)[boundary]) > angle_deg) & ~np.isin(boundary, corners)
+    value = vertex_turning(V, F) if turning is None else turning
+    return (np.abs(value[boundary]) > angle_deg) & ~np.isin(boundary, corners)
 
 
-def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: float = 0.0
-                     ) -> np.ndarray:
+def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: float = 0.0,
+                     turning: np.ndarray | None = None) -> np.ndarray:
     """Interior vertices that are sharp points of the surface at the scale ``length`` of a
     remesh: the angles of their faces sum to less than ``360° − angle_deg`` (a cone tip) or
     more than ``360° + angle_deg`` (a saddle spike), and the vertex is a corner within
@@ -144,14 +160,14 @@ def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: flo
     :func:`boundary_corners`, without ``boundary``."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
-    value = _turning(V, F)
+    value = vertex_turning(V, F) if turning is None else turning
     dev = np.abs(value)
     dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
     sharp = _sharpest_first(dev, angle_deg)
     return sharp[_corners_at_scale(V, value, sharp, CORNER_REACH * length, angle_deg)]
 
 
-def _turning(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+def vertex_turning(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Per vertex (n), in degrees: the angle defect ``360° − (sum of the angles of its
     faces)`` of an interior vertex, the turning ``180° − (sum)`` of a boundary vertex (0
     where a degenerate face leaves it undefined)."""
@@ -167,7 +183,7 @@ def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
 
 
 def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach: float,
-                      angle_deg: float) -> np.ndarray:
+                      angle_deg: float, nearest=None) -> np.ndarray:
     """Which of the sharp vertices (k bool) are corners at the scale ``reach``.
 
     Around each sharp vertex, its ``NOISE_NEIGHBOURS`` nearest input vertices in 3D (itself
@@ -195,20 +211,24 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
     ----------
     V : (n, 3) float
     value : (n,) float
-        Angle defect or turning per vertex (degrees, :func:`_turning`).
+        Angle defect or turning per vertex (degrees, :func:`vertex_turning`).
     sharp : (k,) int
         The sharp vertices, sharpest first.
     reach : float
         Mesh units; 0: each vertex on its own (all are corners).
     angle_deg : float
         The sharpness tolerance that chose ``sharp``.
+    nearest : tuple, optional
+        :func:`_nearest` of ``sharp`` when already queried (made here otherwise).
     """
     keep = np.ones(len(sharp), bool)
-    if reach <= 0 or len(sharp) == 0 or len(V) <= MIN_NEIGHBOURS:
+    if reach <= 0:
         return keep
-    from scipy.spatial import cKDTree
-
-    dist, near = cKDTree(V).query(V[sharp], k=min(NOISE_NEIGHBOURS + 1, len(V)))
+    if nearest is None:
+        nearest = _nearest(V, sharp, reach)
+    if nearest is None:
+        return keep
+    dist, near = nearest
     other = near != sharp[:, None]
     around = np.where(other, value[near], np.nan)
     noise = np.nanmedian(np.abs(around - np.nanmean(around, axis=1)[:, None]), axis=1)

@@ -25,7 +25,7 @@ from ..locate import PointLocator, lift
 from ..metrics import signed_double_areas
 from ..remesh_quality import MeshDistance
 from .angles import corner_angles_deg, forced_corners, input_vertex_under
-from .corners import boundary_corners, interior_corners, ragged_boundary
+from .corners import boundary_corners, interior_corners, ragged_boundary, vertex_turning
 from .domain import on_sphere
 from .fidelity import input_distance
 from .halfedge import double_areas
@@ -138,7 +138,10 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     samples = sample_disk(vertices, None if spacing is None else spacing * np.sqrt(ratio),
                           pattern, polygon=uv[boundary], relax=rim_relax, seed=seed)
     L = samples.spacing / np.sqrt(ratio)                                 # target length in 3D
-    corners = boundary_corners(V, F, boundary, corner_angle_deg, L)
+    # the input's angle defects and rim turnings, for the rim's corners, its ragged vertices
+    # and the interior corners
+    turning = vertex_turning(V, F) if corner_angle_deg else None
+    corners = boundary_corners(V, F, boundary, corner_angle_deg, L, turning)
     snapped = snap_rim(samples, uv[corners]) if len(corners) else np.zeros(0, np.int64)
     lap("sample")
     F_out = triangulate_samples(samples)
@@ -149,14 +152,14 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     lap("lift")
     lifted = (X, F_out)
     uv_out = samples.points
-    ragged = ragged_boundary(V, F, boundary, corner_angle_deg, corners)
+    ragged = ragged_boundary(V, F, boundary, corner_angle_deg, corners, turning)
     imp = {"enabled": bool(improve), "rim_corners_snapped": int(len(snapped)),
            "rim_ragged_vertices": int(ragged.sum())}
     input_tree = None
     if improve:
         S = _state(V, F, uv, boundary, locator, X, F_out, samples, face, bary, snapped, ragged)
         imp.update(improve_state(
-            S, L, vertices, uv[interior_corners(V, F, corner_angle_deg, L)],
+            S, L, vertices, uv[interior_corners(V, F, corner_angle_deg, L, turning)],
             relax_iterations=relax_iterations, flips=flips, max_dihedral_deg=max_dihedral_deg,
             relax_step=relax_step, refine_sag=refine_sag, refine_budget=refine_budget,
             isotropic_iterations=isotropic_iterations,
