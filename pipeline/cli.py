@@ -84,6 +84,15 @@ def _nested_model(field):
     return ann if isinstance(ann, type) and issubclass(ann, BaseModel) else None
 
 
+def _option(key: str, field, default) -> str:
+    """How a subcommand spells the config key ``key`` whose value is ``default`` unless given:
+    the field's own ``flag``, or ``--key``; a boolean not off by default ``--no-key`` (the
+    flag can only switch it off)."""
+    if _unwrap(field.annotation) is bool and default is not False:
+        return f"--no-{key.replace('_', '-')}"
+    return (field.json_schema_extra or {}).get("flag") or "--" + key.replace("_", "-")
+
+
 def _add_field(parser, section: str, key: str, field, default=None) -> None:
     """The flag of the config key ``section.key`` (a dotted path); the keys of a nested
     section marked ``nested_flags`` get flags of their own (``remesh.improve.min_angle_deg``
@@ -92,7 +101,6 @@ def _add_field(parser, section: str, key: str, field, default=None) -> None:
     extra = field.json_schema_extra or {}
     dest = f"{section}.{key}"
     default = field.get_default(call_default_factory=True) if default is None else default
-    flag = extra.get("flag") or "--" + key.replace("_", "-")
     help_text = field.description or ""
     if _nested_model(field) is not None:
         if default is not None:          # a nested section that can be switched off
@@ -104,8 +112,8 @@ def _add_field(parser, section: str, key: str, field, default=None) -> None:
                 _add_field(parser, dest, sub, sub_field)
         return
     if ann is bool:
-        name = flag if default is False else f"--no-{key.replace('_', '-')}"
-        parser.add_argument(name, dest=dest, action="store_const", const=not default,
+        parser.add_argument(_option(key, field, default), dest=dest, action="store_const",
+                            const=not default,
                             default=argparse.SUPPRESS,
                             help=f"{help_text} (config: {dest}: {str(not default).lower()})")
         return
@@ -115,7 +123,8 @@ def _add_field(parser, section: str, key: str, field, default=None) -> None:
         kwargs["choices"] = list(typing.get_args(ann))
     elif ann in (int, float, str):
         kwargs["type"] = ann
-    parser.add_argument(flag, metavar=key.upper() if "choices" not in kwargs else None,
+    parser.add_argument(_option(key, field, default),
+                        metavar=key.upper() if "choices" not in kwargs else None,
                         **kwargs)
 
 
@@ -185,10 +194,8 @@ def _flag_names(stage) -> dict[tuple, str]:
 
     def spell(path, model, positional=()):
         for key, field in model.model_fields.items():
-            extra = field.json_schema_extra or {}
-            switch = _unwrap(field.annotation) is bool and field.get_default() is True
             out[(*path, key)] = key.upper() if key in positional else \
-                extra.get("flag") or ("--no-" if switch else "--") + key.replace("_", "-")
+                _option(key, field, field.get_default(call_default_factory=True))
             if _nested_model(field) is not None:
                 spell((*path, key), _nested_model(field))
 
