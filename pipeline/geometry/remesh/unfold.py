@@ -28,50 +28,112 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import topology as topo
 from ..locate import lift
+from ..rows import dots
 from .angles import _Patch, star_shapes_ok, triangle_min_angles
 from .domain import project
-from .state import RemeshState, triangles_turned_against
+from .fidelity import input_distance
+from .state import RemeshState
 
 GRID = 6                   # the barycentric grid over each face of a star: steps of 1/GRID
 OPERATIONS_PER_FOLD = 10   # the pass stops after this × the folds it started with
 FOLD_WEIGHT = 180.0        # an operation's score: this × the folds it removes + the smallest
                            # angle (degrees) of the faces it makes
+ON_EDGE = 1e-9             # a barycentric coordinate at most this puts a point on the edge of
+                           # its input face opposite that corner (and two, on a vertex)
 
 
-def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray) -> np.ndarray:
+def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
+                bary: np.ndarray) -> np.ndarray:
     """Whether each face with corners ``P`` on the surface, ``U`` on the domain and in the input
-    faces ``under`` is turned over against the input: its normal points against the input's
-    normal at each of its corners and at its domain centroid (located in the input map, from
-    the input face of its first corner).
+    faces ``under`` at the barycentrics ``bary`` is turned over against the input: its normal
+    points against the input's normal at each of its corners and at its domain centroid
+    (located in the input map, from the input face of its first corner). A corner on an input
+    edge or vertex lies on every input face there (:func:`least_dots`): it counts as turned
+    against the input where the normal points against any of them. Where the input folds
+    sharper than a right angle, the face the map happens to put a point on the crease in is one
+    of two that turn against each other; the test does not depend on that choice, and a face
+    it passes is turned over against none of them (nor, at a tie, against the face the closest
+    point query of :func:`..remesh_quality.turned_over_faces` picks).
 
     Parameters
     ----------
     S : RemeshState
-        Its input map (normals, locator).
+        Its input map (normals, adjacency, locator).
     P : (k, 3, 3) float
     U : (k, 3, 2) or (k, 3, 3) float
     under : (k, 3) int
+    bary : (k, 3, 3) float
 
     Returns
     -------
     (k,) bool
     """
-    input_normal = S.normals_in()
-    out = triangles_turned_against(P, input_normal[under])
+    k = len(P)
+    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    least = least_dots(S, np.repeat(normal, 3, axis=0), under.reshape(-1),
+                       bary.reshape(-1, 3)).reshape(k, 3)
+    out = np.all(least < 0, axis=1)
     suspect = np.flatnonzero(out)
     if len(suspect):
-        Q = P[suspect]
-        normal = np.cross(Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0])
         at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0])
-        out[suspect] = np.einsum("ij,ij->i", normal, input_normal[at]) < 0
+        out[suspect] = dots(normal[suspect], S.normals_in()[at]) < 0
+        across = suspect[~out[suspect]]
+        if len(across):
+            _, nearest = S.of_input(input_distance)(P[across].mean(axis=1))
+            out[across] = dots(normal[across], S.normals_in()[nearest]) < 0
     return out
+
+
+def least_dots(S: RemeshState, normal: np.ndarray, under: np.ndarray, bary: np.ndarray
+               ) -> np.ndarray:
+    """The smallest dot product of each ``normal`` with the normals of the input faces its
+    point lies on: the input face ``under`` it and, where a barycentric coordinate is at most
+    ``ON_EDGE``, the face across that edge (one such coordinate) or every face at that vertex
+    (two).
+
+    Parameters
+    ----------
+    S : RemeshState
+    normal : (k, 3) float
+    under : (k,) int
+    bary : (k, 3) float
+
+    Returns
+    -------
+    (k,) float
+    """
+    N = S.normals_in()
+    out = dots(normal, N[under])
+    zero = bary <= ON_EDGE
+    count = zero.sum(axis=1)
+    twin, indptr, indices = S.of_input(input_incidence)
+    e = np.flatnonzero(count == 1)
+    if len(e):
+        across = twin[3 * under[e] + (zero[e].argmax(axis=1) + 1) % 3]
+        e, across = e[across >= 0], across[across >= 0]
+        out[e] = np.minimum(out[e], dots(normal[e], N[across // 3]))
+    v = np.flatnonzero(count >= 2)
+    if len(v):
+        corner = S.F_in[under[v], (~zero[v]).argmax(axis=1)]
+        row, f = topo.csr_rows(indptr, indices, corner)
+        np.minimum.at(out, v[row], dots(normal[v[row]], N[f]))
+    return out
+
+
+def input_incidence(S: RemeshState) -> tuple:
+    """The input's half-edge twins (3M, :func:`..topology.interior_edge_twins`) and its
+    vertex–face incidence (the CSR ``indptr``, ``indices`` of :func:`..topology.vertex_faces`):
+    what :func:`least_dots` reads, made once per input (:meth:`.state.RemeshState.of_input`)."""
+    incidence = topo.vertex_faces(S.F_in, len(S.V_in))
+    return topo.interior_edge_twins(S.F_in), incidence.indptr, incidence.indices
 
 
 def turned_over_rows(S: RemeshState, T: np.ndarray) -> np.ndarray:
     """:func:`turned_over` for faces ``T`` (k×3 vertex indices) of ``S``; k bool."""
     T = np.asarray(T, np.int64).reshape(-1, 3)
-    return turned_over(S, S.X[T], S.uv[T], S.face[T])
+    return turned_over(S, S.X[T], S.uv[T], S.face[T], S.bary[T])
 
 
 def star_grid(uv: np.ndarray, star: np.ndarray, steps: int = GRID) -> np.ndarray:
@@ -208,7 +270,8 @@ def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
                         axis=1)
 
     Pc = corners(P, S.X)
-    n_folds = turned_over(S, Pc, corners(M, S.uv), corners(mf, S.face)).reshape(j, d).sum(axis=1)
+    n_folds = turned_over(S, Pc, corners(M, S.uv), corners(mf, S.face),
+                          corners(mb, S.bary)).reshape(j, d).sum(axis=1)
     angle = triangle_min_angles(Pc[:, 0], Pc[:, 1], Pc[:, 2]).reshape(j, d).min(axis=1)
     c = np.lexsort((-angle, n_folds))[0]
     return (M[c], mf[c], mb[c], P[c]), int(n_folds[c]), float(angle[c])
