@@ -141,6 +141,7 @@ def test_join_flip_refuses_a_face_turned_over_on_the_surface():
     over (normal −z against the input's +z at its corners) and is refused, ``F`` unchanged;
     the same quad flat as on the disk flips."""
     from pipeline.geometry.remesh.features import _flip
+    from pipeline.geometry.remesh.state import turned_against
 
     x, p, q, y = 0, 1, 2, 3
     uv = np.array([[-1.0, 0.0], [0.0, -1.0], [0.0, 1.0], [1.0, 0.0]])
@@ -156,11 +157,11 @@ def test_join_flip_refuses_a_face_turned_over_on_the_surface():
     up = np.tile([0.0, 0.0, 1.0], (4, 1))
     X = np.array([[-1.0, 0.0, 0.0], [0.0, 0.2, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
     F1 = F.copy()
-    assert _flip(F1, vf(F1), uv, 0, p, q, X, up) is None
+    assert _flip(F1, vf(F1), uv, 0, p, q, lambda T: turned_against(X, T, up[T])) is None
     assert np.array_equal(F1, F)
     flat = np.column_stack([uv, np.zeros(4)])
     F2 = F.copy()
-    assert _flip(F2, vf(F2), uv, 0, p, q, flat, up) == 1
+    assert _flip(F2, vf(F2), uv, 0, p, q, lambda T: turned_against(flat, T, up[T])) == 1
     assert edge_set(F2) == {(0, 1), (0, 2), (1, 3), (2, 3), (0, 3)}
 
 

@@ -33,6 +33,7 @@ corners, those vertices are freed (:func:`release_features`).
 from __future__ import annotations
 
 from collections import defaultdict
+from functools import partial
 
 import numpy as np
 
@@ -41,7 +42,8 @@ from ..metrics import stretch_anisotropy
 from ..rows import dots, norms
 from .corners import snap_vertices
 from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
-from .state import RemeshState, at_points, face_normals, turned_against
+from .state import RemeshState, at_points, face_normals
+from .unfold import turned_over_rows
 
 FEATURE_DEG = 30.0   # input edges whose faces' normals differ by more than this are creases
 # the remesh command's default threshold: the folds that turn back (a lip's or a lid's fold, a
@@ -328,7 +330,10 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
     segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
     the disk, both new faces keep a disk shape of at least ``DISK_SHAPE_MIN`` and neither
-    turns over on the surface (:func:`_flip`); at most
+    turns over on the surface (:func:`_flip`, :func:`.unfold.turned_over` with ``ties``: the
+    feature points lie on the input's creases, where the input face the map puts a point in
+    is one of two turned against each other, and a flip across a fold narrower than the remesh
+    makes a face over one side on the disk turned against the other in 3D); at most
     ``max_flips`` per pair, never of a pair joined before); first the long edge of every flat
     face is flipped (:func:`_flip_thin`). Returns the pairs that are edges at the end.
 
@@ -352,8 +357,8 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
     joined = []
     uv = S.uv
-    N = S.normals_in()[S.face]
-    changed = _flip_thin(F, VF, uv, S.X, N, done)
+    turned = partial(turned_over_rows, S, ties=True)
+    changed = _flip_thin(F, VF, uv, S.X, turned, done)
     for a, b in pairs.tolist():
         for _ in range(max_flips + 1):
             if VF[a] & VF[b]:
@@ -362,7 +367,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
                 break
             hits = [h for h in _crossed_edges(F, VF, uv, a, b)
                     if (min(h[1:]), max(h[1:])) not in done]
-            if not any(_flip(F, VF, uv, *h, X=S.X, N=N) is not None for h in hits):
+            if not any(_flip(F, VF, uv, *h, turned=turned) is not None for h in hits):
                 break
             changed = True
     if changed:
@@ -370,7 +375,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     return np.asarray(joined, np.int64).reshape(-1, 2)
 
 
-def _flip_thin(F, VF, uv, X, N, done, passes: int = 3) -> bool:
+def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
     """Flip the longest edge of every face of ``F`` flat on the surface (twice its area at most
     ``FLAT × `` its longest edge squared) or thinner than ``DISK_SHAPE_MIN`` on the disk —
     feature points snapped onto one straight crease — where :func:`_flip` allows it and the
@@ -390,7 +395,7 @@ def _flip_thin(F, VF, uv, X, N, done, passes: int = 3) -> bool:
             p, q = f[(c + 1) % 3], f[(c + 2) % 3]
             if t in touched or (min(p, q), max(p, q)) in done:
                 continue
-            g = _flip(F, VF, uv, t, p, q, X=X, N=N)
+            g = _flip(F, VF, uv, t, p, q, turned=turned)
             if g is not None:
                 touched |= {t, g}
         flipped |= bool(touched)
@@ -443,13 +448,13 @@ def _cross2(u, v) -> float:
     return float(u[0] * v[1] - u[1] * v[0])
 
 
-def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
+def _flip(F, VF, uv, t, p, q, turned) -> int | None:
     """Flip the edge ``p–q`` of face ``t`` (``[x, p, q]`` counter-clockwise) if its quad is
     strictly convex and the new faces are not thinner than ``DISK_SHAPE_MIN`` on the disk and
-    neither turns over on the surface (its normal on ``X``, n×3, against the input normals
-    ``N``, n×3, under all three of its corners: :func:`.state.turned_against`)
-    (``F`` and the vertex → faces sets ``VF`` updated); the face across, rewritten too, or None
-    where no flip is made."""
+    neither turns over on the surface (``turned``: the new faces, 2×3 vertex indices → 2 bool;
+    :func:`join_edges` passes :func:`.unfold.turned_over_rows` judging a corner on an input
+    edge or vertex against every input face there) (``F`` and the vertex → faces sets ``VF``
+    updated); the face across, rewritten too, or None where no flip is made."""
     g = next((s for s in VF[p] & VF[q] if s != t), None)
     if g is None:
         return None
@@ -459,7 +464,7 @@ def _flip(F, VF, uv, t, p, q, X, N) -> int | None:
     new = np.array([[x, p, y], [x, y, q]])
     if not (disk_shape(uv, new) >= DISK_SHAPE_MIN).all():
         return None
-    if turned_against(X, new, N[new]).any():
+    if turned(new).any():
         return None
     F[t], F[g] = new
     for v in (x, p, q, y):

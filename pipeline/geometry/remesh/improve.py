@@ -1077,10 +1077,11 @@ def turned_from_nearest(S: RemeshState, faces: np.ndarray) -> np.ndarray:
 
 def turned_over_faces(S: RemeshState, faces: np.ndarray | None = None) -> np.ndarray:
     """The faces (indices) of ``S`` whose surface normal points against the input's at each of
-    their corners (the normal of the input face each corner lies in) and where their domain
-    centroid lies in the input map: folds, where the remesh doubles back over the surface (the
-    definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found through
-    the map instead of by closest point); given ``faces`` (k indices), those among them."""
+    their corners (the normal of the input face each corner lies in) and at their centroid:
+    folds, where the remesh doubles back over the surface (:func:`.unfold.turned_over`: the
+    definition of :func:`..remesh_quality.turned_over_faces`, with the input faces found
+    through the map, and for a centroid whose domain position passes also by closest point);
+    given ``faces`` (k indices), those among them."""
     faces = np.arange(len(S.F)) if faces is None else np.asarray(faces)
     return faces[turned_over_rows(S, S.F[faces])]
 
