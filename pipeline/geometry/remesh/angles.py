@@ -213,7 +213,7 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
-                     faces: np.ndarray) -> int:
+                     faces: np.ndarray, memo: dict | None = None) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -228,6 +228,14 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     faces : (k,) int
         The faces to start from (those below ``min_angle_deg``:
         :func:`.improve.skinny_faces`; others are passed over).
+    memo : dict, optional
+        The answers of earlier judgements, added to here: ``{surroundings: option}``, the
+        :meth:`_Patch.surroundings` of a face judged and the index of its best option in
+        :meth:`_Patch.options`, or None where none helped. A face whose surroundings are in
+        it is not judged again (its options are a function of them alone): only that option
+        is made again, or it is passed over. The minimum-angle pass's rounds undo and redo
+        the same changes, and the faces at forced corners stay as they were, so most of
+        them are judged once instead of in every round.
 
     Returns
     -------
@@ -235,7 +243,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol)
+    patch = _Patch(S, faces, tol, memo)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -251,8 +259,10 @@ class _Patch:
     Moves are written to ``S`` at once (positions only); faces and removals at the end
     (:meth:`write_back`)."""
 
-    def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None):
+    def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
+                 memo: dict | None = None):
         self.S, self.tol = S, tol
+        self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
         inner = np.zeros(S.n, bool)
@@ -364,10 +374,7 @@ class _Patch:
                 continue
             if self.min_angle([self.faces[t]]) != worst:
                 continue                       # changed since: pushed again with its new value
-            best = None
-            for op in self.options(t):
-                if op is not None and (best is None or op[0] > best[0]):
-                    best = op
+            best = self.best_option(t)
             if best is None or best[0] <= worst:
                 continue
             new_faces = best[1]()
@@ -381,17 +388,63 @@ class _Patch:
                         heapq.heappush(heap, (a, f))
         return done
 
-    def options(self, t):
-        """The candidate operations at face ``t``: ``(smallest angle after, commit)`` or None
-        where one is not allowed."""
+    def best_option(self, t):
+        """The option of :meth:`options` at face ``t`` that raises the smallest angle most
+        (the first of equals), as ``(smallest angle after, commit)``, or None. With a memo,
+        the surroundings of ``t`` judged before give the answer found then (which option, or
+        none), and only that option is made again."""
+        options = self.options(t)
+        key = None if self.memo is None else self.surroundings(t)
+        if key is not None and key in self.memo:
+            i = self.memo[key]
+            return None if i is None else options[i]()
+        best = self._best(options)
+        if key is not None:
+            self.memo[key] = None if best is None else best[1]
+        return None if best is None else best[0]
+
+    @staticmethod
+    def _best(options):
+        """``(op, index)`` of the best option or None."""
+        best = None
+        for i, option in enumerate(options):
+            op = option()
+            if op is not None and (best is None or op[0] > best[0][0]):
+                best = (op, i)
+        return best
+
+    def surroundings(self, t) -> tuple:
+        """Everything :meth:`options` at face ``t`` reads, as a hashable value: the faces at
+        its corners and at their inner neighbours (in local labels: their vertices in index
+        order, which the edits of ``S`` keep), those vertices' positions on the surface and
+        the domain, input faces and barycentrics, and whether each is locked, on the rim and
+        inner; ``t``'s corners in its order, which of its edges are kept ones
+        (``S.joined``), the threshold and the tolerance. Equal surroundings give equal
+        options."""
+        S, f = self.S, self.faces[t]
+        around = set(f).union(*(self.ring(v) for v in f))
+        ids = {u for v in around if self.inner[v] for u in self.vf[v]}
+        verts = sorted(set(f).union(*(self.faces[u] for u in ids)))
+        label = {v: i for i, v in enumerate(verts)}
+        tris = sorted(_rotate_to(g, min(g)) for g in
+                      ([label[w] for w in self.faces[u]] for u in ids))
+        V = np.asarray(verts, np.int64)
+        values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
+                                  S.is_rim[V], self.inner[V]]).astype(np.float64)
+        joined = S.is_joined(np.asarray(f, np.int64), np.roll(np.asarray(f, np.int64), -1))
+        return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
+                joined.tobytes(), self.threshold, self.tol)
+
+    def options(self, t) -> list:
+        """The candidate operations at face ``t``, each a function that returns ``(smallest
+        angle after, commit)`` or None where it is not allowed: the flip of each edge and its
+        collapses either way, then the moves of the corners."""
         f = self.faces[t]
-        for i in range(3):
-            a, b = f[i], f[(i + 1) % 3]
-            yield self.flip(a, b)
-            yield self.collapse(a, b)
-            yield self.collapse(b, a)
-        for v in f:
-            yield self.move(v)
+        edges = [(f[i], f[(i + 1) % 3]) for i in range(3)]
+        return [op for a, b in edges for op in (partial(self.flip, a, b),
+                                                partial(self.collapse, a, b),
+                                                partial(self.collapse, b, a))] + \
+            [partial(self.move, v) for v in f]
 
     def flip(self, a, b):
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
@@ -489,8 +542,10 @@ class _Patch:
         if self.no_move.get(v) == self.version[v]:
             return None                        # refused, and nothing around it changed since
         self.no_move[v] = self.version[v]
-        ids = list(self.vf[v])
-        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)   # v first
+        # v first, in the order of the next corners (the set's order would change the sums
+        # below in the last bit, and the outcome with it, from one patch to the next)
+        ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
+        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
         before = self.min_angle(star)
         X = S.X
         B, C = X[star[:, 1]], X[star[:, 2]]
