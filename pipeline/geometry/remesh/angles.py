@@ -85,7 +85,14 @@ def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.nd
     """
     k = len(P0)
     P = np.ascontiguousarray(np.stack([P0, P1, P2], axis=1).reshape(3 * k, 3), dtype=np.float64)
-    cos = corner_cosines(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3)).max(axis=1)
+    return face_min_angles(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3))
+
+
+def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
+    float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
+    gathering them first."""
+    cos = corner_cosines(X, T).max(axis=1)
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
@@ -278,6 +285,7 @@ class _Patch:
         self.removed = np.zeros(S.n, bool)
         self.start = [int(t) for t in start]
         self.boundary = None                  # the input's boundary vertices, when first asked
+        self.joined = None                    # S.joined as a set of pairs, when first asked
         self.threshold = 0.0                  # the minimum angle (degrees), set by :meth:`run`
         # a vertex's version counts the operations that changed a face at it (or moved a
         # neighbour); a move refused at a version is refused again until it changes
@@ -288,9 +296,8 @@ class _Patch:
 
     def face_min_angles(self, tris) -> np.ndarray:
         """The smallest 3D angle (degrees) of each face of ``tris`` (lists of 3 vertices)."""
-        T = np.asarray(tris, dtype=np.int64)
-        X = self.S.X
-        return triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
+        return face_min_angles(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                               np.asarray(tris, dtype=np.int64).reshape(-1, 3))
 
     def min_angle(self, tris) -> float:
         """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices)."""
@@ -354,6 +361,13 @@ class _Patch:
     def ring(self, v) -> set:
         """The neighbours of ``v``."""
         return {w for t in self.vf[v] for w in self.faces[t] if w != v}
+
+    def is_joined(self, a, b) -> bool:
+        """Whether ``a–b`` is a kept edge (``S.joined``, which the patch does not change),
+        :meth:`.state.RemeshState.is_joined` of one edge."""
+        if self.joined is None:
+            self.joined = {(min(p, q), max(p, q)) for p, q in self.S.joined.tolist()}
+        return (min(a, b), max(a, b)) in self.joined
 
     def edge_faces(self, a, b) -> list:
         """The patch faces with the edge ``a–b``."""
@@ -431,9 +445,9 @@ class _Patch:
         V = np.asarray(verts, np.int64)
         values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
                                   S.is_rim[V], self.inner[V]]).astype(np.float64)
-        joined = S.is_joined(np.asarray(f, np.int64), np.roll(np.asarray(f, np.int64), -1))
+        joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
-                joined.tobytes(), self.threshold, self.tol)
+                joined, self.threshold, self.tol)
 
     def options(self, t) -> list:
         """The candidate operations at face ``t``, each a function that returns ``(smallest
@@ -451,7 +465,7 @@ class _Patch:
         edge, ``S.joined``)."""
         S = self.S
         tf = self.edge_faces(a, b)
-        if len(tf) != 2 or not all(self.inner[[a, b]]) or S.is_joined([a], [b])[0]:
+        if len(tf) != 2 or not all(self.inner[[a, b]]) or self.is_joined(a, b):
             return None
         f, g = (self.faces[t] for t in tf)
         p = next(v for v in f if v not in (a, b))
@@ -523,7 +537,7 @@ class _Patch:
         if x is None or not self.inner[x]:
             return False
         if self.boundary is None:
-            self.boundary = _BoundaryCorners(self.S)
+            self.boundary = self.S.of_input(_BoundaryCorners)
         X = self.S.X
         P = self.boundary.between(self.S.uv[[k, r, x]])
         new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
@@ -628,11 +642,22 @@ class _BoundaryCorners:
         self.X = lift(S.V_in, S.F_in, f, bary)
         self.s = arc_parameters(S.polygon, S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
+        self.arcs = {}                        # arc_parameters of the rim points asked
+
+    def arc(self, uv: np.ndarray) -> list:
+        """:func:`.sampling.arc_parameters` of the rim points ``uv`` (k×2), each computed
+        once (a rim vertex does not move)."""
+        keys = [p.tobytes() for p in uv]
+        new = [i for i, key in enumerate(keys) if key not in self.arcs]
+        if new:
+            for i, s in zip(new, arc_parameters(self.polygon, uv[new])):
+                self.arcs[keys[i]] = s
+        return [self.arcs[key] for key in keys]
 
     def between(self, uv: np.ndarray) -> np.ndarray:
         """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
         points, 3×2) that passes through ``uv[1]``."""
-        sa, sv, sb = arc_parameters(self.polygon, uv)
+        sa, sv, sb = self.arc(uv)
         span = (sb - sa) % self.length
         if (sv - sa) % self.length > span:
             sa, span = sb, (sa - sb) % self.length
