@@ -575,14 +575,19 @@ class _Patch:
         J = S.pullback()[S.face[v]]
         h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
         M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
-        mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
-        P = lift(S.V_in, S.F_in, mf, mb)
-        d = len(star)
-        each = triangle_min_angles(np.repeat(P, d, axis=0), np.tile(B, (len(M), 1)),
-                                   np.tile(C, (len(M), 1))).reshape(len(M), d)
-        score = each.min(axis=1)
+        # only the candidates that keep the star's shape on the domain are located and lifted
+        score = np.full(len(M), -1.0)
+        ok = np.flatnonzero(star_shapes_ok(S.uv, M, star[:, 1:]))
+        mf = np.full(len(M), S.face[v])
+        mb = np.zeros((len(M), 3))
+        P = np.zeros((len(M), 3))
+        mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
+        P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
+        d, k = len(star), len(ok)
+        each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
+                                   np.tile(C, (k, 1))).reshape(k, d)
         more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
-        score[~inside | more_below | ~star_shapes_ok(S.uv, M, star[:, 1:])] = -1.0
+        score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
             if score[j] <= before:
