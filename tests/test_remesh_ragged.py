@@ -157,11 +157,11 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     judge = angles._Patch.best_option
     seen, judged = [], []
 
-    def counted(patch, t):
+    def counted(patch, t, floor):
         key = patch.surroundings(t)
         seen.append(key)
         judged.append(patch.memo is None or key not in patch.memo)
-        return judge(patch, t)
+        return judge(patch, t, floor)
 
     monkeypatch.setattr(angles._Patch, "best_option", counted)
     with_memo = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))

@@ -388,7 +388,7 @@ class _Patch:
                 continue
             if self.min_angle([self.faces[t]]) != worst:
                 continue                       # changed since: pushed again with its new value
-            best = self.best_option(t)
+            best = self.best_option(t, worst)
             if best is None or best[0] <= worst:
                 continue
             new_faces = best[1]()
@@ -402,29 +402,32 @@ class _Patch:
                         heapq.heappush(heap, (a, f))
         return done
 
-    def best_option(self, t):
+    def best_option(self, t, floor: float):
         """The option of :meth:`options` at face ``t`` that raises the smallest angle most
-        (the first of equals), as ``(smallest angle after, commit)``, or None. With a memo,
-        the surroundings of ``t`` judged before give the answer found then (which option, or
+        (the first of equals), as ``(smallest angle after, commit)``, or None where none
+        raises it above ``floor`` (``t``'s own smallest angle: no gain). With a memo, the
+        surroundings of ``t`` judged before give the answer found then (which option, or
         none), and only that option is made again."""
         options = self.options(t)
         key = None if self.memo is None else self.surroundings(t)
         if key is not None and key in self.memo:
             i = self.memo[key]
-            return None if i is None else options[i]()
-        best = self._best(options)
+            return None if i is None else options[i](floor)
+        best = self._best(options, floor)
         if key is not None:
             self.memo[key] = None if best is None else best[1]
         return None if best is None else best[0]
 
     @staticmethod
-    def _best(options):
-        """``(op, index)`` of the best option or None."""
+    def _best(options, floor: float):
+        """``(op, index)`` of the first option with the largest smallest angle after it,
+        above ``floor``, or None; each option is asked only for one above the best so far
+        (the guards of those that cannot win are not evaluated)."""
         best = None
         for i, option in enumerate(options):
-            op = option()
-            if op is not None and (best is None or op[0] > best[0][0]):
-                best = (op, i)
+            op = option(floor)
+            if op is not None:
+                best, floor = (op, i), op[0]
         return best
 
     def surroundings(self, t) -> tuple:
@@ -450,9 +453,10 @@ class _Patch:
                 joined, self.threshold, self.tol)
 
     def options(self, t) -> list:
-        """The candidate operations at face ``t``, each a function that returns ``(smallest
-        angle after, commit)`` or None where it is not allowed: the flip of each edge and its
-        collapses either way, then the moves of the corners."""
+        """The candidate operations at face ``t``, each a function of a ``floor`` that returns
+        ``(smallest angle after, commit)``, or None where it is not allowed or the smallest
+        angle after it is not above the floor: the flip of each edge and its collapses either
+        way, then the moves of the corners."""
         f = self.faces[t]
         edges = [(f[i], f[(i + 1) % 3]) for i in range(3)]
         return [op for a, b in edges for op in (partial(self.flip, a, b),
@@ -460,7 +464,7 @@ class _Patch:
                                                 partial(self.collapse, b, a))] + \
             [partial(self.move, v) for v in f]
 
-    def flip(self, a, b):
+    def flip(self, a, b, floor: float = -np.inf):
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
         edge, ``S.joined``)."""
         S = self.S
@@ -479,7 +483,7 @@ class _Patch:
         new = [[a, q, p], [q, b, p]]
         old = [f, g]
         after = self.better(old, new)
-        if after is None or not self.shapes_ok(new):
+        if after is None or after <= floor or not self.shapes_ok(new):
             return None
         if not self.same_side(old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
             return None
@@ -488,7 +492,7 @@ class _Patch:
             return self.replace(tf, new)
         return after, commit
 
-    def collapse(self, r, k):
+    def collapse(self, r, k, floor: float = -np.inf):
         """Collapse ``r`` into ``k``: ``r`` free (not locked; on the rim only along a rim edge,
         under :meth:`rim_chord_ok`); the link condition; the guards of the module
         docstring."""
@@ -508,7 +512,7 @@ class _Patch:
         if not new:
             return None
         after = self.better(old, new)
-        if after is None or not self.shapes_ok(new):
+        if after is None or after <= floor or not self.shapes_ok(new):
             return None
         if not self.same_side([self.faces[t] for t in kept], new):
             return None
@@ -545,11 +549,11 @@ class _Patch:
                                                   for w in pair)) for pair in ((k, r), (r, x))))
         return bool(new.max(initial=0.0) <= max(RIM_TOL * self.tol, old.max(initial=0.0)))
 
-    def move(self, v):
+    def move(self, v, floor: float = -np.inf):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
         raises the smallest angle of its star most, under the guards: the three best of those
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
-        tried."""
+        tried, those not above ``floor`` not (a refusal for the floor is not remembered)."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -590,7 +594,9 @@ class _Patch:
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
-            if score[j] <= before:
+            if score[j] <= max(before, floor):
+                if score[j] > before:          # refused for the floor: not for good
+                    del self.no_move[v]
                 break
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
