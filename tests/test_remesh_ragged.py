@@ -135,3 +135,42 @@ def test_a_ragged_rim_remesh_keeps_no_fold_and_at_most_one_face_below_the_minimu
     assert is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] <= 1
+
+
+@pytest.mark.timeout(120)
+def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothing(monkeypatch):
+    """The ragged paraboloid on a 50×50 grid (seed 3, 3 passes dropping a quarter of the rim
+    faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,
+    so every tooth of the rim is a corner (86 snapped) and the minimum-angle pass works
+    around them in round after round. Without the memo of :func:`.angles.raise_min_angles`
+    it judges 236 faces, 57 of them in surroundings judged before; with it, each of the
+    179 surroundings once, and the remesh is the same bit for bit."""
+    from pipeline.geometry.remesh import angles, improve
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=50, seed=3, passes=3, drop=0.25)
+    mesh = repair_mesh(V, F)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    judge = angles._Patch.best_option
+    seen, judged = [], []
+
+    def counted(patch, t, floor):
+        key = patch.surroundings(t)
+        seen.append(key)
+        judged.append(patch.memo is None or key not in patch.memo)
+        return judge(patch, t, floor)
+
+    monkeypatch.setattr(angles._Patch, "best_option", counted)
+    with_memo = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    assert with_memo.info["improve"]["rim_corners_snapped"] == 86
+    assert sum(judged) == len(set(seen)) == 179 and len(seen) == 236
+    raise_min_angles = improve.raise_min_angles
+    monkeypatch.setattr(improve, "raise_min_angles",
+                        lambda S, m, tol, faces, memo=None: raise_min_angles(S, m, tol, faces))
+    seen.clear(), judged.clear()
+    without = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    assert sum(judged) == len(seen) == 236 and len(set(seen)) == 179
+    assert np.array_equal(without.V, with_memo.V) and np.array_equal(without.F, with_memo.F)

@@ -111,21 +111,22 @@ def _boundary_segments(F: np.ndarray, n: int, boundary: np.ndarray | None):
 
 def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
     """For every point, the closest segment ``(A[s], B[s])``, the parameter ``t`` ∈ [0, 1] of
-    the closest point ``A + t (B − A)`` and that point.
+    the closest point ``A + t (B − A)`` and that point (:meth:`Segments.closest`)."""
+    return Segments(A, B).closest(points)
 
-    Candidates are the segments with the ``K`` nearest midpoints (a KD-tree); the answer is
-    exact when the K-th midpoint is farther than the best distance plus the longest half
-    segment (no other segment can then be closer). The points the first ``K = 8`` do not
-    settle try the ``REDO_CANDIDATES`` nearest, in index order (a tie goes to the lowest
-    index, as in a brute force); the few still left are done by brute force."""
-    from scipy.spatial import cKDTree
 
-    P = np.asarray(points, dtype=np.float64)
-    k = len(P)
-    D = B - A
-    L2 = np.maximum(np.einsum("ij,ij->i", D, D), 1e-300)
+class Segments:
+    """Segments ``(A[s], B[s])`` (k×d each) asked for the closest one to points, again and
+    again: their midpoints' KD-tree is built once, at the first question."""
 
-    def exact(P, S):                                   # S: (b, j) candidate segments per point
+    def __init__(self, A: np.ndarray, B: np.ndarray):
+        self.A, self.D = A, B - A
+        self.L2 = np.maximum(np.einsum("ij,ij->i", self.D, self.D), 1e-300)
+        self.mid = 0.5 * (A + B)
+        self.tree = None
+
+    def _exact(self, P, S):                            # S: (b, j) candidate segments per point
+        A, D, L2 = self.A, self.D, self.L2
         rel = P[:, None, :] - A[S]
         tt = np.clip(np.einsum("bsj,bsj->bs", rel, D[S]) / L2[S], 0.0, 1.0)
         d2 = ((rel - tt[..., None] * D[S]) ** 2).sum(axis=2)
@@ -133,32 +134,48 @@ def _closest_on_segments(points: np.ndarray, A: np.ndarray, B: np.ndarray):
         r = np.arange(len(P))
         return S[r, j], tt[r, j], d2[r, j]
 
-    seg = np.empty(k, np.int64)
-    t = np.empty(k)
-    K = min(8, len(A))
-    if k:
-        tree = cKDTree(0.5 * (A + B))              # the segments' midpoints
-        dm, S = tree.query(P, k=K)
-        S = S.reshape(k, K)
-        dm = dm.reshape(k, K)
-        seg[:], t[:], d2 = exact(P, S)
-        half = 0.5 * np.sqrt(L2.max())
-        redo = np.flatnonzero((K < len(A)) & (dm[:, -1] <= np.sqrt(d2) + half))
-        K2 = min(REDO_CANDIDATES, len(A))
-        if len(redo) and K2 > K:
-            # more candidates, in index order so that a tie goes to the lowest index as in
-            # the brute force
-            dm2, S2 = tree.query(P[redo], k=K2)
-            sure = (K2 == len(A)) | (dm2[:, -1] > np.sqrt(d2[redo]) + half)
-            r = redo[sure]
-            seg[r], t[r], _ = exact(P[r], np.sort(S2[sure], axis=1))
-            redo = redo[~sure]
-        block = max(1, 4_000_000 // max(len(A), 1))
-        allseg = np.arange(len(A))
-        for lo in range(0, len(redo), block):
-            r = redo[lo:lo + block]
-            seg[r], t[r], _ = exact(P[r], np.broadcast_to(allseg, (len(r), len(A))))
-    return seg, t, A[seg] + t[:, None] * D[seg]
+    def closest(self, points: np.ndarray):
+        """For every point, the closest segment, the parameter ``t`` ∈ [0, 1] of the closest
+        point ``A + t (B − A)`` and that point.
+
+        Candidates are the segments with the ``K`` nearest midpoints (a KD-tree); the answer
+        is exact when the K-th midpoint is farther than the best distance plus the longest
+        half segment (no other segment can then be closer). The points the first ``K = 8``
+        do not settle try the ``REDO_CANDIDATES`` nearest, in index order (a tie goes to the
+        lowest index, as in a brute force); the few still left are done by brute force."""
+        from scipy.spatial import cKDTree
+
+        A, D, L2, exact = self.A, self.D, self.L2, self._exact
+        P = np.asarray(points, dtype=np.float64)
+        k = len(P)
+        seg = np.empty(k, np.int64)
+        t = np.empty(k)
+        K = min(8, len(A))
+        if k:
+            if self.tree is None:
+                self.tree = cKDTree(self.mid)          # the segments' midpoints
+            tree = self.tree
+            dm, S = tree.query(P, k=K)
+            S = S.reshape(k, K)
+            dm = dm.reshape(k, K)
+            seg[:], t[:], d2 = exact(P, S)
+            half = 0.5 * np.sqrt(L2.max())
+            redo = np.flatnonzero((K < len(A)) & (dm[:, -1] <= np.sqrt(d2) + half))
+            K2 = min(REDO_CANDIDATES, len(A))
+            if len(redo) and K2 > K:
+                # more candidates, in index order so that a tie goes to the lowest index as
+                # in the brute force
+                dm2, S2 = tree.query(P[redo], k=K2)
+                sure = (K2 == len(A)) | (dm2[:, -1] > np.sqrt(d2[redo]) + half)
+                r = redo[sure]
+                seg[r], t[r], _ = exact(P[r], np.sort(S2[sure], axis=1))
+                redo = redo[~sure]
+            block = max(1, 4_000_000 // max(len(A), 1))
+            allseg = np.arange(len(A))
+            for lo in range(0, len(redo), block):
+                r = redo[lo:lo + block]
+                seg[r], t[r], _ = exact(P[r], np.broadcast_to(allseg, (len(r), len(A))))
+        return seg, t, A[seg] + t[:, None] * D[seg]
 
 
 def project_to_boundary_polygon(uv: np.ndarray, boundary: np.ndarray, points: np.ndarray
@@ -224,6 +241,7 @@ class PointLocator:
         self.seg_ca, self.seg_cb = sca, scb
         self._twin = None                    # half-edge twins, for relocate's walk
         self._tree = None                    # nearest image vertex, for large batches
+        self._boundary = None                # the boundary's Segments, for _on_boundary
 
     def _cell_xy(self, P: np.ndarray) -> np.ndarray:
         ij = np.floor((P - self.origin) / self.cell).astype(np.int64)
@@ -340,7 +358,9 @@ class PointLocator:
 
     def _on_boundary(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Faces and barycentrics of the closest points of the boundary polygon to ``P``."""
-        seg, t, _ = _closest_on_segments(P, self.uv[self.seg_a], self.uv[self.seg_b])
+        if self._boundary is None:
+            self._boundary = Segments(self.uv[self.seg_a], self.uv[self.seg_b])
+        seg, t, _ = self._boundary.closest(P)
         face = self.seg_face[seg]
         bary = np.zeros((len(P), 3))
         rows = np.arange(len(P))

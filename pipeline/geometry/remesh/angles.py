@@ -85,7 +85,14 @@ def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.nd
     """
     k = len(P0)
     P = np.ascontiguousarray(np.stack([P0, P1, P2], axis=1).reshape(3 * k, 3), dtype=np.float64)
-    cos = corner_cosines(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3)).max(axis=1)
+    return face_min_angles(P, np.arange(3 * k, dtype=np.int64).reshape(k, 3))
+
+
+def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
+    float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
+    gathering them first."""
+    cos = corner_cosines(X, T).max(axis=1)
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
@@ -213,7 +220,7 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
-                     faces: np.ndarray) -> int:
+                     faces: np.ndarray, memo: dict | None = None) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -228,6 +235,14 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     faces : (k,) int
         The faces to start from (those below ``min_angle_deg``:
         :func:`.improve.skinny_faces`; others are passed over).
+    memo : dict, optional
+        The answers of earlier judgements, added to here: ``{surroundings: option}``, the
+        :meth:`_Patch.surroundings` of a face judged and the index of its best option in
+        :meth:`_Patch.options`, or None where none helped. A face whose surroundings are in
+        it is not judged again (its options are a function of them alone): only that option
+        is made again, or it is passed over. The minimum-angle pass's rounds undo and redo
+        the same changes, and the faces at forced corners stay as they were, so most of
+        them are judged once instead of in every round.
 
     Returns
     -------
@@ -235,7 +250,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol)
+    patch = _Patch(S, faces, tol, memo)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -251,8 +266,10 @@ class _Patch:
     Moves are written to ``S`` at once (positions only); faces and removals at the end
     (:meth:`write_back`)."""
 
-    def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None):
+    def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
+                 memo: dict | None = None):
         self.S, self.tol = S, tol
+        self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
         inner = np.zeros(S.n, bool)
@@ -268,6 +285,7 @@ class _Patch:
         self.removed = np.zeros(S.n, bool)
         self.start = [int(t) for t in start]
         self.boundary = None                  # the input's boundary vertices, when first asked
+        self.joined = None                    # S.joined as a set of pairs, when first asked
         self.threshold = 0.0                  # the minimum angle (degrees), set by :meth:`run`
         # a vertex's version counts the operations that changed a face at it (or moved a
         # neighbour); a move refused at a version is refused again until it changes
@@ -278,9 +296,8 @@ class _Patch:
 
     def face_min_angles(self, tris) -> np.ndarray:
         """The smallest 3D angle (degrees) of each face of ``tris`` (lists of 3 vertices)."""
-        T = np.asarray(tris, dtype=np.int64)
-        X = self.S.X
-        return triangle_min_angles(X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
+        return face_min_angles(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                               np.asarray(tris, dtype=np.int64).reshape(-1, 3))
 
     def min_angle(self, tris) -> float:
         """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices)."""
@@ -345,6 +362,13 @@ class _Patch:
         """The neighbours of ``v``."""
         return {w for t in self.vf[v] for w in self.faces[t] if w != v}
 
+    def is_joined(self, a, b) -> bool:
+        """Whether ``a–b`` is a kept edge (``S.joined``, which the patch does not change),
+        :meth:`.state.RemeshState.is_joined` of one edge."""
+        if self.joined is None:
+            self.joined = {(min(p, q), max(p, q)) for p, q in self.S.joined.tolist()}
+        return (min(a, b), max(a, b)) in self.joined
+
     def edge_faces(self, a, b) -> list:
         """The patch faces with the edge ``a–b``."""
         return list(self.vf[a] & self.vf[b])
@@ -364,10 +388,7 @@ class _Patch:
                 continue
             if self.min_angle([self.faces[t]]) != worst:
                 continue                       # changed since: pushed again with its new value
-            best = None
-            for op in self.options(t):
-                if op is not None and (best is None or op[0] > best[0]):
-                    best = op
+            best = self.best_option(t, worst)
             if best is None or best[0] <= worst:
                 continue
             new_faces = best[1]()
@@ -381,24 +402,74 @@ class _Patch:
                         heapq.heappush(heap, (a, f))
         return done
 
-    def options(self, t):
-        """The candidate operations at face ``t``: ``(smallest angle after, commit)`` or None
-        where one is not allowed."""
-        f = self.faces[t]
-        for i in range(3):
-            a, b = f[i], f[(i + 1) % 3]
-            yield self.flip(a, b)
-            yield self.collapse(a, b)
-            yield self.collapse(b, a)
-        for v in f:
-            yield self.move(v)
+    def best_option(self, t, floor: float):
+        """The option of :meth:`options` at face ``t`` that raises the smallest angle most
+        (the first of equals), as ``(smallest angle after, commit)``, or None where none
+        raises it above ``floor`` (``t``'s own smallest angle: no gain). With a memo, the
+        surroundings of ``t`` judged before give the answer found then (which option, or
+        none), and only that option is made again."""
+        options = self.options(t)
+        key = None if self.memo is None else self.surroundings(t)
+        if key is not None and key in self.memo:
+            i = self.memo[key]
+            return None if i is None else options[i](floor)
+        best = self._best(options, floor)
+        if key is not None:
+            self.memo[key] = None if best is None else best[1]
+        return None if best is None else best[0]
 
-    def flip(self, a, b):
+    @staticmethod
+    def _best(options, floor: float):
+        """``(op, index)`` of the first option with the largest smallest angle after it,
+        above ``floor``, or None; each option is asked only for one above the best so far
+        (the guards of those that cannot win are not evaluated)."""
+        best = None
+        for i, option in enumerate(options):
+            op = option(floor)
+            if op is not None:
+                best, floor = (op, i), op[0]
+        return best
+
+    def surroundings(self, t) -> tuple:
+        """Everything :meth:`options` at face ``t`` reads, as a hashable value: the faces at
+        its corners and at their inner neighbours (in local labels: their vertices in index
+        order, which the edits of ``S`` keep), those vertices' positions on the surface and
+        the domain, input faces and barycentrics, and whether each is locked, on the rim and
+        inner; ``t``'s corners in its order, which of its edges are kept ones
+        (``S.joined``), the threshold and the tolerance. Equal surroundings give equal
+        options."""
+        S, f = self.S, self.faces[t]
+        around = set(f).union(*(self.ring(v) for v in f))
+        ids = {u for v in around if self.inner[v] for u in self.vf[v]}
+        verts = sorted(set(f).union(*(self.faces[u] for u in ids)))
+        label = {v: i for i, v in enumerate(verts)}
+        tris = sorted(_rotate_to(g, min(g)) for g in
+                      ([label[w] for w in self.faces[u]] for u in ids))
+        V = np.asarray(verts, np.int64)
+        values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
+                                  S.is_rim[V], self.inner[V]]).astype(np.float64)
+        joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
+        return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
+                joined, self.threshold, self.tol)
+
+    def options(self, t) -> list:
+        """The candidate operations at face ``t``, each a function of a ``floor`` that returns
+        ``(smallest angle after, commit)``, or None where it is not allowed or the smallest
+        angle after it is not above the floor: the flip of each edge and its collapses either
+        way, then the moves of the corners."""
+        f = self.faces[t]
+        edges = [(f[i], f[(i + 1) % 3]) for i in range(3)]
+        return [op for a, b in edges for op in (partial(self.flip, a, b),
+                                                partial(self.collapse, a, b),
+                                                partial(self.collapse, b, a))] + \
+            [partial(self.move, v) for v in f]
+
+    def flip(self, a, b, floor: float = -np.inf):
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
         edge, ``S.joined``)."""
         S = self.S
         tf = self.edge_faces(a, b)
-        if len(tf) != 2 or not all(self.inner[[a, b]]) or S.is_joined([a], [b])[0]:
+        if len(tf) != 2 or not all(self.inner[[a, b]]) or self.is_joined(a, b):
             return None
         f, g = (self.faces[t] for t in tf)
         p = next(v for v in f if v not in (a, b))
@@ -412,7 +483,7 @@ class _Patch:
         new = [[a, q, p], [q, b, p]]
         old = [f, g]
         after = self.better(old, new)
-        if after is None or not self.shapes_ok(new):
+        if after is None or after <= floor or not self.shapes_ok(new):
             return None
         if not self.same_side(old, new) or not self.sag_ok([p], [q], self.sag([a], [b])):
             return None
@@ -421,7 +492,7 @@ class _Patch:
             return self.replace(tf, new)
         return after, commit
 
-    def collapse(self, r, k):
+    def collapse(self, r, k, floor: float = -np.inf):
         """Collapse ``r`` into ``k``: ``r`` free (not locked; on the rim only along a rim edge,
         under :meth:`rim_chord_ok`); the link condition; the guards of the module
         docstring."""
@@ -441,7 +512,7 @@ class _Patch:
         if not new:
             return None
         after = self.better(old, new)
-        if after is None or not self.shapes_ok(new):
+        if after is None or after <= floor or not self.shapes_ok(new):
             return None
         if not self.same_side([self.faces[t] for t in kept], new):
             return None
@@ -470,7 +541,7 @@ class _Patch:
         if x is None or not self.inner[x]:
             return False
         if self.boundary is None:
-            self.boundary = _BoundaryCorners(self.S)
+            self.boundary = self.S.of_input(_BoundaryCorners)
         X = self.S.X
         P = self.boundary.between(self.S.uv[[k, r, x]])
         new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
@@ -478,19 +549,21 @@ class _Patch:
                                                   for w in pair)) for pair in ((k, r), (r, x))))
         return bool(new.max(initial=0.0) <= max(RIM_TOL * self.tol, old.max(initial=0.0)))
 
-    def move(self, v):
+    def move(self, v, floor: float = -np.inf):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
         raises the smallest angle of its star most, under the guards: the three best of those
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
-        tried."""
+        tried, those not above ``floor`` not (a refusal for the floor is not remembered)."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
         if self.no_move.get(v) == self.version[v]:
             return None                        # refused, and nothing around it changed since
         self.no_move[v] = self.version[v]
-        ids = list(self.vf[v])
-        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)   # v first
+        # v first, in the order of the next corners (the set's order would change the sums
+        # below in the last bit, and the outcome with it, from one patch to the next)
+        ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
+        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
         before = self.min_angle(star)
         X = S.X
         B, C = X[star[:, 1]], X[star[:, 2]]
@@ -506,17 +579,24 @@ class _Patch:
         J = S.pullback()[S.face[v]]
         h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
         M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
-        mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
-        P = lift(S.V_in, S.F_in, mf, mb)
-        d = len(star)
-        each = triangle_min_angles(np.repeat(P, d, axis=0), np.tile(B, (len(M), 1)),
-                                   np.tile(C, (len(M), 1))).reshape(len(M), d)
-        score = each.min(axis=1)
+        # only the candidates that keep the star's shape on the domain are located and lifted
+        score = np.full(len(M), -1.0)
+        ok = np.flatnonzero(star_shapes_ok(S.uv, M, star[:, 1:]))
+        mf = np.full(len(M), S.face[v])
+        mb = np.zeros((len(M), 3))
+        P = np.zeros((len(M), 3))
+        mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
+        P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
+        d, k = len(star), len(ok)
+        each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
+                                   np.tile(C, (k, 1))).reshape(k, d)
         more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
-        score[~inside | more_below | ~star_shapes_ok(S.uv, M, star[:, 1:])] = -1.0
+        score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
-            if score[j] <= before:
+            if score[j] <= max(before, floor):
+                if score[j] > before:          # refused for the floor: not for good
+                    del self.no_move[v]
                 break
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
@@ -573,11 +653,22 @@ class _BoundaryCorners:
         self.X = lift(S.V_in, S.F_in, f, bary)
         self.s = arc_parameters(S.polygon, S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
+        self.arcs = {}                        # arc_parameters of the rim points asked
+
+    def arc(self, uv: np.ndarray) -> list:
+        """:func:`.sampling.arc_parameters` of the rim points ``uv`` (k×2), each computed
+        once (a rim vertex does not move)."""
+        keys = [p.tobytes() for p in uv]
+        new = [i for i, key in enumerate(keys) if key not in self.arcs]
+        if new:
+            for i, s in zip(new, arc_parameters(self.polygon, uv[new])):
+                self.arcs[keys[i]] = s
+        return [self.arcs[key] for key in keys]
 
     def between(self, uv: np.ndarray) -> np.ndarray:
         """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
         points, 3×2) that passes through ``uv[1]``."""
-        sa, sv, sb = arc_parameters(self.polygon, uv)
+        sa, sv, sb = self.arc(uv)
         span = (sb - sa) % self.length
         if (sv - sa) % self.length > span:
             sa, span = sb, (sa - sb) % self.length

@@ -399,6 +399,8 @@ class _Operations:
     freed: list = field(default_factory=list)   # where feature vertices were freed (k×3 each)
     folds: FaceMemo = field(default_factory=lambda: FaceMemo(turned_over_at))   # the fold
                                           # counts of the minimum-angle pass's refinements
+    judged: dict = field(default_factory=dict)   # the minimum-angle operations' answers by
+                                          # surroundings (raise_min_angles' memo)
 
     @property
     def tol(self) -> float | None:
@@ -762,7 +764,7 @@ class _Operations:
             saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
             self.release(bad)
             after = None
-            if raise_min_angles(S, min_angle_deg, scale * self.tol, bad):
+            if raise_min_angles(S, min_angle_deg, scale * self.tol, bad, self.judged):
                 if S.n < n0:
                     split_for_count(S, n0 - S.n, min_angle_deg)
                 after = unforced_below(S, min_angle_deg)
@@ -818,7 +820,7 @@ class _Operations:
         if at is not None:
             bad = bad[at[self.S.F[bad]].any(axis=1)]
         self.release(bad)
-        raise_min_angles(self.S, min_angle_deg, self.tol, bad)
+        raise_min_angles(self.S, min_angle_deg, self.tol, bad, self.judged)
 
     def open_fans(self, target: int, min_angle_deg: float) -> bool:
         """The rim's fans opened (:func:`.rim.open_rim_fans`: a vertex in the middle of the

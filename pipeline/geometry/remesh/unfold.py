@@ -251,7 +251,7 @@ class _FoldPatch(_Patch):
             t = queue.pop()
             if t not in self.faces or not self.n_folds([self.faces[t]]):
                 continue
-            best = max((op for op in self.options(t) if op is not None),
+            best = max((op for op in (option() for option in self.options(t)) if op is not None),
                        key=lambda op: op[0], default=None)
             if best is None:
                 continue
