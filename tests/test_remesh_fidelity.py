@@ -123,9 +123,10 @@ def test_uniform_remesh_follows_the_edges_of_a_coarse_crease():
     crease (127 in all) remeshed at 1200 vertices. Without ``follow_input`` every input vertex
     is within 0.14 L of the remesh but the middle of a crease edge is 0.27 L away (the remesh
     cuts across the crease between the input's vertices); with it every input point is within
-    0.19 L (0.183 L measured; 0.231 L without the last moves onto far input points, which take
-    crease edges' middles the follow step left off), with the same count, one disk, and every
-    angle still at least 20°."""
+    0.19 L (0.170 L measured at this coarse input's tolerance of 0.2 L,
+    :func:`.improve.follow_tolerance`; 0.183 L at 0.25 L, and 0.231 L at 0.25 L without the
+    last moves onto far input points, which take crease edges' middles the follow step left
+    off), with the same count, one disk, and every angle still at least 20°."""
     uv_in, F_in, V_in, loop, _ = creased_disk(3.0, rings=6, on_crease=5, clear=0.03)
     S = SimpleNamespace(V_in=V_in, F_in=F_in, uv_in=uv_in)
     far_vertex, far_point, smallest = {}, {}, {}
@@ -139,6 +140,29 @@ def test_uniform_remesh_follows_the_edges_of_a_coarse_crease():
     assert far_vertex[0.0] < 0.14 and far_point[0.0] > 0.27
     assert far_point[0.25] <= 0.19
     assert smallest[0.25] >= 20.0
+
+
+@pytest.mark.timeout(120)
+def test_a_fine_remesh_of_a_coarse_crease_follows_it_at_the_coarse_tolerance():
+    """An input coarser than its remesh: the disk creased at slope 3 (a 143° fold) with 7
+    vertices on the crease (215 in all) remeshed at 1500 vertices. The follow tolerance is
+    ``COARSE_FOLLOW`` × 0.25 = 0.2 L there (:func:`.improve.follow_tolerance`), and every input
+    point (:func:`input_points`) is within it (0.191 L measured; 0.300 L with the tolerance of
+    a finer input, 0.25 L: the minimum-angle pass takes vertices off the crease that the
+    settle step then cannot put back), with the same count, one disk, and every angle still
+    at least 20°."""
+    from pipeline.geometry.remesh.improve import COARSE_FOLLOW, follow_tolerance
+
+    uv_in, F_in, V_in, loop, _ = creased_disk(3.0, rings=8, on_crease=7, clear=0.03)
+    assert len(V_in) == 215
+    assert follow_tolerance(0.25, len(V_in), 1500) == COARSE_FOLLOW * 0.25 == 0.2
+    assert follow_tolerance(0.25, 1500, 1500) == 0.25
+    r = uniform_remesh(V_in, F_in, uv_in, loop, vertices=1500)
+    L = r.info["spacing_mesh_units"]
+    d, _ = input_point_distances(SimpleNamespace(V_in=V_in, F_in=F_in, uv_in=uv_in), r.V, r.F)
+    assert d.max() <= 0.2 * L
+    assert triangle_quality(r.V, r.F)["min_angle_deg"] >= 20.0
+    assert len(r.V) == 1500 and is_disk(mesh_facts(r.V, r.F))
 
 
 @pytest.mark.timeout(300)
