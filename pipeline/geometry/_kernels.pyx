@@ -328,6 +328,78 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
     return left_arr[:n_left]
 
 
+def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
+                         const int64_t[::1] twin, const double[:, ::1] P,
+                         const int64_t[::1] start, const int64_t[::1] todo, int walk, double tol,
+                         int64_t[::1] face, double[:, ::1] bary):
+    """:func:`walk_to_faces` on a spherical triangulation ``(S, F)`` (unit vectors, a closed
+    manifold): each direction ``P[i]`` (``i`` in ``todo``) walks from the face ``start[i]``
+    with the central-projection barycentrics of
+    :func:`pipeline.geometry.locate_sphere.sphere_barycentrics` (``det[p, b, c] = p · ((b − p)
+    × (c − p))`` and cyclically, over their sum; all ``−inf`` where the sum is not > 0), inside
+    when all are ≥ ``−tol``, else across the edge of the most negative one (the first of the
+    smallest, a non-finite one counting as ``−inf``), at most ``walk`` steps. A point found gets
+    ``face[i]`` and its barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries
+    not found."""
+    cdef Py_ssize_t idx, i, step, c, u, cmin, n_left = 0
+    cdef int64_t f, nxt
+    cdef double s, lo_val, v
+    cdef double p[3]
+    cdef double d[3][3]
+    cdef double x[3]
+    cdef double lam[3]
+    cdef bint found, ok
+    left_arr = np.empty(todo.shape[0], dtype=np.int64)
+    cdef int64_t[::1] left = left_arr
+    for idx in range(todo.shape[0]):
+        i = todo[idx]
+        f = start[i]
+        for u in range(3):
+            p[u] = P[i, u]
+        found = False
+        for step in range(walk + 1):
+            for c in range(3):
+                for u in range(3):
+                    d[c][u] = S[F[f, c], u] - p[u]
+            for c in range(3):
+                _cross(d[(c + 1) % 3][0], d[(c + 1) % 3][1], d[(c + 1) % 3][2],
+                       d[(c + 2) % 3][0], d[(c + 2) % 3][1], d[(c + 2) % 3][2], x)
+                lam[c] = _dot3(p, x)
+            s = lam[0] + lam[1] + lam[2]
+            ok = s > 0
+            if ok:
+                for c in range(3):
+                    lam[c] = lam[c] / s
+                    ok = ok and lam[c] >= -tol       # False for NaN
+            if ok:
+                for c in range(3):
+                    if lam[c] < 0.0:
+                        lam[c] = 0.0
+                s = lam[0] + lam[1] + lam[2]
+                face[i] = f
+                for c in range(3):
+                    bary[i, c] = lam[c] / s
+                found = True
+                break
+            if step == walk:
+                break
+            cmin = 0                                  # argmin, non-finite as -inf
+            if s > 0:
+                lo_val = INFINITY
+                for c in range(3):
+                    v = lam[c] if isfinite(lam[c]) else -INFINITY
+                    if v < lo_val:
+                        cmin, lo_val = c, v
+            nxt = twin[3 * f + (cmin + 1) % 3]
+            if nxt < 0:
+                break
+            f = nxt // 3
+        if not found:
+            left[n_left] = i
+            n_left += 1
+    return left_arr[:n_left]
+
+
 def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     """For every half-edge ``3 t + c`` (``F[t, c] → F[t, c+1]``), the other half-edge of its
     undirected edge when exactly two half-edges share it, else −1: half-edges bucketed by their

@@ -27,11 +27,13 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
+from ._kernels import sphere_walk_to_faces
 from .locate import TOL
 
 __all__ = ["SphereLocator", "locate_on_sphere", "sphere_barycentrics"]
 
 _WALK = 8                # walk steps of a large batch from its nearest vertex's face
+_FAR_WALK = 64           # walk steps from the nearest vertex's face of a query its hint missed
 _CHUNK = 65536           # queries per brute-force block
 
 
@@ -139,24 +141,28 @@ class SphereLocator:
         out_face = np.array(face, dtype=np.int64, copy=True).reshape(-1)
         bary = np.empty((len(P), 3))
         todo = np.arange(len(P))
-        for hint in [out_face.copy()] + ([] if face2 is None else [np.asarray(face2)]):
-            cur = np.asarray(hint, np.int64)[todo]
-            for step in range(walk + 1):
-                if len(todo) == 0:
-                    break
-                lam = self.bary(P[todo], cur)
-                low = lam.min(axis=1)
-                ok = low >= -tol
-                out_face[todo[ok]] = cur[ok]
-                bary[todo[ok]] = _clean_rows(lam[ok])
-                todo, cur, lam = todo[~ok], cur[~ok], lam[~ok]
-                if step == walk or len(todo) == 0:
-                    break
-                c = np.argmin(np.where(np.isfinite(lam), lam, -np.inf), axis=1)
-                cur = self.twin[3 * cur + (c + 1) % 3] // 3       # across the edge opposite c
+        # the walk reads a point's start face before it writes that point's face: no copy
+        for hint in [out_face] + ([] if face2 is None else [face2]):
+            if len(todo) == 0:
+                break
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P,
+                                        np.ascontiguousarray(hint, dtype=np.int64).reshape(-1),
+                                        todo, walk, tol, out_face, bary)
+        if len(todo):
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P, self._nearest_faces(P, todo),
+                                        todo, _FAR_WALK, tol, out_face, bary)
         if len(todo):
             out_face[todo], bary[todo] = self._near(P[todo], tol)
         return out_face, bary, np.ones(len(P), bool)
+
+    def _nearest_faces(self, P: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """A face at the map vertex nearest to each direction ``P[rows]``, as a start (len(P),
+        set at ``rows`` only) for a walk."""
+        start = np.zeros(len(P), np.int64)
+        unit = P[rows] / np.maximum(np.linalg.norm(P[rows], axis=1), 1e-300)[:, None]
+        _, j = self._vtree.query(unit)
+        start[rows] = self._vface[self._used[np.asarray(j, np.int64).reshape(-1)]]
+        return start
 
     def _near(self, P: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
         """Every face whose centroid is within the largest face radius of a query is tested;
