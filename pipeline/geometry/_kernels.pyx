@@ -268,6 +268,18 @@ def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const in
         w[e] = acc
 
 
+cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) noexcept nogil:
+    """The barycentrics ``lam`` (3) clamped at 0 and renormalised to sum 1, into ``bary[i]``."""
+    cdef Py_ssize_t c
+    cdef double s
+    for c in range(3):
+        if lam[c] < 0.0:
+            lam[c] = 0.0
+    s = lam[0] + lam[1] + lam[2]
+    for c in range(3):
+        bary[i, c] = lam[c] / s
+
+
 def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin,
                   const double[:, ::1] P, const int64_t[::1] start, const int64_t[::1] todo,
                   int walk, double tol, int64_t[::1] face, double[:, ::1] bary):
@@ -279,7 +291,7 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
     barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
     cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
     cdef int64_t f, nxt
-    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn, s
+    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn
     cdef double lam[3]
     cdef bint found
     left_arr = np.empty(todo.shape[0], dtype=np.int64)
@@ -307,13 +319,8 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
                     cmin = c
             mn = lam[cmin]
             if mn >= -tol:                            # False for NaN
-                for c in range(3):
-                    if lam[c] < 0.0:
-                        lam[c] = 0.0
-                s = lam[0] + lam[1] + lam[2]
                 face[i] = f
-                for c in range(3):
-                    bary[i, c] = lam[c] / s
+                _store_clean(lam, bary, i)
                 found = True
                 break
             if step == walk:
@@ -339,7 +346,8 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
     × (c − p))`` and cyclically, over their sum; all ``−inf`` where the sum is not > 0), inside
     when all are ≥ ``−tol``, else across the edge of the most negative one (the first of the
     smallest, a non-finite one counting as ``−inf``), at most ``walk`` steps. A point found gets
-    ``face[i]`` and its barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries
+    ``face[i]`` and its barycentrics clamped at 0 and renormalised; one not found gets the last
+    face its walk tested in ``face[i]`` (a start to walk on from). Returns the ``todo`` entries
     not found."""
     cdef Py_ssize_t idx, i, step, c, u, cmin, n_left = 0
     cdef int64_t f, nxt
@@ -372,13 +380,8 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
                     lam[c] = lam[c] / s
                     ok = ok and lam[c] >= -tol       # False for NaN
             if ok:
-                for c in range(3):
-                    if lam[c] < 0.0:
-                        lam[c] = 0.0
-                s = lam[0] + lam[1] + lam[2]
                 face[i] = f
-                for c in range(3):
-                    bary[i, c] = lam[c] / s
+                _store_clean(lam, bary, i)
                 found = True
                 break
             if step == walk:
@@ -395,6 +398,7 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
                 break
             f = nxt // 3
         if not found:
+            face[i] = f
             left[n_left] = i
             n_left += 1
     return left_arr[:n_left]

@@ -14,9 +14,11 @@ the surface is ``Σ_c λ_c v_{F[face, c]}``.
 
 How a batch is located (:class:`SphereLocator`): from a start face (a face at the nearest map
 vertex, a KD-tree, or a face the caller knows), each query walks across the edge of its most
-negative coordinate (vectorised over the batch); a query still unsettled after the walk tests the
-faces whose centroid lies within the largest face radius of it (a KD-tree on the face
-centroids), which always contains its face. A point on an edge or at a vertex has coordinates of
+negative coordinate (compiled, one query after the other); a query still unsettled walks on from
+where it stopped, then from a face at its nearest map vertex, and one unsettled after all that
+(a walk can circle where the triangulation is far from Delaunay) tests the faces whose centroid
+lies within the largest face radius of it (a KD-tree on the face centroids), which always
+contains its face. A point on an edge or at a vertex has coordinates of
 ±1e-17 there and is accepted with ``min λ ≥ −tol`` (then clamped to 0 and renormalised); a query
 exactly at a map vertex gets exactly ``(1, 0, 0)`` on that corner. The sphere has no outside:
 every query is located.
@@ -33,7 +35,7 @@ from .locate import TOL
 __all__ = ["SphereLocator", "locate_on_sphere", "sphere_barycentrics"]
 
 _WALK = 8                # walk steps of a large batch from its nearest vertex's face
-_FAR_WALK = 64           # walk steps from the nearest vertex's face of a query its hint missed
+_FAR_WALK = 64           # further walk steps of a query its hint's walk missed
 _CHUNK = 65536           # queries per brute-force block
 
 
@@ -135,8 +137,10 @@ class SphereLocator:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Locate directions near known faces: ``face`` (then ``face2``, if given) is tested
         first and a query outside it walks up to ``walk`` steps across the edge of its most
-        negative coordinate; the queries still unsettled are found among the faces near them
-        (module docstring). Returns ``(face, bary, inside)``, ``inside`` all True."""
+        negative coordinate; a query still unsettled walks on up to ``_FAR_WALK`` steps from
+        where it stopped, then as many from a face at its nearest map vertex, and the few left
+        are found among the faces near them (module docstring). Returns ``(face, bary,
+        inside)``, ``inside`` all True."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         out_face = np.array(face, dtype=np.int64, copy=True).reshape(-1)
         bary = np.empty((len(P), 3))
@@ -148,7 +152,10 @@ class SphereLocator:
             todo = sphere_walk_to_faces(self.S, self.F, self.twin, P,
                                         np.ascontiguousarray(hint, dtype=np.int64).reshape(-1),
                                         todo, walk, tol, out_face, bary)
-        if len(todo):
+        if len(todo):            # on from the face where each walk stopped
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P, out_face, todo, _FAR_WALK,
+                                        tol, out_face, bary)
+        if len(todo):            # from a face at the nearest map vertex
             todo = sphere_walk_to_faces(self.S, self.F, self.twin, P, self._nearest_faces(P, todo),
                                         todo, _FAR_WALK, tol, out_face, bary)
         if len(todo):
