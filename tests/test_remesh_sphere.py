@@ -164,6 +164,10 @@ def test_compiled_walk_gives_the_numpy_barycentrics_and_needs_no_face_search(mon
     def no_search(*_):
         raise AssertionError("face search reached")
 
+    # the search itself (the last resort of a walk that circles) finds the same faces
+    f_near, b_near = loc._near(P, 1e-10)
+    face, bary, _ = loc.relocate(P, far, walk=2)
+    assert np.array_equal(f_near, face) and np.allclose(b_near, bary, rtol=0, atol=1e-15)
     monkeypatch.setattr(SphereLocator, "_near", no_search)
     face, bary, _ = loc.relocate(P, far, walk=2)
     lam = sphere_barycentrics(P, *(S[F[face, c]] for c in range(3)))

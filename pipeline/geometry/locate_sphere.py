@@ -101,11 +101,20 @@ class SphereLocator:
         self._used = np.flatnonzero(vface >= 0)
         self._vface = vface
         self._vtree = cKDTree(self.S[self._used])
-        T = self.S[self.F]
-        c = T.mean(axis=1)
-        c /= np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
-        self._ftree = cKDTree(c)
-        self._radius = float(np.linalg.norm(T - c[:, None, :], axis=2).max()) * (1 + 1e-9) + 1e-12
+        self._faces = None        # (k-d tree on the face centroids, largest face radius)
+
+    def _face_tree(self):
+        """The k-d tree on the faces' centroid directions and the largest face radius, built
+        when :meth:`_near` first needs them (most locators never do)."""
+        if self._faces is None:
+            from scipy.spatial import cKDTree
+
+            T = self.S[self.F]
+            c = T.mean(axis=1)
+            c /= np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
+            radius = float(np.linalg.norm(T - c[:, None, :], axis=2).max()) * (1 + 1e-9) + 1e-12
+            self._faces = (cKDTree(c), radius)
+        return self._faces
 
     def bary(self, P: np.ndarray, face: np.ndarray) -> np.ndarray:
         """:func:`sphere_barycentrics` of ``P`` (k×3) in the faces ``face`` (k)."""
@@ -179,9 +188,10 @@ class SphereLocator:
         face = np.empty(k, np.int64)
         bary = np.empty((k, 3))
         unit = P / np.maximum(np.linalg.norm(P, axis=1), 1e-300)[:, None]
+        tree, radius = self._face_tree()
         for lo in range(0, k, _CHUNK):
             hi = min(lo + _CHUNK, k)
-            lists = self._ftree.query_ball_point(unit[lo:hi], self._radius)
+            lists = tree.query_ball_point(unit[lo:hi], radius)
             cnt = np.fromiter((len(x) for x in lists), np.int64, hi - lo)
             cand = np.fromiter((f for x in lists for f in x), np.int64, int(cnt.sum()))
             pt = np.repeat(np.arange(hi - lo), cnt)
