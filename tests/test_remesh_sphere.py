@@ -170,6 +170,8 @@ def test_compiled_walk_gives_the_numpy_barycentrics_and_needs_no_face_search(mon
     assert np.array_equal(f_near, face) and np.allclose(b_near, bary, rtol=0, atol=1e-15)
     monkeypatch.setattr(SphereLocator, "_near", no_search)
     face, bary, _ = loc.relocate(P, far, walk=2)
+    bad_hint = np.where(np.arange(len(P)) % 2 == 0, -1, len(F))       # no face: not walked
+    assert np.array_equal(loc.relocate(P, bad_hint)[0], face)
     lam = sphere_barycentrics(P, *(S[F[face, c]] for c in range(3)))
     assert lam.min() >= -1e-10
     clean = np.clip(lam, 0.0, None)

@@ -347,8 +347,9 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
     when all are ≥ ``−tol``, else across the edge of the most negative one (the first of the
     smallest, a non-finite one counting as ``−inf``), at most ``walk`` steps. A point found gets
     ``face[i]`` and its barycentrics clamped at 0 and renormalised; one not found gets the last
-    face its walk tested in ``face[i]`` (a start to walk on from). Returns the ``todo`` entries
-    not found."""
+    face its walk tested in ``face[i]`` (a start to walk on from). A start that is no face of
+    ``F`` is not walked from (the point is not found). Returns the ``todo`` entries not
+    found."""
     cdef Py_ssize_t idx, i, step, c, u, cmin, n_left = 0
     cdef int64_t f, nxt
     cdef double s, lo_val, v
@@ -366,6 +367,8 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
             p[u] = P[i, u]
         found = False
         for step in range(walk + 1):
+            if f < 0 or f >= F.shape[0]:
+                break
             for c in range(3):
                 for u in range(3):
                     d[c][u] = S[F[f, c], u] - p[u]
