@@ -350,16 +350,13 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
     face its walk tested in ``face[i]`` (a start to walk on from). A start that is no face of
     ``F`` is not walked from (the point is not found). Returns the ``todo`` entries not
     found."""
-    cdef Py_ssize_t idx, i, step, c, u, cmin, n_left = 0
-    cdef int64_t f, nxt
-    cdef double s, lo_val, v
-    cdef double p[3]
-    cdef double d[3][3]
-    cdef double x[3]
-    cdef double lam[3]
-    cdef bint found, ok
-    left_arr = np.empty(todo.shape[0], dtype=np.int64)
+    left_arr = np.empty(todo.shape[0], dtype=np.int64)      # the points not found
     cdef int64_t[::1] left = left_arr
+    cdef Py_ssize_t idx, i, step, u, cmin, n_left = 0
+    cdef int64_t f, nxt
+    cdef double p[3]
+    cdef double lam[3]
+    cdef bint found
     for idx in range(todo.shape[0]):
         i = todo[idx]
         f = start[i]
@@ -369,33 +366,13 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
         for step in range(walk + 1):
             if f < 0 or f >= F.shape[0]:
                 break
-            for c in range(3):
-                for u in range(3):
-                    d[c][u] = S[F[f, c], u] - p[u]
-            for c in range(3):
-                _cross(d[(c + 1) % 3][0], d[(c + 1) % 3][1], d[(c + 1) % 3][2],
-                       d[(c + 2) % 3][0], d[(c + 2) % 3][1], d[(c + 2) % 3][2], x)
-                lam[c] = _dot3(p, x)
-            s = lam[0] + lam[1] + lam[2]
-            ok = s > 0
-            if ok:
-                for c in range(3):
-                    lam[c] = lam[c] / s
-                    ok = ok and lam[c] >= -tol       # False for NaN
-            if ok:
+            cmin = _sphere_exit(S, F, f, p, tol, lam)
+            found = cmin < 0
+            if found:
                 face[i] = f
                 _store_clean(lam, bary, i)
-                found = True
+            if found or step == walk:
                 break
-            if step == walk:
-                break
-            cmin = 0                                  # argmin, non-finite as -inf
-            if s > 0:
-                lo_val = INFINITY
-                for c in range(3):
-                    v = lam[c] if isfinite(lam[c]) else -INFINITY
-                    if v < lo_val:
-                        cmin, lo_val = c, v
             nxt = twin[3 * f + (cmin + 1) % 3]
             if nxt < 0:
                 break
@@ -405,6 +382,40 @@ def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
             left[n_left] = i
             n_left += 1
     return left_arr[:n_left]
+
+
+cdef inline Py_ssize_t _sphere_exit(const double[:, ::1] S, const int64_t[:, ::1] F, int64_t f,
+                                    const double* p, double tol, double* lam) noexcept nogil:
+    """The central-projection barycentrics of the direction ``p`` in face ``f`` into ``lam``
+    (as :func:`sphere_walk_to_faces` defines them); returns −1 when all are ≥ ``−tol``, else
+    the corner whose opposite edge a walk crosses (the first of the smallest, a non-finite
+    one counting as ``−inf``; 0 where the sum is not > 0)."""
+    cdef Py_ssize_t c, u, cmin = 0
+    cdef double s, lo_val = INFINITY, v
+    cdef double d[3][3]
+    cdef double x[3]
+    cdef bint ok
+    for c in range(3):
+        for u in range(3):
+            d[c][u] = S[F[f, c], u] - p[u]
+    for c in range(3):
+        _cross(d[(c + 1) % 3][0], d[(c + 1) % 3][1], d[(c + 1) % 3][2],
+               d[(c + 2) % 3][0], d[(c + 2) % 3][1], d[(c + 2) % 3][2], x)
+        lam[c] = _dot3(p, x)
+    s = lam[0] + lam[1] + lam[2]
+    if not s > 0:
+        return 0
+    ok = True
+    for c in range(3):
+        lam[c] = lam[c] / s
+        ok = ok and lam[c] >= -tol                   # False for NaN
+    if ok:
+        return -1
+    for c in range(3):
+        v = lam[c] if isfinite(lam[c]) else -INFINITY
+        if v < lo_val:
+            cmin, lo_val = c, v
+    return cmin
 
 
 def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
