@@ -514,12 +514,10 @@ class _Patch:
         score = each.min(axis=1)
         more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
         score[~inside | more_below | ~star_shapes_ok(S.uv, M, star[:, 1:])] = -1.0
-        sag_before = None
+        sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
             if score[j] <= before:
                 break
-            if sag_before is None:             # the star's sags where v is now, when needed
-                sag_before = self.sag([v] * len(star), star[:, 1])
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
             ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
