@@ -10,7 +10,7 @@ import pytest
 from conftest import require_data
 from pipeline.errors import UserError
 from pipeline.geometry.locate import lift
-from pipeline.geometry.locate_sphere import SphereLocator
+from pipeline.geometry.locate_sphere import SphereLocator, sphere_barycentrics
 from pipeline.geometry.remesh.domain import project
 from pipeline.geometry.remesh.halfedge import disk_shape, double_areas
 from pipeline.geometry.remesh.sphere import (SPHERE_JITTER, fibonacci_sphere, hull_triangulation,
@@ -146,6 +146,36 @@ def test_located_points_reproduce_themselves_on_an_icosphere():
     far, _ = loc.locate(-P)
     f2, b2, inside = loc.relocate(P, far, walk=2)
     assert inside.all() and np.allclose(project(lift(S, F, f2, b2)), P, atol=1e-14)
+
+
+def test_compiled_walk_gives_the_numpy_barycentrics_and_needs_no_face_search(monkeypatch):
+    """The walk computes :func:`sphere_barycentrics` operation for operation (bit for bit, then
+    clamped and renormalised), and a query whose hint is on the far side of a crowded, uneven
+    map is still found by walking from its nearest map vertex: the search among the faces near
+    it (``_near``) is never reached."""
+    S, F = icosphere(3)
+    rng = np.random.default_rng(7)
+    S = project(project(S + [0.8, 0.0, 0.0]) + [0.0, 0.5, 0.0])     # crowded at −x, −y
+    loc = SphereLocator(S, F)
+    assert np.all(triple_products(S, F) > 0)                     # still a tiling of the sphere
+    P = project(rng.normal(size=(5000, 3)))
+    far, _ = loc.locate(-P)
+
+    def no_search(*_):
+        raise AssertionError("face search reached")
+
+    # the search itself (the last resort of a walk that circles) finds the same faces
+    f_near, b_near = loc._near(P, 1e-10)
+    face, bary, _ = loc.relocate(P, far, walk=2)
+    assert np.array_equal(f_near, face) and np.allclose(b_near, bary, rtol=0, atol=1e-15)
+    monkeypatch.setattr(SphereLocator, "_near", no_search)
+    face, bary, _ = loc.relocate(P, far, walk=2)
+    bad_hint = np.where(np.arange(len(P)) % 2 == 0, -1, len(F))       # no face: not walked
+    assert np.array_equal(loc.relocate(P, bad_hint)[0], face)
+    lam = sphere_barycentrics(P, *(S[F[face, c]] for c in range(3)))
+    assert lam.min() >= -1e-10
+    clean = np.clip(lam, 0.0, None)
+    assert np.array_equal(bary, clean / clean.sum(axis=1, keepdims=True))
 
 
 def test_lifting_commutes_with_a_linear_surface():

@@ -268,6 +268,18 @@ def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const in
         w[e] = acc
 
 
+cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) noexcept nogil:
+    """The barycentrics ``lam`` (3) clamped at 0 and renormalised to sum 1, into ``bary[i]``."""
+    cdef Py_ssize_t c
+    cdef double s
+    for c in range(3):
+        if lam[c] < 0.0:
+            lam[c] = 0.0
+    s = lam[0] + lam[1] + lam[2]
+    for c in range(3):
+        bary[i, c] = lam[c] / s
+
+
 def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin,
                   const double[:, ::1] P, const int64_t[::1] start, const int64_t[::1] todo,
                   int walk, double tol, int64_t[::1] face, double[:, ::1] bary):
@@ -279,7 +291,7 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
     barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
     cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
     cdef int64_t f, nxt
-    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn, s
+    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn
     cdef double lam[3]
     cdef bint found
     left_arr = np.empty(todo.shape[0], dtype=np.int64)
@@ -307,13 +319,8 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
                     cmin = c
             mn = lam[cmin]
             if mn >= -tol:                            # False for NaN
-                for c in range(3):
-                    if lam[c] < 0.0:
-                        lam[c] = 0.0
-                s = lam[0] + lam[1] + lam[2]
                 face[i] = f
-                for c in range(3):
-                    bary[i, c] = lam[c] / s
+                _store_clean(lam, bary, i)
                 found = True
                 break
             if step == walk:
@@ -326,6 +333,89 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
             left[n_left] = i
             n_left += 1
     return left_arr[:n_left]
+
+
+def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,
+                         const int64_t[::1] twin, const double[:, ::1] P,
+                         const int64_t[::1] start, const int64_t[::1] todo, int walk, double tol,
+                         int64_t[::1] face, double[:, ::1] bary):
+    """:func:`walk_to_faces` on a spherical triangulation ``(S, F)`` (unit vectors, a closed
+    manifold): each direction ``P[i]`` (``i`` in ``todo``) walks from the face ``start[i]``
+    with the central-projection barycentrics of
+    :func:`pipeline.geometry.locate_sphere.sphere_barycentrics` (``det[p, b, c] = p · ((b − p)
+    × (c − p))`` and cyclically, over their sum; all ``−inf`` where the sum is not > 0), inside
+    when all are ≥ ``−tol``, else across the edge of the most negative one (the first of the
+    smallest, a non-finite one counting as ``−inf``), at most ``walk`` steps. A point found gets
+    ``face[i]`` and its barycentrics clamped at 0 and renormalised; one not found gets the last
+    face its walk tested in ``face[i]`` (a start to walk on from). A start that is no face of
+    ``F`` is not walked from (the point is not found). Returns the ``todo`` entries not
+    found."""
+    left_arr = np.empty(todo.shape[0], dtype=np.int64)      # the points not found
+    cdef int64_t[::1] left = left_arr
+    cdef Py_ssize_t idx, i, step, u, cmin, n_left = 0
+    cdef int64_t f, nxt
+    cdef double p[3]
+    cdef double lam[3]
+    cdef bint found
+    for idx in range(todo.shape[0]):
+        i = todo[idx]
+        f = start[i]
+        for u in range(3):
+            p[u] = P[i, u]
+        found = False
+        for step in range(walk + 1):
+            if f < 0 or f >= F.shape[0]:
+                break
+            cmin = _sphere_exit(S, F, f, p, tol, lam)
+            found = cmin < 0
+            if found:
+                face[i] = f
+                _store_clean(lam, bary, i)
+            if found or step == walk:
+                break
+            nxt = twin[3 * f + (cmin + 1) % 3]
+            if nxt < 0:
+                break
+            f = nxt // 3
+        if not found:
+            face[i] = f
+            left[n_left] = i
+            n_left += 1
+    return left_arr[:n_left]
+
+
+cdef inline Py_ssize_t _sphere_exit(const double[:, ::1] S, const int64_t[:, ::1] F, int64_t f,
+                                    const double* p, double tol, double* lam) noexcept nogil:
+    """The central-projection barycentrics of the direction ``p`` in face ``f`` into ``lam``
+    (as :func:`sphere_walk_to_faces` defines them); returns −1 when all are ≥ ``−tol``, else
+    the corner whose opposite edge a walk crosses (the first of the smallest, a non-finite
+    one counting as ``−inf``; 0 where the sum is not > 0)."""
+    cdef Py_ssize_t c, u, cmin = 0
+    cdef double s, lo_val = INFINITY, v
+    cdef double d[3][3]
+    cdef double x[3]
+    cdef bint ok
+    for c in range(3):
+        for u in range(3):
+            d[c][u] = S[F[f, c], u] - p[u]
+    for c in range(3):
+        _cross(d[(c + 1) % 3][0], d[(c + 1) % 3][1], d[(c + 1) % 3][2],
+               d[(c + 2) % 3][0], d[(c + 2) % 3][1], d[(c + 2) % 3][2], x)
+        lam[c] = _dot3(p, x)
+    s = lam[0] + lam[1] + lam[2]
+    if not s > 0:
+        return 0
+    ok = True
+    for c in range(3):
+        lam[c] = lam[c] / s
+        ok = ok and lam[c] >= -tol                   # False for NaN
+    if ok:
+        return -1
+    for c in range(3):
+        v = lam[c] if isfinite(lam[c]) else -INFINITY
+        if v < lo_val:
+            cmin, lo_val = c, v
+    return cmin
 
 
 def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):

@@ -14,9 +14,11 @@ the surface is ``Σ_c λ_c v_{F[face, c]}``.
 
 How a batch is located (:class:`SphereLocator`): from a start face (a face at the nearest map
 vertex, a KD-tree, or a face the caller knows), each query walks across the edge of its most
-negative coordinate (vectorised over the batch); a query still unsettled after the walk tests the
-faces whose centroid lies within the largest face radius of it (a KD-tree on the face
-centroids), which always contains its face. A point on an edge or at a vertex has coordinates of
+negative coordinate (compiled, one query after the other); a query still unsettled walks on from
+where it stopped, then from a face at its nearest map vertex, and one unsettled after all that
+(a walk can circle where the triangulation is far from Delaunay) tests the faces whose centroid
+lies within the largest face radius of it (a KD-tree on the face centroids), which always
+contains its face. A point on an edge or at a vertex has coordinates of
 ±1e-17 there and is accepted with ``min λ ≥ −tol`` (then clamped to 0 and renormalised); a query
 exactly at a map vertex gets exactly ``(1, 0, 0)`` on that corner. The sphere has no outside:
 every query is located.
@@ -27,11 +29,13 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
+from ._kernels import sphere_walk_to_faces
 from .locate import TOL
 
 __all__ = ["SphereLocator", "locate_on_sphere", "sphere_barycentrics"]
 
 _WALK = 8                # walk steps of a large batch from its nearest vertex's face
+_FAR_WALK = 64           # further walk steps of a query its hint's walk missed
 _CHUNK = 65536           # queries per brute-force block
 
 
@@ -97,11 +101,20 @@ class SphereLocator:
         self._used = np.flatnonzero(vface >= 0)
         self._vface = vface
         self._vtree = cKDTree(self.S[self._used])
-        T = self.S[self.F]
-        c = T.mean(axis=1)
-        c /= np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
-        self._ftree = cKDTree(c)
-        self._radius = float(np.linalg.norm(T - c[:, None, :], axis=2).max()) * (1 + 1e-9) + 1e-12
+        self._faces = None        # (k-d tree on the face centroids, largest face radius)
+
+    def _face_tree(self):
+        """The k-d tree on the faces' centroid directions and the largest face radius, built
+        when :meth:`_near` first needs them (most locators never do)."""
+        if self._faces is None:
+            from scipy.spatial import cKDTree
+
+            T = self.S[self.F]
+            c = T.mean(axis=1)
+            c /= np.maximum(np.linalg.norm(c, axis=1), 1e-300)[:, None]
+            radius = float(np.linalg.norm(T - c[:, None, :], axis=2).max()) * (1 + 1e-9) + 1e-12
+            self._faces = (cKDTree(c), radius)
+        return self._faces
 
     def bary(self, P: np.ndarray, face: np.ndarray) -> np.ndarray:
         """:func:`sphere_barycentrics` of ``P`` (k×3) in the faces ``face`` (k)."""
@@ -133,30 +146,39 @@ class SphereLocator:
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Locate directions near known faces: ``face`` (then ``face2``, if given) is tested
         first and a query outside it walks up to ``walk`` steps across the edge of its most
-        negative coordinate; the queries still unsettled are found among the faces near them
-        (module docstring). Returns ``(face, bary, inside)``, ``inside`` all True."""
+        negative coordinate; a query still unsettled walks on up to ``_FAR_WALK`` steps from
+        where it stopped, then as many from a face at its nearest map vertex, and the few left
+        are found among the faces near them (module docstring). Returns ``(face, bary,
+        inside)``, ``inside`` all True."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         out_face = np.array(face, dtype=np.int64, copy=True).reshape(-1)
         bary = np.empty((len(P), 3))
         todo = np.arange(len(P))
-        for hint in [out_face.copy()] + ([] if face2 is None else [np.asarray(face2)]):
-            cur = np.asarray(hint, np.int64)[todo]
-            for step in range(walk + 1):
-                if len(todo) == 0:
-                    break
-                lam = self.bary(P[todo], cur)
-                low = lam.min(axis=1)
-                ok = low >= -tol
-                out_face[todo[ok]] = cur[ok]
-                bary[todo[ok]] = _clean_rows(lam[ok])
-                todo, cur, lam = todo[~ok], cur[~ok], lam[~ok]
-                if step == walk or len(todo) == 0:
-                    break
-                c = np.argmin(np.where(np.isfinite(lam), lam, -np.inf), axis=1)
-                cur = self.twin[3 * cur + (c + 1) % 3] // 3       # across the edge opposite c
+        # the walk reads a point's start face before it writes that point's face: no copy
+        for hint in [out_face] + ([] if face2 is None else [face2]):
+            if len(todo) == 0:
+                break
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P,
+                                        np.ascontiguousarray(hint, dtype=np.int64).reshape(-1),
+                                        todo, walk, tol, out_face, bary)
+        if len(todo):            # on from the face where each walk stopped
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P, out_face, todo, _FAR_WALK,
+                                        tol, out_face, bary)
+        if len(todo):            # from a face at the nearest map vertex
+            todo = sphere_walk_to_faces(self.S, self.F, self.twin, P, self._nearest_faces(P, todo),
+                                        todo, _FAR_WALK, tol, out_face, bary)
         if len(todo):
             out_face[todo], bary[todo] = self._near(P[todo], tol)
         return out_face, bary, np.ones(len(P), bool)
+
+    def _nearest_faces(self, P: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """A face at the map vertex nearest to each direction ``P[rows]``, as a start (len(P),
+        set at ``rows`` only) for a walk."""
+        start = np.zeros(len(P), np.int64)
+        unit = P[rows] / np.maximum(np.linalg.norm(P[rows], axis=1), 1e-300)[:, None]
+        _, j = self._vtree.query(unit)
+        start[rows] = self._vface[self._used[np.asarray(j, np.int64).reshape(-1)]]
+        return start
 
     def _near(self, P: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
         """Every face whose centroid is within the largest face radius of a query is tested;
@@ -166,9 +188,10 @@ class SphereLocator:
         face = np.empty(k, np.int64)
         bary = np.empty((k, 3))
         unit = P / np.maximum(np.linalg.norm(P, axis=1), 1e-300)[:, None]
+        tree, radius = self._face_tree()
         for lo in range(0, k, _CHUNK):
             hi = min(lo + _CHUNK, k)
-            lists = self._ftree.query_ball_point(unit[lo:hi], self._radius)
+            lists = tree.query_ball_point(unit[lo:hi], radius)
             cnt = np.fromiter((len(x) for x in lists), np.int64, hi - lo)
             cand = np.fromiter((f for x in lists for f in x), np.int64, int(cnt.sum()))
             pt = np.repeat(np.arange(hi - lo), cnt)
