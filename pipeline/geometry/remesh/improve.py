@@ -393,13 +393,9 @@ def follow_tolerance(follow_input: float, n_input: int, target: int) -> float:
     """The follow step's tolerance (× L) for an input of ``n_input`` vertices remeshed at
     ``target``: ``follow_input``, or ``COARSE_FOLLOW`` times it where the input is the
     coarser. There every input vertex and crease is a corner of the surface the remesh must
-    pass through, a vertex put on one costs the faces around it little, and the farthest
-    input points of the benchmark's coarse rows sit at 0.22–0.26 L, which the looser
-    tolerance leaves (igl_lion at 20k vertices, igl_camel_b, ict_A_smile_disk and
-    choi_human_brain at 100k: their Hausdorff distance is pymeshlab's or less at 0.2 L, more
-    at 0.25 L). Where the input is the finer, the tighter tolerance costs the minimum-angle
-    pass its angles (choi_human_brain: 1.3° of mean smallest angle at 5k vertices, and the
-    Hausdorff distance at 20k)."""
+    pass through, and a vertex put on one costs the faces around it little; where the input
+    is the finer, input points are dense, and a tighter tolerance locks so many vertices that
+    the minimum-angle pass loses angles it could otherwise raise."""
     return follow_input * (COARSE_FOLLOW if n_input < target else 1.0)
 
 
