@@ -157,6 +157,7 @@ def test_a_fine_remesh_of_a_coarse_crease_follows_it_at_the_coarse_tolerance():
     assert len(V_in) == 215
     assert follow_tolerance(0.25, len(V_in), 1500) == COARSE_FOLLOW * 0.25 == 0.2
     assert follow_tolerance(0.25, 1500, 1500) == 0.25
+    assert follow_tolerance(0.25, len(V_in), 1500, sphere=True) == 0.25
     r = uniform_remesh(V_in, F_in, uv_in, loop, vertices=1500)
     L = r.info["spacing_mesh_units"]
     d, _ = input_point_distances(SimpleNamespace(V_in=V_in, F_in=F_in, uv_in=uv_in), r.V, r.F)

@@ -59,8 +59,8 @@ class ImproveConfig(Section):
     min_angle_deg: float = Field(20.0, ge=0.0, le=40.0)   # the last pass's minimum angle
     follow_input: float = Field(0.25, ge=0.0)   # a vertex on input points (vertices, edge and
                                                 # face middles) farther than this × spacing
-                                                # from the remesh, 0.8 × this where the input
-                                                # has fewer vertices than asked (0: none)
+                                                # from the remesh, 0.8 × this where a disk's
+                                                # input has fewer vertices than asked (0: none)
     feature_angle_deg: float = Field(FOLD_BACK_DEG, ge=0.0, le=180.0)   # vertices and edges
                                                 # kept along input edges folded more than this
                                                 # (0: none; disk maps only)

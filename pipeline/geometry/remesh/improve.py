@@ -58,7 +58,7 @@ The schedule (:func:`improve_remesh`):
    vertices at least; a vertex snapped (or inserted) and locked on every input point (an
    interior vertex, the middle of an interior edge or of a face) farther than
    the follow tolerance from the remesh (``follow_input × L``, ``COARSE_FOLLOW`` times that
-   where the input has fewer vertices than the target, :func:`follow_tolerance`) — the
+   where a disk's input has fewer vertices than the target, :func:`follow_tolerance`) — the
    sharp creases and thin folds no sag test sees — no two closer than
    ``FOLLOW_GAPS[0] × L``, a snap undone where it leaves an edge farther than the sag
    tolerance from the surface, flips, as many guarded collapses of the shortest
@@ -303,8 +303,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     follow_input : float
         At the end of step 7, a vertex goes onto every input point (an interior vertex, the
         middle of an edge or a face away from the rim) farther than this × ``L`` from the
-        remesh (0: none); ``COARSE_FOLLOW`` times that where the input has fewer vertices
-        than the target (:func:`follow_tolerance`).
+        remesh (0: none); ``COARSE_FOLLOW`` times that where a disk's input has fewer
+        vertices than the target (:func:`follow_tolerance`).
     feature_angle_deg : float
         Step 1 also locks vertices along the input's feature lines, the edges whose dihedral
         angle exceeds this, and keeps the edges between them (:mod:`.features`; on the disk
@@ -354,7 +354,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
             ops.reshape(RESHAPE_DEG)
             lap("reshape")
     corners = S.X[S.locked].copy()
-    follow = follow_tolerance(follow_input, len(S.V_in), target) * L
+    follow = follow_tolerance(follow_input, len(S.V_in), target, on_sphere(S.uv)) * L
     if follow_input > 0:
         ops.follow(follow)
         lap("follow")
@@ -389,14 +389,17 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     return S
 
 
-def follow_tolerance(follow_input: float, n_input: int, target: int) -> float:
+def follow_tolerance(follow_input: float, n_input: int, target: int,
+                     sphere: bool = False) -> float:
     """The follow step's tolerance (× L) for an input of ``n_input`` vertices remeshed at
     ``target``: ``follow_input``, or ``COARSE_FOLLOW`` times it where the input is the
-    coarser. There every input vertex and crease is a corner of the surface the remesh must
+    coarser, on the disk (``sphere`` False; on the sphere, as the feature lines, it is not
+    used: the closed meshes' farthest points are not at input corners the follow step would
+    take, and the vertices it locks cost their faces' angles and evenness). There every input vertex and crease is a corner of the surface the remesh must
     pass through, and a vertex put on one costs the faces around it little; where the input
     is the finer, input points are dense, and a tighter tolerance locks so many vertices that
     the minimum-angle pass loses angles it could otherwise raise."""
-    return follow_input * (COARSE_FOLLOW if n_input < target else 1.0)
+    return follow_input * (COARSE_FOLLOW if n_input < target and not sphere else 1.0)
 
 
 @dataclass
