@@ -467,7 +467,6 @@ class _Patch:
     def flip(self, a, b, floor: float = -np.inf):
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
         edge, ``S.joined``)."""
-        S = self.S
         tf = self.edge_faces(a, b)
         if len(tf) != 2 or not all(self.inner[[a, b]]) or self.is_joined(a, b):
             return None
