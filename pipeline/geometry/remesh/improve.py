@@ -393,12 +393,13 @@ def follow_tolerance(follow_input: float, n_input: int, target: int,
                      sphere: bool = False) -> float:
     """The follow step's tolerance (× L) for an input of ``n_input`` vertices remeshed at
     ``target``: ``follow_input``, or ``COARSE_FOLLOW`` times it where the input is the
-    coarser, on the disk (``sphere`` False; on the sphere, as the feature lines, it is not
-    used: the closed meshes' farthest points are not at input corners the follow step would
-    take, and the vertices it locks cost their faces' angles and evenness). There every input vertex and crease is a corner of the surface the remesh must
-    pass through, and a vertex put on one costs the faces around it little; where the input
-    is the finer, input points are dense, and a tighter tolerance locks so many vertices that
-    the minimum-angle pass loses angles it could otherwise raise."""
+    coarser and the domain the disk (``sphere`` False). There every input vertex and crease is
+    a corner of the surface the remesh must pass through, and a vertex put on one costs the
+    faces around it little; where the input is the finer, input points are dense, and a
+    tighter tolerance locks so many vertices that the minimum-angle pass loses angles it could
+    otherwise raise. On the sphere, as the feature lines, it is not used: on the closed meshes
+    it took no farthest point the looser tolerance leaves and cost the faces' evenness and
+    angles."""
     return follow_input * (COARSE_FOLLOW if n_input < target and not sphere else 1.0)
 
 
