@@ -62,13 +62,7 @@ def turned_against(X: np.ndarray, faces: np.ndarray, corner_normals: np.ndarray)
     -------
     (k,) bool
     """
-    return triangles_turned_against(X[faces], corner_normals)
-
-
-def triangles_turned_against(P: np.ndarray, corner_normals: np.ndarray) -> np.ndarray:
-    """:func:`turned_against` for the triangles with corners ``P`` (k×3×3) rather than rows of
-    a vertex array: whether each one's normal has a negative dot product with all three
-    ``corner_normals`` (k×3×3); k bool."""
+    P = X[faces]
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     return np.all(np.einsum("ij,ikj->ik", normal, corner_normals) < 0, axis=1)
 

@@ -65,10 +65,10 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
     nearer the other in 3D. With ``ties``, a face the report's test counts is counted here too
     (but for a tie at its centroid, or a corner nearer than ``ON_EDGE`` to an input edge).
     The fold repair leaves ``ties`` off: with it, it also takes up faces at the creases of a
-    noisy scan that the report's test, at its ties, does not count, and what it does there
-    costs the remesh its Hausdorff distance (the noisy scan proxy at 5000 vertices: 0.39 % →
-    0.46 %: the settle step's insertions at an eye's crease then count as folds and are undone);
-    the joins of feature points, which make such faces, use it (:func:`.features.join_edges`).
+    noisy scan that the report's test, at its ties, does not count, and the settle step's
+    insertions at such a crease count as folds and are undone, which leaves the remesh farther
+    from the input there; the joins of feature points, which make such faces, use it
+    (:func:`.features.join_edges`).
 
     Parameters
     ----------
