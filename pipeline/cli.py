@@ -17,6 +17,7 @@ import argparse
 import sys
 import types
 import typing
+from contextlib import contextmanager
 from pathlib import Path
 
 from . import __version__
@@ -411,12 +412,109 @@ def defer_imports(names) -> list[str]:
     return out
 
 
+#: Subpackages that SciPy's own packages import in their ``__init__`` and a command does not
+#: use, made lazy when first imported (:func:`defer_submodules`): ``scipy.spatial.transform``
+#: (rotations; ``scipy.spatial`` imports it beside the Delaunay triangulation and the KD-tree
+#: the remesh uses), about 0.015 s of CPU in every command.
+DEFERRED_SUBMODULES = ("scipy.spatial.transform",)
+
+
+def _lazy_spec(spec):
+    """``spec`` with its loader wrapped in :class:`importlib.util.LazyLoader`, or None for a
+    spec without a loader that can run lazily."""
+    import importlib.util
+
+    if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+        return None
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    return spec
+
+
+class _LazyWhenImported:
+    """A finder on ``sys.meta_path`` (ahead of the others) that answers for each of ``names``
+    once: the spec the other finders give, run lazily (:func:`_lazy_spec`). The import
+    system registers the module in ``sys.modules`` and on its package as usual; its code
+    runs on the first access to one of its attributes."""
+
+    def __init__(self, names):
+        self.names = set(names)
+
+    def find_spec(self, name, path=None, target=None):
+        import importlib.machinery
+
+        if name not in self.names:
+            return None
+        self.names.discard(name)
+        return _lazy_spec(importlib.machinery.PathFinder.find_spec(name, path, target))
+
+
+def defer_submodules(names) -> list[str]:
+    """Make each module of ``names`` (dotted names) not yet imported a lazy module when it is
+    first imported (:class:`_LazyWhenImported`), without importing its package now (what
+    :func:`defer_imports` does); for modules a package imports by name (``from . import x``)
+    and does not use while it loads. Returns the names that will be lazy."""
+    out = [name for name in names if name not in sys.modules]
+    if out:
+        sys.meta_path.insert(0, _LazyWhenImported(out))
+    return out
+
+
+#: The SciPy versions whose ``xp_capabilities`` decorator (``scipy._lib._array_api``) is known
+#: to use numpydoc's ``FunctionDoc`` only as :class:`_DocKept` stands in for it.
+_DOC_KEPT_SCIPY = ("1.17.",)
+
+
+class _DocKept:
+    """Stands in for numpydoc's ``FunctionDoc`` in SciPy's ``xp_capabilities`` decorator,
+    whose only use of it is ``doc = FunctionDoc(f)``, ``doc["Notes"].append(note)`` and
+    ``str(doc)`` less its first line (the signature): gives back ``f``'s docstring as it is,
+    unparsed and without the array-API note."""
+
+    def __init__(self, func, *args, **kwargs):
+        self._doc = func.__doc__ or ""
+
+    def __getitem__(self, section):
+        return []
+
+    def __str__(self):
+        return "\n" + self._doc
+
+
+@contextmanager
+def array_api_notes_skipped():
+    """While the block runs (the command's imports), SciPy's ``xp_capabilities`` decorator
+    leaves each function's docstring as it is (:class:`_DocKept`) instead of parsing it and
+    writing a table of the array backends into its notes: about 230 docstrings parsed when
+    ``scipy.sparse``, ``scipy.spatial`` and ``scipy.special`` load, 0.06 s of CPU in every
+    command, for help texts a command never shows. Only with SciPy not yet imported and of a
+    version in :data:`_DOC_KEPT_SCIPY`; anything else, and SciPy's own parser afterwards, as
+    SciPy has it."""
+    module = original = None
+    if "scipy" not in sys.modules:
+        try:
+            import scipy
+
+            if scipy.__version__.startswith(_DOC_KEPT_SCIPY):
+                from scipy._lib import _array_api as module
+                original = module.FunctionDoc
+                module.FunctionDoc = _DocKept
+        except (ImportError, AttributeError):
+            module = None
+    try:
+        yield
+    finally:
+        if original is not None and module.FunctionDoc is _DocKept:
+            module.FunctionDoc = original
+
+
 def entry() -> None:
     """The console command (``sem-pipeline``, ``python -m pipeline``): OpenBLAS on
     :data:`OPENBLAS_THREADS` threads, ``malloc`` keeping freed memory
     (:func:`keep_freed_memory`), the unused NumPy submodules of :data:`DEFERRED_MODULES`
-    lazy (:func:`defer_imports`); the modules every command imports (:mod:`.runner`:
-    NumPy, SciPy, pydantic, the stages) imported with the cyclic garbage collector paused,
+    lazy (:func:`defer_imports`), and the SciPy ones of :data:`DEFERRED_SUBMODULES`
+    (:func:`defer_submodules`); the modules every command imports (:mod:`.runner`: NumPy,
+    SciPy, pydantic, the stages) imported without SciPy's array-API docstring notes
+    (:func:`array_api_notes_skipped`) and with the cyclic garbage collector paused,
     and what they made then frozen (``gc.freeze``: left out of every later collection);
     then :func:`main`, then :func:`exit_now` with its exit code. (Imports make objects that
     all stay alive: the collector's ~150 passes over them while they are made find nothing
@@ -431,7 +529,9 @@ def entry() -> None:
     gc.disable()
     try:
         defer_imports(DEFERRED_MODULES)
-        from . import runner  # noqa: F401
+        defer_submodules(DEFERRED_SUBMODULES)
+        with array_api_notes_skipped():
+            from . import runner  # noqa: F401
     finally:
         gc.freeze()
         gc.enable()

@@ -331,6 +331,60 @@ def test_entry_leaves_the_deferred_numpy_modules_unrun(tmp_path):
     assert proc.stdout.split() == ["[]", "True", "True", "1.0"]
 
 
+def test_entry_leaves_scipy_spatial_transform_unrun_and_scipy_doc_parser_back(tmp_path):
+    """The console command imports ``scipy.spatial`` (the remesh's Delaunay triangulation and
+    KD-tree) without running ``scipy.spatial.transform`` (``DEFERRED_SUBMODULES``): a lazy
+    module on its package that runs, whole, when first used; SciPy's array-API decorator has
+    its own docstring parser back once the imports are done."""
+    proc = run_entry_on_a_missing_mesh(
+        tmp_path, "import atexit, sys\n"
+                  "def report():\n"
+                  "    import scipy.spatial\n"
+                  "    from scipy._lib import _array_api, _docscrape\n"
+                  "    ran = 'scipy.spatial.transform._rotation' in sys.modules\n"
+                  "    r = scipy.spatial.transform.Rotation.from_euler('z', 90, degrees=True)\n"
+                  "    print(ran, round(float(r.as_matrix()[1, 0]), 9),\n"
+                  "          _array_api.FunctionDoc is _docscrape.FunctionDoc)\n"
+                  "atexit.register(report)\n")
+    assert proc.stdout.split() == ["False", "1.0", "True"]
+
+
+def test_defer_submodules_runs_a_module_on_first_use(tmp_path):
+    """:func:`pipeline.cli.defer_submodules` leaves a module imported later by name unrun
+    until an attribute of it is used, and skips modules already imported."""
+    code = ("import sys, json\n"
+            "from pipeline.cli import defer_submodules\n"
+            "made = defer_submodules(['json', 'email.mime.text'])\n"
+            "from email.mime import text\n"
+            "before = 'email.mime.nonmultipart' in sys.modules\n"   # what it imports
+            "after = text.MIMEText('x').get_payload()\n"
+            "print(made, before, after)\n")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=60, env=dict(os.environ, PYTHONPATH=str(REPO)))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split() == ["['email.mime.text']", "False", "x"]
+
+
+def test_doc_kept_gives_back_the_docstring_as_scipys_decorator_reads_it():
+    """:class:`pipeline.cli._DocKept` answers SciPy's ``xp_capabilities`` decorator's use of
+    ``FunctionDoc`` (a note appended to the notes, the text less its first line) with the
+    function's own docstring."""
+    from pipeline.cli import _DocKept
+
+    def f():
+        """Add one.
+
+        Notes
+        -----
+        None.
+        """
+
+    doc = _DocKept(f)
+    doc["Notes"].append("a note")
+    assert str(doc).split("\n", 1)[1] == f.__doc__
+    assert str(_DocKept(lambda: None)).split("\n", 1)[1] == ""
+
+
 def test_defer_imports_skips_imported_and_missing_modules(tmp_path):
     """:func:`pipeline.cli.defer_imports` makes only modules not yet imported lazy, skips
     names that do not exist, and a lazy module runs on first attribute access."""
