@@ -459,16 +459,24 @@ def defer_submodules(names) -> list[str]:
     return out
 
 
-#: The SciPy versions whose ``xp_capabilities`` decorator (``scipy._lib._array_api``) is known
-#: to use numpydoc's ``FunctionDoc`` only as :class:`_DocKept` stands in for it.
+#: The SciPy versions whose modules of :data:`_DOC_KEPT_MODULES` are known to use numpydoc's
+#: ``FunctionDoc`` only as :class:`_DocKept` answers it.
 _DOC_KEPT_SCIPY = ("1.17.",)
+
+#: SciPy's modules whose decorators re-write the docstrings of the functions they mark while
+#: SciPy loads: ``scipy._lib._array_api`` (``xp_capabilities``: a table of the array backends
+#: appended to the notes) and ``scipy._lib._util`` (``_apply_over_batch``: a note on batched
+#: arguments appended to the extended summary; ``_transition_to_rng``: the ``rng`` parameter's
+#: entry re-worded).
+_DOC_KEPT_MODULES = ("scipy._lib._array_api", "scipy._lib._util")
 
 
 class _DocKept:
-    """Stands in for numpydoc's ``FunctionDoc`` in SciPy's ``xp_capabilities`` decorator,
-    whose only use of it is ``doc = FunctionDoc(f)``, ``doc["Notes"].append(note)`` and
-    ``str(doc)`` less its first line (the signature): gives back ``f``'s docstring as it is,
-    unparsed and without the array-API note."""
+    """Stands in for numpydoc's ``FunctionDoc`` in the decorators of :data:`_DOC_KEPT_MODULES`,
+    whose only uses of it are ``doc = FunctionDoc(f)``, a line appended to one of its
+    sections (``doc[section].append(...)``), the names of its parameters read
+    (``doc["Parameters"]``; none here, so the entry is left as it is) and ``str(doc)`` less
+    its first line (the signature): gives back ``f``'s docstring as it is, unparsed."""
 
     def __init__(self, func, *args, **kwargs):
         self._doc = func.__doc__ or ""
@@ -481,29 +489,32 @@ class _DocKept:
 
 
 @contextmanager
-def array_api_notes_skipped():
-    """While the block runs (the command's imports), SciPy's ``xp_capabilities`` decorator
-    leaves each function's docstring as it is (:class:`_DocKept`) instead of parsing it and
-    writing a table of the array backends into its notes: about 230 docstrings parsed when
-    ``scipy.sparse``, ``scipy.spatial`` and ``scipy.special`` load, 0.06 s of CPU in every
+def scipy_docstrings_kept():
+    """While the block runs (the command's imports), SciPy's docstring-writing decorators
+    (:data:`_DOC_KEPT_MODULES`) leave each function's docstring as it is (:class:`_DocKept`)
+    instead of parsing it and adding their notes: about 230 docstrings parsed when
+    ``scipy.sparse``, ``scipy.spatial`` and ``scipy.special`` load, 0.07 s of CPU in every
     command, for help texts a command never shows. Only with SciPy not yet imported and of a
     version in :data:`_DOC_KEPT_SCIPY`; anything else, and SciPy's own parser afterwards, as
     SciPy has it."""
-    module = original = None
+    import importlib
+
+    patched = []
     if "scipy" not in sys.modules:
         try:
             import scipy
 
             if scipy.__version__.startswith(_DOC_KEPT_SCIPY):
-                from scipy._lib import _array_api as module
-                original = module.FunctionDoc
-                module.FunctionDoc = _DocKept
+                for name in _DOC_KEPT_MODULES:
+                    module = importlib.import_module(name)
+                    patched.append((module, module.FunctionDoc))
+                    module.FunctionDoc = _DocKept
         except (ImportError, AttributeError):
-            module = None
+            pass
     try:
         yield
     finally:
-        if original is not None and module.FunctionDoc is _DocKept:
+        for module, original in patched:
             module.FunctionDoc = original
 
 
@@ -513,8 +524,8 @@ def entry() -> None:
     (:func:`keep_freed_memory`), the unused NumPy submodules of :data:`DEFERRED_MODULES`
     lazy (:func:`defer_imports`), and the SciPy ones of :data:`DEFERRED_SUBMODULES`
     (:func:`defer_submodules`); the modules every command imports (:mod:`.runner`: NumPy,
-    SciPy, pydantic, the stages) imported without SciPy's array-API docstring notes
-    (:func:`array_api_notes_skipped`) and with the cyclic garbage collector paused,
+    SciPy, pydantic, the stages) imported without SciPy's docstring notes
+    (:func:`scipy_docstrings_kept`) and with the cyclic garbage collector paused,
     and what they made then frozen (``gc.freeze``: left out of every later collection);
     then :func:`main`, then :func:`exit_now` with its exit code. (Imports make objects that
     all stay alive: the collector's ~150 passes over them while they are made find nothing
@@ -530,7 +541,7 @@ def entry() -> None:
     try:
         defer_imports(DEFERRED_MODULES)
         defer_submodules(DEFERRED_SUBMODULES)
-        with array_api_notes_skipped():
+        with scipy_docstrings_kept():
             from . import runner  # noqa: F401
     finally:
         gc.freeze()

@@ -334,17 +334,18 @@ def test_entry_leaves_the_deferred_numpy_modules_unrun(tmp_path):
 def test_entry_leaves_scipy_spatial_transform_unrun_and_scipy_doc_parser_back(tmp_path):
     """The console command imports ``scipy.spatial`` (the remesh's Delaunay triangulation and
     KD-tree) without running ``scipy.spatial.transform`` (``DEFERRED_SUBMODULES``): a lazy
-    module on its package that runs, whole, when first used; SciPy's array-API decorator has
-    its own docstring parser back once the imports are done."""
+    module on its package that runs, whole, when first used; SciPy's docstring-writing
+    decorators have their own parser back once the imports are done."""
     proc = run_entry_on_a_missing_mesh(
         tmp_path, "import atexit, sys\n"
                   "def report():\n"
                   "    import scipy.spatial\n"
-                  "    from scipy._lib import _array_api, _docscrape\n"
+                  "    from scipy._lib import _array_api, _docscrape, _util\n"
                   "    ran = 'scipy.spatial.transform._rotation' in sys.modules\n"
                   "    r = scipy.spatial.transform.Rotation.from_euler('z', 90, degrees=True)\n"
                   "    print(ran, round(float(r.as_matrix()[1, 0]), 9),\n"
-                  "          _array_api.FunctionDoc is _docscrape.FunctionDoc)\n"
+                  "          _array_api.FunctionDoc is _docscrape.FunctionDoc"
+                  " is _util.FunctionDoc)\n"
                   "atexit.register(report)\n")
     assert proc.stdout.split() == ["False", "1.0", "True"]
 
@@ -365,9 +366,9 @@ def test_defer_submodules_runs_a_module_on_first_use(tmp_path):
     assert proc.stdout.split() == ["['email.mime.text']", "False", "x"]
 
 
-def test_doc_kept_gives_back_the_docstring_as_scipys_decorator_reads_it():
-    """:class:`pipeline.cli._DocKept` answers SciPy's ``xp_capabilities`` decorator's use of
-    ``FunctionDoc`` (a note appended to the notes, the text less its first line) with the
+def test_doc_kept_gives_back_the_docstring_as_scipys_decorators_read_it():
+    """:class:`pipeline.cli._DocKept` answers SciPy's decorators' uses of ``FunctionDoc`` (a
+    note appended to a section, the parameters read, the text less its first line) with the
     function's own docstring."""
     from pipeline.cli import _DocKept
 
@@ -381,6 +382,7 @@ def test_doc_kept_gives_back_the_docstring_as_scipys_decorator_reads_it():
 
     doc = _DocKept(f)
     doc["Notes"].append("a note")
+    assert [p.name for p in doc["Parameters"]] == []
     assert str(doc).split("\n", 1)[1] == f.__doc__
     assert str(_DocKept(lambda: None)).split("\n", 1)[1] == ""
 
