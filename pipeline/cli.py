@@ -383,6 +383,17 @@ def keep_freed_memory() -> bool:
 DEFERRED_MODULES = ("numpy.f2py", "numpy.testing", "numpy.polynomial")
 
 
+def _lazy_spec(spec):
+    """``spec`` with its loader wrapped in :class:`importlib.util.LazyLoader`, or None for a
+    spec without a loader that can run lazily."""
+    import importlib.util
+
+    if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+        return None
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    return spec
+
+
 def defer_imports(names) -> list[str]:
     """Make each module of ``names`` (dotted names whose parent package can be imported) a
     lazy module (:class:`importlib.util.LazyLoader`): registered in ``sys.modules`` and on its
@@ -396,12 +407,11 @@ def defer_imports(names) -> list[str]:
         if name in sys.modules:
             continue
         try:
-            spec = importlib.util.find_spec(name)
+            spec = _lazy_spec(importlib.util.find_spec(name))
         except (ImportError, ValueError):
             continue
-        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
+        if spec is None:
             continue
-        spec.loader = importlib.util.LazyLoader(spec.loader)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -417,17 +427,6 @@ def defer_imports(names) -> list[str]:
 #: (rotations; ``scipy.spatial`` imports it beside the Delaunay triangulation and the KD-tree
 #: the remesh uses), about 0.015 s of CPU in every command.
 DEFERRED_SUBMODULES = ("scipy.spatial.transform",)
-
-
-def _lazy_spec(spec):
-    """``spec`` with its loader wrapped in :class:`importlib.util.LazyLoader`, or None for a
-    spec without a loader that can run lazily."""
-    import importlib.util
-
-    if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
-        return None
-    spec.loader = importlib.util.LazyLoader(spec.loader)
-    return spec
 
 
 class _LazyWhenImported:
