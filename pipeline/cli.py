@@ -495,7 +495,8 @@ def scipy_docstrings_kept():
     ``scipy.sparse``, ``scipy.spatial`` and ``scipy.special`` load, 0.07 s of CPU in every
     command, for help texts a command never shows. Only with SciPy not yet imported and of a
     version in :data:`_DOC_KEPT_SCIPY`; anything else, and SciPy's own parser afterwards, as
-    SciPy has it."""
+    SciPy has it. (:func:`entry` imports again, with SciPy's parser, if the imports under the
+    stand-in fail: the modules that failed are not kept, those done keep their docstrings.)"""
     import importlib
 
     patched = []
@@ -540,8 +541,11 @@ def entry() -> None:
     try:
         defer_imports(DEFERRED_MODULES)
         defer_submodules(DEFERRED_SUBMODULES)
-        with scipy_docstrings_kept():
-            from . import runner  # noqa: F401
+        try:
+            with scipy_docstrings_kept():
+                from . import runner  # noqa: F401
+        except Exception:   # a SciPy whose decorators ask more of the stand-in: SciPy's own way
+            from . import runner  # noqa: F401,F811
     finally:
         gc.freeze()
         gc.enable()

@@ -350,6 +350,26 @@ def test_entry_leaves_scipy_spatial_transform_unrun_and_scipy_doc_parser_back(tm
     assert proc.stdout.split() == ["False", "1.0", "True"]
 
 
+def test_entry_imports_with_scipys_parser_when_the_stand_in_fails(tmp_path):
+    """If a SciPy asks the docstring stand-in for more than :class:`pipeline.cli._DocKept`
+    answers (a decorator changed within a version it is used for), the command imports again
+    with SciPy's own parser and runs as usual."""
+    proc = run_entry_on_a_missing_mesh(
+        tmp_path, "import atexit, sys\n"
+                  "import pipeline.cli\n"
+                  "def refuse(self, func, *args, **kwargs):\n"
+                  "    raise TypeError('not as this stand-in knows it')\n"
+                  "pipeline.cli._DocKept.__init__ = refuse\n"
+                  "def report():\n"
+                  "    from scipy._lib import _array_api, _docscrape\n"
+                  "    import scipy.spatial\n"
+                  "    print(_array_api.FunctionDoc is _docscrape.FunctionDoc,\n"
+                  "          'scipy.spatial' in sys.modules, 'pipeline.runner' in sys.modules)\n"
+                  "atexit.register(report)\n")
+    assert "missing.obj" in proc.stderr
+    assert proc.stdout.split() == ["True", "True", "True"]
+
+
 def test_doc_kept_gives_back_the_docstring_as_scipys_decorators_read_it():
     """:class:`pipeline.cli._DocKept` answers SciPy's decorators' uses of ``FunctionDoc`` (a
     note appended to a section, the parameters read, the text less its first line) with the
