@@ -90,7 +90,9 @@ def _kite(lock_tip: bool):
 def test_a_corner_sharper_than_the_minimum_is_reported_not_fixed():
     """The kite's tip is sharper than 20°: its face stays (no operation can raise it), is
     flagged as forced by the input, and the report names the tip; the other face is not
-    flagged. Unlocked, the same face is not forced (no input corner kept there)."""
+    flagged. Unlocked, the tip is still a rim vertex on the input's corner (no operation
+    moves it): the same face is forced; a rim vertex on the rim edge next to the corner,
+    off it, forces nothing."""
     S = _kite(lock_tip=True)
     assert abs(np.degrees(corner_angles(S.X, S.F))[0, 0] - 2 * np.degrees(np.arctan(0.13))) < 1e-9
     assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) == 0
@@ -106,8 +108,12 @@ def test_a_corner_sharper_than_the_minimum_is_reported_not_fixed():
     assert corner[0]["smallest_angle_deg"] == pytest.approx(tip, abs=1e-9)
     assert forced_by_corners(S, 14.0).tolist() == [False, False]    # 14.8° is not below
     S = _kite(lock_tip=False)
+    assert forced_by_corners(S, 20.0).tolist() == [True, False]
+    assert below_min_angle(S, S.V_in, 20.0)["at_input_corners"] == 1
+    S.uv, S.face, S.bary, S.X = _moved(S, 0, 0.99 * S.uv[0] + 0.01 * S.uv[1])
+    assert 0.98 < S.bary[0].max() < 1.0 and skinny_faces(S.X, S.F, 20.0).tolist() == [0]
     assert forced_by_corners(S, 20.0).tolist() == [False, False]
-    assert below_min_angle(S, S.V_in, 20.0)["at_input_corners"] == 0
+    assert below_min_angle(S, S.V_in, 20.0)["unforced_faces"] == 1
 
 
 @pytest.mark.parametrize("rel, n", [("meshes/choi_human_face.obj", 20000),

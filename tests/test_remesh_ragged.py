@@ -143,8 +143,8 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,
     so every tooth of the rim is a corner (86 snapped) and the minimum-angle pass works
     around them in round after round. Without the memo of :func:`.angles.raise_min_angles`
-    it judges 236 faces, 57 of them in surroundings judged before; with it, each of the
-    179 surroundings once, and the remesh is the same bit for bit."""
+    it judges 448 faces, 213 of them in surroundings judged before; with it, each of the
+    235 surroundings once, and the remesh is the same bit for bit."""
     from pipeline.geometry.remesh import angles, improve
     from pipeline.geometry.repair import repair_mesh
     from pipeline.geometry.sem import SEMOptions
@@ -166,11 +166,76 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     monkeypatch.setattr(angles._Patch, "best_option", counted)
     with_memo = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
     assert with_memo.info["improve"]["rim_corners_snapped"] == 86
-    assert sum(judged) == len(set(seen)) == 179 and len(seen) == 236
+    assert sum(judged) == len(set(seen)) == 235 and len(seen) == 448
     raise_min_angles = improve.raise_min_angles
     monkeypatch.setattr(improve, "raise_min_angles",
                         lambda S, m, tol, faces, memo=None: raise_min_angles(S, m, tol, faces))
     seen.clear(), judged.clear()
     without = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
-    assert sum(judged) == len(seen) == 236 and len(set(seen)) == 179
+    assert sum(judged) == len(seen) == 448 and len(set(seen)) == 235
     assert np.array_equal(without.V, with_memo.V) and np.array_equal(without.F, with_memo.F)
+
+
+def noisy_ragged_paraboloid(n: int, seed: int, passes: int, drop: float, noise: float = 5e-4):
+    """:func:`ragged_paraboloid` with its vertices moved along the paraboloid's normal by a
+    normal deviate of ``noise`` × the bounding-box diagonal (seeded): a scan's noise."""
+    V, F = ragged_paraboloid(n=n, seed=seed, passes=passes, drop=drop)
+    N = np.column_stack([-0.8 * V[:, 0], -0.8 * V[:, 1], np.ones(len(V))])
+    N /= np.linalg.norm(N, axis=1)[:, None]
+    sigma = noise * np.linalg.norm(V.max(axis=0) - V.min(axis=0))
+    return V + N * np.random.default_rng(seed).normal(0.0, sigma, len(V))[:, None], F
+
+
+def _below_min_angle(V, F, vertices: int) -> dict:
+    """The remesh's ``below_min_angle`` (:func:`.uniform.below_min_angle`) through the 2-step
+    paper map, default settings."""
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = repair_mesh(V, F)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=vertices))
+    return r.info["improve"]["below_min_angle"]
+
+
+@pytest.mark.timeout(120)
+def test_a_noisy_ragged_rim_counts_its_sharp_rim_corners_as_forced():
+    """The noisy ragged paraboloid (120×120 grid, seed 3, 4 passes dropping 0.4 of the rim
+    faces: 10,234 vertices; its rim corners down to a few degrees, most not locked) remeshed
+    at 2,000 vertices: of the 16 faces left below 20°, 14 have their small angle at a rim
+    vertex on an input boundary corner sharper than 40° (locked, or a rim vertex on the
+    image polygon's corner: :func:`.angles.on_input_corners`) and are forced; 2 are not.
+    Counting only the locked corners as forcing, 10 of 19 are forced and 9 are not."""
+    V, F = noisy_ragged_paraboloid(120, seed=3, passes=4, drop=0.4)
+    assert len(V) == 10234
+    below = _below_min_angle(V, F, 2000)
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (16, 14, 2)
+    assert all(c["angle_sum_deg"] < 40.0 for c in below["input_corners"])
+
+
+@pytest.mark.timeout(120)
+def test_the_refinement_again_after_the_fold_repair_raises_a_face_more():
+    """The noisy ragged paraboloid (80×80 grid, seed 1, 3 passes dropping 0.3 of the rim
+    faces: 4,603 vertices) remeshed at 1,500 vertices: the off-centre refinement made again
+    after the fold repair's and the looser operations (:meth:`.improve._Operations.refine_left`)
+    leaves 1 face below 20° that no input corner forces, 22 below in all; without it, 2 and 23
+    (the fold repair's operations left a face the first refinement never saw)."""
+    V, F = noisy_ragged_paraboloid(80, seed=1, passes=3, drop=0.3)
+    assert len(V) == 4603
+    below = _below_min_angle(V, F, 1500)
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (22, 21, 1)
+
+
+@pytest.mark.timeout(120)
+def test_corner_splits_raise_the_faces_next_to_a_closely_sampled_rim():
+    """The noisy ragged paraboloid (80×80 grid, seed 3, 3 passes dropping 0.3 of the rim
+    faces: 4,560 vertices) remeshed at 2,000 vertices: where neither the off-centres nor the
+    caps' splits are kept, the interior edges at the faces' smallest corners split
+    (:func:`.circumcentres.corner_split_round`) leave 3 faces below 20° that no input corner
+    forces, 14 below in all; without them, 6 and 17."""
+    V, F = noisy_ragged_paraboloid(80, seed=3, passes=3, drop=0.3)
+    assert len(V) == 4560
+    below = _below_min_angle(V, F, 2000)
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (14, 11, 3)

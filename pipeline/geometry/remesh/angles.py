@@ -34,11 +34,12 @@ earlier after ``OPERATIONS_PER_FACE`` operations per face it started from.
 The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
 whose split makes no face below the threshold (:func:`keeps_min_angle`).
 
-What is left is classified by :func:`forced_by_corners`: a face whose angle is small at an
-input vertex kept by :mod:`.corners` (a locked vertex) whose own angle sum is smaller than the
-threshold times the fewest faces a vertex there can have (two on the rim, where a single face
-would be a leaf, three inside) is forced by the input; any other face is a failure of the
-pass, counted apart in the report.
+What is left is classified by :func:`forced_by_corners`: a face whose angle is small at a
+remesh vertex on an input vertex (:func:`on_input_corners`: one kept by :mod:`.corners`, a
+locked vertex, or a rim vertex on a corner of the image polygon) whose own angle sum is smaller
+than the threshold times the fewest faces a vertex there can have (two on the rim, where a
+single face would be a leaf, three inside) is forced by the input; any other face is a failure
+of the pass, counted apart in the report.
 """
 
 from __future__ import annotations
@@ -174,14 +175,11 @@ def keeps_min_angle(S: RemeshState, min_angle_deg: float, h: np.ndarray, t: np.n
 
 
 def forced_by_corners(S: RemeshState, min_angle_deg: float) -> np.ndarray:
-    """Which faces (m bool) have an angle below ``min_angle_deg`` at a locked vertex whose input
-    vertex is too sharp for any fan to do better: its angle sum on the input is below
-    ``min_angle_deg`` × the fewest faces a vertex there can have — 3 inside, 2 on the rim (a
-    rim vertex with one face would make a face with three rim corners, a leaf face the remesh
-    never has: paper Def. 4).
-
-    A locked vertex lies exactly on its input vertex (:mod:`.corners`): the input vertex is the
-    corner of the input face under it with the largest barycentric coordinate."""
+    """Which faces (m bool) have an angle below ``min_angle_deg`` at a vertex on an input
+    vertex (:func:`on_input_corners`) too sharp for any fan to do better: its angle sum on the
+    input is below ``min_angle_deg`` × the fewest faces a vertex there can have — 3 inside, 2
+    on the rim (a rim vertex with one face would make a face with three rim corners, a leaf
+    face the remesh never has: paper Def. 4)."""
     return forced_corners(S, min_angle_deg).any(axis=1)
 
 
@@ -197,20 +195,33 @@ def forced_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | Non
 def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | None = None
                     ) -> np.ndarray:
     """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) are at a
-    locked vertex whose input vertex is too sharp for any fan to give its faces
-    ``min_angle_deg`` (:func:`forced_by_corners`)."""
-    locked = np.flatnonzero(S.locked)
+    vertex on an input vertex (:func:`on_input_corners`) too sharp for any fan to give its
+    faces ``min_angle_deg`` (:func:`forced_by_corners`)."""
+    on = np.flatnonzero(on_input_corners(S))
     sharp = np.zeros(S.n, bool)
-    if len(locked):
-        sums = S.angle_sums_in()[input_vertex_under(S, locked)]
-        sharp[locked] = sums < min_angle_deg * np.where(S.is_rim[locked], 2, 3)
+    if len(on):
+        sums = S.angle_sums_in()[input_vertex_under(S, on)]
+        sharp[on] = sums < min_angle_deg * np.where(S.is_rim[on], 2, 3)
     return sharp[S.F if faces is None else S.F[faces]]
+
+
+def on_input_corners(S: RemeshState) -> np.ndarray:
+    """The remesh vertices (n bool) that stand on an input vertex for good: the locked ones
+    (:mod:`.corners` puts each exactly on its input vertex, and no operation moves or removes
+    it) and the rim vertices on a corner of the image polygon (barycentric coordinate 1 at an
+    input boundary vertex): no operation moves a rim vertex, so the remesh's rim passes
+    through that input corner itself, as through a locked one, and its faces there share the
+    corner's angle; a rim collapse would remove the vertex, and with it the corner, only where
+    the chord that replaces its two rim edges stays within the rim tolerance of the input's
+    boundary (:meth:`_Patch.rim_chord_ok`). An interior vertex that is not locked is not among
+    them: the operations can move it off its input vertex."""
+    return S.locked | (S.is_rim & (S.bary.max(axis=1) >= 1.0))
 
 
 def input_vertex_under(S: RemeshState, v: np.ndarray) -> np.ndarray:
     """The input vertex (k int) each remesh vertex ``v`` (k int) lies on or nearest to in its
-    input face (the corner with the largest barycentric coordinate): a locked vertex's own
-    input corner."""
+    input face (the corner with the largest barycentric coordinate): the own input corner of a
+    vertex :func:`on_input_corners` marks."""
     return S.F_in[S.face[v], np.argmax(S.bary[v], axis=1)]
 
 

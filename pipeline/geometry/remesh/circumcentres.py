@@ -22,6 +22,11 @@ instead (:func:`cap_split`): the wide angle halves, and the local operations the
 after the round (:func:`.angles.raise_min_angles`) move the new vertex, which the guards
 around the cap's own corners (a crumpled input, a corner on a ridge) keep from moving.
 
+:func:`corner_split_round` splits instead the interior edges at each such face's smallest
+corner (the caller's alternative where neither refinement is kept): next to a rim sampled
+closer than the remesh's spacing, an interior vertex can have rim vertices all round, and the
+fan it balances over the short rim edges needs one more vertex, not another position.
+
 A round takes one insertion per face, worst face first, those in distinct parts of the remesh
 (no two touching one face), then the caller's ``flip`` around them (flips, and in
 :meth:`.improve._Operations.grade` the local operations); a round that leaves more faces turned
@@ -359,6 +364,42 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     if (disk_shape(U, tri) < DISK_SHAPE_MIN).any():
         return None
     return "face", f, None
+
+
+def corner_split_round(S: RemeshState, min_angle_deg: float) -> int:
+    """A vertex in the middle (on the disk) of each interior edge at the smallest corner of a
+    face below ``min_angle_deg`` that no input corner forces (:func:`unforced_below`), worst
+    face first, none in a face another split of the round touches, no kept edge
+    (``S.joined``), none between two rim vertices and none that makes a face thinner on the
+    disk than ``DISK_SHAPE_MIN`` (:func:`.refine.split_keeps_shape`); returns how many.
+
+    Where the rim is sampled closer than the remesh's spacing (the teeth of a ragged rim), an
+    interior vertex next to it can have rim vertices all round: the one vertex balances the
+    angles of a fan over several short rim edges, and no move or flip of it raises the
+    smallest; the split gives the small corner one more face, which the local operations
+    after it (the caller's) shape."""
+    bad, _ = unforced_below(S, min_angle_deg)
+    if len(bad) == 0:
+        return 0
+    twin = S.twins()
+    A = corner_angles_deg(S.X, S.F[bad])
+    used = np.zeros(len(S.F), bool)
+    picked = []
+    for g, v in zip(bad, S.F[bad, np.argmin(A, axis=1)]):
+        for j in range(3):
+            h, a, b = 3 * g + j, S.F[g, j], S.F[g, (j + 1) % 3]
+            if v not in (a, b) or twin[h] < 0 or S.is_rim[[a, b]].all() or \
+                    used[[g, twin[h] // 3]].any():
+                continue
+            if S.is_joined(np.array([a]), np.array([b]))[0] or \
+                    not split_keeps_shape(S, np.array([h]), twin[[h]])[0]:
+                continue
+            used[[g, twin[h] // 3]] = True
+            picked.append(h)
+    if not picked:
+        return 0
+    h = np.array(picked, np.int64)
+    return split_edges(S, h, twin[h])
 
 
 def cap_split(S: RemeshState, g: int) -> tuple[int, float] | None:

@@ -102,17 +102,23 @@ The schedule (:func:`improve_remesh`):
     pass's operations turned faces over, the fold repair's local operations again and the
     minimum-angle ones after them (also under the looser guards below), a group of folds
     sharing vertices at a time, undone where they leave a smaller smallest angle and not every
-    fold of the group undone; last, at the faces still below that no input corner forces, the
+    fold of the group undone; then, at the faces still below that no input corner forces, the
     local operations under sag and gap guards ``LAST_RESORT`` times looser
     (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
     where only its removal or a move off it raises the angle), kept only where they leave
     fewer such faces or a larger smallest angle and no more folds, the vertices their
-    collapses removed given back. A face none of this raises stays: the report counts the
-    faces below the minimum and, among them, those an input corner too sharp for any fan
-    forces (:func:`.angles.forced_by_corners`), naming the corners; then ``EVEN_STEPS``
-    smoothing steps as in step 6 (:meth:`_Operations.even_out`; not without
-    ``relax_iterations``) that even out the faces the steps since step 7 left uneven,
-    under vetoes of every move that makes a face's smallest angle smaller than it was and than
+    collapses removed given back; last the refinement again, as above, or where neither of
+    its kinds is kept with the interior edges at the faces' smallest corners split
+    (:func:`.circumcentres.corner_split_round`), and the looser operations after it
+    (:meth:`_Operations.refine_left`: the fold repair's and the looser operations leave faces
+    below the minimum where the refinement before them found none).
+    A face none of this raises stays: the report counts the faces below the minimum and,
+    among them, those an input corner too sharp for any fan forces
+    (:func:`.angles.forced_by_corners`: at a locked vertex or a rim vertex on a corner of the
+    input's boundary), naming the corners; then ``EVEN_STEPS`` smoothing steps as in step 6
+    (:meth:`_Operations.even_out`; not without ``relax_iterations``) that even out the
+    faces the steps since step 7 left uneven, under vetoes of every move that makes a
+    face's smallest angle smaller than it was and than
     ``min_angle_deg`` (:func:`angle_veto`) or takes an edge farther from the surface than the
     sag tolerance (:func:`sag_veto`), the followed vertices and their neighbours, the input
     corners and the ends of the edges folded more than ``EVEN_FOLD_DEG`` staying (the feature
@@ -161,8 +167,8 @@ from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import raise_min_angles, split_for_count
-from .circumcentres import (refine_at_circumcentres, restore_state, saved_state,
-                            shortfall_of, shortfall_order, unforced_below,
+from .circumcentres import (corner_split_round, refine_at_circumcentres, restore_state,
+                            saved_state, shortfall_of, shortfall_order, unforced_below,
                             unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
@@ -729,8 +735,11 @@ class _Operations:
         again around the faces then below; where folds are left at the end (these operations
         judge angles, and near a fold they can turn faces over), the local operations judged
         on the folds and the minimum-angle ones again, a group of folds at a time
-        (:meth:`unfold_kept`); last those at the faces still below under looser guards
-        (:meth:`last_resort`). Given ``kept``
+        (:meth:`unfold_kept`); then those at the faces still below under looser guards
+        (:meth:`last_resort`); last the faces still below that no input corner forces refined
+        (:meth:`refine_left`: the fold repair's operations and the looser ones leave faces the
+        refinement before them did not see), the corner splits among its kinds, and the looser
+        operations again. Given ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -760,11 +769,19 @@ class _Operations:
         self.restore_angle_count(target, min_angle_deg)
         self.raise_angles(min_angle_deg)
         self.open_fans(target, min_angle_deg)
-        for _ in range(GRADE_PASSES):
-            if not self.grade(target, min_angle_deg):
-                break
+        self.refine_left(target, min_angle_deg)
         self.unfold_kept(min_angle_deg)
         self.last_resort(min_angle_deg)
+        self.refine_left(target, min_angle_deg, corners=True)
+        self.last_resort(min_angle_deg)
+
+    def refine_left(self, target: int, min_angle_deg: float, corners: bool = False) -> None:
+        """Up to ``GRADE_PASSES`` times while it is kept: the faces below ``min_angle_deg``
+        that no input corner forces refined (:meth:`grade`, with ``corners`` its corner
+        splits too)."""
+        for _ in range(GRADE_PASSES):
+            if not self.grade(target, min_angle_deg, corners):
+                break
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -810,13 +827,14 @@ class _Operations:
             collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - target,
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
-    def grade(self, target: int, min_angle_deg: float) -> bool:
+    def grade(self, target: int, min_angle_deg: float, corners: bool = False) -> bool:
         """The faces still below ``min_angle_deg`` that no input corner forces refined
         (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
         operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
         with their caps' long edges split, each until ``GRADE_PATIENCE`` rounds in a row beat no
-        earlier state; kept as :meth:`refine_unforced` keeps it. Returns whether it was
-        kept."""
+        earlier state, or, with ``corners``, where neither is kept with the interior edges at
+        their smallest corners split (:func:`.circumcentres.corner_split_round`), then flips;
+        kept as :meth:`refine_unforced` keeps it. Returns whether it was kept."""
         S = self.S
         raise_after = partial(self.flip_and_raise, min_angle_deg)
         for caps in (False, True):
@@ -825,7 +843,16 @@ class _Operations:
                              patience=GRADE_PATIENCE)
             if self.refine_unforced(target, min_angle_deg, insert):
                 return True
-        return False
+        if not corners:
+            return False
+
+        def split_corners() -> int:
+            k = corner_split_round(S, min_angle_deg)
+            if k:
+                self.flip()
+            return k
+
+        return self.refine_unforced(target, min_angle_deg, split_corners)
 
     def flip_and_raise(self, min_angle_deg: float, F_before: np.ndarray) -> None:
         """Flips around the faces changed since ``F_before`` (m₀×3), then the local
