@@ -264,9 +264,9 @@ class _FoldPatch(_Patch):
         return bool(self.S.of_input(input_distance)(M)[0].max() <= self.chord)
 
     def removable(self, r, shared) -> bool:
-        """As :meth:`.angles._Patch.removable`, and a locked rim vertex (a snapped corner,
-        :mod:`.corners`) at a reflex corner of the input boundary (the input's faces span more
-        than 180° at the input vertex it stands on).
+        """As :meth:`.angles._Patch.removable` inside; on the rim, a vertex (locked or not)
+        along a rim edge that stands on a reflex corner of the input boundary (an input vertex
+        whose faces span more than 180°), given ``chord``.
 
         At a notch's or a slit's end (a scan's ragged rim) the input's faces span up to
         360°, and the map straightens the boundary: the disk triangulation leaves the rim
@@ -274,12 +274,13 @@ class _FoldPatch(_Patch):
         turned over, across the notch. Where the rim is ragged at the remesh's scale, the
         faces that would span the notch's end without it have three rim corners (not
         allowed), so no flip or move undoes it; the rim vertex's removal, the chord across
-        the notch's mouth, does. Unlocked rim vertices stand there too (the rim refinement
-        splits at the input boundary vertex farthest from a chord, often a notch's end)."""
+        the notch's mouth, does. Snapped corners (:mod:`.corners`, locked) stand there, and
+        the rim refinement's vertices (:func:`.rim.refine_rim` splits at the input boundary
+        vertex farthest from a chord, often a notch's end)."""
         S = self.S
-        if not (S.is_rim[r] and S.locked[r]):
+        if not S.is_rim[r]:
             return super().removable(r, shared)
-        if len(shared) != 1 or self.chord is None:
+        if len(shared) != 1 or self.chord is None or S.bary[r].max() < 1.0 - ON_EDGE:
             return False
         corner = S.F_in[S.face[r], int(np.argmax(S.bary[r]))]
         return bool(S.angle_sums_in()[corner] > 180.0)
