@@ -79,11 +79,12 @@ The schedule (:func:`improve_remesh`):
    can lift to one that doubles back over the surface) undone by flips, collapses and moves
    judged on the folds they leave (:func:`.unfold.unfold_locally`: a move to the point of the
    vertex's star on the disk that leaves the fewest folds; where a fold has a rim corner, also
-   the removal of a rim vertex along the rim that leaves the input no farther from the remesh
-   than its farthest point already is, :func:`.fidelity.input_reach` — a fold across a notch
-   of a ragged rim); then an edge between interior
-   corners of every fold left collapsed, under the sag and gap guards, then under none, each
-   time followed by the local operations and undone if it leaves as many folds or more;
+   the removal along the rim of a rim vertex on a reflex corner of the input boundary that
+   leaves the input no farther from the remesh than its farthest point already is,
+   :func:`.fidelity.input_reach` — a fold across a notch of a ragged rim); then an edge
+   between interior corners of every fold left collapsed, under the sag and gap guards, then
+   under none, each time followed by the local operations and undone if it leaves as many
+   folds or more;
    here, in step 10 and in step 11 the feature vertices at the faces being repaired are freed
    (:meth:`_Operations.release`) and their kept edges dropped;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
@@ -897,8 +898,8 @@ class _Operations:
         under none but the result's validity, each time followed by the local operations and
         undone if it leaves as many folds or more (a collapse at a fold turns its neighbours
         over where the map is that anisotropic). Where a fold has a rim corner, the local
-        operations may also remove rim vertices that leave the input no farther from the remesh
-        than its farthest point is now (:attr:`chord`, :func:`.fidelity.input_reach`; these and
+        operations may also remove rim vertices on reflex input corners where that leaves the
+        input no farther from the remesh than its farthest point is now (:attr:`chord`, :func:`.fidelity.input_reach`; these and
         the later ones of :meth:`unfold_kept`)."""
         S = self.S
         folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731

@@ -15,11 +15,11 @@ collapsing it removes the surface it stands on and turns its neighbours over in 
 :mod:`.angles` at the fold — the flip of each of its interior edges, the collapse of each of
 its edges either way, the move of each of its free corners — the one that removes the most
 folds from the faces it changes, then leaves the largest smallest 3D angle
-(:class:`_FoldPatch`). Given a ``chord`` bound, a collapse may also remove a rim corner along
-the rim, a locked one at a reflex corner of the input boundary too, where that leaves the
-input no farther than ``chord`` from the remesh either way (:meth:`_FoldPatch.removable`,
-:meth:`_FoldPatch.rim_chord_ok`): at a notch's end of a ragged rim, the fold across the notch
-has no other undoing. A move goes to the point of the corner's star on the domain with the
+(:class:`_FoldPatch`). Given a ``chord`` bound, a collapse may also remove a rim corner that
+stands on a reflex corner of the input boundary (locked or not) along the rim, where that
+leaves the input no farther than ``chord`` from the remesh either way
+(:meth:`_FoldPatch.removable`, :meth:`_FoldPatch.rim_chord_ok`): at a notch's end of a ragged
+rim, the fold across the notch has no other undoing. A move goes to the point of the corner's star on the domain with the
 fewest faces of the star turned over, then the largest smallest angle (:func:`star_grid`: a
 barycentric grid over each face of the star, and the input vertices under the star — where
 the map is that anisotropic the good positions are a small part of the domain star, often at
@@ -190,10 +190,9 @@ def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None
         others keep their order).
     folds : (k,) int
     chord : float, optional
-        With it, a collapse may also remove a rim vertex along the rim where the chord that
-        replaces its two rim edges passes within ``chord`` of the input boundary vertices it
-        cuts off (:meth:`.angles._Patch.rim_chord_ok`), a locked one too where it stands at a
-        reflex corner of the input boundary (:meth:`_FoldPatch.removable`).
+        With it, a collapse may also remove a rim vertex that stands on a reflex corner of
+        the input boundary along the rim (:meth:`_FoldPatch.removable`) where that leaves the
+        input no farther than ``chord`` from the remesh (:meth:`_FoldPatch.rim_chord_ok`).
 
     Returns
     -------
