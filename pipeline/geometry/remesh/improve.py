@@ -919,13 +919,13 @@ class _Operations:
 
     def unfold_kept(self, min_angle_deg: float) -> None:
         """Group after group of folds (faces turned over sharing vertices): the local
-        operations around it (:meth:`unfold`; the vertices they removed given back by splits
-        that make no face below ``min_angle_deg``, :func:`.angles.split_for_count`), then those
-        around the faces below ``min_angle_deg`` (:meth:`raise_angles`, then
-        :meth:`last_resort`: the faces a fold's
-        undoing leaves skinny stand where the input turns, on a crease the guards keep the
-        vertices on), undone unless they leave fewer folds and
-        either remove as many as the group had or leave no smaller smallest angle among the
+        operations around it (:meth:`unfold`; the rim vertices they removed given back by
+        splits that make no face below ``min_angle_deg``, :func:`.angles.split_for_count`),
+        then those around the faces below ``min_angle_deg`` (:meth:`raise_angles`, then
+        :meth:`last_resort`: the faces a fold's undoing leaves skinny stand where the input
+        turns, on a crease the guards keep the vertices on), undone unless they leave fewer
+        folds and either remove as many as the group had or leave no smaller smallest angle
+        among the
         faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
         where the operations cannot undo a fold, what they leave skinny the minimum-angle
         ones may not raise). A group undone is not tried again."""
@@ -938,11 +938,12 @@ class _Operations:
             if not fresh.any():
                 return
             at = bad[group == group[fresh.argmax()]]
-            before, saved, n0 = unforced_shortfall(S, min_angle_deg), self.saved(), S.n
+            before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
+            rim = int(S.is_rim.sum())
             corners = S.X[S.F[at].ravel()]
             self.unfold(at)
-            if S.n < n0:
-                split_for_count(S, n0 - S.n, min_angle_deg)
+            if S.is_rim.sum() < rim:
+                split_for_count(S, rim - int(S.is_rim.sum()), min_angle_deg)
             self.raise_angles(min_angle_deg)
             self.last_resort(min_angle_deg)
             left = int(self.folds(S).sum())
