@@ -138,6 +138,31 @@ def test_a_ragged_rim_remesh_keeps_no_fold_and_at_most_one_face_below_the_minimu
 
 
 @pytest.mark.timeout(120)
+def test_the_notch_ends_of_a_ragged_rim_keep_no_face_turned_over():
+    """The ragged paraboloid of seed 2 remeshed at 1,000 vertices: the map straightens the rim,
+    and at the ends of its notches (reflex corners of the input boundary, the input's faces
+    spanning far more than 180°) the disk triangulation leaves rim vertices with two faces, one
+    of them turned over across the notch, which no flip or move undoes (2 were left, and one
+    face below 20° that no input corner forces). The fold repair removes such a rim vertex
+    along the rim where that leaves the input no farther from the remesh than it already is
+    (:meth:`.unfold._FoldPatch.removable`): no face is turned over by the report's test and
+    none below 20° is left unforced, the remesh one disk of 1,000 vertices."""
+    from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(seed=2)
+    mesh = repair_mesh(V, F)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1000))
+    assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
+    assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
+    assert r.info["improve"]["below_min_angle"]["unforced_faces"] == 0
+
+
+@pytest.mark.timeout(120)
 def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothing(monkeypatch):
     """The ragged paraboloid on a 50×50 grid (seed 3, 3 passes dropping a quarter of the rim
     faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,

@@ -507,10 +507,10 @@ class _Patch:
         under :meth:`rim_chord_ok`); the link condition; the guards of the module
         docstring."""
         S = self.S
-        if not (self.inner[r] and self.inner[k]) or S.locked[r]:
+        if not (self.inner[r] and self.inner[k]):
             return None
         shared = self.edge_faces(r, k)
-        if S.is_rim[r] and not (len(shared) == 1 and self.tol is not None):
+        if not self.removable(r, shared):
             return None
         ring_r, ring_k = self.ring(r), self.ring(k)
         if len(ring_r & ring_k) != len(shared):
@@ -526,10 +526,10 @@ class _Patch:
             return None
         if not self.same_side([self.faces[t] for t in kept], new):
             return None
+        if S.is_rim[r] and not self.rim_chord_ok(r, k):
+            return None
         if self.tol is not None:
             if not self.gap_ok(S.X[r], new):
-                return None
-            if S.is_rim[r] and not self.rim_chord_ok(r, k):
                 return None
             xs = sorted(ring_r - ring_k - {k})
             if not self.sag_ok([k] * len(xs), xs, self.sag([r] * len(xs), xs)):
@@ -542,22 +542,46 @@ class _Patch:
             return out
         return after, commit
 
-    def rim_chord_ok(self, r, k) -> bool:
-        """Whether the rim chord ``k–x`` that replaces ``k–r`` and ``r–x`` (``x``: ``r``'s other
-        rim neighbour) stays within ``RIM_TOL`` × the tolerance of the input boundary vertices
-        the polygon passes between ``k`` and ``x``, or no farther from them than the two
-        chords it replaces were."""
+    def removable(self, r, shared) -> bool:
+        """Whether a collapse may remove ``r`` along the edge of the faces ``shared``: not
+        locked, and on the rim only along a rim edge (one face) and with a bound for the chord
+        (:meth:`chord_tol`, judged by :meth:`rim_chord_ok`)."""
+        if self.S.locked[r]:
+            return False
+        return not self.S.is_rim[r] or (len(shared) == 1 and self.chord_tol() is not None)
+
+    def chord_tol(self) -> float | None:
+        """How far a rim chord may pass from the input boundary vertices it cuts off
+        (:meth:`rim_chord_ok`): ``RIM_TOL`` × the tolerance (None without one: no rim vertex
+        is removed)."""
+        return None if self.tol is None else RIM_TOL * self.tol
+
+    def cut_off(self, r, k):
+        """The rim vertex ``x`` (``r``'s other rim neighbour) and the input boundary vertices
+        (lifted, j×3) the polygon passes between ``k`` and ``x``: what the rim chord ``k–x``
+        that replaces ``k–r`` and ``r–x`` cuts off; None where ``r`` has no other rim neighbour
+        inner."""
         x = next((w for w in self.ring(r) if w != k and len(self.edge_faces(r, w)) == 1), None)
         if x is None or not self.inner[x]:
-            return False
+            return None
         if self.boundary is None:
             self.boundary = self.S.of_input(_BoundaryCorners)
+        return x, self.boundary.between(self.S.uv[[k, r, x]])
+
+    def rim_chord_ok(self, r, k) -> bool:
+        """Whether the rim chord ``k–x`` that replaces ``k–r`` and ``r–x`` (:meth:`cut_off`)
+        stays within :meth:`chord_tol` of the input boundary vertices the polygon passes
+        between ``k`` and ``x``, or no farther from them than the two chords it replaces
+        were."""
+        cut = self.cut_off(r, k)
+        if cut is None:
+            return False
+        x, P = cut
         X = self.S.X
-        P = self.boundary.between(self.S.uv[[k, r, x]])
         new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
         old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
                                                   for w in pair)) for pair in ((k, r), (r, x))))
-        return bool(new.max(initial=0.0) <= max(RIM_TOL * self.tol, old.max(initial=0.0)))
+        return bool(new.max(initial=0.0) <= max(self.chord_tol(), old.max(initial=0.0)))
 
     def move(self, v, floor: float = -np.inf):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that

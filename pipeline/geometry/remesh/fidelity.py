@@ -125,6 +125,14 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
     return pts.P_uv[far], d[far]
 
 
+def input_reach(S: RemeshState, tol: float) -> float:
+    """The distance of the input point farthest from the remesh (:func:`far_input_points`),
+    or ``tol`` where none is farther than that: the input-to-remesh distance an operation may
+    leave at one more place without raising the largest."""
+    d = far_input_points(S, tol)[1]
+    return float(d[0]) if len(d) else float(tol)
+
+
 #: from this many input vertices per remesh face, :func:`vertex_distances` bounds them
 #: through the remesh face over each on the domain before measuring any
 VERTICES_PER_FACE_TO_BOUND = 4.0

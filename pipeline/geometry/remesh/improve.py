@@ -78,9 +78,13 @@ The schedule (:func:`improve_remesh`):
    its stretch turns from one input face to the next, a face counter-clockwise on the disk
    can lift to one that doubles back over the surface) undone by flips, collapses and moves
    judged on the folds they leave (:func:`.unfold.unfold_locally`: a move to the point of the
-   vertex's star on the disk that leaves the fewest folds); then an edge between interior
-   corners of every fold left collapsed, under the sag and gap guards, then under none, each
-   time followed by the local operations and undone if it leaves as many folds or more;
+   vertex's star on the disk that leaves the fewest folds; where a fold has a rim corner, also
+   the removal along the rim of a rim vertex on a reflex corner of the input boundary that
+   leaves the input no farther from the remesh than its farthest point already is,
+   :func:`.fidelity.input_reach` — a fold across a notch of a ragged rim); then an edge
+   between interior corners of every fold left collapsed, under the sag and gap guards, then
+   under none, each time followed by the local operations and undone if it leaves as many
+   folds or more;
    here, in step 10 and in step 11 the feature vertices at the faces being repaired are freed
    (:meth:`_Operations.release`) and their kept edges dropped;
 10. the minimum-angle pass (:meth:`_Operations.guarantee`): collapses of the short edges of
@@ -176,7 +180,7 @@ from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
-from .fidelity import Settled, input_distance, settle_on_far_input
+from .fidelity import Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
@@ -428,6 +432,8 @@ class _Operations:
                                           # counts of the minimum-angle pass's refinements
     judged: dict = field(default_factory=dict)   # the minimum-angle operations' answers by
                                           # surroundings (raise_min_angles' memo)
+    chord: float | None = None            # how far the fold repair's rim collapses may
+                                          # leave the input from the remesh (repair_folds)
 
     @property
     def tol(self) -> float | None:
@@ -918,9 +924,14 @@ class _Operations:
         of each, shortest first (:meth:`collapse_at_faces`), under the sag and gap guards, then
         under none but the result's validity, each time followed by the local operations and
         undone if it leaves as many folds or more (a collapse at a fold turns its neighbours
-        over where the map is that anisotropic)."""
+        over where the map is that anisotropic). Where a fold has a rim corner, the local
+        operations may also remove rim vertices on reflex input corners where that leaves the
+        input no farther from the remesh than its farthest point is now (:attr:`chord`, :func:`.fidelity.input_reach`; these and
+        the later ones of :meth:`unfold_kept`)."""
         S = self.S
         folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731
+        if self.tol is not None and S.is_rim[S.F[folds()]].any():
+            self.chord = input_reach(S, self.tol)
         self.unfold()
         for guard in (self.tol, None):
             n_folds = len(folds())
@@ -935,11 +946,13 @@ class _Operations:
 
     def unfold_kept(self, min_angle_deg: float) -> None:
         """Group after group of folds (faces turned over sharing vertices): the local
-        operations around it (:meth:`unfold`), then those around the faces below
-        ``min_angle_deg`` (:meth:`raise_angles`, then :meth:`last_resort`: the faces a fold's
-        undoing leaves skinny stand where the input turns, on a crease the guards keep the
-        vertices on), undone unless they leave fewer folds and
-        either remove as many as the group had or leave no smaller smallest angle among the
+        operations around it (:meth:`unfold`; the rim vertices they removed given back by
+        splits that make no face below ``min_angle_deg``, :func:`.angles.split_for_count`),
+        then those around the faces below ``min_angle_deg`` (:meth:`raise_angles`, then
+        :meth:`last_resort`: the faces a fold's undoing leaves skinny stand where the input
+        turns, on a crease the guards keep the vertices on), undone unless they leave fewer
+        folds and either remove as many as the group had or leave no smaller smallest angle
+        among the
         faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
         where the operations cannot undo a fold, what they leave skinny the minimum-angle
         ones may not raise). A group undone is not tried again."""
@@ -953,8 +966,11 @@ class _Operations:
                 return
             at = bad[group == group[fresh.argmax()]]
             before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
+            rim = int(S.is_rim.sum())
             corners = S.X[S.F[at].ravel()]
             self.unfold(at)
+            if S.is_rim.sum() < rim:
+                split_for_count(S, rim - int(S.is_rim.sum()), min_angle_deg)
             self.raise_angles(min_angle_deg)
             self.last_resort(min_angle_deg)
             left = int(self.folds(S).sum())
@@ -971,7 +987,7 @@ class _Operations:
             bad = np.flatnonzero(self.folds(self.S))
         if len(bad):
             self.release(bad)
-            unfold_locally(self.S, bad)
+            unfold_locally(self.S, bad, chord=self.chord)
 
     def saved(self) -> tuple:
         """The state of the remesh, its log and the fold counts (:attr:`folds`), for

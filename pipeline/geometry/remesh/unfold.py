@@ -15,14 +15,18 @@ collapsing it removes the surface it stands on and turns its neighbours over in 
 :mod:`.angles` at the fold — the flip of each of its interior edges, the collapse of each of
 its edges either way, the move of each of its free corners — the one that removes the most
 folds from the faces it changes, then leaves the largest smallest 3D angle
-(:class:`_FoldPatch`). A move goes to the point of the corner's star on the domain with the
+(:class:`_FoldPatch`). Given a ``chord`` bound, a collapse may also remove a rim corner that
+stands on a reflex corner of the input boundary (locked or not) along the rim, where that
+leaves the input no farther than ``chord`` from the remesh either way
+(:meth:`_FoldPatch.removable`, :meth:`_FoldPatch.rim_chord_ok`): at a notch's end of a ragged
+rim, the fold across the notch has no other undoing. A move goes to the point of the corner's star on the domain with the
 fewest faces of the star turned over, then the largest smallest angle (:func:`star_grid`: a
 barycentric grid over each face of the star, and the input vertices under the star — where
 the map is that anisotropic the good positions are a small part of the domain star, often at
 the input vertex where the stretch turns, which a pull-back step would miss), among those that
 keep the star counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain
 (:func:`.angles.star_shapes_ok`). Every operation removes a fold, so the pass ends; no sag or
-gap guard (the folds are where the remesh already leaves the surface) and no angle floor (the
+gap guard but the rim collapses' (the folds are where the remesh already leaves the surface) and no angle floor (the
 minimum-angle pass comes after and raises what the operations leave skinny).
 """
 
@@ -32,7 +36,8 @@ import numpy as np
 
 from .. import topology as topo
 from ..locate import lift
-from ..rows import dots
+from ..remesh_quality import closest_points_on_triangles
+from ..rows import dots, norms
 from .angles import _Patch, star_shapes_ok, triangle_min_angles
 from .domain import project
 from .fidelity import input_distance
@@ -173,7 +178,7 @@ def star_grid(uv: np.ndarray, star: np.ndarray, steps: int = GRID) -> np.ndarray
     return project(np.einsum("gc,dck->dgk", ijk, uv[star]).reshape(-1, uv.shape[1]))
 
 
-def unfold_locally(S: RemeshState, folds: np.ndarray) -> int:
+def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None) -> int:
     """The local operations around the faces ``folds`` (turned over), each made only where it
     leaves fewer of the faces it changes turned over (module docstring); returns the number
     made.
@@ -184,6 +189,10 @@ def unfold_locally(S: RemeshState, folds: np.ndarray) -> int:
         Changed in place: faces rewritten, vertices moved, collapsed vertices dropped (the
         others keep their order).
     folds : (k,) int
+    chord : float, optional
+        With it, a collapse may also remove a rim vertex that stands on a reflex corner of
+        the input boundary along the rim (:meth:`_FoldPatch.removable`) where that leaves the
+        input no farther than ``chord`` from the remesh (:meth:`_FoldPatch.rim_chord_ok`).
 
     Returns
     -------
@@ -191,7 +200,7 @@ def unfold_locally(S: RemeshState, folds: np.ndarray) -> int:
     """
     if len(folds) == 0:
         return 0
-    patch = _FoldPatch(S, folds, None)
+    patch = _FoldPatch(S, folds, chord)
     done = patch.unfold(OPERATIONS_PER_FOLD * len(folds))
     patch.write_back()
     S.tally("fold_operations", done)
@@ -201,7 +210,12 @@ def unfold_locally(S: RemeshState, folds: np.ndarray) -> int:
 class _FoldPatch(_Patch):
     """The patch of :mod:`.angles` around some folds, its operations judged by the faces they
     leave turned over (:func:`turned_over`) rather than by angles alone; no guards (``tol``
-    None)."""
+    None) but the rim collapses', ``chord`` (:meth:`rim_chord_ok`; None: no rim vertex
+    removed)."""
+
+    def __init__(self, S: RemeshState, folds: np.ndarray, chord: float | None = None):
+        super().__init__(S, folds, None)
+        self.chord = chord
 
     def n_folds(self, tris) -> int:
         """How many of the faces ``tris`` (lists of 3 vertices) are turned over."""
@@ -217,6 +231,58 @@ class _FoldPatch(_Patch):
         """No test against the old faces' summed normal: it counts a fold's own turned normal
         (:meth:`better` judges the faces against the input)."""
         return True
+
+    def chord_tol(self) -> float | None:
+        """The bound of the rim chords, ``chord``."""
+        return self.chord
+
+    def rim_chord_ok(self, r, k) -> bool:
+        """Whether the collapse of the rim vertex ``r`` into ``k`` leaves the input no farther
+        from the remesh than ``chord`` either way: each input boundary vertex the new rim chord
+        cuts off (:meth:`.angles._Patch.cut_off`) within ``chord`` of the patch's faces as the
+        collapse leaves them (a notch's end cut off often lies nearer the faces beside it than
+        the chord), the centroids and edge middles of the faces it makes within ``chord`` of
+        the input (a chord across a wide notch spans empty space)."""
+        cut = self.cut_off(r, k)
+        if cut is None:
+            return False
+        P, X = cut[1], self.S.X
+        shared = self.edge_faces(r, k)
+        if len(P):
+            T = np.asarray([[k if v == r else v for v in f] for t, f in self.faces.items()
+                            if t not in shared], np.int64)
+            Q = np.repeat(P, len(T), axis=0)
+            near = closest_points_on_triangles(Q, *(np.tile(X[T[:, c]], (len(P), 1))
+                                                    for c in range(3)))
+            if norms(Q - near).reshape(len(P), len(T)).min(axis=1).max() > self.chord:
+                return False
+        new = np.asarray([[k if v == r else v for v in self.faces[t]]
+                          for t in self.vf[r] if t not in shared], np.int64)
+        M = np.vstack([X[new].mean(axis=1),
+                       ((X[new] + X[np.roll(new, 1, axis=1)]) / 2).reshape(-1, 3)])
+        return bool(self.S.of_input(input_distance)(M)[0].max() <= self.chord)
+
+    def removable(self, r, shared) -> bool:
+        """As :meth:`.angles._Patch.removable` inside; on the rim, a vertex (locked or not)
+        along a rim edge that stands on a reflex corner of the input boundary (an input vertex
+        whose faces span more than 180°), given ``chord``.
+
+        At a notch's or a slit's end (a scan's ragged rim) the input's faces span up to
+        360°, and the map straightens the boundary: the disk triangulation leaves the rim
+        vertex there with two faces, one of which spans more than 180° on the surface —
+        turned over, across the notch. Where the rim is ragged at the remesh's scale, the
+        faces that would span the notch's end without it have three rim corners (not
+        allowed), so no flip or move undoes it; the rim vertex's removal, the chord across
+        the notch's mouth, does. Snapped corners (:mod:`.corners`, locked) stand there, and
+        the rim refinement's vertices (:func:`.rim.refine_rim` splits at the input boundary
+        vertex farthest from a chord, often a notch's end)."""
+        S = self.S
+        if not S.is_rim[r]:
+            return super().removable(r, shared)
+        if len(shared) != 1 or self.chord is None or S.bary[r].max() < 1.0 - ON_EDGE:
+            return False
+        corner = S.F_in[S.face[r], int(np.argmax(S.bary[r]))]
+        return bool(S.angle_sums_in()[corner] > 180.0)
 
     def move(self, v):
         """Move the free inner vertex ``v`` to the point of :func:`star_grid` (or an input
