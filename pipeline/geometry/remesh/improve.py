@@ -926,8 +926,8 @@ class _Operations:
         undone if it leaves as many folds or more (a collapse at a fold turns its neighbours
         over where the map is that anisotropic). Where a fold has a rim corner, the local
         operations may also remove rim vertices on reflex input corners where that leaves the
-        input no farther from the remesh than its farthest point is now (:attr:`chord`, :func:`.fidelity.input_reach`; these and
-        the later ones of :meth:`unfold_kept`)."""
+        input no farther from the remesh than its farthest point is now (:attr:`chord`,
+        :func:`.fidelity.input_reach`; these and the later ones of :meth:`unfold_kept`)."""
         S = self.S
         folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731
         if self.tol is not None and S.is_rim[S.F[folds()]].any():

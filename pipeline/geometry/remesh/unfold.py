@@ -19,15 +19,16 @@ folds from the faces it changes, then leaves the largest smallest 3D angle
 stands on a reflex corner of the input boundary (locked or not) along the rim, where that
 leaves the input no farther than ``chord`` from the remesh either way
 (:meth:`_FoldPatch.removable`, :meth:`_FoldPatch.rim_chord_ok`): at a notch's end of a ragged
-rim, the fold across the notch has no other undoing. A move goes to the point of the corner's star on the domain with the
-fewest faces of the star turned over, then the largest smallest angle (:func:`star_grid`: a
-barycentric grid over each face of the star, and the input vertices under the star — where
-the map is that anisotropic the good positions are a small part of the domain star, often at
-the input vertex where the stretch turns, which a pull-back step would miss), among those that
-keep the star counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain
-(:func:`.angles.star_shapes_ok`). Every operation removes a fold, so the pass ends; no sag or
-gap guard but the rim collapses' (the folds are where the remesh already leaves the surface) and no angle floor (the
-minimum-angle pass comes after and raises what the operations leave skinny).
+rim, the fold across the notch has no other undoing. A move goes to the point of the corner's
+star on the domain with the fewest faces of the star turned over, then the largest smallest
+angle (:func:`star_grid`: a barycentric grid over each face of the star, and the input
+vertices under the star — where the map is that anisotropic the good positions are a small
+part of the domain star, often at the input vertex where the stretch turns, which a pull-back
+step would miss), among those that keep the star counter-clockwise and not thinner than
+``DISK_SHAPE_MIN`` on the domain (:func:`.angles.star_shapes_ok`). Every operation removes a
+fold, so the pass ends; no sag or gap guard but the rim collapses' (the folds are where the
+remesh already leaves the surface) and no angle floor (the minimum-angle pass comes after and
+raises what the operations leave skinny).
 """
 
 from __future__ import annotations
