@@ -196,7 +196,7 @@ def test_obj_compiled_pass_reads_every_form_as_the_general_parser(tmp_path, monk
             j = i + 1                                   # the vertex just read
             lines += [f"f {j - 2} {j - 1} {j}",
                       f"  f\t{j - 3}/1/1 {j - 2}/2/1\t{j - 1}/3/1 {j}/1/1",   # a quad
-                      f"f -1//1 -2//1 -3//1 # relative",
+                      "f -1//1 -2//1 -3//1 # relative",
                       f"f 00{j - 2}/1 {j - 1}/2 {j}/3\r"]
     text = "\n".join(lines).replace("o thing\n", "o thing\r")   # one lone CR line end
     p = write_text(tmp_path / "forms.obj", text)

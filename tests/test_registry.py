@@ -4,7 +4,6 @@ subcommands' flags all derive from the stages' declarations (pipeline/stages/reg
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import pytest
 import yaml
