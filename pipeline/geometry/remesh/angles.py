@@ -526,7 +526,7 @@ class _Patch:
             return None
         if not self.same_side([self.faces[t] for t in kept], new):
             return None
-        if S.is_rim[r] and not self.rim_chord_ok(r, k):
+        if S.is_rim[r] and not self.rim_chord_ok(r, k, new):
             return None
         if self.tol is not None:
             if not self.gap_ok(S.X[r], new):
@@ -568,11 +568,12 @@ class _Patch:
             self.boundary = self.S.of_input(_BoundaryCorners)
         return x, self.boundary.between(self.S.uv[[k, r, x]])
 
-    def rim_chord_ok(self, r, k) -> bool:
+    def rim_chord_ok(self, r, k, new) -> bool:
         """Whether the rim chord ``k–x`` that replaces ``k–r`` and ``r–x`` (:meth:`cut_off`)
         stays within :meth:`chord_tol` of the input boundary vertices the polygon passes
         between ``k`` and ``x``, or no farther from them than the two chords it replaces
-        were."""
+        were (``new``: the faces the collapse makes, lists of 3 vertices; read by
+        :meth:`.unfold._FoldPatch.rim_chord_ok`)."""
         cut = self.cut_off(r, k)
         if cut is None:
             return False

@@ -952,10 +952,10 @@ class _Operations:
         :meth:`last_resort`: the faces a fold's undoing leaves skinny stand where the input
         turns, on a crease the guards keep the vertices on), undone unless they leave fewer
         folds and either remove as many as the group had or leave no smaller smallest angle
-        among the
-        faces below that no input corner forces (:func:`.circumcentres.unforced_shortfall`:
-        where the operations cannot undo a fold, what they leave skinny the minimum-angle
-        ones may not raise). A group undone is not tried again."""
+        among the faces below that no input corner forces
+        (:func:`.circumcentres.unforced_shortfall`: where the operations cannot undo a fold,
+        what they leave skinny the minimum-angle ones may not raise). A group undone is not
+        tried again."""
         S = self.S
         tried = np.zeros((0, 3))
         while True:

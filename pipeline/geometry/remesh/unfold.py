@@ -39,7 +39,7 @@ from .. import topology as topo
 from ..locate import lift
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms
-from .angles import _Patch, star_shapes_ok, triangle_min_angles
+from .angles import _Patch, input_vertex_under, star_shapes_ok, triangle_min_angles
 from .domain import project
 from .fidelity import input_distance
 from .state import RemeshState
@@ -237,13 +237,14 @@ class _FoldPatch(_Patch):
         """The bound of the rim chords, ``chord``."""
         return self.chord
 
-    def rim_chord_ok(self, r, k) -> bool:
+    def rim_chord_ok(self, r, k, new) -> bool:
         """Whether the collapse of the rim vertex ``r`` into ``k`` leaves the input no farther
         from the remesh than ``chord`` either way: each input boundary vertex the new rim chord
         cuts off (:meth:`.angles._Patch.cut_off`) within ``chord`` of the patch's faces as the
         collapse leaves them (a notch's end cut off often lies nearer the faces beside it than
-        the chord), the centroids and edge middles of the faces it makes within ``chord`` of
-        the input (a chord across a wide notch spans empty space)."""
+        the chord), the centroids and edge middles of the faces it makes (``new``, lists of 3
+        vertices) within ``chord`` of the input (a chord across a wide notch spans empty
+        space)."""
         cut = self.cut_off(r, k)
         if cut is None:
             return False
@@ -257,8 +258,7 @@ class _FoldPatch(_Patch):
                                                     for c in range(3)))
             if norms(Q - near).reshape(len(P), len(T)).min(axis=1).max() > self.chord:
                 return False
-        new = np.asarray([[k if v == r else v for v in self.faces[t]]
-                          for t in self.vf[r] if t not in shared], np.int64)
+        new = np.asarray(new, np.int64)
         M = np.vstack([X[new].mean(axis=1),
                        ((X[new] + X[np.roll(new, 1, axis=1)]) / 2).reshape(-1, 3)])
         return bool(self.S.of_input(input_distance)(M)[0].max() <= self.chord)
@@ -282,8 +282,7 @@ class _FoldPatch(_Patch):
             return super().removable(r, shared)
         if len(shared) != 1 or self.chord is None or S.bary[r].max() < 1.0 - ON_EDGE:
             return False
-        corner = S.F_in[S.face[r], int(np.argmax(S.bary[r]))]
-        return bool(S.angle_sums_in()[corner] > 180.0)
+        return bool(S.angle_sums_in()[input_vertex_under(S, np.array([r]))[0]] > 180.0)
 
     def move(self, v):
         """Move the free inner vertex ``v`` to the point of :func:`star_grid` (or an input
