@@ -29,12 +29,27 @@ step would miss), among those that keep the star counter-clockwise and not thinn
 fold, so the pass ends; no sag or gap guard but the rim collapses' (the folds are where the
 remesh already leaves the surface) and no angle floor (the minimum-angle pass comes after and
 raises what the operations leave skinny).
+
+Where the input's boundary turns back on itself (a notch's end of a ragged rim, an input
+vertex whose faces span up to 360° squeezed into half a turn on the domain) and the remesh is
+finer than the notch, the faces around it are counter-clockwise on the domain while a ring of
+them doubles back over the notch's end on the surface, and no one of these operations undoes
+the group: each leaves another of its faces turned over. The last option
+(:meth:`_FoldPatch.chart`) triangulates the faces around a fold anew, their vertices kept, as
+the surface lays them out: the Delaunay triangulation of the vertices projected onto the plane
+across the input's mean normal there (:func:`chart_triangulation`), the region grown ring by
+ring (up to ``CHART_RINGS``) until its outline is a simple polygon in that plane, kept where its
+faces are counter-clockwise and not thin on the domain.
 """
 
 from __future__ import annotations
 
-import numpy as np
+from functools import partial
 
+import numpy as np
+from scipy.spatial import Delaunay
+
+from ...errors import UserError
 from .. import topology as topo
 from ..locate import lift
 from ..remesh_quality import closest_points_on_triangles
@@ -42,12 +57,15 @@ from ..rows import dots, norms
 from .angles import _Patch, input_vertex_under, star_shapes_ok, triangle_min_angles
 from .domain import project
 from .fidelity import input_distance
+from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, touching
 from .state import RemeshState
 
 GRID = 6                   # the barycentric grid over each face of a star: steps of 1/GRID
 OPERATIONS_PER_FOLD = 10   # the pass stops after this × the folds it started with
 FOLD_WEIGHT = 180.0        # an operation's score: this × the folds it removes + the smallest
                            # angle (degrees) of the faces it makes
+CHART_RINGS = 3            # the region of a chart triangulation: the faces within this many
+                           # rings of a fold's corners at most
 ON_EDGE = 1e-9             # a barycentric coordinate at most this puts a point on the edge of
                            # its input face opposite that corner (and two, on a vertex)
 
@@ -215,7 +233,8 @@ class _FoldPatch(_Patch):
     removed)."""
 
     def __init__(self, S: RemeshState, folds: np.ndarray, chord: float | None = None):
-        super().__init__(S, folds, None)
+        super().__init__(S, faces_within(S.F, folds, CHART_RINGS - 1), None)
+        self.start = [int(t) for t in folds]
         self.chord = chord
 
     def n_folds(self, tris) -> int:
@@ -284,6 +303,78 @@ class _FoldPatch(_Patch):
             return False
         return bool(S.angle_sums_in()[input_vertex_under(S, np.array([r]))[0]] > 180.0)
 
+    def options(self, t) -> list:
+        """The operations of :meth:`.angles._Patch.options` at face ``t``, then its chart
+        triangulation (:meth:`chart`)."""
+        return super().options(t) + [partial(self.chart, t)]
+
+    def chart(self, t):
+        """Triangulate anew the faces within ``k`` rings of the corners of face ``t`` (``k`` =
+        1 … ``CHART_RINGS``, all of them inner) as :func:`chart_triangulation` lays them out;
+        of the regions where that removes folds, the one with the best score (``FOLD_WEIGHT`` ×
+        the folds removed + the smallest angle of its faces). Refused where a region holds an
+        interior kept edge (``S.joined``) or its outline is not a simple loop, or the new faces
+        have three rim corners or an edge between two of its outline's vertices that a face
+        outside the region already has."""
+        S = self.S
+        corners = set(self.faces[t])
+        best = None
+        for _ in range(CHART_RINGS):
+            region = sorted({r for v in corners for r in self.vf[v]})
+            old = np.asarray([self.faces[r] for r in region], np.int64)
+            corners = set(old.ravel().tolist())
+            if not self.inner[old].all():
+                break
+            new = self.chart_faces(region, old)
+            if new is None:
+                continue
+            removed = self.n_folds(old) - self.n_folds(new)
+            if removed > 0:
+                score = FOLD_WEIGHT * removed + self.min_angle(new)
+                if best is None or score > best[0]:
+                    best = (score, region, new.tolist())
+        if best is None:
+            return None
+        score, region, new = best
+
+        def commit():
+            S.tally("fold_charts", 1)
+            return self.replace(region, new)
+        return score, commit
+
+    def chart_faces(self, region: list, old: np.ndarray):
+        """The faces :func:`chart_triangulation` makes of the faces ``old`` (rows ``region``),
+        or None where :meth:`chart` refuses them."""
+        S = self.S
+        local, T = np.unique(old, return_inverse=True)
+        T = T.reshape(-1, 3)
+        try:
+            loops = topo.boundary_loops(T)
+        except UserError:
+            return None
+        if len(loops) != 1 or (len(local) - len(loops[0])) * 2 + len(loops[0]) - 2 != len(T):
+            return None
+        outline = local[loops[0]]
+        a, b = old.ravel(), np.roll(old, -1, axis=1).ravel()
+        interior = np.isin(b * S.n + a, a * S.n + b)
+        if S.is_joined(a[interior], b[interior]).any():
+            return None
+        inside = np.setdiff1d(local, outline)
+        new = chart_triangulation(S, outline, inside)
+        if new is None or S.is_rim[new].all(axis=1).any():
+            return None
+        if (disk_shape(S.uv, new) < DISK_SHAPE_MIN).any():
+            return None
+        inside_region = set(region)
+        on_outline = set(outline.tolist())
+        outline_edges = set(zip(outline.tolist(), np.roll(outline, -1).tolist()))
+        for a, b in zip(new.ravel().tolist(), np.roll(new, -1, 1).ravel().tolist()):
+            if a in on_outline and b in on_outline and (a, b) not in outline_edges and \
+                    (b, a) not in outline_edges and \
+                    any(b in self.faces[r] for r in self.vf[a] - inside_region):
+                return None
+        return new
+
     def move(self, v):
         """Move the free inner vertex ``v`` to the point of :func:`star_grid` (or an input
         vertex under its star) with the fewest faces of its star turned over, then the largest
@@ -325,6 +416,75 @@ class _FoldPatch(_Patch):
             queue.extend(f for f in best[1]()
                          if f in self.faces and self.n_folds([self.faces[f]]))
         return done
+
+
+def faces_within(F: np.ndarray, faces: np.ndarray, rings: int) -> np.ndarray:
+    """The faces (indices) of ``F`` (m×3) with a corner within ``rings`` rings of the corners
+    of ``faces`` (k indices; 0 rings: the faces at their corners)."""
+    near = np.zeros(int(F.max()) + 1, bool)
+    near[F[faces].ravel()] = True
+    for _ in range(rings):
+        near[F[touching(F, near)].ravel()] = True
+    return np.flatnonzero(touching(F, near))
+
+
+def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
+                        ) -> np.ndarray | None:
+    """The faces of the region of ``S`` bounded by the vertex loop ``outline`` (b, counter-
+    clockwise on the domain) around the vertices ``inside`` (i), laid out as the surface lays
+    them out: the vertices projected onto the plane across the sum of the input's normals
+    under them, the Delaunay triangles of those points whose centroid lies inside the
+    projected outline, counter-clockwise in that plane; None where the projected outline is
+    not a simple counter-clockwise polygon those triangles fill with every vertex used
+    (b − 2 + 2i faces, their outline the same loop).
+
+    Parameters
+    ----------
+    S : RemeshState
+    outline : (b,) int
+    inside : (i,) int
+
+    Returns
+    -------
+    (b − 2 + 2i, 3) int or None
+    """
+    vs = np.concatenate([outline, inside])
+    normal = S.normals_in()[S.face[vs]].sum(axis=0)
+    e1 = np.cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
+    e2 = np.cross(normal, e1)
+    Q = S.X[vs] @ np.column_stack([e1 / np.linalg.norm(e1), e2 / np.linalg.norm(e2)])
+    b = len(outline)
+    loop = np.column_stack([np.arange(b), np.roll(np.arange(b), -1)])
+    fan = np.column_stack([np.zeros(b - 2, np.int64), np.arange(1, b - 1), np.arange(2, b)])
+    if double_areas(Q, fan).sum() <= 0:
+        return None
+    T = Delaunay(Q).simplices.astype(np.int64)
+    T = T[points_in_polygon(Q[T].mean(axis=1), Q[:b])]
+    flip = double_areas(Q, T) < 0
+    T[flip] = T[flip][:, [0, 2, 1]]
+    if len(T) != b - 2 + 2 * len(inside) or len(np.unique(T)) != len(vs):
+        return None
+    try:
+        loops = topo.boundary_loops(T)
+    except UserError:
+        return None
+    if len(loops) != 1 or len(loops[0]) != b:
+        return None
+    got = np.column_stack([loops[0], np.roll(loops[0], -1)])
+    if set(map(tuple, got.tolist())) != set(map(tuple, loop.tolist())):
+        return None
+    return vs[T]
+
+
+def points_in_polygon(P: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Whether each point ``P`` (k×2) lies inside the closed ``polygon`` (b×2, its vertices in
+    order), by the parity of its crossings with the polygon's edges along +x (k bool)."""
+    A, B = polygon, np.roll(polygon, -1, axis=0)
+    x, y = P[:, :1], P[:, 1:]
+    spans = (A[:, 1] > y) != (B[:, 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        at = A[:, 0] + (y - A[:, 1]) * (B[:, 0] - A[:, 0]) / (B[:, 1] - A[:, 1])
+    return (spans & (x < at)).sum(axis=1) % 2 == 1
 
 
 def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
