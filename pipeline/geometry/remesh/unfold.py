@@ -44,8 +44,6 @@ faces are counter-clockwise and not thin on the domain.
 
 from __future__ import annotations
 
-from functools import partial
-
 import numpy as np
 from scipy.spatial import Delaunay
 
@@ -233,9 +231,15 @@ class _FoldPatch(_Patch):
     removed)."""
 
     def __init__(self, S: RemeshState, folds: np.ndarray, chord: float | None = None):
-        super().__init__(S, faces_within(S.F, folds, CHART_RINGS - 1), None)
+        super().__init__(S, faces_within(S.F, folds, CHART_RINGS - 2, S.n), None)
         self.start = [int(t) for t in folds]
         self.chord = chord
+        self.wide = self.inner                 # the vertices a chart's region may hold
+        corners = np.zeros(S.n, bool)
+        corners[S.F[folds].ravel()] = True
+        self.inner = np.zeros(S.n, bool)       # those the other operations may change
+        self.inner[S.F[touching(S.F, corners)].ravel()] = True
+        self.own = set(np.flatnonzero(touching(S.F, self.inner)).tolist())
 
     def n_folds(self, tris) -> int:
         """How many of the faces ``tris`` (lists of 3 vertices) are turned over."""
@@ -261,7 +265,7 @@ class _FoldPatch(_Patch):
         from the remesh than ``chord`` either way: each input boundary vertex the new rim chord
         cuts off (:meth:`.angles._Patch.cut_off`) within ``chord`` of the patch's faces as the
         collapse leaves them (a notch's end cut off often lies nearer the faces beside it than
-        the chord), the centroids and edge middles of the faces it makes (``new``, lists of 3
+        the chord; the faces at the inner vertices), the centroids and edge middles of the faces it makes (``new``, lists of 3
         vertices) within ``chord`` of the input (a chord across a wide notch spans empty
         space)."""
         cut = self.cut_off(r, k)
@@ -271,7 +275,7 @@ class _FoldPatch(_Patch):
         shared = self.edge_faces(r, k)
         if len(P):
             T = np.asarray([[k if v == r else v for v in f] for t, f in self.faces.items()
-                            if t not in shared], np.int64)
+                            if t not in shared and self.inner[f].any()], np.int64)
             Q = np.repeat(P, len(T), axis=0)
             near = closest_points_on_triangles(Q, *(np.tile(X[T[:, c]], (len(P), 1))
                                                     for c in range(3)))
@@ -303,14 +307,9 @@ class _FoldPatch(_Patch):
             return False
         return bool(S.angle_sums_in()[input_vertex_under(S, np.array([r]))[0]] > 180.0)
 
-    def options(self, t) -> list:
-        """The operations of :meth:`.angles._Patch.options` at face ``t``, then its chart
-        triangulation (:meth:`chart`)."""
-        return super().options(t) + [partial(self.chart, t)]
-
     def chart(self, t):
         """Triangulate anew the faces within ``k`` rings of the corners of face ``t`` (``k`` =
-        1 … ``CHART_RINGS``, all of them inner) as :func:`chart_triangulation` lays them out;
+        1 … ``CHART_RINGS``, their corners all in ``wide``) as :func:`chart_triangulation` lays them out;
         of the regions where that removes folds, the one with the best score (``FOLD_WEIGHT`` ×
         the folds removed + the smallest angle of its faces). Refused where a region holds an
         interior kept edge (``S.joined``) or its outline is not a simple loop, or the new faces
@@ -323,7 +322,7 @@ class _FoldPatch(_Patch):
             region = sorted({r for v in corners for r in self.vf[v]})
             old = np.asarray([self.faces[r] for r in region], np.int64)
             corners = set(old.ravel().tolist())
-            if not self.inner[old].all():
+            if not self.wide[old].all():
                 break
             new = self.chart_faces(region, old)
             if new is None:
@@ -375,6 +374,18 @@ class _FoldPatch(_Patch):
                 return None
         return new
 
+    def write_back(self) -> None:
+        """As :meth:`.angles._Patch.write_back`, the faces a chart did not change outside the
+        rows of the other operations (``own``) left in their rows: the faces' order is that
+        of the patch without the charts' reach."""
+        S = self.S
+        same = [t for t in self.rows.tolist() if t not in self.own and t in self.faces
+                and self.faces[t] == S.F[t].tolist()]
+        for t in same:
+            del self.faces[t]
+        self.rows = np.setdiff1d(self.rows, same)
+        super().write_back()
+
     def move(self, v):
         """Move the free inner vertex ``v`` to the point of :func:`star_grid` (or an input
         vertex under its star) with the fewest faces of its star turned over, then the largest
@@ -399,9 +410,10 @@ class _FoldPatch(_Patch):
         return FOLD_WEIGHT * (now - n_after) + angle, commit
 
     def unfold(self, max_operations: int) -> int:
-        """Fold after fold: the best operation at it (:meth:`.angles._Patch.options`), the
-        folds it makes taken up in turn, until none is left or none helps; returns the number
-        made."""
+        """Fold after fold: the best operation at it (:meth:`.angles._Patch.options`), or its
+        chart triangulation (:meth:`chart`) where that removes more folds than the best of
+        them, the folds it makes taken up in turn, until none is left or none helps; returns
+        the number made."""
         queue = [t for t in self.start if t in self.faces]
         done = 0
         while queue and done < max_operations:
@@ -410,6 +422,9 @@ class _FoldPatch(_Patch):
                 continue
             best = max((op for op in (option() for option in self.options(t)) if op is not None),
                        key=lambda op: op[0], default=None)
+            chart = self.chart(t)
+            if chart is not None and (best is None or chart[0] // FOLD_WEIGHT > best[0] // FOLD_WEIGHT):
+                best = chart
             if best is None:
                 continue
             done += 1
@@ -418,10 +433,10 @@ class _FoldPatch(_Patch):
         return done
 
 
-def faces_within(F: np.ndarray, faces: np.ndarray, rings: int) -> np.ndarray:
-    """The faces (indices) of ``F`` (m×3) with a corner within ``rings`` rings of the corners
-    of ``faces`` (k indices; 0 rings: the faces at their corners)."""
-    near = np.zeros(int(F.max()) + 1, bool)
+def faces_within(F: np.ndarray, faces: np.ndarray, rings: int, n: int) -> np.ndarray:
+    """The faces (indices) of ``F`` (m×3, ``n`` vertices) with a corner within ``rings``
+    rings of the corners of ``faces`` (k indices; 0 rings: the faces at their corners)."""
+    near = np.zeros(n, bool)
     near[F[faces].ravel()] = True
     for _ in range(rings):
         near[F[touching(F, near)].ravel()] = True
