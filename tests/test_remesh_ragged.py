@@ -264,3 +264,31 @@ def test_corner_splits_raise_the_faces_next_to_a_closely_sampled_rim():
     assert len(V) == 4560
     below = _below_min_angle(V, F, 2000)
     assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (14, 11, 3)
+
+
+@pytest.mark.timeout(120)
+def test_notch_ends_resolved_finer_than_the_input_keep_no_face_turned_over():
+    """The ragged paraboloid of seed 2 on a 60×60 grid with 8 passes dropping half the rim's
+    faces (1,606 vertices, notches several input edges deep) remeshed at 8,030 vertices (5 ×
+    the input's: a remesh edge about half an input edge, as a scan remeshed finer than it was
+    captured). At a notch's end the input's faces span about 310°, half a turn on the domain,
+    and the face there spans 298° on the surface (turned over); no flip, collapse or move
+    undoes it without turning another over. The fold repair's chart triangulation
+    (:meth:`.unfold._FoldPatch.chart`) lays the faces around it out anew as the surface lays
+    them out: no face turned over by the report's test and none below 20° that no input
+    corner forces (1 and 2 without it)."""
+    from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=60, seed=2, passes=8, drop=0.5)
+    mesh = repair_mesh(V, F)
+    assert len(mesh.V) == 1606
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=8030))
+    assert is_disk(mesh_facts(r.V, r.F))
+    assert r.info["improve"]["fold_charts"] >= 1
+    assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
+    assert r.info["improve"]["below_min_angle"]["unforced_faces"] == 0

@@ -184,3 +184,41 @@ def test_a_lip_fold_narrower_than_the_remesh_is_left_with_no_face_turned_over():
     assert r.info["spacing_mesh_units"] > 0.04
     assert abs(len(r.V) - 1000) <= 20 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(V, F, r.V, r.F)["turned_over_faces"] == 0
+
+
+def test_recover_edges_flips_the_edge_across_a_convex_quad_and_refuses_a_reflex_one():
+    """The unit square's Delaunay triangles with the diagonal 0–2: asked for 1–3, the one
+    flip makes it (two counter-clockwise faces, 1–3 their shared edge), and asked for 0–2
+    none; with corner 0 moved to (0.8, 0.4) the quad is reflex there, the segment 1–3 runs
+    outside it and crosses no edge: None."""
+    from pipeline.geometry.remesh.halfedge import double_areas
+    from pipeline.geometry.remesh.unfold import recover_edges
+
+    Q = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    T = np.array([[0, 1, 2], [0, 2, 3]])
+    got = recover_edges(Q, T, np.array([[1, 3]]))
+    assert sorted(map(sorted, got.tolist())) == [[0, 1, 3], [1, 2, 3]]
+    assert (double_areas(Q, got) > 0).all()
+    assert np.array_equal(recover_edges(Q, T, np.array([[0, 2]])), T)
+    dart = np.array([[0.8, 0.4], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert (double_areas(dart, T) > 0).all()
+    assert recover_edges(dart, T, np.array([[1, 3]])) is None
+
+
+def test_chart_triangulation_fills_the_outline_with_every_vertex_or_refuses():
+    """A flat hexagon (outline counter-clockwise) around its centre on a plane state: the
+    chart makes the 6 faces of the centre's fan (b − 2 + 2i = 6), its outline the hexagon;
+    the outline given clockwise is refused."""
+    from types import SimpleNamespace
+
+    from pipeline.geometry.remesh.unfold import chart_triangulation
+
+    t = np.linspace(0, 2 * np.pi, 7)[:-1]
+    X = np.vstack([np.column_stack([np.cos(t), np.sin(t), np.zeros(6)]), [[0.0, 0.0, 0.0]]])
+    S = SimpleNamespace(X=X, face=np.zeros(7, np.int64),
+                        normals_in=lambda: np.array([[0.0, 0.0, 1.0]]))
+    outline, inside = np.arange(6), np.array([6])
+    got = chart_triangulation(S, outline, inside)
+    assert len(got) == 6 and (got == 6).any(axis=1).all()
+    assert topo.boundary_loops(got)[0].tolist() == list(range(6))
+    assert chart_triangulation(S, outline[::-1].copy(), inside) is None

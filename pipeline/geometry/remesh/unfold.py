@@ -263,11 +263,11 @@ class _FoldPatch(_Patch):
     def rim_chord_ok(self, r, k, new) -> bool:
         """Whether the collapse of the rim vertex ``r`` into ``k`` leaves the input no farther
         from the remesh than ``chord`` either way: each input boundary vertex the new rim chord
-        cuts off (:meth:`.angles._Patch.cut_off`) within ``chord`` of the patch's faces as the
-        collapse leaves them (a notch's end cut off often lies nearer the faces beside it than
-        the chord; the faces at the inner vertices), the centroids and edge middles of the faces it makes (``new``, lists of 3
-        vertices) within ``chord`` of the input (a chord across a wide notch spans empty
-        space)."""
+        cuts off (:meth:`.angles._Patch.cut_off`) within ``chord`` of the patch's faces at its
+        inner vertices as the collapse leaves them (a notch's end cut off often lies nearer the
+        faces beside it than the chord), the centroids and edge middles of the faces it makes
+        (``new``, lists of 3 vertices) within ``chord`` of the input (a chord across a wide
+        notch spans empty space)."""
         cut = self.cut_off(r, k)
         if cut is None:
             return False
@@ -309,12 +309,13 @@ class _FoldPatch(_Patch):
 
     def chart(self, t):
         """Triangulate anew the faces within ``k`` rings of the corners of face ``t`` (``k`` =
-        1 … ``CHART_RINGS``, their corners all in ``wide``) as :func:`chart_triangulation` lays them out;
-        of the regions where that removes folds, the one with the best score (``FOLD_WEIGHT`` ×
-        the folds removed + the smallest angle of its faces). Refused where a region holds an
-        interior kept edge (``S.joined``) or its outline is not a simple loop, or the new faces
-        have three rim corners or an edge between two of its outline's vertices that a face
-        outside the region already has."""
+        1 … ``CHART_RINGS``, their corners all in ``wide``) as :func:`chart_triangulation`
+        lays them out; of the regions where that removes folds, the one with the best score
+        (``FOLD_WEIGHT`` × the folds removed + the smallest angle of its faces). Refused where
+        a region holds an interior kept edge (``S.joined``) or its outline is not a simple
+        loop, or the new faces are thinner than ``DISK_SHAPE_MIN`` on the domain, have three rim
+        corners or an edge between two of its outline's vertices that a face outside the region
+        already has."""
         S = self.S
         corners = set(self.faces[t])
         best = None
@@ -423,7 +424,8 @@ class _FoldPatch(_Patch):
             best = max((op for op in (option() for option in self.options(t)) if op is not None),
                        key=lambda op: op[0], default=None)
             chart = self.chart(t)
-            if chart is not None and (best is None or chart[0] // FOLD_WEIGHT > best[0] // FOLD_WEIGHT):
+            if chart is not None and (best is None or
+                                      chart[0] // FOLD_WEIGHT > best[0] // FOLD_WEIGHT):
                 best = chart
             if best is None:
                 continue
@@ -448,8 +450,9 @@ def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
     """The faces of the region of ``S`` bounded by the vertex loop ``outline`` (b, counter-
     clockwise on the domain) around the vertices ``inside`` (i), laid out as the surface lays
     them out: the vertices projected onto the plane across the sum of the input's normals
-    under them, the Delaunay triangles of those points whose centroid lies inside the
-    projected outline, counter-clockwise in that plane; None where the projected outline is
+    under them, their Delaunay triangulation with the outline's edges flipped in
+    (:func:`recover_edges`), the triangles whose centroid lies inside the projected outline;
+    None where the projected outline is
     not a simple counter-clockwise polygon those triangles fill with every vertex used
     (b − 2 + 2i faces, their outline the same loop).
 
@@ -474,9 +477,12 @@ def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
     if double_areas(Q, fan).sum() <= 0:
         return None
     T = Delaunay(Q).simplices.astype(np.int64)
-    T = T[points_in_polygon(Q[T].mean(axis=1), Q[:b])]
     flip = double_areas(Q, T) < 0
     T[flip] = T[flip][:, [0, 2, 1]]
+    T = recover_edges(Q, T, loop)
+    if T is None:
+        return None
+    T = T[points_in_polygon(Q[T].mean(axis=1), Q[:b])]
     if len(T) != b - 2 + 2 * len(inside) or len(np.unique(T)) != len(vs):
         return None
     try:
@@ -489,6 +495,59 @@ def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
     if set(map(tuple, got.tolist())) != set(map(tuple, loop.tolist())):
         return None
     return vs[T]
+
+
+def recover_edges(Q: np.ndarray, T: np.ndarray, edges: np.ndarray) -> np.ndarray | None:
+    """The triangulation ``T`` (m×3, counter-clockwise) of the points ``Q`` (n×2) with each
+    of ``edges`` (k×2) made an edge of it: while one is missing, an edge that crosses it
+    flipped where its two faces make a convex quadrilateral (Sloan's recovery of a
+    constrained edge); None where no crossing edge can be flipped.
+
+    Parameters
+    ----------
+    Q : (n, 2) float
+    T : (m, 3) int
+    edges : (k, 2) int
+
+    Returns
+    -------
+    (m, 3) int or None
+    """
+    T = T.copy()
+    for a, b in edges.tolist():
+        for _ in range(len(T) + 1):
+            h = np.column_stack([T.ravel(), np.roll(T, -1, axis=1).ravel()])
+            if ((h[:, 0] == a) & (h[:, 1] == b)).any() or ((h[:, 0] == b) & (h[:, 1] == a)).any():
+                break
+            if not _flip_across(Q, T, h, a, b):
+                return None
+        else:
+            return None
+    return T
+
+
+def _flip_across(Q: np.ndarray, T: np.ndarray, h: np.ndarray, a: int, b: int) -> bool:
+    """Flip in place one edge of ``T`` (its half-edges ``h``, 3m×2, row ``3f + c`` the one
+    from corner ``c`` of face ``f``) that crosses the segment ``a–b`` strictly and whose two
+    faces make a convex quadrilateral; whether there was one."""
+    def side(p, q, r):
+        return np.sign((Q[q, 0] - Q[p, 0]) * (Q[r, 1] - Q[p, 1])
+                       - (Q[q, 1] - Q[p, 1]) * (Q[r, 0] - Q[p, 0]))
+    c, d = h[:, 0], h[:, 1]
+    crossing = np.flatnonzero((side(a, b, c) * side(a, b, d) < 0) &
+                              (side(c, d, a) * side(c, d, b) < 0))
+    key = {(int(x), int(y)): i for i, (x, y) in enumerate(h.tolist())}
+    for i in crossing.tolist():
+        j = key.get((int(d[i]), int(c[i])))
+        if j is None:
+            continue
+        f, g = i // 3, j // 3
+        p, q = T[f, (i % 3 + 2) % 3], T[g, (j % 3 + 2) % 3]
+        new = np.array([[c[i], q, p], [q, d[i], p]])
+        if (double_areas(Q, new) > 0).all():
+            T[f], T[g] = new
+            return True
+    return False
 
 
 def points_in_polygon(P: np.ndarray, polygon: np.ndarray) -> np.ndarray:
