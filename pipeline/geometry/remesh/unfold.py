@@ -34,12 +34,14 @@ Where the input's boundary turns back on itself (a notch's end of a ragged rim, 
 vertex whose faces span up to 360° squeezed into half a turn on the domain) and the remesh is
 finer than the notch, the faces around it are counter-clockwise on the domain while a ring of
 them doubles back over the notch's end on the surface, and no one of these operations undoes
-the group: each leaves another of its faces turned over. The last option
-(:meth:`_FoldPatch.chart`) triangulates the faces around a fold anew, their vertices kept, as
-the surface lays them out: the Delaunay triangulation of the vertices projected onto the plane
-across the input's mean normal there (:func:`chart_triangulation`), the region grown ring by
-ring (up to ``CHART_RINGS``) until its outline is a simple polygon in that plane, kept where its
-faces are counter-clockwise and not thin on the domain.
+the group: each leaves another of its faces turned over. Where it removes more folds than the
+best of them, the chart triangulation (:meth:`_FoldPatch.chart`) is made instead: the faces
+within one to ``CHART_RINGS`` rings of the fold laid out anew, their vertices kept, as the
+surface lays them out — the Delaunay triangulation of the vertices projected onto the plane
+across the input's normals there with the region's outline flipped in
+(:func:`chart_triangulation`, :func:`recover_edges`) — where the outline is a simple polygon in
+that plane and the faces are counter-clockwise and not thin on the domain; of the rings, the
+one with the best score.
 """
 
 from __future__ import annotations
