@@ -293,3 +293,29 @@ def test_folded_vertices_are_the_ends_of_the_edges_across_a_ridge():
     assert not fold[np.abs(x) > 0.31].any()
     S.X = np.column_stack([S.uv, 0.2 * np.abs(x)])
     assert not folded_vertices(S, 60.0).any()
+
+
+def test_ring_step_veto_keeps_the_floor_where_the_ring_veto_undoes_a_neighbour():
+    """The flat disk's remesh pushed off its places, then every interior vertex given a
+    random move: the ring veto undoes some moves, which changes the faces of the moves it
+    keeps. Judged before it (the angle veto as the ring veto's ``then``), a face of a kept
+    move ends below its floor; :func:`ring_step_veto` judges the floor last and leaves none
+    below it."""
+    from functools import partial
+
+    from pipeline.geometry.remesh.improve import angle_veto, ring_step_veto, ring_veto
+
+    S, inner = _pushed_flat_state(10)
+    uv = S.uv.copy()
+    uv[inner] += np.random.default_rng(1030).uniform(-0.08, 0.08, (len(inner), 2))
+    moved = _moved(S, inner, uv[inner])
+    X = moved[3]
+    floor = np.minimum(np.min(corner_angles(S.X, S.F), axis=1), np.radians(30.0))
+
+    def smallest(drop):
+        return np.min(corner_angles(np.where(drop[:, None], S.X, X), S.F), axis=1)
+
+    inside = ring_veto(S, partial(angle_veto, S, floor, None), *moved)
+    assert (smallest(inside) < floor).any()
+    drop = ring_step_veto(S, floor)(*moved)
+    assert np.all(smallest(drop) >= floor) and not drop[inner].all()

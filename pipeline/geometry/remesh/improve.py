@@ -722,7 +722,7 @@ class _Operations:
         if ring_steps > 0:
             floor = np.minimum(row_min(corner_angles(S.X, S.F)),
                                np.radians(max(min_angle_deg, RING_FLOOR_DEG)))
-            veto = partial(ring_veto, S, partial(angle_veto, S, floor, sag))
+            veto = ring_step_veto(S, floor, sag)
             for _ in range(ring_steps):
                 self.relax(veto=veto, equalize=AREA_EQUALIZE)
         S.locked = locked
@@ -1211,11 +1211,13 @@ def ring_veto(S: RemeshState, then, uv: np.ndarray, face: np.ndarray, bary: np.n
     """The ``veto`` of :func:`.relax.tangential_smoothing` that keeps only the moves making a
     vertex's faces better shaped and no less even: given ``S`` with its vertices moved to
     ``uv`` (n×2; located at ``face``, ``bary``, lifted to ``X``), the moving vertices (n bool)
-    the veto ``then`` (same arguments) drops and, with those moves undone, those whose faces'
-    smallest 3D angles would sum lower or whose faces' squared relative area deviations
-    ``(A / Ā − 1)²`` (``Ā``: the mean face area before the moves) would sum higher."""
+    the veto ``then`` (same arguments, or None) drops and, with those moves undone, those
+    whose faces' smallest 3D angles would sum lower or whose faces' squared relative area
+    deviations ``(A / Ā − 1)²`` (``Ā``: the mean face area before the moves) would sum higher.
+    Undoing a move changes the faces of the moves kept: a floor on their angles is the
+    outer veto's (:func:`angle_veto` with this one as its ``then``)."""
     moved = np.any(uv != S.uv, axis=1)
-    drop = then(uv, face, bary, X) & moved
+    drop = np.zeros(len(uv), bool) if then is None else then(uv, face, bary, X) & moved
     X_kept = np.where(drop[:, None], S.X, X)
     angle_gain = row_min(corner_angles(X_kept, S.F)) - row_min(corner_angles(S.X, S.F))
     area_before, area_after = face_double_areas(S.X, S.F), face_double_areas(X_kept, S.F)
@@ -1225,6 +1227,14 @@ def ring_veto(S: RemeshState, then, uv: np.ndarray, face: np.ndarray, bary: np.n
     angle_sum = np.bincount(corners, np.repeat(angle_gain, 3), S.n)
     spread_sum = np.bincount(corners, np.repeat(spread_gain, 3), S.n)
     return drop | (moved & ((angle_sum < 0) | (spread_sum > 0)))
+
+
+def ring_step_veto(S: RemeshState, floor: np.ndarray, sag=None):
+    """The ``veto`` of the ring steps (:meth:`_Operations.even_out`): :func:`ring_veto` after
+    the veto ``sag`` (or None), then :func:`angle_veto` with the floor ``floor`` (m, radians)
+    over both, so that the moves the ring veto undoes leave no face of a kept move below
+    its floor."""
+    return partial(angle_veto, S, floor, partial(ring_veto, S, sag))
 
 
 def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
