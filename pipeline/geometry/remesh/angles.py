@@ -231,7 +231,8 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
-                     faces: np.ndarray, memo: dict | None = None) -> int:
+                     faces: np.ndarray, memo: dict | None = None,
+                     count_below: bool = True) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -254,6 +255,13 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
         is made again, or it is passed over. The minimum-angle pass's rounds undo and redo
         the same changes, and the faces at forced corners stay as they were, so most of
         them are judged once instead of in every round.
+    count_below : bool
+        Whether an operation may leave no more of the faces it touches below
+        ``min_angle_deg`` than there were (the default); without, it is judged on their
+        smallest angle alone: at an input corner too sharp for any fan
+        (:func:`forced_by_corners`) its faces share the corner's angle out, each below the
+        threshold, only through states with more of them below (two faces of 18° at a 36°
+        rim corner instead of 4° and 32°). No memo is read or written then.
 
     Returns
     -------
@@ -261,7 +269,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo)
+    patch = _Patch(S, faces, tol, memo if count_below else None, count_below)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -278,8 +286,9 @@ class _Patch:
     (:meth:`write_back`)."""
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
-                 memo: dict | None = None):
+                 memo: dict | None = None, count_below: bool = True):
         self.S, self.tol = S, tol
+        self.count_below = count_below        # judge the faces left below too (better)
         self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
@@ -318,11 +327,13 @@ class _Patch:
 
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
-        (a larger smallest angle and no more faces below the threshold), else None."""
+        (a larger smallest angle and, with :attr:`count_below`, no more faces below the
+        threshold), else None."""
         a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
         if a_new.min() <= a_old.min():
             return None
-        if (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
+        if self.count_below and \
+                (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
             return None
         return float(a_new.min())
 
@@ -588,7 +599,9 @@ class _Patch:
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
         raises the smallest angle of its star most, under the guards: the three best of those
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
-        tried, those not above ``floor`` not (a refusal for the floor is not remembered)."""
+        tried, those not above ``floor`` not (a refusal for the floor is not remembered).
+        With :attr:`count_below`, a position that leaves more faces of the star below the
+        threshold is not among them."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -625,7 +638,8 @@ class _Patch:
         d, k = len(star), len(ok)
         each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
                                    np.tile(C, (k, 1))).reshape(k, d)
-        more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+        more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+                      if self.count_below else np.zeros(k, bool))
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:
