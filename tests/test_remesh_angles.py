@@ -330,3 +330,4 @@ def test_a_forced_rim_corner_is_shared_out_evenly_when_judged_on_the_smallest_an
         below = below_min_angle(S, S.V_in, 20.0)
         assert [(c["vertex"], c["faces"]) for c in below["input_corners"]] == [(0, 2)]
         assert below["input_corners"][0]["smallest_angle_deg"] == pytest.approx(15.0, abs=1e-6)
+        assert below["input_corners"][0]["even_split_deg"] == pytest.approx(15.0, abs=1e-9)
