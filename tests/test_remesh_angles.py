@@ -141,13 +141,16 @@ def test_real_mesh_every_face_reaches_the_minimum_but_those_corners_force(rel, n
     assert abs(len(r.V) - n) <= 0.02 * n
 
 
-def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
-    """A flat fan: a rim tip ``O`` of 30° split by an interior vertex ``M`` into two faces of
-    15° (a rim vertex has at least two faces: one would be a leaf). 30° is more than 20° but
-    less than 2 × 20°: both faces are forced, no operation changes them, the other two faces
-    (at least 22°) are not flagged."""
-    c, s_ = np.cos(np.radians(15)), np.sin(np.radians(15))
-    uv = np.array([[0.0, 0.0], [c, -s_], [1.6, 0.0], [c, s_], [1.0, 0.0]])    # O P1 D P2 M
+def _rim_corner_fan(tip_deg: float, split_deg: float, r: float = 0.5, d: float = 1.3):
+    """A flat fan: a rim tip ``O`` of ``tip_deg`` between ``P1`` and ``P2`` (1 from ``O``)
+    whose interior vertex ``M`` (``r`` from ``O``) splits it into ``split_deg`` and
+    ``tip_deg − split_deg``, the rim's fourth vertex ``D`` at ``d`` on the tip's bisector
+    (the defaults: every face at least 20° but the one at the narrow side of the tip); the
+    remesh is the input itself, ``O`` locked. Returns the state."""
+    h = np.radians(tip_deg / 2)
+    m = np.radians(split_deg) - h
+    uv = np.array([[0.0, 0.0], [np.cos(h), -np.sin(h)], [d, 0.0], [np.cos(h), np.sin(h)],
+                   [r * np.cos(m), r * np.sin(m)]])                      # O P1 D P2 M
     F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [4, 3, 0]])
     V = np.column_stack([uv, np.zeros(len(uv))])
     loop = topo.boundary_loops(F)[0]
@@ -156,6 +159,16 @@ def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
     S = RemeshState(lift(V, F, face, bary), F.copy(), uv.copy(), np.arange(5) < 4, face, bary,
                     V, F, uv, loc, uv[loop])
     S.locked[0] = True
+    return S
+
+
+def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
+    """A flat fan: a rim tip ``O`` of 30° split by an interior vertex ``M`` into two faces of
+    15° (a rim vertex has at least two faces: one would be a leaf). 30° is more than 20° but
+    less than 2 × 20°: both faces are forced, no operation changes them, the other two faces
+    (at least 22°) are not flagged."""
+    S = _rim_corner_fan(30.0, 15.0, 1.0, 1.6)
+    F = S.F.copy()
     A = np.degrees(corner_angles(S.X, S.F))
     assert np.allclose([A[0, 0], A[3, 2]], 15.0) and A[[1, 2]].min() > 20.0
     assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) == 0
@@ -268,27 +281,6 @@ def test_a_cap_on_a_bump_the_guards_keep_is_raised_by_the_last_resort():
     assert _smallest(S) >= 20.0 and unforced_shortfall(S, 20.0) == (0, 180.0)
     assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))
     assert point_mesh_distance(tip[None], S.X, S.F)[0][0] <= LAST_RESORT[-1] * ops.tol
-
-
-def _rim_corner_fan(tip_deg: float, split_deg: float):
-    """The flat fan of :func:`test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces`
-    with a rim tip ``O`` of ``tip_deg`` whose interior vertex ``M`` (0.5 from ``O``) splits it
-    into ``split_deg`` and ``tip_deg − split_deg``, ``D`` at 1.3 (every face at least 20°
-    but the one at the narrow side of the tip); the remesh is the input itself, ``O`` locked.
-    Returns the state."""
-    h = np.radians(tip_deg / 2)
-    m = np.radians(split_deg) - h
-    uv = np.array([[0.0, 0.0], [np.cos(h), -np.sin(h)], [1.3, 0.0], [np.cos(h), np.sin(h)],
-                   [0.5 * np.cos(m), 0.5 * np.sin(m)]])                  # O P1 D P2 M
-    F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [4, 3, 0]])
-    V = np.column_stack([uv, np.zeros(len(uv))])
-    loop = topo.boundary_loops(F)[0]
-    loc = PointLocator(uv, F, loop)
-    face, bary = loc.locate(uv)
-    S = RemeshState(lift(V, F, face, bary), F.copy(), uv.copy(), np.arange(5) < 4, face, bary,
-                    V, F, uv, loc, uv[loop])
-    S.locked[0] = True
-    return S
 
 
 def test_a_forced_rim_corner_is_shared_out_evenly_when_judged_on_the_smallest_angle():

@@ -18,18 +18,19 @@ first and tries, on the few vertices around each, the local operations that chan
 * the collapse of each of its edges (either way),
 
 all judged on the surface: an operation is made when the smallest 3D angle of the faces it
-makes is larger than that of the faces it replaces and no more of them are below the
-threshold (a greedy raise of the worst face must not leave more faces below), every new face
-is counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the domain
-(:func:`.halfedge.disk_shape`), turns no face over in 3D, gives no face three rim corners, and
-— the sag guard of the other steps — no new or moved edge is farther from the surface than
-the sag tolerance unless it was already. A collapse or a move also keeps the removed vertex or
-the old position within the tolerance of the new faces (no tip or crease cut off), and a
-collapse removes a rim vertex only along the rim and only when the chord that replaces its
-two stays within ``RIM_TOL`` × the tolerance of the input boundary vertices it spans (or no
-farther than the two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each
-operation raises the smallest angle of the faces it touches, so the pass ends; it stops
-earlier after ``OPERATIONS_PER_FACE`` operations per face it started from.
+makes is larger than that of the faces it replaces and no more of them are below the threshold
+(a greedy raise of the worst face must not leave more faces below; asked with ``count_below``
+False, on the smallest angle alone: at an input corner that forces faces below, sharing its
+angle out among them), every new face is counter-clockwise and not thinner than
+``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no face over in 3D,
+gives no face three rim corners, and — the sag guard of the other steps — no new or moved edge
+is farther from the surface than the sag tolerance unless it was already. A collapse or a move
+also keeps the removed vertex or the old position within the tolerance of the new faces (no tip
+or crease cut off), and a collapse removes a rim vertex only along the rim and only when the
+chord that replaces its two stays within ``RIM_TOL`` × the tolerance of the input boundary
+vertices it spans (or no farther than the two did: :data:`.rim.RIM_TOL`, the rim refinement's
+own bound). Each operation raises the smallest angle of the faces it touches, so the pass ends;
+it stops earlier after ``OPERATIONS_PER_FACE`` operations per face it started from.
 
 The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
 whose split makes no face below the threshold (:func:`keeps_min_angle`).

@@ -115,11 +115,17 @@ The schedule (:func:`improve_remesh`):
     its kinds is kept with the interior edges at the faces' smallest corners split
     (:func:`.circumcentres.corner_split_round`), and the looser operations after it
     (:meth:`_Operations.refine_left`: the fold repair's and the looser operations leave faces
-    below the minimum where the refinement before them found none).
-    A face none of this raises stays: the report counts the faces below the minimum and,
-    among them, those an input corner too sharp for any fan forces
+    below the minimum where the refinement before them found none); last, corner after
+    corner, the faces an input corner too sharp for any fan forces below the minimum
     (:func:`.angles.forced_by_corners`: at a locked vertex or a rim vertex on a corner of the
-    input's boundary), naming the corners; then ``EVEN_STEPS`` smoothing steps as in step 6
+    input's boundary) raised as far as the corner allows (:meth:`_Operations.raise_forced`:
+    the local operations judged on their smallest angle alone, so that the corner's angle is
+    shared out among its faces, then the usual ones at the faces they left below within
+    ``FORCED_REACH × L``, undone unless the corner's smallest angle rises with no more folds
+    and no more or worse faces below that no corner forces).
+    A face none of this raises stays: the report counts the faces below the minimum and,
+    among them, those an input corner forces, naming the corners (with the even split of each
+    corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
     (:meth:`_Operations.even_out`; not without ``relax_iterations``) that even out the
     faces the steps since step 7 left uneven, under vetoes of every move that makes a
     face's smallest angle smaller than it was and than
