@@ -262,7 +262,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
         smallest angle alone: at an input corner too sharp for any fan
         (:func:`forced_by_corners`) its faces share the corner's angle out, each below the
         threshold, only through states with more of them below (two faces of 18° at a 36°
-        rim corner instead of 4° and 32°). No memo is read or written then.
+        rim corner instead of 4° and 32°).
 
     Returns
     -------
@@ -270,7 +270,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo if count_below else None, count_below)
+    patch = _Patch(S, faces, tol, memo, count_below)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -459,8 +459,8 @@ class _Patch:
         order, which the edits of ``S`` keep), those vertices' positions on the surface and
         the domain, input faces and barycentrics, and whether each is locked, on the rim and
         inner; ``t``'s corners in its order, which of its edges are kept ones
-        (``S.joined``), the threshold and the tolerance. Equal surroundings give equal
-        options."""
+        (``S.joined``), the threshold, the tolerance and the judgement (:attr:`count_below`).
+        Equal surroundings give equal options."""
         S, f = self.S, self.faces[t]
         around = set(f).union(*(self.ring(v) for v in f))
         ids = {u for v in around if self.inner[v] for u in self.vf[v]}
@@ -473,7 +473,7 @@ class _Patch:
                                   S.is_rim[V], self.inner[V]]).astype(np.float64)
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
-                joined, self.threshold, self.tol)
+                joined, self.threshold, self.tol, self.count_below)
 
     def options(self, t) -> list:
         """The candidate operations at face ``t``, each a function of a ``floor`` that returns

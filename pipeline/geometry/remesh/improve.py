@@ -849,11 +849,13 @@ class _Operations:
             before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
             n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
             faces = np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
-            if not raise_min_angles(S, min_angle_deg, self.tol, faces, count_below=False):
+            if not raise_min_angles(S, min_angle_deg, self.tol, faces, self.judged,
+                                    count_below=False):
                 continue
             low, _ = unforced_below(S, min_angle_deg)
             near = norms(S.X - point) < FORCED_REACH * self.L
-            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)])
+            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
+                             self.judged)
             if S.n < n0:
                 split_for_count(S, n0 - S.n, min_angle_deg)
             if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
