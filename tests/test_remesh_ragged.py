@@ -251,12 +251,12 @@ def test_the_refinement_again_after_the_fold_repair_raises_a_face_more():
     """The noisy ragged paraboloid (80×80 grid, seed 1, 3 passes dropping 0.3 of the rim
     faces: 4,603 vertices) remeshed at 1,500 vertices: the off-centre refinement made again
     after the fold repair's and the looser operations (:meth:`.improve._Operations.refine_left`)
-    leaves 1 face below 20° that no input corner forces, 22 below in all; without it, 2 and 23
+    leaves 1 face below 20° that no input corner forces, 29 below in all; without it, 2 and 29
     (the fold repair's operations left a face the first refinement never saw)."""
     V, F = noisy_ragged_paraboloid(80, seed=1, passes=3, drop=0.3)
     assert len(V) == 4603
     below = _below_min_angle(V, F, 1500)
-    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (22, 21, 1)
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (29, 28, 1)
 
 
 @pytest.mark.timeout(120)
@@ -265,8 +265,8 @@ def test_corner_splits_raise_the_faces_next_to_a_closely_sampled_rim():
     faces: 4,560 vertices) remeshed at 2,000 vertices: where neither the off-centres nor the
     caps' splits are kept, the interior edges at the faces' smallest corners split
     (:func:`.circumcentres.corner_split_round`) leave 3 faces below 20° that no input corner
-    forces, 14 below in all; without them, 6 and 17."""
+    forces, 17 below in all; without them, 6 and 20."""
     V, F = noisy_ragged_paraboloid(80, seed=3, passes=3, drop=0.3)
     assert len(V) == 4560
     below = _below_min_angle(V, F, 2000)
-    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (14, 11, 3)
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (17, 14, 3)
