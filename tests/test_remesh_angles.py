@@ -141,13 +141,16 @@ def test_real_mesh_every_face_reaches_the_minimum_but_those_corners_force(rel, n
     assert abs(len(r.V) - n) <= 0.02 * n
 
 
-def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
-    """A flat fan: a rim tip ``O`` of 30° split by an interior vertex ``M`` into two faces of
-    15° (a rim vertex has at least two faces: one would be a leaf). 30° is more than 20° but
-    less than 2 × 20°: both faces are forced, no operation changes them, the other two faces
-    (at least 22°) are not flagged."""
-    c, s_ = np.cos(np.radians(15)), np.sin(np.radians(15))
-    uv = np.array([[0.0, 0.0], [c, -s_], [1.6, 0.0], [c, s_], [1.0, 0.0]])    # O P1 D P2 M
+def _rim_corner_fan(tip_deg: float, split_deg: float, r: float = 0.5, d: float = 1.3):
+    """A flat fan: a rim tip ``O`` of ``tip_deg`` between ``P1`` and ``P2`` (1 from ``O``)
+    whose interior vertex ``M`` (``r`` from ``O``) splits it into ``split_deg`` and
+    ``tip_deg − split_deg``, the rim's fourth vertex ``D`` at ``d`` on the tip's bisector
+    (the defaults: every face at least 20° but the one at the narrow side of the tip); the
+    remesh is the input itself, ``O`` locked. Returns the state."""
+    h = np.radians(tip_deg / 2)
+    m = np.radians(split_deg) - h
+    uv = np.array([[0.0, 0.0], [np.cos(h), -np.sin(h)], [d, 0.0], [np.cos(h), np.sin(h)],
+                   [r * np.cos(m), r * np.sin(m)]])                      # O P1 D P2 M
     F = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [4, 3, 0]])
     V = np.column_stack([uv, np.zeros(len(uv))])
     loop = topo.boundary_loops(F)[0]
@@ -156,6 +159,16 @@ def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
     S = RemeshState(lift(V, F, face, bary), F.copy(), uv.copy(), np.arange(5) < 4, face, bary,
                     V, F, uv, loc, uv[loop])
     S.locked[0] = True
+    return S
+
+
+def test_a_rim_corner_under_twice_the_minimum_forces_its_two_faces():
+    """A flat fan: a rim tip ``O`` of 30° split by an interior vertex ``M`` into two faces of
+    15° (a rim vertex has at least two faces: one would be a leaf). 30° is more than 20° but
+    less than 2 × 20°: both faces are forced, no operation changes them, the other two faces
+    (at least 22°) are not flagged."""
+    S = _rim_corner_fan(30.0, 15.0, 1.0, 1.6)
+    F = S.F.copy()
     A = np.degrees(corner_angles(S.X, S.F))
     assert np.allclose([A[0, 0], A[3, 2]], 15.0) and A[[1, 2]].min() > 20.0
     assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) == 0
@@ -268,3 +281,45 @@ def test_a_cap_on_a_bump_the_guards_keep_is_raised_by_the_last_resort():
     assert _smallest(S) >= 20.0 and unforced_shortfall(S, 20.0) == (0, 180.0)
     assert np.all(signed_double_areas(S.uv, S.F) > 0) and is_disk(mesh_facts(S.X, S.F))
     assert point_mesh_distance(tip[None], S.X, S.F)[0][0] <= LAST_RESORT[-1] * ops.tol
+
+
+def test_a_forced_rim_corner_is_shared_out_evenly_when_judged_on_the_smallest_angle():
+    """A 30° rim tip split 3° + 27° by its interior vertex ``M``: 30 < 2 × 20, so a face
+    there must stay below 20°. The usual judgement (no more faces below the minimum) moves
+    ``M`` only while the wide side keeps 20°: the narrow face gets at most the 10° left.
+    Judged on the smallest angle alone (``count_below`` False), ``M`` moves onto the tip's
+    bisector: both faces 15° there (the corner's sum over its two faces), the smallest
+    angle of the fan, the rim untouched; both faces forced, the report naming the tip with
+    15°. The corner-by-corner step of the pass (:meth:`_Operations.raise_forced`) makes the
+    same, its check passing (no face below 20° that no corner forces, no fold)."""
+    from pipeline.geometry.remesh.circumcentres import unforced_shortfall
+    from pipeline.geometry.remesh.improve import _Operations
+
+    S = _rim_corner_fan(30.0, 3.0)
+    A = np.degrees(corner_angles(S.X, S.F))
+    assert A[0, 0] == pytest.approx(3.0, abs=1e-9) and A[3, 2] == pytest.approx(27.0, abs=1e-9)
+    assert np.delete(A, 0, axis=0).min() > 20.0
+    assert forced_by_corners(S, 20.0).tolist() == [True, False, False, False]
+    assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0)) >= 1
+    A = np.degrees(corner_angles(S.X, S.F))
+    assert 3.0 < A[0, 0] <= 10.0 and A[3, 2] >= 20.0
+    assert A[0, 0] + A[3, 2] == pytest.approx(30.0, abs=1e-9)
+    for shared in ("operations", "pass"):
+        S = _rim_corner_fan(30.0, 3.0)
+        rim = S.X[S.is_rim].copy()
+        if shared == "operations":
+            assert raise_min_angles(S, 20.0, 0.05, skinny_faces(S.X, S.F, 20.0),
+                                    count_below=False) >= 1
+        else:
+            _Operations(S, 0.5, True, 20.0, 0.5, 0.2).raise_forced(20.0)
+        A = np.degrees(corner_angles(S.X, S.F))
+        assert np.array_equal(S.F, _rim_corner_fan(30.0, 3.0).F)
+        assert np.array_equal(S.X[S.is_rim], rim)
+        assert A[0, 0] == pytest.approx(15.0, abs=1e-6) and A[3, 2] == pytest.approx(15.0, abs=1e-6)
+        assert A.min() == pytest.approx(15.0, abs=1e-6)
+        assert forced_by_corners(S, 20.0).tolist() == [True, False, False, True]
+        assert unforced_shortfall(S, 20.0) == (0, 180.0)
+        below = below_min_angle(S, S.V_in, 20.0)
+        assert [(c["vertex"], c["faces"]) for c in below["input_corners"]] == [(0, 2)]
+        assert below["input_corners"][0]["smallest_angle_deg"] == pytest.approx(15.0, abs=1e-6)
+        assert below["input_corners"][0]["even_split_deg"] == pytest.approx(15.0, abs=1e-9)

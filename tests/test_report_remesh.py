@@ -106,8 +106,9 @@ def test_remesh_warnings_name_a_vertex_count_off_the_request():
 
 def test_below_min_angle_warning_names_forcing_corners_and_counts_the_rest():
     """The faces left below the minimum angle: those a sharp input corner forces, with the
-    corner named (its angle sum, its faces, their smallest angle there), and those no corner
-    forces, counted apart; singular for one face."""
+    corner named (its angle sum, its faces, their smallest angle there, and the even split of
+    the sum where the report has it), and those no corner forces, counted apart; singular for
+    one face."""
     below = {"threshold_deg": 20.0, "faces": 3, "at_input_corners": 1, "unforced_faces": 2,
              "input_corner_vertices": [136],
              "input_corners": [{"vertex": 136, "angle_sum_deg": 26.725, "faces": 1,
@@ -119,3 +120,6 @@ def test_below_min_angle_warning_names_forcing_corners_and_counts_the_rest():
     one = {"threshold_deg": 20.0, "faces": 1, "at_input_corners": 0, "unforced_faces": 1}
     assert below_min_angle_warning(one).startswith("1 face keeps an angle below 20°: 1 that")
     assert remesh_warnings({}, {}, below) == [below_min_angle_warning(below)]
+    below["input_corners"][0]["even_split_deg"] = 13.3625
+    assert "26.7° corner: 1 face, 8.7° there, 13.4° in an even split); 2 that" in \
+        below_min_angle_warning(below)

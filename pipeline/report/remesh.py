@@ -331,8 +331,9 @@ ANISOTROPY_SHARE = 0.25       # of the surface stretched more than 10:1
 def below_min_angle_warning(below: dict) -> str:
     """One sentence on the faces the minimum-angle pass left below its threshold
     (``remesh.improve.below_min_angle``): how many, how many a sharp input corner forces and
-    which (input vertex, its angle sum, its faces, their smallest angle there; at most 10
-    named), and how many no corner forces."""
+    which (input vertex, its angle sum, its faces, their smallest angle there and, where the
+    report has it, the even split of the sum among the fewest faces the corner can have; at
+    most 10 named), and how many no corner forces."""
     n, thr = below["faces"], below["threshold_deg"]
     forced = below.get("at_input_corners", 0)
     unforced = below.get("unforced_faces", n - forced)
@@ -342,9 +343,10 @@ def below_min_angle_warning(below: dict) -> str:
     def corner(c):
         if "angle_sum_deg" not in c:
             return f"input vertex {c['vertex']}"
+        even = f", {c['even_split_deg']:.1f}° in an even split" if "even_split_deg" in c else ""
         return (f"input vertex {c['vertex']}, a {c['angle_sum_deg']:.1f}° corner: "
                 f"{c['faces']} face{'s' if c['faces'] != 1 else ''}, "
-                f"{c['smallest_angle_deg']:.1f}° there")
+                f"{c['smallest_angle_deg']:.1f}° there{even}")
     parts = []
     if forced:
         named = "; ".join(corner(c) for c in corners[:10]) + (" …" if len(corners) > 10 else "")

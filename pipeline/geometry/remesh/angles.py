@@ -18,18 +18,19 @@ first and tries, on the few vertices around each, the local operations that chan
 * the collapse of each of its edges (either way),
 
 all judged on the surface: an operation is made when the smallest 3D angle of the faces it
-makes is larger than that of the faces it replaces and no more of them are below the
-threshold (a greedy raise of the worst face must not leave more faces below), every new face
-is counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the domain
-(:func:`.halfedge.disk_shape`), turns no face over in 3D, gives no face three rim corners, and
-— the sag guard of the other steps — no new or moved edge is farther from the surface than
-the sag tolerance unless it was already. A collapse or a move also keeps the removed vertex or
-the old position within the tolerance of the new faces (no tip or crease cut off), and a
-collapse removes a rim vertex only along the rim and only when the chord that replaces its
-two stays within ``RIM_TOL`` × the tolerance of the input boundary vertices it spans (or no
-farther than the two did: :data:`.rim.RIM_TOL`, the rim refinement's own bound). Each
-operation raises the smallest angle of the faces it touches, so the pass ends; it stops
-earlier after ``OPERATIONS_PER_FACE`` operations per face it started from.
+makes is larger than that of the faces it replaces and no more of them are below the threshold
+(a greedy raise of the worst face must not leave more faces below; asked with ``count_below``
+False, on the smallest angle alone: at an input corner that forces faces below, sharing its
+angle out among them), every new face is counter-clockwise and not thinner than
+``DISK_SHAPE_MIN`` in the domain (:func:`.halfedge.disk_shape`), turns no face over in 3D,
+gives no face three rim corners, and — the sag guard of the other steps — no new or moved edge
+is farther from the surface than the sag tolerance unless it was already. A collapse or a move
+also keeps the removed vertex or the old position within the tolerance of the new faces (no tip
+or crease cut off), and a collapse removes a rim vertex only along the rim and only when the
+chord that replaces its two stays within ``RIM_TOL`` × the tolerance of the input boundary
+vertices it spans (or no farther than the two did: :data:`.rim.RIM_TOL`, the rim refinement's
+own bound). Each operation raises the smallest angle of the faces it touches, so the pass ends;
+it stops earlier after ``OPERATIONS_PER_FACE`` operations per face it started from.
 
 The vertices collapses remove are given back by :func:`split_for_count`: the longest edges
 whose split makes no face below the threshold (:func:`keeps_min_angle`).
@@ -231,7 +232,8 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
-                     faces: np.ndarray, memo: dict | None = None) -> int:
+                     faces: np.ndarray, memo: dict | None = None,
+                     count_below: bool = True) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -254,6 +256,13 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
         is made again, or it is passed over. The minimum-angle pass's rounds undo and redo
         the same changes, and the faces at forced corners stay as they were, so most of
         them are judged once instead of in every round.
+    count_below : bool
+        Whether an operation may leave no more of the faces it touches below
+        ``min_angle_deg`` than there were (the default); without, it is judged on their
+        smallest angle alone: at an input corner too sharp for any fan
+        (:func:`forced_by_corners`) its faces share the corner's angle out, each below the
+        threshold, only through states with more of them below (two faces of 18° at a 36°
+        rim corner instead of 4° and 32°).
 
     Returns
     -------
@@ -261,7 +270,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo)
+    patch = _Patch(S, faces, tol, memo, count_below)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -278,8 +287,9 @@ class _Patch:
     (:meth:`write_back`)."""
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
-                 memo: dict | None = None):
+                 memo: dict | None = None, count_below: bool = True):
         self.S, self.tol = S, tol
+        self.count_below = count_below        # judge the faces left below too (better)
         self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
@@ -318,11 +328,13 @@ class _Patch:
 
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
-        (a larger smallest angle and no more faces below the threshold), else None."""
+        (a larger smallest angle and, with :attr:`count_below`, no more faces below the
+        threshold), else None."""
         a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
         if a_new.min() <= a_old.min():
             return None
-        if (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
+        if self.count_below and \
+                (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
             return None
         return float(a_new.min())
 
@@ -447,8 +459,8 @@ class _Patch:
         order, which the edits of ``S`` keep), those vertices' positions on the surface and
         the domain, input faces and barycentrics, and whether each is locked, on the rim and
         inner; ``t``'s corners in its order, which of its edges are kept ones
-        (``S.joined``), the threshold and the tolerance. Equal surroundings give equal
-        options."""
+        (``S.joined``), the threshold, the tolerance and the judgement (:attr:`count_below`).
+        Equal surroundings give equal options."""
         S, f = self.S, self.faces[t]
         around = set(f).union(*(self.ring(v) for v in f))
         ids = {u for v in around if self.inner[v] for u in self.vf[v]}
@@ -461,7 +473,7 @@ class _Patch:
                                   S.is_rim[V], self.inner[V]]).astype(np.float64)
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
-                joined, self.threshold, self.tol)
+                joined, self.threshold, self.tol, self.count_below)
 
     def options(self, t) -> list:
         """The candidate operations at face ``t``, each a function of a ``floor`` that returns
@@ -588,7 +600,9 @@ class _Patch:
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
         raises the smallest angle of its star most, under the guards: the three best of those
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
-        tried, those not above ``floor`` not (a refusal for the floor is not remembered)."""
+        tried, those not above ``floor`` not (a refusal for the floor is not remembered).
+        With :attr:`count_below`, a position that leaves more faces of the star below the
+        threshold is not among them."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -625,7 +639,8 @@ class _Patch:
         d, k = len(star), len(ok)
         each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
                                    np.tile(C, (k, 1))).reshape(k, d)
-        more_below = (each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+        more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
+                      if self.count_below else np.zeros(k, bool))
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = self.sag([v] * len(star), star[:, 1])
         for j in np.argsort(-score)[:3]:

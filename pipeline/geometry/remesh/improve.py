@@ -115,11 +115,17 @@ The schedule (:func:`improve_remesh`):
     its kinds is kept with the interior edges at the faces' smallest corners split
     (:func:`.circumcentres.corner_split_round`), and the looser operations after it
     (:meth:`_Operations.refine_left`: the fold repair's and the looser operations leave faces
-    below the minimum where the refinement before them found none).
-    A face none of this raises stays: the report counts the faces below the minimum and,
-    among them, those an input corner too sharp for any fan forces
+    below the minimum where the refinement before them found none); last, corner after
+    corner, the faces an input corner too sharp for any fan forces below the minimum
     (:func:`.angles.forced_by_corners`: at a locked vertex or a rim vertex on a corner of the
-    input's boundary), naming the corners; then ``EVEN_STEPS`` smoothing steps as in step 6
+    input's boundary) raised as far as the corner allows (:meth:`_Operations.raise_forced`:
+    the local operations judged on their smallest angle alone, so that the corner's angle is
+    shared out among its faces, then the usual ones at the faces they left below within
+    ``FORCED_REACH × L``, undone unless the corner's smallest angle rises with no more folds
+    and no more or worse faces below that no corner forces).
+    A face none of this raises stays: the report counts the faces below the minimum and,
+    among them, those an input corner forces, naming the corners (with the even split of each
+    corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
     (:meth:`_Operations.even_out`; not without ``relax_iterations``) that even out the
     faces the steps since step 7 left uneven, under vetoes of every move that makes a
     face's smallest angle smaller than it was and than
@@ -170,7 +176,7 @@ from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
-from .angles import raise_min_angles, split_for_count
+from .angles import forced_corners, raise_min_angles, split_for_count
 from .circumcentres import (corner_split_round, refine_at_circumcentres, restore_state,
                             saved_state, shortfall_of, shortfall_order, unforced_below,
                             unforced_shortfall)
@@ -253,6 +259,9 @@ SAG_FLIP_MIN_DEG = 30.0
 # cheap screen: the flips it misses are rare)
 SAG_SCREEN_TS = SAG_FLIP_TS[3::4]
 SAG_SCREEN_MARGIN = 0.5
+# the forced faces' share-out (_Operations.raise_forced) changes the faces within two rings of
+# the corner: the faces below the minimum it leaves within this × L of it are raised after it
+FORCED_REACH = 3.0
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
 # vertices that close make a face no later pass may change (on ICT faces: 0.3 L apart, 13°)
 CORNER_GAP = 0.4
@@ -780,6 +789,7 @@ class _Operations:
         self.last_resort(min_angle_deg)
         self.refine_left(target, min_angle_deg, corners=True)
         self.last_resort(min_angle_deg)
+        self.raise_forced(min_angle_deg)
 
     def refine_left(self, target: int, min_angle_deg: float, corners: bool = False) -> None:
         """Up to ``GRADE_PASSES`` times while it is kept: the faces below ``min_angle_deg``
@@ -818,6 +828,47 @@ class _Operations:
                 self.restore(saved)              # (also the faces' order, where none was made)
             else:
                 bad, worst = after
+
+    def raise_forced(self, min_angle_deg: float) -> None:
+        """Corner after corner, the faces an input corner forces below ``min_angle_deg``
+        (:func:`.angles.forced_corners`) raised as far as the corner allows: the local
+        operations of :func:`.angles.raise_min_angles` at its faces judged on their smallest
+        angle alone (``count_below`` False: a 36° rim corner's two faces of 4° and 32° become
+        two of 18°, which the rest of the pass, leaving no more faces below the minimum,
+        never passes through), then the usual operations at the faces below the minimum that
+        no input corner forces within ``FORCED_REACH × L`` of the corner (those the first
+        left below), the vertices their collapses removed given back
+        (:func:`.angles.split_for_count`); undone unless the smallest angle of the faces at
+        the corner rises (:meth:`smallest_at`), with no more folds and no more faces below
+        the minimum that no input corner forces, nor as many with a smaller smallest angle
+        (:func:`.circumcentres.unforced_shortfall`)."""
+        S = self.S
+        bad = skinny_faces(S.X, S.F, min_angle_deg)
+        at = forced_corners(S, min_angle_deg, bad)
+        for point in S.X[np.unique(S.F[bad][at])]:
+            before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
+            n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
+            faces = np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
+            if not raise_min_angles(S, min_angle_deg, self.tol, faces, self.judged,
+                                    count_below=False):
+                continue
+            low, _ = unforced_below(S, min_angle_deg)
+            near = norms(S.X - point) < FORCED_REACH * self.L
+            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
+                             self.judged)
+            if S.n < n0:
+                split_for_count(S, n0 - S.n, min_angle_deg)
+            if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
+                    shortfall_order(unforced_shortfall(S, min_angle_deg)) > \
+                    shortfall_order(before):
+                self.restore(saved)
+
+    def smallest_at(self, point: np.ndarray) -> float:
+        """The smallest angle (degrees) of the faces at the vertex at ``point`` (3,); 180
+        where no vertex is there (a collapse removed it)."""
+        S = self.S
+        T = S.F[at_points(S.X, point[None])[S.F].any(axis=1)]
+        return float(np.degrees(row_min(corner_angles(S.X, T))).min(initial=180.0))
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:

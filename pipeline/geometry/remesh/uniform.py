@@ -269,7 +269,11 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     corner too sharp for any fan, :func:`.angles.forced_by_corners`) and how many it does not
     (``unforced_faces``), which input vertices those corners are (``input_corner_vertices``,
     the nearest input vertex of each) and, per corner (``input_corners``), its input angle
-    sum, how many faces below the minimum it has and their smallest angle there (degrees)."""
+    sum, how many faces below the minimum it has and their smallest angle there, and the even
+    split of its sum among the fewest faces a vertex there can have (``even_split_deg``: 2 on
+    the rim, 3 inside; degrees): the best the corner's faces can share where the remesh's
+    faces there span the input's angle sum (:meth:`.improve._Operations.raise_forced` aims
+    at it)."""
     from scipy.spatial import cKDTree
 
     bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
@@ -280,9 +284,10 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
     sums = S.angle_sums_in()[input_vertex_under(S, corners)]
     A = corner_angles_deg(S.X, T)
+    fewest = np.where(S.is_rim[corners], 2, 3)
     per = [{"vertex": int(i), "angle_sum_deg": float(s), "faces": int((T[at] == v).sum()),
-            "smallest_angle_deg": float(A[at & (T == v)].min())}
-           for v, i, s in zip(corners, np.atleast_1d(names), sums)]
+            "smallest_angle_deg": float(A[at & (T == v)].min()), "even_split_deg": float(s / k)}
+           for v, i, s, k in zip(corners, np.atleast_1d(names), sums, fewest)]
     return {"threshold_deg": float(min_angle_deg), "faces": int(len(bad)),
             "at_input_corners": int(forced.sum()), "unforced_faces": int((~forced).sum()),
             "input_corner_vertices": sorted({int(i) for i in np.atleast_1d(names)}),
