@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import require_data
-from pipeline.geometry.register_sphere import (align_sphere, compose_with_inverse_sphere,
-                                               deform_sphere_to_landmarks, fit_sphere_rotation,
+from pipeline.geometry.register_sphere import (deform_sphere_to_landmarks, fit_sphere_rotation,
                                                group_linear_map, kernel_step,
                                                landmark_linear_maps, reversed_landmark_faces,
                                                rotation_summary)
