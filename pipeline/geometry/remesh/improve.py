@@ -848,8 +848,7 @@ class _Operations:
         for point in S.X[np.unique(S.F[bad][at])]:
             before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
             n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
-            faces = np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
-            if not raise_min_angles(S, min_angle_deg, self.tol, faces, self.judged,
+            if not raise_min_angles(S, min_angle_deg, self.tol, self.faces_at(point), self.judged,
                                     count_below=False):
                 continue
             low, _ = unforced_below(S, min_angle_deg)
@@ -863,11 +862,17 @@ class _Operations:
                     shortfall_order(before):
                 self.restore(saved)
 
-    def smallest_at(self, point: np.ndarray) -> float:
-        """The smallest angle (degrees) of the faces at the vertex at ``point`` (3,); 180
-        where no vertex is there (a collapse removed it)."""
+    def faces_at(self, point: np.ndarray) -> np.ndarray:
+        """The faces (indices) at the vertex at ``point`` (3,); none where no vertex is there
+        (a collapse removed it)."""
         S = self.S
-        T = S.F[at_points(S.X, point[None])[S.F].any(axis=1)]
+        return np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
+
+    def smallest_at(self, point: np.ndarray) -> float:
+        """The smallest angle (degrees) of the faces at the vertex at ``point`` (3,)
+        (:meth:`faces_at`); 180 where no vertex is there."""
+        S = self.S
+        T = S.F[self.faces_at(point)]
         return float(np.degrees(row_min(corner_angles(S.X, T))).min(initial=180.0))
 
     def restore_angle_count(self, target: int, min_angle_deg: float,

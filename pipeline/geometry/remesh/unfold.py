@@ -237,10 +237,8 @@ class _FoldPatch(_Patch):
         self.start = [int(t) for t in folds]
         self.chord = chord
         self.wide = self.inner                 # the vertices a chart's region may hold
-        corners = np.zeros(S.n, bool)
-        corners[S.F[folds].ravel()] = True
         self.inner = np.zeros(S.n, bool)       # those the other operations may change
-        self.inner[S.F[touching(S.F, corners)].ravel()] = True
+        self.inner[S.F[faces_within(S.F, folds, 0, S.n)].ravel()] = True
         self.own = set(np.flatnonzero(touching(S.F, self.inner)).tolist())
 
     def n_folds(self, tris) -> int:
