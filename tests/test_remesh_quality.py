@@ -265,16 +265,74 @@ def test_z_order_visits_the_corners_of_a_cube_x_first_then_y_then_z():
     np.testing.assert_array_equal(corners[shuffled][z_order(corners[shuffled])], corners)
 
 
-def test_distances_in_z_order_are_libigls_in_the_given_order():
-    import igl
+def brute_force_distance(P, V, F):
+    """``(distance, closest face)`` of each point of ``P`` over every triangle of ``(V, F)``
+    one by one: the closest point of each (:func:`closest_points_on_triangles`), its squared
+    distance summed x, y, z, the smallest, and the lowest face number among equal ones."""
+    k, m = len(P), len(F)
+    Q = closest_points_on_triangles(np.repeat(P, m, axis=0), *(np.tile(V[F[:, c]], (k, 1))
+                                                              for c in range(3)))
+    D = np.repeat(P, m, axis=0) - Q
+    sq = (D[:, 0] ** 2 + D[:, 1] ** 2 + D[:, 2] ** 2).reshape(k, m)
+    face = np.argmin(sq, axis=1)               # the first of equal minima
+    return np.sqrt(sq[np.arange(k), face]), face
 
-    V, F = lattice_mesh(15)
+
+def wavy_lattice():
+    """A lattice bent into a sine sheet, a degenerate face (a repeated corner) and a sliver of
+    three collinear corners added."""
+    V, F = lattice_mesh(12)
     V[:, 2] = np.sin(V[:, 0]) * np.cos(V[:, 1])
-    P = np.random.default_rng(2).uniform(-2, 17, size=(5000, 3))
-    sq, face, _ = igl.point_mesh_squared_distance(P, V, F)
+    n = len(V)
+    V = np.vstack([V, [[3.0, 20.0, 1.0], [4.0, 21.0, 1.0], [5.0, 22.0, 1.0]]])
+    F = np.vstack([F, [[n, n, n + 1], [n, n + 1, n + 2]]])
+    return V, F
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_distances_are_those_of_every_triangle_with_the_lowest_face_of_ties(threads,
+                                                                            monkeypatch):
+    """Far points, points on the surface (corners: ties among the faces around them; edge
+    midpoints; inside faces), points above the lattice's corners and scattered ones near the
+    sheet: each distance and closest face are brute force's, bit for bit, in one run and
+    split between threads."""
+    monkeypatch.setattr(MeshDistance, "THREADS", threads)
+    monkeypatch.setattr(MeshDistance, "THREAD_POINTS", 10)
+    V, F = wavy_lattice()
+    rng = np.random.default_rng(2)
+    flat = lattice_mesh(12)[0] + [0.0, 0.0, 0.5]
+    P = np.vstack([rng.uniform(-40, 50, (300, 3)), V, (V[F[:, 0]] + V[F[:, 1]]) / 2,
+                   face_centroids(V, F), flat, rng.uniform(-2, 14, (1500, 3))])
     d, f = MeshDistance(V, F)(P)
-    np.testing.assert_array_equal(d, np.sqrt(sq))
-    np.testing.assert_array_equal(f, face)
+    d_all, f_all = brute_force_distance(P, V, F)
+    np.testing.assert_array_equal(d, d_all)
+    np.testing.assert_array_equal(f, f_all)
+    assert np.all(d[300:300 + len(V)] == 0)
+
+
+def test_a_point_equidistant_from_faces_gets_the_lowest_of_them():
+    """On a flat lattice, a point straight above an interior vertex is at the same distance
+    (its height, exactly) from the six faces around it: the lowest-numbered one is given, in
+    any query order and whatever the previous point's face."""
+    V, F = lattice_mesh(6)
+    v = 3 * 7 + 3                                    # an interior vertex
+    around = np.flatnonzero(np.any(F == v, axis=1))
+    assert len(around) == 6
+    above = V[v] + [0.0, 0.0, 0.25]
+    tree = MeshDistance(V, F)
+    for P in (above[None], np.vstack([V[F[around[-1]]].mean(axis=0), above]),
+              np.vstack([above, V + [0.0, 0.0, 0.25]])):
+        d, f = tree(P)
+        row = np.flatnonzero(np.all(P == above, axis=1))
+        assert np.all(d[row] == 0.25) and np.all(f[row] == around.min())
+
+
+def test_an_empty_query_and_an_empty_mesh():
+    V, F = lattice_mesh(3)
+    d, f = MeshDistance(V, F)(np.zeros((0, 3)))
+    assert d.shape == f.shape == (0,)
+    d, f = MeshDistance(V, np.zeros((0, 3), np.int64))(V[:4])
+    assert np.all(d == np.inf) and np.all(f == -1)
 
 
 def test_hausdorff_is_the_largest_distance_of_every_sample():

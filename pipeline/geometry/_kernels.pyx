@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, fabs, isfinite, sqrt
+from libc.math cimport INFINITY, NAN, fabs, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -1415,7 +1415,11 @@ def face_distances(const double[:, ::1] P, const double[:, ::1] V, const int64_t
 
 
 cdef inline double _point_point(const double* p, const double* q) noexcept nogil:
-    return sqrt((p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2)
+    return sqrt(_squared_point_point(p, q))
+
+
+cdef inline double _squared_point_point(const double* p, const double* q) noexcept nogil:
+    return (p[0] - q[0]) ** 2 + (p[1] - q[1]) ** 2 + (p[2] - q[2]) ** 2
 
 
 @cython.cdivision(True)
@@ -1479,9 +1483,238 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
     """Distance from ``p`` to the triangle ``(a, b, c)`` (3-vectors,
     :func:`_closest_on_triangle`); NaN or inf for a degenerate triangle whose face-interior
     case divides by zero."""
+    return sqrt(_squared_point_triangle(p, a, b, c))
+
+
+cdef inline double _squared_point_triangle(const double* p, const double* a, const double* b,
+                                    const double* c) noexcept nogil:
+    """The square of :func:`_point_triangle` (its distance is the square root of this
+    value); NaN or inf for a degenerate triangle whose face-interior case divides by zero."""
     cdef double q[3]
     _closest_on_triangle(p, a, b, c, q)
-    return _point_point(p, q)
+    return _squared_point_point(p, q)
+
+
+cdef inline double _squared_point_face(const double* p, const double* a, const double* b,
+                                const double* c) noexcept nogil:
+    """:func:`_squared_point_triangle`, or for a degenerate triangle where that is not finite
+    the squared distance to its nearest corner."""
+    cdef double d = _squared_point_triangle(p, a, b, c)
+    if d == d and d < INFINITY:
+        return d
+    return min(min(_squared_point_point(p, a), _squared_point_point(p, b)),
+               _squared_point_point(p, c))
+
+
+cdef enum:
+    _LEAF = 2        # most triangles in a leaf of :func:`triangle_tree`
+
+
+cdef enum:
+    _SPATIAL_DEPTH = 40   # deeper nodes of :func:`triangle_tree` split by count
+    _STACK = 128          # the walk's stack: deeper than any tree of :func:`triangle_tree`
+
+
+def triangle_tree(const double[:, ::1] C, int64_t leaf=_LEAF):
+    """A bounding-volume hierarchy over triangles given by their centroids ``C`` (k×3): every
+    node is a run ``[lo, hi)`` of the triangles in the returned ``order``, split in two at the
+    middle of the longest side of its centroids' bounding box (below depth ``_SPATIAL_DEPTH``,
+    or where that leaves a side empty, at the middle of the run) until at most ``leaf`` remain;
+    the children of a node are consecutive nodes, a node's number below its children's.
+
+    Returns ``(order, child, lo, hi, parent, leaf)``: ``order`` (k,) the triangles' numbers
+    leaf by leaf, ``child[n]`` the first child of node ``n`` (−1: a leaf), ``lo``, ``hi`` its
+    run of ``order``, ``parent[n]`` its parent (−1: the root, node 0), and ``leaf`` (k,) the
+    leaf of each position of ``order``. A tree of no triangles is one empty leaf. (Depth is
+    below ``_SPATIAL_DEPTH`` + 64, so :func:`tree_distances`' stack of ``_STACK`` suffices.)"""
+    cdef Py_ssize_t k = C.shape[0], cap = max(2 * k - 1, 1), n, m = 1, i, a, b
+    order_arr = np.arange(k, dtype=np.int64)
+    child_arr = np.full(cap, -1, dtype=np.int64)
+    lo_arr = np.zeros(cap, dtype=np.int64)
+    hi_arr = np.zeros(cap, dtype=np.int64)
+    depth_arr = np.zeros(cap, dtype=np.int64)
+    parent_arr = np.full(cap, -1, dtype=np.int64)
+    leaf_arr = np.zeros(k, dtype=np.int64)
+    cdef int64_t[::1] order = order_arr, child = child_arr, lo = lo_arr, hi = hi_arr
+    cdef int64_t[::1] depth = depth_arr, parent = parent_arr, leaf_of = leaf_arr
+    cdef int64_t mid, t
+    cdef int x, axis
+    cdef double cut, c_lo[3], c_hi[3]
+    with nogil:
+        hi[0] = k
+        n = 0
+        while n < m:                                     # nodes in breadth-first order
+            if hi[n] - lo[n] > leaf:
+                a, b = lo[n], hi[n]
+                mid = a
+                if depth[n] < _SPATIAL_DEPTH:
+                    for x in range(3):
+                        c_lo[x], c_hi[x] = INFINITY, -INFINITY
+                    for i in range(a, b):
+                        for x in range(3):
+                            c_lo[x] = min(c_lo[x], C[order[i], x])
+                            c_hi[x] = max(c_hi[x], C[order[i], x])
+                    axis = 0
+                    for x in range(1, 3):
+                        if c_hi[x] - c_lo[x] > c_hi[axis] - c_lo[axis]:
+                            axis = x
+                    cut = c_lo[axis] + (c_hi[axis] - c_lo[axis]) / 2
+                    for i in range(a, b):                # those below the cut first
+                        if C[order[i], axis] < cut:
+                            order[i], order[mid] = order[mid], order[i]
+                            mid += 1
+                if mid == a or mid == b:
+                    mid = a + (b - a) // 2
+                child[n] = m
+                lo[m], hi[m], lo[m + 1], hi[m + 1] = a, mid, mid, b
+                depth[m] = depth[m + 1] = depth[n] + 1
+                parent[m] = parent[m + 1] = n
+                m += 2
+            else:
+                for i in range(lo[n], hi[n]):
+                    leaf_of[i] = n
+            n += 1
+    return order_arr, child_arr[:m], lo_arr[:m], hi_arr[:m], parent_arr[:m], leaf_arr
+
+
+def tree_boxes(const double[:, ::1] T, const int64_t[::1] child, const int64_t[::1] lo,
+               const int64_t[::1] hi, double margin):
+    """The bounding box (n×6: minimum then maximum corner) of each node of a
+    :func:`triangle_tree` (``child, lo, hi``) over the triangles ``T`` (k×9: the three corners
+    of each, in the tree's order), widened by ``margin`` on every side, so that the rounding of
+    a computed point–triangle distance never takes it below its node's box distance."""
+    cdef Py_ssize_t n, i, j, x
+    box_arr = np.empty((child.shape[0], 6), dtype=np.float64)
+    cdef double[:, ::1] box = box_arr
+    with nogil:
+        for n in range(child.shape[0] - 1, -1, -1):     # children before their parent
+            if child[n] < 0:
+                for x in range(3):
+                    box[n, x], box[n, 3 + x] = INFINITY, -INFINITY
+                for i in range(lo[n], hi[n]):
+                    for j in range(3):
+                        for x in range(3):
+                            box[n, x] = min(box[n, x], T[i, 3 * j + x] - margin)
+                            box[n, 3 + x] = max(box[n, 3 + x], T[i, 3 * j + x] + margin)
+            else:
+                for x in range(3):
+                    box[n, x] = min(box[child[n], x], box[child[n] + 1, x])
+                    box[n, 3 + x] = max(box[child[n], 3 + x], box[child[n] + 1, 3 + x])
+    return box_arr
+
+
+cdef inline double _squared_box_distance(const double* p, const double* b) noexcept nogil:
+    """Squared distance from ``p`` to the box ``b`` (minimum then maximum corner)."""
+    cdef double s = 0.0, t
+    cdef int x
+    for x in range(3):
+        t = max(max(b[x] - p[x], p[x] - b[3 + x]), 0.0)
+        s = s + t * t
+    return s
+
+
+cdef struct _Tree:
+    const double* T          # k×9 triangle corners, in the tree's order
+    const int64_t* face      # their face numbers
+    const int64_t* child
+    const int64_t* lo
+    const int64_t* hi
+    const double* box        # n×6
+
+
+cdef inline void _leaf_distances(const double* p, const _Tree* tr, int64_t n, double* best,
+                                 int64_t* best_t) noexcept nogil:
+    """Lower ``best`` (a squared distance) and ``best_t`` (a triangle of the tree's order, −1:
+    none yet) to any triangle of the leaf ``n`` closer than it, or as close with a smaller
+    face number."""
+    cdef int64_t t
+    cdef double d
+    cdef const double* T
+    for t in range(tr.lo[n], tr.hi[n]):
+        T = tr.T + 9 * t
+        d = _squared_point_face(p, T, T + 3, T + 6)
+        if d < best[0] or best_t[0] < 0 or (d == best[0] and tr.face[t] < tr.face[best_t[0]]):
+            best[0], best_t[0] = d, t
+
+
+cdef void _descend(const double* p, const _Tree* tr, int64_t start, double start_d,
+                   double* best, int64_t* best_t) noexcept nogil:
+    """:func:`_leaf_distances` over every leaf below the node ``start`` (whose box's squared
+    distance is ``start_d``) that may hold a closer triangle: depth first, the nearer child
+    first, skipping a node whose box lies farther than ``best``."""
+    cdef int64_t stack[_STACK]
+    cdef double stack_d[_STACK]
+    cdef int64_t top = 1, n, c
+    cdef double d0, d1
+    stack[0], stack_d[0] = start, start_d
+    while top > 0:
+        top -= 1
+        n = stack[top]
+        if stack_d[top] > best[0]:
+            continue
+        c = tr.child[n]
+        if c < 0:
+            _leaf_distances(p, tr, n, best, best_t)
+            continue
+        d0 = _squared_box_distance(p, tr.box + 6 * c)
+        d1 = _squared_box_distance(p, tr.box + 6 * (c + 1))
+        if d0 > d1:                                      # the nearer child on top
+            c, d0, d1 = c + 1, d1, d0
+            if d1 <= best[0]:
+                stack[top], stack_d[top], top = c - 1, d1, top + 1
+        elif d1 <= best[0]:
+            stack[top], stack_d[top], top = c + 1, d1, top + 1
+        if d0 <= best[0]:
+            stack[top], stack_d[top], top = c, d0, top + 1
+
+
+def tree_distances(const double[:, ::1] P, const double[:, ::1] T, const int64_t[::1] face,
+                   const int64_t[::1] child, const int64_t[::1] lo, const int64_t[::1] hi,
+                   const int64_t[::1] parent, const int64_t[::1] leaf,
+                   const double[:, ::1] box, double[::1] out_d, int64_t[::1] out_f):
+    """For each point ``P[i]``, the smallest distance ``out_d[i]`` to the triangles ``T``
+    (k×9, in the order of a :func:`triangle_tree` whose ``child, lo, hi, parent, leaf`` and
+    :func:`tree_boxes` are given) and the triangle that has it, ``out_f[i]`` = its ``face``
+    number (of equal distances, the smallest number; NaN and −1 for a point with a NaN
+    coordinate): each triangle's distance is :func:`_squared_point_face`'s, compared squared,
+    and a node is skipped only when its box lies farther than the best so far, so the result is
+    that of all triangles one by one.
+
+    The walk starts at the leaf of the previous point's triangle (points in a coherent order,
+    such as Z-order, find theirs at once), then goes up to the root, at each step the other child
+    and below it (:func:`_descend`); the first point from the root down. Runs without the GIL
+    (several threads may query one tree)."""
+    cdef Py_ssize_t i, k = P.shape[0]
+    cdef int64_t n, s, best_t, hint = -1
+    cdef double best, d
+    cdef const double* p
+    cdef _Tree tr
+    if T.shape[0] == 0:
+        out_d[:] = INFINITY
+        out_f[:] = -1
+        return
+    tr.T, tr.face, tr.child, tr.lo, tr.hi, tr.box = &T[0, 0], &face[0], &child[0], &lo[0], \
+        &hi[0], &box[0, 0]
+    with nogil:
+        for i in range(k):
+            p = &P[i, 0]
+            best, best_t = INFINITY, -1
+            if hint < 0:
+                _descend(p, &tr, 0, _squared_box_distance(p, tr.box), &best, &best_t)
+            else:
+                n = leaf[hint]
+                _leaf_distances(p, &tr, n, &best, &best_t)
+                while n > 0:
+                    s = n + 1 if child[parent[n]] == n else n - 1
+                    d = _squared_box_distance(p, tr.box + 6 * s)
+                    if d <= best:
+                        _descend(p, &tr, s, d, &best, &best_t)
+                    n = parent[n]
+            if best_t < 0:
+                out_d[i], out_f[i] = NAN, -1
+                continue
+            out_d[i], out_f[i] = sqrt(best), face[best_t]
+            hint = best_t
 
 
 cdef class _Text:

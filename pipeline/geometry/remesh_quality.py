@@ -29,12 +29,14 @@ Measured (the units are part of the keys' documentation in :func:`remesh_quality
 
 from __future__ import annotations
 
+import os
+import threading
 from typing import NamedTuple
 
 import numpy as np
 
 from . import topology as topo
-from ._kernels import closest_points, face_distances
+from ._kernels import closest_points, face_distances, tree_boxes, tree_distances, triangle_tree
 from .laplacian import face_double_areas
 from .metrics import corner_angles
 from .rows import norms, row_max, row_min
@@ -251,21 +253,31 @@ def z_order(P: np.ndarray) -> np.ndarray:
 
 
 class MeshDistance:
-    """Exact Euclidean distances to one triangle mesh ``(V, F)``: libigl's AABB tree (exact
-    point–triangle distances), built once and queried any number of times.
+    """Exact Euclidean distances to one triangle mesh ``(V, F)``: a bounding-volume hierarchy
+    over its triangles (:func:`._kernels.triangle_tree`, the triangles in Z-order of their
+    centroids), built once and queried any number of times (:func:`._kernels.tree_distances`:
+    each point's distance is the smallest of its exact point–triangle distances, the closest
+    face the lowest-numbered of equals, as if every triangle were measured).
 
     Each query's points are looked up in Z-order (:func:`z_order`) and the results put back in
     the given order: a point's distance and closest face do not depend on the other points of
-    the query, and consecutive nearby points walk the same branches of the tree, which halves
-    the time of scattered samples such as the area-uniform ones."""
+    the query, and consecutive nearby points walk the same branches of the tree and start from
+    the previous point's face. A query of at least ``THREAD_POINTS`` points is split into
+    ``THREADS`` runs measured at once, the first by the calling thread and each other by a
+    thread started for it (the kernel runs without the GIL; no pool is kept, so a forked
+    process queries as its parent does)."""
+
+    #: threads of a large query; the points a query needs before it is split between them
+    THREADS = min(2, os.cpu_count() or 1)
+    THREAD_POINTS = 4096
 
     def __init__(self, V: np.ndarray, F: np.ndarray):
-        import igl
-
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
-        self.tree = igl.AABB()
-        self.tree.init(self.V, self.F)
+        self.faces, *tree = triangle_tree(face_centroids(self.V, self.F))
+        self.triangles = self.V[self.F[self.faces]].reshape(-1, 9)
+        self.margin = _TREE_MARGIN * (float(np.abs(self.V).max()) if len(self.V) else 0.0)
+        self.tree = (*tree, tree_boxes(self.triangles, *tree[:3], self.margin))
 
     def __call__(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(distance, closest face)`` of every point of ``P`` (k×3)."""
@@ -273,16 +285,35 @@ class MeshDistance:
         if len(P) == 0:
             return np.zeros(0), np.zeros(0, np.int64)
         order = z_order(P)
-        sq, face, _ = self.tree.squared_distance(self.V, self.F, np.ascontiguousarray(P[order]))
+        Q = np.ascontiguousarray(P[order])
+        dq, fq = np.empty(len(P)), np.empty(len(P), np.int64)
+        runs = self.THREADS if len(P) >= self.THREAD_POINTS else 1
+        cuts = np.linspace(0, len(P), runs + 1).astype(int)
+        parts = [(Q[a:b], dq[a:b], fq[a:b]) for a, b in zip(cuts[:-1], cuts[1:])]
+        helpers = [threading.Thread(target=self._measure, args=part) for part in parts[1:]]
+        for thread in helpers:
+            thread.start()
+        self._measure(*parts[0])
+        for thread in helpers:
+            thread.join()
         d, f = np.empty(len(P)), np.empty(len(P), np.int64)
-        d[order], f[order] = np.sqrt(sq), face
+        d[order], f[order] = dq, fq
         return d, f
+
+    def _measure(self, Q: np.ndarray, d: np.ndarray, f: np.ndarray) -> None:
+        """Distances ``d`` and closest faces ``f`` of the points ``Q`` (written in place)."""
+        tree_distances(Q, self.triangles, self.faces, *self.tree, d, f)
+
+
+#: the margin by which the tree's boxes are widened, relative to the largest coordinate
+#: (far above the rounding of a point–triangle distance, far below any distance measured)
+_TREE_MARGIN = 1e-12
 
 
 def point_mesh_distance(P: np.ndarray, V: np.ndarray, F: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
     """Exact Euclidean distance of every point of ``P`` to the triangle mesh ``(V, F)`` and the
-    index of a closest face (:class:`MeshDistance`: libigl's AABB tree, built once per call,
+    index of a closest face (:class:`MeshDistance`: its tree built once per call,
     so the hundreds of thousands of samples of the report's Hausdorff and RMS distances take a
     fraction of a second)."""
     return MeshDistance(V, F)(P)
