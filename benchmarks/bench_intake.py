@@ -6,7 +6,7 @@ file, repairing it, and the input's side of the measures.
 
 Per mesh (default: every disk mesh of ``../shared/data/meshes``): its vertex and face counts,
 and the CPU seconds (best of ``--repeat``) of ``read_mesh``, ``repair_mesh`` and the input's
-measures in ``remesh_metrics.json`` (its distance samples and AABB tree,
+measures in ``remesh_metrics.json`` (its distance samples and distance tree,
 :class:`~pipeline.geometry.remesh_quality.SampledSurface`, and its own quality,
 ``remesh_quality(..., distance=False)``), all after the command's imports. ``--scan`` adds a
 face-scan-sized case made here: the ICT face ``ict_A_neutral_disk`` Loop-subdivided twice

@@ -579,7 +579,7 @@ def _structured_max(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.nd
 class SampledSurface:
     """One side of :func:`surface_distance`: a surface ``(V, F)`` with its edges, its
     ``n_random`` area-uniform samples (seeded), its faces' doubled areas ``double_area`` (m,)
-    (given, or computed here) and its AABB tree (:class:`MeshDistance`; given, or made on
+    (given, or computed here) and its distance tree (:class:`MeshDistance`; given, or made on
     first use). The input of a remesh is one such surface for every method it is compared
     with: its samples are drawn and its tree built once (by the remesher, which measures its
     distances to the input, if it did)."""

@@ -300,7 +300,7 @@ distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
 3D faces. Valence counts edges at interior vertices. Distances: samples on each surface — all
 vertices, edge midpoints and face centroids plus {dist.get('random_samples_per_side', 0)}
 points uniform by area (seed 0) — and the exact Euclidean distance of each sample to the other
-surface's triangles (libigl's AABB tree, exact point–triangle distances); Hausdorff = the larger one-sided maximum (a sampled lower bound of the continuous
+surface's triangles (exact point–triangle distances through a bounding-volume hierarchy); Hausdorff = the larger one-sided maximum (a sampled lower bound of the continuous
 value), RMS = root mean square over the area-uniform samples of both sides. Relative to the
 input's bounding-box diagonal. Times on this machine, wall clock; {e(notes['sem'])}.
 {baseline_notes}</p>

@@ -62,7 +62,7 @@ class RemeshResult:
     facts : dict
         The remesh's :func:`..remesh_quality.mesh_facts`, as :func:`check_topology` found them.
     input_distance : MeshDistance or None
-        The input's AABB tree (:func:`.fidelity.input_distance`) if the improvement built
+        The input's distance tree (:func:`.fidelity.input_distance`) if the improvement built
         one, for the measures to use again (:func:`built_input_distance`).
     """
 
@@ -188,7 +188,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
 
 
 def built_input_distance(S: RemeshState) -> MeshDistance | None:
-    """The input's AABB tree (:func:`.fidelity.input_distance`) if the improvement of ``S``
+    """The input's distance tree (:func:`.fidelity.input_distance`) if the improvement of ``S``
     built one (the settle step does), else None: the measures of the remesh against the
     input can use it instead of building their own."""
     return S.made_of_input(input_distance)
