@@ -327,10 +327,13 @@ def test_a_point_equidistant_from_faces_gets_the_lowest_of_them():
         assert np.all(d[row] == 0.25) and np.all(f[row] == around.min())
 
 
-def test_an_empty_query_and_an_empty_mesh():
+def test_an_empty_query_an_empty_mesh_and_a_nan_point():
     V, F = lattice_mesh(3)
     d, f = MeshDistance(V, F)(np.zeros((0, 3)))
     assert d.shape == f.shape == (0,)
+    with np.errstate(invalid="ignore"):
+        d, f = MeshDistance(V, F)(np.array([[0.5, 0.5, 1.0], [np.nan, 0.5, 1.0], [1.0, 1.0, 2.0]]))
+    assert np.isnan(d[1]) and f[1] == -1 and d[0] == 1.0 and d[2] == 2.0 and np.all(f[[0, 2]] >= 0)
     d, f = MeshDistance(V, np.zeros((0, 3), np.int64))(V[:4])
     assert np.all(d == np.inf) and np.all(f == -1)
 

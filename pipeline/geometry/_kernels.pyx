@@ -1487,7 +1487,7 @@ cdef double _point_triangle(const double* p, const double* a, const double* b,
 
 
 cdef inline double _squared_point_triangle(const double* p, const double* a, const double* b,
-                                    const double* c) noexcept nogil:
+                                           const double* c) noexcept nogil:
     """The square of :func:`_point_triangle` (its distance is the square root of this
     value); NaN or inf for a degenerate triangle whose face-interior case divides by zero."""
     cdef double q[3]
@@ -1496,7 +1496,7 @@ cdef inline double _squared_point_triangle(const double* p, const double* a, con
 
 
 cdef inline double _squared_point_face(const double* p, const double* a, const double* b,
-                                const double* c) noexcept nogil:
+                                       const double* c) noexcept nogil:
     """:func:`_squared_point_triangle`, or for a degenerate triangle where that is not finite
     the squared distance to its nearest corner."""
     cdef double d = _squared_point_triangle(p, a, b, c)
@@ -1507,10 +1507,7 @@ cdef inline double _squared_point_face(const double* p, const double* a, const d
 
 
 cdef enum:
-    _LEAF = 2        # most triangles in a leaf of :func:`triangle_tree`
-
-
-cdef enum:
+    _LEAF = 2             # most triangles in a leaf of :func:`triangle_tree`
     _SPATIAL_DEPTH = 40   # deeper nodes of :func:`triangle_tree` split by count
     _STACK = 128          # the walk's stack: deeper than any tree of :func:`triangle_tree`
 
@@ -1710,7 +1707,7 @@ def tree_distances(const double[:, ::1] P, const double[:, ::1] T, const int64_t
                     if d <= best:
                         _descend(p, &tr, s, d, &best, &best_t)
                     n = parent[n]
-            if best_t < 0:
+            if best_t < 0 or best != best:               # a point with a NaN coordinate
                 out_d[i], out_f[i] = NAN, -1
                 continue
             out_d[i], out_f[i] = sqrt(best), face[best_t]
