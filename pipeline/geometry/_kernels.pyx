@@ -280,15 +280,46 @@ cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) no
         bary[i, c] = lam[c] / s
 
 
-def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin,
-                  const double[:, ::1] P, const int64_t[::1] start, const int64_t[::1] todo,
-                  int walk, double tol, int64_t[::1] face, double[:, ::1] bary):
-    """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]``: test the face
-    (barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates` computes them;
-    inside when the smallest is ≥ ``−tol``), else step to the face across the edge of the most
-    negative barycentric (the first of the smallest; a NaN counts as smallest), at most
-    ``walk`` steps, stopping at the rim (``twin < 0``). A point found gets ``face[i]`` and its
-    barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
+def walk_rows(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin):
+    """What a step of :func:`walk_to_faces` reads of a face of ``(uv, F)`` (m faces), one
+    64-byte row a face (a cache line: the array starts on a 64-byte boundary): float64
+    columns 0–5 its corners' coordinates ``x0 y0 x1 y1 x2 y2``; in the row's last 16 bytes,
+    read as int32 (columns 12–14 of the m×16 int32 view), the faces across its three edges
+    ``F[f, c] → F[f, c+1]`` (``twin // 3``, −1 at the rim). A walk over a map much finer than
+    its steps reads one row a step instead of six places of three arrays.
+
+    Returns
+    -------
+    (m, 8) float64
+    """
+    cdef Py_ssize_t f, c, m = F.shape[0]
+    cdef int64_t t
+    if 3 * m >= 2 ** 31:
+        raise ValueError("more than 2**31 half-edges")
+    buf = np.zeros(8 * m + 8, dtype=np.float64)
+    cdef Py_ssize_t shift = ((-<Py_ssize_t>buf.ctypes.data) % 64) // 8
+    out_arr = buf[shift:shift + 8 * m].reshape(m, 8)
+    cdef double[:, ::1] out = out_arr
+    cdef int32_t[:, ::1] nbr = out_arr.view(np.int32)
+    for f in range(m):
+        for c in range(3):
+            out[f, 2 * c] = uv[F[f, c], 0]
+            out[f, 2 * c + 1] = uv[F[f, c], 1]
+            t = twin[3 * f + c]
+            nbr[f, 12 + c] = <int32_t>(t // 3) if t >= 0 else -1
+    return out_arr
+
+
+def walk_to_faces(const double[:, ::1] rows, const double[:, ::1] P, const int64_t[::1] start,
+                  const int64_t[::1] todo, int walk, double tol, int64_t[::1] face,
+                  double[:, ::1] bary):
+    """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]`` of a planar
+    triangulation given by its :func:`walk_rows` ``rows``: test the face (barycentrics as
+    :func:`pipeline.geometry.locate.barycentric_coordinates` computes them; inside when the
+    smallest is ≥ ``−tol``), else step to the face across the edge of the most negative
+    barycentric (the first of the smallest; a NaN counts as smallest), at most ``walk``
+    steps, stopping at the rim. A point found gets ``face[i]`` and its barycentrics clamped
+    at 0 and renormalised. Returns the ``todo`` entries not found."""
     cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
     cdef int64_t f, nxt
     cdef double px, py, ax, ay, bx, by, cx, cy, d, mn
@@ -296,17 +327,21 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
     cdef bint found
     left_arr = np.empty(todo.shape[0], dtype=np.int64)
     cdef int64_t[::1] left = left_arr
+    if rows.shape[0] == 0:
+        left[:] = todo
+        return left_arr
+    cdef const int32_t* nbr = <const int32_t*> &rows[0, 0]   # the rows as int32, 16 a row
     for idx in range(todo.shape[0]):
         i = todo[idx]
         f = start[i]
         px, py = P[i, 0], P[i, 1]
         found = False
         for step in range(walk + 1):
-            ax, ay = uv[F[f, 0], 0] - px, uv[F[f, 0], 1] - py
-            bx, by = uv[F[f, 1], 0] - px, uv[F[f, 1], 1] - py
-            cx, cy = uv[F[f, 2], 0] - px, uv[F[f, 2], 1] - py
-            d = ((uv[F[f, 1], 0] - uv[F[f, 0], 0]) * (uv[F[f, 2], 1] - uv[F[f, 0], 1])
-                 - (uv[F[f, 1], 1] - uv[F[f, 0], 1]) * (uv[F[f, 2], 0] - uv[F[f, 0], 0]))
+            ax, ay = rows[f, 0] - px, rows[f, 1] - py
+            bx, by = rows[f, 2] - px, rows[f, 3] - py
+            cx, cy = rows[f, 4] - px, rows[f, 5] - py
+            d = ((rows[f, 2] - rows[f, 0]) * (rows[f, 5] - rows[f, 1])
+                 - (rows[f, 3] - rows[f, 1]) * (rows[f, 4] - rows[f, 0]))
             lam[0] = (bx * cy - by * cx) / d
             lam[1] = (cx * ay - cy * ax) / d
             lam[2] = (ax * by - ay * bx) / d
@@ -325,10 +360,10 @@ def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_
                 break
             if step == walk:
                 break
-            nxt = twin[3 * f + (cmin + 1) % 3]
+            nxt = nbr[16 * f + 12 + (cmin + 1) % 3]
             if nxt < 0:                               # beyond the rim: the grid decides
                 break
-            f = nxt // 3
+            f = nxt
         if not found:
             left[n_left] = i
             n_left += 1
