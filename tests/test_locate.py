@@ -244,6 +244,49 @@ def test_relocate_walks_to_the_same_answer(walk, monkeypatch):
         assert sum(calls) < 0.2 * len(Q)          # most points found by walking
 
 
+def test_walk_rows_hold_each_faces_corners_and_neighbours():
+    """The walk's table (one 64-byte row a face, the array on a 64-byte boundary): the
+    corners' coordinates bit for bit, and the face across each edge ``F[f, c] → F[f, c+1]``
+    (−1 on the boundary), read from the row's int32 tail."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry._kernels import walk_rows
+
+    uv, F, _ = grid_mesh(7, 0.3)
+    rows = walk_rows(uv, np.ascontiguousarray(F, dtype=np.int64),
+                     topo.interior_edge_twins(F))
+    assert rows.shape == (len(F), 8) and rows.ctypes.data % 64 == 0
+    assert np.array_equal(rows[:, :6], uv[F].reshape(-1, 6))
+    across = rows.view(np.int32)[:, 12:15]
+    for f in range(len(F)):
+        for c in range(3):
+            a, b = F[f, c], F[f, (c + 1) % 3]
+            other = [g for g in range(len(F)) if g != f and {a, b} <= set(F[g])]
+            assert across[f, c] == (other[0] if other else -1)
+
+
+def test_a_batch_walks_each_point_as_it_would_alone():
+    """The walk takes several points at once (lanes): every point of a batch (walks of 0 to
+    many steps, some ending at the rim or out of steps) gets the face, barycentrics and
+    not-found answer it gets walked alone, and the points not found come back in order."""
+    from pipeline.geometry._kernels import walk_to_faces
+
+    uv, F, loop = grid_mesh(20, 0.3)
+    L = PointLocator(uv, F, loop)
+    rows = L._walk_rows()
+    rng = np.random.default_rng(5)
+    P = np.ascontiguousarray(rng.uniform(-0.2, 1.2, (500, 2)))
+    start = rng.integers(0, len(F), len(P))
+    todo = np.arange(len(P))
+    face, bary = np.full(len(P), -1), np.zeros((len(P), 3))
+    left = walk_to_faces(rows, P, start, todo, 6, 1e-10, face, bary)
+    alone_left = []
+    for i in range(len(P)):
+        f1, b1 = np.full(len(P), -1), np.zeros((len(P), 3))
+        alone_left += list(walk_to_faces(rows, P, start, np.array([i]), 6, 1e-10, f1, b1))
+        assert f1[i] == face[i] and np.array_equal(b1[i], bary[i])
+    assert list(left) == alone_left and 0 < len(left) < len(P)
+
+
 def test_large_batches_walk_from_the_nearest_vertex(monkeypatch):
     """A batch of at least half as many points as image vertices walks from the nearest
     vertex's face: the same inside/outside answer and positions as the grid, vertices still

@@ -280,59 +280,134 @@ cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) no
         bary[i, c] = lam[c] / s
 
 
-def walk_to_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin,
-                  const double[:, ::1] P, const int64_t[::1] start, const int64_t[::1] todo,
-                  int walk, double tol, int64_t[::1] face, double[:, ::1] bary):
-    """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]``: test the face
-    (barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates` computes them;
+def walk_rows(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin):
+    """What a step of :func:`walk_to_faces` reads of a face of ``(uv, F)`` (m faces), one
+    64-byte row a face (a cache line: the array starts on a 64-byte boundary): float64
+    columns 0–5 its corners' coordinates ``x0 y0 x1 y1 x2 y2``; in the row's last 16 bytes,
+    read as int32 (columns 12–14 of the m×16 int32 view), the faces across its three edges
+    ``F[f, c] → F[f, c+1]`` (``twin // 3``, −1 at the rim). A walk over a map much finer than
+    its steps reads one row a step instead of six places of three arrays.
+
+    Returns
+    -------
+    (m, 8) float64
+    """
+    cdef Py_ssize_t f, c, m = F.shape[0]
+    cdef int64_t t
+    if 3 * m >= 2 ** 31:
+        raise ValueError("more than 2**31 half-edges")
+    buf = np.zeros(8 * m + 8, dtype=np.float64)
+    cdef Py_ssize_t shift = ((-<Py_ssize_t>buf.ctypes.data) % 64) // 8
+    out_arr = buf[shift:shift + 8 * m].reshape(m, 8)
+    cdef double[:, ::1] out = out_arr
+    cdef int32_t[:, ::1] nbr = out_arr.view(np.int32)
+    for f in range(m):
+        for c in range(3):
+            out[f, 2 * c] = uv[F[f, c], 0]
+            out[f, 2 * c + 1] = uv[F[f, c], 1]
+            t = twin[3 * f + c]
+            nbr[f, 12 + c] = <int32_t>(t // 3) if t >= 0 else -1
+    return out_arr
+
+
+cdef inline Py_ssize_t _face_test(const double[:, ::1] rows, int64_t f, double px, double py,
+                                   double tol, double* lam) noexcept nogil:
+    """A walk step's test of face ``f`` (its row of :func:`walk_rows`) for the point
+    ``(px, py)``: −1 when inside (smallest barycentric ≥ ``−tol``; ``lam`` holds them), else the
+    corner of the most negative one (the first of the smallest; a NaN counts as smallest)."""
+    cdef double ax, ay, bx, by, cx, cy, d
+    cdef Py_ssize_t c, cmin = 0
+    ax, ay = rows[f, 0] - px, rows[f, 1] - py
+    bx, by = rows[f, 2] - px, rows[f, 3] - py
+    cx, cy = rows[f, 4] - px, rows[f, 5] - py
+    d = ((rows[f, 2] - rows[f, 0]) * (rows[f, 5] - rows[f, 1])
+         - (rows[f, 3] - rows[f, 1]) * (rows[f, 4] - rows[f, 0]))
+    lam[0] = (bx * cy - by * cx) / d
+    lam[1] = (cx * ay - cy * ax) / d
+    lam[2] = (ax * by - ay * bx) / d
+    for c in range(3):                            # argmin, NaN first (as numpy's)
+        if lam[c] != lam[c]:
+            cmin = c
+            break
+        if lam[c] < lam[cmin]:
+            cmin = c
+    if lam[cmin] >= -tol:                         # False for NaN
+        return -1
+    return cmin
+
+
+cdef enum:
+    WALK_LANES = 8        # points walked at once by walk_to_faces
+
+
+def walk_to_faces(const double[:, ::1] rows, const double[:, ::1] P, const int64_t[::1] start,
+                  const int64_t[::1] todo, int walk, double tol, int64_t[::1] face,
+                  double[:, ::1] bary):
+    """Walk each point ``P[i]`` (``i`` in ``todo``) from the face ``start[i]`` of a planar
+    triangulation given by its :func:`walk_rows` ``rows``: test the face (:func:`_face_test`:
+    barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates` computes them;
     inside when the smallest is ≥ ``−tol``), else step to the face across the edge of the most
     negative barycentric (the first of the smallest; a NaN counts as smallest), at most
-    ``walk`` steps, stopping at the rim (``twin < 0``). A point found gets ``face[i]`` and its
-    barycentrics clamped at 0 and renormalised. Returns the ``todo`` entries not found."""
-    cdef Py_ssize_t idx, i, step, c, cmin, n_left = 0
-    cdef int64_t f, nxt
-    cdef double px, py, ax, ay, bx, by, cx, cy, d, mn
+    ``walk`` steps, stopping at the rim. A point found gets ``face[i]`` and its barycentrics
+    clamped at 0 and renormalised. Returns the ``todo`` entries not found, in order.
+
+    ``WALK_LANES`` points walk at once, a step of each in turn (a lane takes the next point
+    when its own ends): the steps of one point depend on each other, those of different points
+    do not, so the processor fetches the next rows of several walks together instead of
+    waiting for one row at a time. Each point's walk, and so its answer, is the one it would
+    have alone (``start`` may be ``face``: a point's start is read before its face is
+    written)."""
+    cdef Py_ssize_t n = todo.shape[0], nxt_idx = 0, live = 0, l, i, r
+    cdef Py_ssize_t lidx[WALK_LANES]
+    cdef int64_t lf[WALK_LANES]
+    cdef int lstep[WALK_LANES]
+    cdef int64_t g
     cdef double lam[3]
-    cdef bint found
-    left_arr = np.empty(todo.shape[0], dtype=np.int64)
-    cdef int64_t[::1] left = left_arr
-    for idx in range(todo.shape[0]):
-        i = todo[idx]
-        f = start[i]
-        px, py = P[i, 0], P[i, 1]
-        found = False
-        for step in range(walk + 1):
-            ax, ay = uv[F[f, 0], 0] - px, uv[F[f, 0], 1] - py
-            bx, by = uv[F[f, 1], 0] - px, uv[F[f, 1], 1] - py
-            cx, cy = uv[F[f, 2], 0] - px, uv[F[f, 2], 1] - py
-            d = ((uv[F[f, 1], 0] - uv[F[f, 0], 0]) * (uv[F[f, 2], 1] - uv[F[f, 0], 1])
-                 - (uv[F[f, 1], 1] - uv[F[f, 0], 1]) * (uv[F[f, 2], 0] - uv[F[f, 0], 0]))
-            lam[0] = (bx * cy - by * cx) / d
-            lam[1] = (cx * ay - cy * ax) / d
-            lam[2] = (ax * by - ay * bx) / d
-            cmin = 0                                  # argmin, NaN first (as numpy's)
-            for c in range(3):
-                if lam[c] != lam[c]:
-                    cmin = c
-                    break
-                if lam[c] < lam[cmin]:
-                    cmin = c
-            mn = lam[cmin]
-            if mn >= -tol:                            # False for NaN
-                face[i] = f
+    cdef bint finished
+    lost_arr = np.zeros(n, dtype=np.uint8)
+    cdef unsigned char[::1] lost = lost_arr
+    if rows.shape[0] == 0:
+        return np.asarray(todo).copy()
+    cdef const int32_t* nbr = <const int32_t*> &rows[0, 0]   # the rows as int32, 16 a row
+    for l in range(WALK_LANES):
+        if nxt_idx < n:
+            lidx[l] = nxt_idx
+            lf[l] = start[todo[nxt_idx]]
+            lstep[l] = 0
+            nxt_idx += 1
+            live += 1
+        else:
+            lidx[l] = -1
+    while live > 0:
+        for l in range(WALK_LANES):
+            if lidx[l] < 0:
+                continue
+            i = todo[lidx[l]]
+            r = _face_test(rows, lf[l], P[i, 0], P[i, 1], tol, lam)
+            finished = True
+            if r < 0:
+                face[i] = lf[l]
                 _store_clean(lam, bary, i)
-                found = True
-                break
-            if step == walk:
-                break
-            nxt = twin[3 * f + (cmin + 1) % 3]
-            if nxt < 0:                               # beyond the rim: the grid decides
-                break
-            f = nxt // 3
-        if not found:
-            left[n_left] = i
-            n_left += 1
-    return left_arr[:n_left]
+            elif lstep[l] == walk:
+                lost[lidx[l]] = 1
+            else:
+                g = nbr[16 * lf[l] + 12 + (r + 1) % 3]
+                if g < 0:
+                    lost[lidx[l]] = 1
+                else:
+                    lf[l] = g
+                    lstep[l] += 1
+                    finished = False
+            if finished:
+                if nxt_idx < n:
+                    lidx[l] = nxt_idx
+                    lf[l] = start[todo[nxt_idx]]
+                    lstep[l] = 0
+                    nxt_idx += 1
+                else:
+                    lidx[l] = -1
+                    live -= 1
+    return np.asarray(todo)[lost_arr.view(np.bool_)]
 
 
 def sphere_walk_to_faces(const double[:, ::1] S, const int64_t[:, ::1] F,

@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import cells_touch_faces, lift_rows, walk_to_faces
+from ._kernels import cells_touch_faces, lift_rows, walk_rows, walk_to_faces
 from .rows import row_min
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
@@ -239,7 +239,7 @@ class PointLocator:
         sa, sb, sf, sca, scb = _boundary_segments(self.F, n, boundary)
         self.seg_a, self.seg_b, self.seg_face = sa, sb, sf
         self.seg_ca, self.seg_cb = sca, scb
-        self._twin = None                    # half-edge twins, for relocate's walk
+        self._rows = None                    # the faces' corners and neighbours, for the walk
         self._tree = None                    # nearest image vertex, for large batches
         self._boundary = None                # the boundary's Segments, for _on_boundary
 
@@ -341,7 +341,7 @@ class PointLocator:
         for hint in [face] + ([] if face2 is None else [face2]):
             if len(todo) == 0:
                 break
-            todo = walk_to_faces(self.uv, self.F, self._neighbours(), P,
+            todo = walk_to_faces(self._walk_rows(), P,
                                  np.ascontiguousarray(hint, dtype=np.int64), todo, walk, tol,
                                  face, bary)
         moved = todo
@@ -349,12 +349,12 @@ class PointLocator:
             face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol)
         return face, bary, inside
 
-    def _neighbours(self) -> np.ndarray:
-        """Half-edge twins of ``F`` (computed once): the face across half-edge ``3 t + c`` is
-        ``twin // 3``."""
-        if self._twin is None:
-            self._twin = topo.interior_edge_twins(self.F)
-        return self._twin
+    def _walk_rows(self) -> np.ndarray:
+        """The walk's table of the faces (m×8, computed once): each face's corners and the
+        faces across its edges in one 64-byte row (:func:`._kernels.walk_rows`)."""
+        if self._rows is None:
+            self._rows = walk_rows(self.uv, self.F, topo.interior_edge_twins(self.F))
+        return self._rows
 
     def _on_boundary(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Faces and barycentrics of the closest points of the boundary polygon to ``P``."""
