@@ -170,7 +170,8 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     around them in round after round. Without the memo of :func:`.angles.raise_min_angles`
     it judges 453 faces, 213 of them in surroundings judged before; with it, each of the
     240 surroundings once (5 of them the forced corners' share-out's,
-    :meth:`.improve._Operations.raise_forced`), and the remesh is the same bit for bit."""
+    :meth:`.improve._Operations.raise_forced`), and the remesh is the same bit for bit (the raise above
+    ``RAISE_DEG`` after the evening steps, which judges faces at its own threshold, off)."""
     from pipeline.geometry.remesh import angles, improve
     from pipeline.geometry.repair import repair_mesh
     from pipeline.geometry.sem import SEMOptions
@@ -190,6 +191,7 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
         return judge(patch, t, floor)
 
     monkeypatch.setattr(angles._Patch, "best_option", counted)
+    monkeypatch.setattr(improve, "RAISE_DEG", 0.0)
     with_memo = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
     assert with_memo.info["improve"]["rim_corners_snapped"] == 86
     assert sum(judged) == len(set(seen)) == 240 and len(seen) == 453

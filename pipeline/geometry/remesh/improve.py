@@ -137,7 +137,12 @@ The schedule (:func:`improve_remesh`):
     move only where it raises the sum of its faces' smallest angles without spreading their
     areas (:func:`ring_veto`: the evening steps trade the angles for even areas, these take
     back what angle they can at no cost in evenness), no face's smallest angle below what it
-    was and ``RING_FLOOR_DEG``; before these steps and again after them
+    was and ``RING_FLOOR_DEG``; then the local operations of :func:`.angles.raise_min_angles`
+    at the faces below ``RAISE_DEG`` that no input corner forces, the count given back by
+    splits, undone where they leave more or worse faces below ``min_angle_deg`` or more folds
+    (:meth:`_Operations.raise_above`: the evening steps let faces down to ``min_angle_deg``,
+    and many of those are a flip or a move from a larger angle), and the evening and ring
+    steps again with the floor ``RAISE_DEG``; before these steps and again after them
     (:meth:`_Operations.settle`), a vertex moved onto each input point still farther than
     ``SETTLE_TOL × L`` from the remesh and than any remesh edge's middle from the input,
     farthest first, while one can be without a new angle below ``min_angle_deg``, a fold, an
@@ -215,6 +220,8 @@ EVEN_SAG_SAMPLES = 1  # their sag veto measuring at this many points along an ed
                       # middle: the folds stay put, below), the ends of the edges folded more
 EVEN_FOLD_DEG = 45.0  # than this staying (moving them too lets the farthest input point
                       # drift away from the remesh at creases; test_remesh_fidelity)
+RAISE_DEG = 30.0      # after them, the minimum-angle operations at the faces below this, and
+                      # the evening and ring steps again with this floor
 RING_STEPS = 2        # then smoothing steps keeping a vertex's move only where it raises the
 RING_FLOOR_DEG = 30.0  # sum of its faces' smallest angles without spreading their areas, no
                        # face's smallest angle below this (or the minimum-angle pass's) and what
@@ -396,6 +403,11 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if relax_iterations > 0 and EVEN_STEPS > 0:
         S.locked[settled] = True
         ops.even_out(EVEN_STEPS, min_angle_deg, followed, RING_STEPS)
+        if 0 < min_angle_deg < RAISE_DEG:
+            at_settled = S.X[settled]
+            ops.raise_above(RAISE_DEG, min_angle_deg)
+            ops.even_out(EVEN_STEPS, RAISE_DEG, followed, RING_STEPS)
+            settled = np.flatnonzero(at_points(S.X, at_settled))
         S.locked[settled] = False
         lap("even")
         if settle:
@@ -735,6 +747,30 @@ class _Operations:
             for _ in range(ring_steps):
                 self.relax(veto=veto, equalize=AREA_EQUALIZE)
         S.locked = locked
+
+    def raise_above(self, angle_deg: float, min_angle_deg: float) -> None:
+        """The local operations of :func:`.angles.raise_min_angles` (flips, moves, collapses,
+        each made only where it raises the smallest angle of the faces it touches and leaves
+        no more of them below ``angle_deg``, under the sag guard) around the faces with an
+        angle below ``angle_deg`` that no input corner forces (at ``min_angle_deg``,
+        :func:`.angles.forced_corners`), the vertices the collapses removed given back by splits
+        that make no face below ``min_angle_deg`` (:func:`.angles.split_for_count`); all of it
+        undone if it leaves more faces below ``min_angle_deg`` that no corner forces, or as
+        many with a smaller smallest angle, or more faces turned over. The
+        evening steps trade angles for even areas down to ``min_angle_deg``: a face between
+        that and ``angle_deg`` is often one flip or move from a larger angle (a short rim edge
+        with its far corner pushed away, the faces around a vertex the repairs moved)."""
+        S = self.S
+        bad = skinny_faces(S.X, S.F, angle_deg)
+        bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
+        saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
+        before = unforced_shortfall(S, min_angle_deg)
+        raise_min_angles(S, angle_deg, self.tol, bad, {})
+        if S.n < n0:
+            split_for_count(S, n0 - S.n, min_angle_deg)
+        if shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before) or \
+                self.folds(S).sum() > n_folds:
+            self.restore(saved)
 
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4,
                   kept: tuple | None = None) -> None:
