@@ -141,8 +141,7 @@ The schedule (:func:`improve_remesh`):
     at the faces below ``RAISE_DEG`` that no input corner forces, the count given back by
     splits, undone where they leave more or worse faces below ``min_angle_deg`` or more folds
     (:meth:`_Operations.raise_above`: the evening steps let faces down to ``min_angle_deg``,
-    and many of those are a flip or a move from a larger angle), and the evening and ring
-    steps again with the floor ``RAISE_DEG``; before these steps and again after them
+    and many of those are a flip or a move from a larger angle); before these steps and again after them
     (:meth:`_Operations.settle`), a vertex moved onto each input point still farther than
     ``SETTLE_TOL × L`` from the remesh and than any remesh edge's middle from the input,
     farthest first, while one can be without a new angle below ``min_angle_deg``, a fold, an
@@ -220,8 +219,7 @@ EVEN_SAG_SAMPLES = 1  # their sag veto measuring at this many points along an ed
                       # middle: the folds stay put, below), the ends of the edges folded more
 EVEN_FOLD_DEG = 45.0  # than this staying (moving them too lets the farthest input point
                       # drift away from the remesh at creases; test_remesh_fidelity)
-RAISE_DEG = 30.0      # after them, the minimum-angle operations at the faces below this, and
-                      # the evening and ring steps again with this floor
+RAISE_DEG = 30.0      # after them, the minimum-angle operations at the faces below this
 RING_STEPS = 2        # then smoothing steps keeping a vertex's move only where it raises the
 RING_FLOOR_DEG = 30.0  # sum of its faces' smallest angles without spreading their areas, no
                        # face's smallest angle below this (or the minimum-angle pass's) and what
@@ -403,13 +401,13 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if relax_iterations > 0 and EVEN_STEPS > 0:
         S.locked[settled] = True
         ops.even_out(EVEN_STEPS, min_angle_deg, followed, RING_STEPS)
+        lap("even")
         if 0 < min_angle_deg < RAISE_DEG:
             at_settled = S.X[settled]
             ops.raise_above(RAISE_DEG, min_angle_deg)
-            ops.even_out(EVEN_STEPS, RAISE_DEG, followed, RING_STEPS)
             settled = np.flatnonzero(at_points(S.X, at_settled))
+            lap("raise")
         S.locked[settled] = False
-        lap("even")
         if settle:
             reach = ops.settle(min_angle_deg, np.vstack([followed, S.X[settled]]),
                                follow).reach
