@@ -233,7 +233,7 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
                      faces: np.ndarray, memo: dict | None = None,
-                     count_below: bool = True) -> int:
+                     count_below: bool = True, first_enough: bool = False) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -263,6 +263,9 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
         (:func:`forced_by_corners`) its faces share the corner's angle out, each below the
         threshold, only through states with more of them below (two faces of 18° at a 36°
         rim corner instead of 4° and 32°).
+    first_enough : bool
+        Whether a face takes the first of its options that lifts its faces' smallest angle
+        to ``min_angle_deg`` (the others not judged) instead of the one that lifts it most.
 
     Returns
     -------
@@ -270,7 +273,7 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo, count_below)
+    patch = _Patch(S, faces, tol, memo, count_below, first_enough)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     patch.write_back()
     S.tally("min_angle_operations", done)
@@ -287,9 +290,11 @@ class _Patch:
     (:meth:`write_back`)."""
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
-                 memo: dict | None = None, count_below: bool = True):
+                 memo: dict | None = None, count_below: bool = True,
+                 first_enough: bool = False):
         self.S, self.tol = S, tol
         self.count_below = count_below        # judge the faces left below too (better)
+        self.first_enough = first_enough      # take the first option reaching the threshold
         self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
@@ -436,21 +441,25 @@ class _Patch:
         if key is not None and key in self.memo:
             i = self.memo[key]
             return None if i is None else options[i](floor)
-        best = self._best(options, floor)
+        best = self._best(options, floor,
+                          self.threshold if self.first_enough else np.inf)
         if key is not None:
             self.memo[key] = None if best is None else best[1]
         return None if best is None else best[0]
 
     @staticmethod
-    def _best(options, floor: float):
+    def _best(options, floor: float, enough: float = np.inf):
         """``(op, index)`` of the first option with the largest smallest angle after it,
-        above ``floor``, or None; each option is asked only for one above the best so far
-        (the guards of those that cannot win are not evaluated)."""
+        above ``floor``, or of the first one reaching ``enough``; None where none is above
+        ``floor``. Each option is asked only for one above the best so far (the guards of
+        those that cannot win are not evaluated)."""
         best = None
         for i, option in enumerate(options):
             op = option(floor)
             if op is not None:
                 best, floor = (op, i), op[0]
+                if floor >= enough:
+                    break
         return best
 
     def surroundings(self, t) -> tuple:
@@ -473,7 +482,7 @@ class _Patch:
                                   S.is_rim[V], self.inner[V]]).astype(np.float64)
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
-                joined, self.threshold, self.tol, self.count_below)
+                joined, self.threshold, self.tol, self.count_below, self.first_enough)
 
     def options(self, t) -> list:
         """The candidate operations at face ``t``, each a function of a ``floor`` that returns

@@ -763,7 +763,7 @@ class _Operations:
         bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
         saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
         before = unforced_shortfall(S, min_angle_deg)
-        raise_min_angles(S, angle_deg, self.tol, bad, {})
+        raise_min_angles(S, angle_deg, self.tol, bad, {}, first_enough=True)
         if S.n < n0:
             split_for_count(S, n0 - S.n, min_angle_deg)
         if shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before) or \
