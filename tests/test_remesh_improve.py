@@ -361,3 +361,60 @@ def test_raise_above_lifts_the_faces_between_the_minimum_and_30_degrees(seed):
     assert after.min() >= 30
     assert S.n == n0 and np.array_equal(S.uv[S.is_rim], rim)
     assert np.all(signed_double_areas(S.uv, S.F) > 0)
+
+
+def test_inner_groups_join_inner_vertices_through_shared_faces():
+    """A strip of six faces (bottom vertices 0, 2, 4, 6; top 1, 3, 5, 7): inner vertices at
+    both ends are two groups, the others -1; an inner vertex in the middle face joins them."""
+    from pipeline.geometry.remesh.angles import inner_groups
+
+    T = np.array([[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5], [4, 6, 5], [5, 6, 7]])
+    inner = np.zeros(8, bool)
+    inner[[0, 1, 6, 7]] = True
+    rows = T[inner[T].any(axis=1)]
+    assert inner_groups(rows, inner).tolist() == [0, 0, -1, -1, -1, -1, 1, 1]
+    inner[[3, 4]] = True
+    rows = T[inner[T].any(axis=1)]
+    assert inner_groups(rows, inner).tolist() == [0, 0, -1, 0, 0, -1, 0, 0]
+
+
+def _raised_pushed_flat(seed: int, judge=None):
+    """The pushed flat disk (:func:`_pushed_flat_state`) after the minimum-angle operations at
+    its faces below 30° (the first option enough, the groups judged by ``judge(S)``'s judge
+    where given), and its positions and faces before them."""
+    from pipeline.geometry.remesh.angles import raise_min_angles
+
+    S, _ = _pushed_flat_state(seed)
+    before = S.X.copy(), S.F.copy()
+    smallest = np.degrees(np.min(corner_angles(S.X, S.F), axis=1))
+    raise_min_angles(S, 30.0, None, np.flatnonzero(smallest < 30), first_enough=True,
+                     judge=None if judge is None else judge(S))
+    return S, before
+
+
+def _face_set(X, F) -> set:
+    """The faces of ``F`` as sets of their corners' positions (rows of ``X``)."""
+    return {frozenset(map(tuple, X[f])) for f in F}
+
+
+@pytest.mark.parametrize("seed", [1, 6])
+def test_raise_groups_are_undone_where_the_judge_finds_them_worse(seed):
+    """The pushed flat disk's operations at its faces below 30° change it; with a judge that
+    counts every face it did not start with as turned over, each group of operations comes out
+    worse and is undone: the same positions and the same faces (rows in another order). A
+    judge that never objects keeps them all, bit for bit as without a judge."""
+    S, (X0, F0) = _raised_pushed_flat(seed)
+    start = _face_set(X0, F0)
+    assert _face_set(S.X, S.F) != start
+
+    def objecting(S):
+        return lambda T: (np.full(len(T), np.inf),
+                          np.array([frozenset(map(tuple, S.X[f])) not in start for f in T]),
+                          np.zeros(len(T)))
+
+    undone, _ = _raised_pushed_flat(seed, objecting)
+    assert np.array_equal(undone.X, X0) and _face_set(undone.X, undone.F) == start
+    quiet, _ = _raised_pushed_flat(seed, lambda S: lambda T: (np.full(len(T), np.inf),
+                                                              np.zeros(len(T), bool),
+                                                              np.zeros(len(T))))
+    assert np.array_equal(quiet.X, S.X) and np.array_equal(quiet.F, S.F)

@@ -56,6 +56,7 @@ from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
+from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
 from .refine import split_long_edges
@@ -134,15 +135,18 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
     (PATTERN_DIRS · len(PATTERN_STEPS), 2 or 3) float
         Not yet projected onto the domain.
     """
-    theta = 2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS
     if len(u) == 2:
-        E = np.eye(2)
+        dirs = _PLANE_DIRS
     else:                                           # an orthonormal basis of the tangent plane
         e1 = np.cross(u, np.eye(3)[np.argmin(np.abs(u))])
         e1 /= np.linalg.norm(e1)
-        E = np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
-    dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
+        dirs = _CIRCLE_DIRS @ np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
+
+
+_CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
+                                np.sin(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS)])
+_PLANE_DIRS = _CIRCLE_DIRS @ np.eye(2)          # :func:`pattern_points`' directions on the disk
 
 
 def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:
@@ -198,12 +202,19 @@ def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | No
     """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) are at a
     vertex on an input vertex (:func:`on_input_corners`) too sharp for any fan to give its
     faces ``min_angle_deg`` (:func:`forced_by_corners`)."""
+    return sharp_vertices(S, min_angle_deg)[S.F if faces is None else S.F[faces]]
+
+
+def sharp_vertices(S: RemeshState, min_angle_deg: float) -> np.ndarray:
+    """The vertices (n bool) on an input vertex (:func:`on_input_corners`) whose angle sum on
+    the input is below ``min_angle_deg`` × the fewest faces a vertex there can have (3 inside,
+    2 on the rim): the corners of :func:`forcing_corners`."""
     on = np.flatnonzero(on_input_corners(S))
     sharp = np.zeros(S.n, bool)
     if len(on):
         sums = S.angle_sums_in()[input_vertex_under(S, on)]
         sharp[on] = sums < min_angle_deg * np.where(S.is_rim[on], 2, 3)
-    return sharp[S.F if faces is None else S.F[faces]]
+    return sharp
 
 
 def on_input_corners(S: RemeshState) -> np.ndarray:
@@ -233,7 +244,8 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
                      faces: np.ndarray, memo: dict | None = None,
-                     count_below: bool = True, first_enough: bool = False) -> int:
+                     count_below: bool = True, first_enough: bool = False,
+                     judge=None, collapses: bool = True) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -266,6 +278,16 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     first_enough : bool
         Whether a face takes the first of its options that lifts its faces' smallest angle
         to ``min_angle_deg`` (the others not judged) instead of the one that lifts it most.
+    judge : callable ``judge(T) -> (angle, folded, smallest)``, optional
+        For faces ``T`` (k×3 vertex rows of ``S``): the smallest angle (k, degrees) of each
+        face that counts against the operations (+inf for the others), whether each is
+        turned over (k bool) and the smallest angle of each (k, degrees). Given, the
+        operations are kept or undone per group (:meth:`_Patch.undo_worse`: the operations
+        whose faces share an inner vertex): a group is undone where its faces after it have
+        more turned over, more that count, a smaller smallest angle among those or a smaller
+        sum of their smallest angles than its faces before.
+    collapses : bool
+        Whether the collapses are among the operations (without, the vertex count stays).
 
     Returns
     -------
@@ -273,8 +295,10 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo, count_below, first_enough)
+    patch = _Patch(S, faces, tol, memo, count_below, first_enough, judge, collapses)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
+    if judge is not None:
+        patch.undo_worse()
     patch.write_back()
     S.tally("min_angle_operations", done)
     return done
@@ -291,8 +315,9 @@ class _Patch:
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
                  memo: dict | None = None, count_below: bool = True,
-                 first_enough: bool = False):
+                 first_enough: bool = False, judge=None, collapses: bool = True):
         self.S, self.tol = S, tol
+        self.collapses = collapses            # whether the options include the collapses
         self.count_below = count_below        # judge the faces left below too (better)
         self.first_enough = first_enough      # take the first option reaching the threshold
         self.memo = memo                      # the answers of earlier judgements (best_option)
@@ -317,6 +342,14 @@ class _Patch:
         # neighbour); a move refused at a version is refused again until it changes
         self.version = defaultdict(int)
         self.no_move = {}
+        self.judge = judge                    # per group of operations (undo_worse)
+        if judge is not None:
+            self.group = inner_groups(S.F[self.rows], inner)
+            self.original = dict(self.faces)
+            at = np.flatnonzero(inner)
+            self.saved_at = (at, S.X[at].copy(), S.uv[at].copy(), S.face[at].copy(),
+                             S.bary[at].copy())
+            self.before = self.group_measures(self.original)
 
     # ------------------------------------------------------------------------------ measures
 
@@ -488,9 +521,12 @@ class _Patch:
         """The candidate operations at face ``t``, each a function of a ``floor`` that returns
         ``(smallest angle after, commit)``, or None where it is not allowed or the smallest
         angle after it is not above the floor: the flip of each edge and its collapses either
-        way, then the moves of the corners."""
+        way (without :attr:`collapses`, the flips alone), then the moves of the corners."""
         f = self.faces[t]
         edges = [(f[i], f[(i + 1) % 3]) for i in range(3)]
+        if not self.collapses:
+            return [partial(self.flip, a, b) for a, b in edges] + \
+                [partial(self.move, v) for v in f]
         return [op for a, b in edges for op in (partial(self.flip, a, b),
                                                 partial(self.collapse, a, b),
                                                 partial(self.collapse, b, a))] + \
@@ -622,12 +658,12 @@ class _Patch:
         # below in the last bit, and the outcome with it, from one patch to the next)
         ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
-        before = self.min_angle(star)
+        angles = self.face_min_angles(star)
+        before = float(angles.min())
         X = S.X
         B, C = X[star[:, 1]], X[star[:, 2]]
         A = np.repeat(X[v][None], len(star), axis=0)
         ideal = ideal_points(A, B, C)
-        angles = triangle_min_angles(A, B, C)
         targets = [ideal.mean(axis=0), ideal[np.argmin(angles)],
                    X[np.unique(star[:, 1:])].mean(axis=0)]
         normal = cross(B - A, C - A).sum(axis=0)
@@ -651,12 +687,14 @@ class _Patch:
         more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
                       if self.count_below else np.zeros(k, bool))
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
-        sag_before = self.sag([v] * len(star), star[:, 1])
+        sag_before = None                      # measured for the first candidate tried
         for j in np.argsort(-score)[:3]:
             if score[j] <= max(before, floor):
                 if score[j] > before:          # refused for the floor: not for good
                     del self.no_move[v]
                 break
+            if sag_before is None:
+                sag_before = self.sag([v] * len(star), star[:, 1])
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
             ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
@@ -689,6 +727,46 @@ class _Patch:
             for v in f:
                 self.vf[v].add(t)
         return ids
+
+    def face_groups(self, faces: dict) -> np.ndarray:
+        """The group (:func:`inner_groups`) of each face of ``faces`` (``{id: corners}``, in
+        its order): that of its inner corners."""
+        T = np.asarray(list(faces.values()), np.int64).reshape(-1, 3)
+        return self.group[T].max(axis=1)
+
+    def group_measures(self, faces: dict) -> np.ndarray:
+        """Per group (rows, by :attr:`group`'s labels): how many of ``faces`` (``{id:
+        corners}``) are turned over, how many count against the operations, minus their
+        smallest angle, and minus the sum of the smallest angles of all (:attr:`judge`; each
+        column: smaller is better)."""
+        T = np.asarray(list(faces.values()), np.int64).reshape(-1, 3)
+        g, k = self.face_groups(faces), int(self.group.max(initial=-1)) + 1
+        angle, folded, smallest = self.judge(T)
+        counts = np.isfinite(angle)
+        worst = np.full(k, -np.inf)
+        np.maximum.at(worst, g[counts], -angle[counts])
+        return np.column_stack([np.bincount(g, folded, k), np.bincount(g, counts, k), worst,
+                                -np.bincount(g, smallest, k)])
+
+    def undo_worse(self) -> int:
+        """Put back, group by group, the operations whose faces came out worse than they went
+        in on any measure of :meth:`group_measures` (faces, removals and positions); returns
+        the number of groups undone."""
+        worse = np.flatnonzero((self.group_measures(self.faces) > self.before).any(axis=1))
+        if len(worse) == 0:
+            return 0
+        S, undo = self.S, np.isin(self.group, worse)
+        drop = np.isin(self.face_groups(self.faces), worse)
+        faces = {t: f for (t, f), d in zip(self.faces.items(), drop) if not d}
+        back = np.isin(self.face_groups(self.original), worse)
+        faces.update((t, f) for (t, f), b in zip(self.original.items(), back) if b)
+        self.faces = faces
+        at, X, uv, face, bary = self.saved_at
+        put = undo[at]
+        S.X[at[put]], S.uv[at[put]], S.face[at[put]], S.bary[at[put]] = \
+            X[put], uv[put], face[put], bary[put]
+        self.removed[undo] = False
+        return len(worse)
 
     def write_back(self) -> None:
         """The patch's faces into ``S.F`` (those outside it keep their rows), the removed
@@ -733,6 +811,25 @@ class _BoundaryCorners:
             sa, span = sb, (sa - sb) % self.length
         d = (self.s - sa) % self.length
         return self.X[(d > 0) & (d < span)]
+
+
+def inner_groups(T: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """The groups of the ``inner`` vertices (n bool) of the faces ``T`` (k×3): two inner
+    vertices are in one group when a chain of faces of ``T`` joins them, each sharing an
+    inner vertex with the next (the operations of :class:`_Patch` change only the faces at
+    inner vertices, so those of different groups touch no face or vertex in common).
+
+    Returns
+    -------
+    (n,) int
+        The group of each inner vertex of ``T`` (0, 1, ...), -1 for the other vertices.
+    """
+    n = len(inner)
+    apart = np.where(inner[T], T, n + np.arange(T.size).reshape(T.shape))
+    _, label = connected_components(apart, n + T.size)
+    group = np.full(n, -1, np.int64)
+    group[T[inner[T]]] = np.repeat(label, 3)[inner[T].ravel()]
+    return group
 
 
 def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:

@@ -180,7 +180,8 @@ from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
-from .angles import forced_corners, raise_min_angles, split_for_count
+from .angles import (corner_angles_deg, forced_corners, raise_min_angles, sharp_vertices,
+                     split_for_count)
 from .circumcentres import (corner_split_round, refine_at_circumcentres, restore_state,
                             saved_state, shortfall_of, shortfall_order, unforced_below,
                             unforced_shortfall)
@@ -747,28 +748,30 @@ class _Operations:
         S.locked = locked
 
     def raise_above(self, angle_deg: float, min_angle_deg: float) -> None:
-        """The local operations of :func:`.angles.raise_min_angles` (flips, moves, collapses,
-        each made only where it raises the smallest angle of the faces it touches and leaves
-        no more of them below ``angle_deg``, under the sag guard) around the faces with an
-        angle below ``angle_deg`` that no input corner forces (at ``min_angle_deg``,
-        :func:`.angles.forced_corners`), the vertices the collapses removed given back by splits
-        that make no face below ``min_angle_deg`` (:func:`.angles.split_for_count`); all of it
-        undone if it leaves more faces below ``min_angle_deg`` that no corner forces, or as
-        many with a smaller smallest angle, or more faces turned over. The
-        evening steps trade angles for even areas down to ``min_angle_deg``: a face between
-        that and ``angle_deg`` is often one flip or move from a larger angle (a short rim edge
-        with its far corner pushed away, the faces around a vertex the repairs moved)."""
+        """The flips and vertex moves of :func:`.angles.raise_min_angles` (each made only where
+        it raises the smallest angle of the faces it touches and leaves no more of them below
+        ``angle_deg``, under the sag guard; a face takes the first that lifts it to
+        ``angle_deg``; no collapses: the count stays, and without the splits that would give
+        it back no face is shorn of its input distance) around the faces with an angle below
+        ``angle_deg`` that no input corner forces (:func:`.angles.forced_corners` at
+        ``min_angle_deg``) and, those not below ``min_angle_deg``, whose smallest angle is not
+        at a corner too sharp to give its faces ``angle_deg`` (its share caps them); each group
+        of operations (those whose faces share a vertex they change) undone where it leaves
+        among its faces more turned over, more or worse faces below ``min_angle_deg`` that no
+        corner forces, or a smaller sum of smallest angles (:func:`raise_judge`: the faces
+        below ``angle_deg`` lifted at no cost to the mean smallest angle). The evening steps
+        trade angles for even areas down to ``min_angle_deg``: a face between that and
+        ``angle_deg`` is often one flip or move from a larger angle (a short rim edge with its
+        far corner pushed away, the faces around a vertex the repairs moved)."""
         S = self.S
         bad = skinny_faces(S.X, S.F, angle_deg)
-        bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
-        saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
-        before = unforced_shortfall(S, min_angle_deg)
-        raise_min_angles(S, angle_deg, self.tol, bad, {}, first_enough=True)
-        if S.n < n0:
-            split_for_count(S, n0 - S.n, min_angle_deg)
-        if shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before) or \
-                self.folds(S).sum() > n_folds:
-            self.restore(saved)
+        A = corner_angles_deg(S.X, S.F[bad])
+        bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1) &
+                  ~(forced_corners(S, angle_deg, bad)[np.arange(len(bad)), A.argmin(axis=1)] &
+                    (row_min(A) >= min_angle_deg))]
+        raise_min_angles(S, angle_deg, self.tol, bad, first_enough=True, collapses=False,
+                         judge=partial(raise_judge, S, min_angle_deg,
+                                       sharp_vertices(S, min_angle_deg)))
 
     def guarantee(self, target: int, min_angle_deg: float, passes: int = 4,
                   kept: tuple | None = None) -> None:
@@ -1344,6 +1347,21 @@ def turned_over_at(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     """Whether each of the ``faces`` (k indices) of ``S`` is turned over
     (:func:`turned_over_faces`; k bool): the measure of a :class:`.face_memo.FaceMemo`."""
     return turned_over_rows(S, S.F[faces])
+
+
+def raise_judge(S: RemeshState, min_angle_deg: float, sharp: np.ndarray, T: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The ``judge`` of :meth:`_Operations.raise_above`'s groups of operations: for faces
+    ``T`` (k×3) of ``S``, the smallest angle (k, degrees) of each face below
+    ``min_angle_deg`` that no input corner forces (its small angle not at a ``sharp`` vertex,
+    n bool: :func:`.angles.sharp_vertices`; +inf for the other faces), whether each is
+    turned over (k bool, :func:`.unfold.turned_over_rows`), and the smallest angle of each
+    (k, degrees)."""
+    A = corner_angles_deg(S.X, T)
+    smallest = row_min(A)
+    forced = (sharp[T] & (A < min_angle_deg)).any(axis=1)
+    counts = (smallest < min_angle_deg) & ~forced
+    return np.where(counts, smallest, np.inf), turned_over_rows(S, T), smallest
 
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
