@@ -300,8 +300,9 @@ def test_gpp_face_5k_has_fewer_faces_under_30_degrees_than_pymeshlab():
     """gpp_face at 5k vertices (the remesh command's map and defaults): pymeshlab's isotropic
     remeshing leaves 0.815 % of its faces with an angle below 30°. The evening steps let
     faces down to 20°, most of them along the ragged rim; the raise above 30° after them
-    (:meth:`_Operations.raise_above`) leaves 0.32 % (0.87 % without it), the area CV no
-    higher than 0.12 and the smallest angle as the sharp input corner forces it (6.6°)."""
+    (:meth:`_Operations.raise_above`) leaves 0.63 % (0.87 % without it), the area CV within
+    0.6 × pymeshlab's 0.184 (0.109; 0.111 without it) and the smallest angle as the sharp
+    input corner forces it (6.6°)."""
     from conftest import require_data
     from pipeline.geometry.laplacian import face_double_areas
     from pipeline.geometry.sem import SEMOptions
@@ -315,7 +316,7 @@ def test_gpp_face_5k_has_fewer_faces_under_30_degrees_than_pymeshlab():
     smallest = np.degrees(np.min(corner_angles(r.V, r.F), axis=1))
     A = face_double_areas(r.V, r.F)
     assert np.mean(smallest < 30) <= 0.00815
-    assert A.std() / A.mean() <= 0.12
+    assert A.std() / A.mean() <= 0.6 * 0.184
     assert smallest.min() >= 6.5
 
 
@@ -409,12 +410,10 @@ def test_raise_groups_are_undone_where_the_judge_finds_them_worse(seed):
 
     def objecting(S):
         return lambda T: (np.full(len(T), np.inf),
-                          np.array([frozenset(map(tuple, S.X[f])) not in start for f in T]),
-                          np.zeros(len(T)))
+                          np.array([[frozenset(map(tuple, S.X[f])) not in start] for f in T]))
 
     undone, _ = _raised_pushed_flat(seed, objecting)
     assert np.array_equal(undone.X, X0) and _face_set(undone.X, undone.F) == start
     quiet, _ = _raised_pushed_flat(seed, lambda S: lambda T: (np.full(len(T), np.inf),
-                                                              np.zeros(len(T), bool),
-                                                              np.zeros(len(T))))
+                                                              np.zeros((len(T), 1))))
     assert np.array_equal(quiet.X, S.X) and np.array_equal(quiet.F, S.F)

@@ -52,6 +52,7 @@ from functools import partial
 import numpy as np
 
 from .._kernels import corner_cosines
+from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
@@ -245,7 +246,8 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
                      faces: np.ndarray, memo: dict | None = None,
                      count_below: bool = True, first_enough: bool = False,
-                     judge=None, collapses: bool = True) -> int:
+                     judge=None, collapses: bool = True, mean_area: float | None = None
+                     ) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -278,16 +280,19 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     first_enough : bool
         Whether a face takes the first of its options that lifts its faces' smallest angle
         to ``min_angle_deg`` (the others not judged) instead of the one that lifts it most.
-    judge : callable ``judge(T) -> (angle, folded, smallest)``, optional
+    judge : callable ``judge(T) -> (angle, costs)``, optional
         For faces ``T`` (k×3 vertex rows of ``S``): the smallest angle (k, degrees) of each
-        face that counts against the operations (+inf for the others), whether each is
-        turned over (k bool) and the smallest angle of each (k, degrees). Given, the
-        operations are kept or undone per group (:meth:`_Patch.undo_worse`: the operations
-        whose faces share an inner vertex): a group is undone where its faces after it have
-        more turned over, more that count, a smaller smallest angle among those or a smaller
-        sum of their smallest angles than its faces before.
+        face that counts against the operations (+inf for the others), and costs of each
+        face (k×c). Given, the operations are kept or undone per group
+        (:meth:`_Patch.undo_worse`: the operations whose faces share an inner vertex): a group
+        is undone where its faces after it have more that count, a smaller smallest angle
+        among those, or a larger sum of any cost than its faces before.
     collapses : bool
         Whether the collapses are among the operations (without, the vertex count stays).
+    mean_area : float, optional
+        Given (a mean double face area ``Ā``), an operation that raises the sum of the squared
+        relative area deviations ``(A / Ā − 1)²`` of the faces it touches is refused
+        (:meth:`_Patch.spread`).
 
     Returns
     -------
@@ -295,7 +300,8 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo, count_below, first_enough, judge, collapses)
+    patch = _Patch(S, faces, tol, memo, count_below, first_enough, judge, collapses,
+                   mean_area)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
     if judge is not None:
         patch.undo_worse()
@@ -315,9 +321,11 @@ class _Patch:
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
                  memo: dict | None = None, count_below: bool = True,
-                 first_enough: bool = False, judge=None, collapses: bool = True):
+                 first_enough: bool = False, judge=None, collapses: bool = True,
+                 mean_area: float | None = None):
         self.S, self.tol = S, tol
         self.collapses = collapses            # whether the options include the collapses
+        self.mean_area = mean_area            # the evenness guard's mean double area (spread)
         self.count_below = count_below        # judge the faces left below too (better)
         self.first_enough = first_enough      # take the first option reaching the threshold
         self.memo = memo                      # the answers of earlier judgements (best_option)
@@ -367,14 +375,22 @@ class _Patch:
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and, with :attr:`count_below`, no more faces below the
-        threshold), else None."""
+        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None."""
         a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
         if a_new.min() <= a_old.min():
             return None
         if self.count_below and \
                 (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
             return None
+        if self.mean_area is not None and self.spread(new) > self.spread(old):
+            return None
         return float(a_new.min())
+
+    def spread(self, tris) -> float:
+        """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
+        ``tris`` (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
+        A = face_double_areas(self.S.X, np.asarray(tris, np.int64).reshape(-1, 3))
+        return float(((A / self.mean_area - 1) ** 2).sum())
 
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
@@ -647,7 +663,8 @@ class _Patch:
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
         tried, those not above ``floor`` not (a refusal for the floor is not remembered).
         With :attr:`count_below`, a position that leaves more faces of the star below the
-        threshold is not among them."""
+        threshold is not among them, nor with :attr:`mean_area` one that raises the star's
+        :meth:`spread`."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -686,6 +703,10 @@ class _Patch:
                                    np.tile(C, (k, 1))).reshape(k, d)
         more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
                       if self.count_below else np.zeros(k, bool))
+        if self.mean_area is not None:         # the evenness guard (spread)
+            Q = np.repeat(P[ok], d, axis=0)
+            A2 = norms(cross(np.tile(B, (k, 1)) - Q, np.tile(C, (k, 1)) - Q)).reshape(k, d)
+            more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = None                      # measured for the first candidate tried
         for j in np.argsort(-score)[:3]:
@@ -735,18 +756,17 @@ class _Patch:
         return self.group[T].max(axis=1)
 
     def group_measures(self, faces: dict) -> np.ndarray:
-        """Per group (rows, by :attr:`group`'s labels): how many of ``faces`` (``{id:
-        corners}``) are turned over, how many count against the operations, minus their
-        smallest angle, and minus the sum of the smallest angles of all (:attr:`judge`; each
-        column: smaller is better)."""
+        """Per group (rows, by :attr:`group`'s labels) of ``faces`` (``{id: corners}``): how
+        many count against the operations, minus their smallest angle, and the sums of the
+        costs (:attr:`judge`; each column: smaller is better)."""
         T = np.asarray(list(faces.values()), np.int64).reshape(-1, 3)
         g, k = self.face_groups(faces), int(self.group.max(initial=-1)) + 1
-        angle, folded, smallest = self.judge(T)
+        angle, costs = self.judge(T)
         counts = np.isfinite(angle)
         worst = np.full(k, -np.inf)
         np.maximum.at(worst, g[counts], -angle[counts])
-        return np.column_stack([np.bincount(g, folded, k), np.bincount(g, counts, k), worst,
-                                -np.bincount(g, smallest, k)])
+        return np.column_stack([np.bincount(g, counts, k), worst] +
+                               [np.bincount(g, c, k) for c in np.asarray(costs).T])
 
     def undo_worse(self) -> int:
         """Put back, group by group, the operations whose faces came out worse than they went
