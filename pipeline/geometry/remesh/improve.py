@@ -137,11 +137,13 @@ The schedule (:func:`improve_remesh`):
     move only where it raises the sum of its faces' smallest angles without spreading their
     areas (:func:`ring_veto`: the evening steps trade the angles for even areas, these take
     back what angle they can at no cost in evenness), no face's smallest angle below what it
-    was and ``RING_FLOOR_DEG``; then the local operations of :func:`.angles.raise_min_angles`
-    at the faces below ``RAISE_DEG`` that no input corner forces, the count given back by
-    splits, undone where they leave more or worse faces below ``min_angle_deg`` or more folds
-    (:meth:`_Operations.raise_above`: the evening steps let faces down to ``min_angle_deg``,
-    and many of those are a flip or a move from a larger angle); before these steps and again after them
+    was and ``RING_FLOOR_DEG``; then the flips and moves of :func:`.angles.raise_min_angles`
+    at the faces below ``RAISE_DEG`` that no input corner forces, none spreading the areas,
+    under the sag and gap guards at ``RAISE_SAG`` × the tolerance, each group of them undone
+    where it leaves more folds, more or worse faces below ``min_angle_deg``, a smaller sum of
+    smallest angles or more spread areas (:meth:`_Operations.raise_above`: the evening steps
+    let faces down to ``min_angle_deg``, and many of those are a flip or a move from a larger
+    angle); before these steps and again after them
     (:meth:`_Operations.settle`), a vertex moved onto each input point still farther than
     ``SETTLE_TOL × L`` from the remesh and than any remesh edge's middle from the input,
     farthest first, while one can be without a new angle below ``min_angle_deg``, a fold, an
