@@ -100,13 +100,16 @@ def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
-def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray,
+                 normals: np.ndarray | None = None) -> np.ndarray:
     """For each triangle ``(A, B, C)`` the point ``A*`` that makes it equilateral: on the side
     of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C``.
 
     Parameters
     ----------
     A, B, C : (k, 3) float
+    normals : (k, 3) float, optional
+        ``(B − A) × (C − A)`` when the caller has it.
 
     Returns
     -------
@@ -114,7 +117,9 @@ def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
     """
     e = C - B
     mid = 0.5 * (B + C)
-    w = cross(cross(B - A, C - A), e)               # in the plane, perpendicular to B–C
+    if normals is None:
+        normals = cross(B - A, C - A)
+    w = cross(normals, e)                           # in the plane, perpendicular to B–C
     w /= np.maximum(norms(w), 1e-300)[:, None]
     w *= np.where(dots(w, A - mid) >= 0, 1.0, -1.0)[:, None]
     return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
@@ -677,20 +682,22 @@ class _Patch:
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
         angles = self.face_min_angles(star)
         before = float(angles.min())
-        X = S.X
+        X, x, d = S.X, S.X[v], len(star)
         B, C = X[star[:, 1]], X[star[:, 2]]
-        A = np.repeat(X[v][None], len(star), axis=0)
-        ideal = ideal_points(A, B, C)
-        targets = [ideal.mean(axis=0), ideal[np.argmin(angles)],
-                   X[np.unique(star[:, 1:])].mean(axis=0)]
-        normal = cross(B - A, C - A).sum(axis=0)
+        A = np.repeat(x[None], d, axis=0)
+        N = cross(B - A, C - A)
+        ideal = ideal_points(A, B, C, N)
+        targets = np.array([ideal.mean(axis=0), ideal[np.argmin(angles)],
+                            X[np.unique(star[:, 1:])].mean(axis=0)])
+        normal = N.sum(axis=0)
         normal /= max(np.linalg.norm(normal), 1e-300)
-        D = np.array([s * (p - X[v]) for p in targets for s in MOVE_FRACTIONS])
+        D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
         h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
         M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
         # only the candidates that keep the star's shape on the domain are located and lifted
+        # (so every candidate tried below passes :meth:`shapes_ok`: it is not asked again)
         score = np.full(len(M), -1.0)
         ok = np.flatnonzero(star_shapes_ok(S.uv, M, star[:, 1:]))
         mf = np.full(len(M), S.face[v])
@@ -698,14 +705,14 @@ class _Patch:
         P = np.zeros((len(M), 3))
         mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
         P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
-        d, k = len(star), len(ok)
-        each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
-                                   np.tile(C, (k, 1))).reshape(k, d)
+        k = len(ok)
+        Q = P[ok]
+        each = face_min_angles(np.vstack([Q, B, C]), fan_faces(k, d)).reshape(k, d)
         more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
                       if self.count_below else np.zeros(k, bool))
         if self.mean_area is not None:         # the evenness guard (spread)
-            Q = np.repeat(P[ok], d, axis=0)
-            A2 = norms(cross(np.tile(B, (k, 1)) - Q, np.tile(C, (k, 1)) - Q)).reshape(k, d)
+            Q3 = Q[:, None, :]
+            A2 = norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(k, d)
             more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = None                      # measured for the first candidate tried
@@ -718,7 +725,7 @@ class _Patch:
                 sag_before = self.sag([v] * len(star), star[:, 1])
             old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
             S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
-            ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
+            ok = (_same_side_points(N, P[j], B, C)
                   and self.gap_ok(old[3], star)
                   and self.sag_ok([v] * len(star), star[:, 1], sag_before))
             S.uv[v], S.face[v], S.bary[v], S.X[v] = old
@@ -859,10 +866,19 @@ def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
     domain with ``v`` there (j bool): where the map's stretch changes fast, the position best
     on the surface often folds a face on the domain, and the next best must be tried."""
     j, d = len(M), len(BC)
-    U = np.vstack([M, uv[BC.ravel()]])
-    T = np.column_stack([np.repeat(np.arange(j), d), j + np.tile(2 * np.arange(d), j),
-                         j + np.tile(2 * np.arange(d) + 1, j)])
-    return (disk_shape(U, T) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
+    U = np.vstack([M, uv[BC[:, 0]], uv[BC[:, 1]]])
+    return (disk_shape(U, fan_faces(j, d)) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
+
+
+def fan_faces(k: int, d: int) -> np.ndarray:
+    """The faces ``(i, B_m, C_m)`` of ``k`` positions ``i`` of a vertex with a star of ``d``
+    faces ``(v, B_m, C_m)``, as rows of the points stacked as ``[positions (k), B (d), C
+    (d)]``: ``(i, k + m, k + d + m)``, position by position (k·d×3 int)."""
+    T = np.empty((k, d, 3), np.int64)
+    T[:, :, 0] = np.arange(k)[:, None]
+    T[:, :, 1] = k + np.arange(d)
+    T[:, :, 2] = k + d + np.arange(d)
+    return T.reshape(-1, 3)
 
 
 def _rotate_to(f, v) -> list:
@@ -880,9 +896,9 @@ def _same_side(X: np.ndarray, old, new) -> bool:
     return bool((n_new @ n_old > 0).all())
 
 
-def _same_side_points(A0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
-    """Whether every face ``(A, B, C)`` keeps the side its normal points to when ``A`` moves
-    from ``A0`` to ``A1`` (3D; a move that turns a face over is refused)."""
-    n0 = cross(B - A0, C - A0)
+def _same_side_points(n0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
+    """Whether every face ``(A, B, C)`` keeps the side its normal ``n0`` (k×3, ``(B − A) ×
+    (C − A)``) points to when ``A`` moves to ``A1`` (3,) (3D; a move that turns a face over
+    is refused)."""
     n1 = cross(B - A1, C - A1)
     return bool((dots(n0, n1) > 0).all())
