@@ -682,7 +682,7 @@ class _Patch:
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
         angles = self.face_min_angles(star)
         before = float(angles.min())
-        X, x, d = S.X, S.X[v], len(star)
+        X, x, d = S.X, S.X[v].copy(), len(star)
         B, C = X[star[:, 1]], X[star[:, 2]]
         A = np.repeat(x[None], d, axis=0)
         N = cross(B - A, C - A)
@@ -715,22 +715,18 @@ class _Patch:
             A2 = norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(k, d)
             more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
-        sag_before = None                      # measured for the first candidate tried
+        sag_before = None                      # measured for the first candidate asked
         for j in np.argsort(-score)[:3]:
             if score[j] <= max(before, floor):
                 if score[j] > before:          # refused for the floor: not for good
                     del self.no_move[v]
                 break
+            where = (M[j], mf[j], mb[j], P[j])
+            if not _same_side_points(N, P[j], B, C) or not self._moved_ok(v, where, x, star):
+                continue
             if sag_before is None:
-                sag_before = self.sag([v] * len(star), star[:, 1])
-            old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
-            S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
-            ok = (_same_side_points(N, P[j], B, C)
-                  and self.gap_ok(old[3], star)
-                  and self.sag_ok([v] * len(star), star[:, 1], sag_before))
-            S.uv[v], S.face[v], S.bary[v], S.X[v] = old
-            if ok:
-                where = (M[j], mf[j], mb[j], P[j])
+                sag_before = self.sag([v] * d, star[:, 1])
+            if self._moved_ok(v, where, x, star, sag_before):
 
                 def commit(where=where):
                     S.uv[v], S.face[v], S.bary[v], S.X[v] = where
@@ -738,6 +734,22 @@ class _Patch:
                 del self.no_move[v]
                 return float(score[j]), commit
         return None
+
+    def _moved_ok(self, v, where, x, star, sag_before=None) -> bool:
+        """With ``v`` put at ``where`` (domain point, input face, barycentrics, 3D point) for
+        the time of the question: whether its old position ``x`` (3,) stays within the
+        tolerance of its star ``star`` (d×3, :meth:`gap_ok`), or, given ``sag_before`` (the
+        sag of its edges ``v–star[:, 1]`` before the move), whether those edges pass
+        :meth:`sag_ok`."""
+        S = self.S
+        old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
+        S.uv[v], S.face[v], S.bary[v], S.X[v] = where
+        if sag_before is None:
+            ok = self.gap_ok(x, star)
+        else:
+            ok = self.sag_ok([v] * len(star), star[:, 1], sag_before)
+        S.uv[v], S.face[v], S.bary[v], S.X[v] = old
+        return ok
 
     def replace(self, old_ids, new) -> list:
         """Replace the faces ``old_ids`` by ``new`` (lists of corners); returns the new ids
