@@ -381,21 +381,30 @@ class _Patch:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and, with :attr:`count_below`, no more faces below the
         threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None."""
-        a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
+        both = list(old) + list(new)           # each measure asked once for the two sides
+        a = self.face_min_angles(both)
+        a_old, a_new = a[:len(old)], a[len(old):]
         if a_new.min() <= a_old.min():
             return None
         if self.count_below and \
                 (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
             return None
-        if self.mean_area is not None and self.spread(new) > self.spread(old):
-            return None
+        if self.mean_area is not None:
+            dev = self.deviations(both)
+            if float(dev[len(old):].sum()) > float(dev[:len(old)].sum()):
+                return None
         return float(a_new.min())
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
         ``tris`` (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
+        return float(self.deviations(tris).sum())
+
+    def deviations(self, tris) -> np.ndarray:
+        """The squared relative area deviation ``(A / Ā − 1)²`` of each face of ``tris``
+        (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
         A = face_double_areas(self.S.X, np.asarray(tris, np.int64).reshape(-1, 3))
-        return float(((A / self.mean_area - 1) ** 2).sum())
+        return (A / self.mean_area - 1) ** 2
 
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
