@@ -1152,6 +1152,49 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
     out[2] = ax * by - ay * bx
 
 
+@cython.cdivision(True)
+def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C):
+    """For each position ``Q[i]`` (k×3) of a vertex ``v`` and each face ``(v, B[m], C[m])``
+    of its star (``B``, ``C``: d×3): the largest cosine of the face's corners with ``v`` at
+    ``Q[i]`` (those of :func:`corner_cosines`, their ``max``: nan where one is nan) and twice
+    the face's area, ``|(B − Q) × (C − Q)|`` as :func:`..rows.cross` and
+    :func:`..rows.norms` compute it. Returns both as k×d arrays."""
+    cdef Py_ssize_t i, m, c, u, k = Q.shape[0], d = B.shape[0]
+    cdef double P[3][3]
+    cdef double N[3]
+    cdef double ux, uy, uz, vx, vy, vz, cos, best
+    cos_arr = np.empty((k, d), dtype=np.float64)
+    area_arr = np.empty((k, d), dtype=np.float64)
+    cdef double[:, ::1] out_cos = cos_arr
+    cdef double[:, ::1] out_area = area_arr
+    for i in range(k):
+        for m in range(d):
+            for u in range(3):
+                P[0][u] = Q[i, u]
+                P[1][u] = B[m, u]
+                P[2][u] = C[m, u]
+            best = -INFINITY
+            for c in range(3):
+                ux = P[(c + 1) % 3][0] - P[c][0]
+                uy = P[(c + 1) % 3][1] - P[c][1]
+                uz = P[(c + 1) % 3][2] - P[c][2]
+                vx = P[(c + 2) % 3][0] - P[c][0]
+                vy = P[(c + 2) % 3][1] - P[c][1]
+                vz = P[(c + 2) % 3][2] - P[c][2]
+                cos = ((ux * vx + uz * vz) + uy * vy) / (
+                    sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
+                if cos != cos:
+                    best = NAN
+                    break
+                if cos > best:
+                    best = cos
+            out_cos[i, m] = best
+            _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+                   P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+            out_area[i, m] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
+    return cos_arr, area_arr
+
+
 cdef inline double _sphere_face(const double[:, ::1] S, const int64_t[:, ::1] F, Py_ssize_t t,
                                 double P[3][3], double edge[3][3], double N[3]):
     """Face ``t`` of ``(S, F)``: its corners ``P``, the edges ``edge[c] = P[c+2] − P[c+1]``

@@ -51,7 +51,7 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import corner_cosines
+from .._kernels import corner_cosines, fan_cosines_areas
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -96,7 +96,12 @@ def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
     float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
     gathering them first."""
-    cos = corner_cosines(X, T).max(axis=1)
+    return angles_of_cosines(corner_cosines(X, T).max(axis=1))
+
+
+def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
+    """The angles (degrees) of the cosines ``cos`` (any shape), 0 where one is nan (a face
+    with coincident corners)."""
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
@@ -715,13 +720,11 @@ class _Patch:
         mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
         P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
         k = len(ok)
-        Q = P[ok]
-        each = face_min_angles(np.vstack([Q, B, C]), fan_faces(k, d)).reshape(k, d)
+        cos, A2 = fan_cosines_areas(np.ascontiguousarray(P[ok]), B, C)
+        each = angles_of_cosines(cos)
         more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
                       if self.count_below else np.zeros(k, bool))
         if self.mean_area is not None:         # the evenness guard (spread)
-            Q3 = Q[:, None, :]
-            A2 = norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(k, d)
             more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
         sag_before = None                      # measured for the first candidate asked
