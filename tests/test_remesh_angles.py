@@ -52,6 +52,22 @@ def test_fan_cosines_areas_are_the_numpy_values_bit_for_bit():
     assert np.array_equal(A2, norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(7, 5))
 
 
+
+def test_ideal_points_are_the_numpy_formula_bit_for_bit():
+    # the apex over the middle of B-C at sqrt(3)/2 |C - B| along the in-plane normal of B-C
+    # turned to A's side, as numpy computes it (a degenerate triangle among them: its mid)
+    rng = np.random.default_rng(5)
+    A, B, C = (rng.standard_normal((9, 3)) * 10.0 ** rng.uniform(-3, 3, (9, 1)) for _ in range(3))
+    A[0] = B[0]
+    e, mid = C - B, 0.5 * (B + C)
+    w = cross(cross(B - A, C - A), e)
+    w /= np.maximum(norms(w), 1e-300)[:, None]
+    w *= np.where(np.einsum("ij,ij->i", w, A - mid) >= 0, 1.0, -1.0)[:, None]
+    expected = mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+    assert np.array_equal(ideal_points(A, B, C), expected)
+    assert np.array_equal(expected[0], mid[0])
+
+
 def _with_cap():
     """The flat 37-vertex remesh with an inner vertex pushed almost onto the edge between two of
     its neighbours: a cap (an angle near 180°) and needles around it."""

@@ -1153,6 +1153,37 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
 
 
 @cython.cdivision(True)
+def apex_points(const double[:, ::1] A, const double[:, ::1] B, const double[:, ::1] C,
+                const double[:, ::1] N):
+    """:func:`..remesh.angles.ideal_points` of the triangles ``(A, B, C)`` (k×3 each) with
+    their normals ``N = (B − A) × (C − A)`` (k×3): ``w = N × (C − B)`` over its length (at
+    least 1e-300; nan stays nan), turned towards ``A``'s side of ``B–C`` (``w·(A − mid) ≥
+    0``), ``mid + (√3/2 · |C − B|) · w``; k×3."""
+    cdef Py_ssize_t r, k = A.shape[0]
+    cdef double w[3]
+    cdef double ex, ey, ez, mx, my, mz, length, side, h
+    out_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    cdef double half_root3 = sqrt(3.0) / 2.0
+    for r in range(k):
+        ex, ey, ez = C[r, 0] - B[r, 0], C[r, 1] - B[r, 1], C[r, 2] - B[r, 2]
+        mx, my, mz = 0.5 * (B[r, 0] + C[r, 0]), 0.5 * (B[r, 1] + C[r, 1]), 0.5 * (B[r, 2] + C[r, 2])
+        _cross(N[r, 0], N[r, 1], N[r, 2], ex, ey, ez, w)
+        length = sqrt((w[0] * w[0] + w[2] * w[2]) + w[1] * w[1])
+        if length < 1e-300:
+            length = 1e-300
+        w[0], w[1], w[2] = w[0] / length, w[1] / length, w[2] / length
+        side = ((w[0] * (A[r, 0] - mx) + w[2] * (A[r, 2] - mz)) + w[1] * (A[r, 1] - my))
+        if not (side >= 0):
+            w[0], w[1], w[2] = w[0] * -1.0, w[1] * -1.0, w[2] * -1.0
+        h = half_root3 * sqrt((ex * ex + ez * ez) + ey * ey)
+        out[r, 0] = mx + h * w[0]
+        out[r, 1] = my + h * w[1]
+        out[r, 2] = mz + h * w[2]
+    return out_arr
+
+
+@cython.cdivision(True)
 def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C):
     """For each position ``Q[i]`` (k×3) of a vertex ``v`` and each face ``(v, B[m], C[m])``
     of its star (``B``, ``C``: d×3): the largest cosine of the face's corners with ``v`` at

@@ -51,7 +51,7 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import corner_cosines, fan_cosines_areas
+from .._kernels import apex_points, corner_cosines, fan_cosines_areas
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -108,7 +108,8 @@ def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
 def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray,
                  normals: np.ndarray | None = None) -> np.ndarray:
     """For each triangle ``(A, B, C)`` the point ``A*`` that makes it equilateral: on the side
-    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C``.
+    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C`` (compiled:
+    :func:`.._kernels.apex_points`).
 
     Parameters
     ----------
@@ -120,14 +121,9 @@ def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray,
     -------
     (k, 3) float
     """
-    e = C - B
-    mid = 0.5 * (B + C)
     if normals is None:
         normals = cross(B - A, C - A)
-    w = cross(normals, e)                           # in the plane, perpendicular to B–C
-    w /= np.maximum(norms(w), 1e-300)[:, None]
-    w *= np.where(dots(w, A - mid) >= 0, 1.0, -1.0)[:, None]
-    return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+    return apex_points(*(np.ascontiguousarray(P, dtype=np.float64) for P in (A, B, C, normals)))
 
 
 def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
