@@ -7,10 +7,13 @@ import numpy as np
 import pytest
 
 from pipeline.geometry import topology as topo
+from pipeline.geometry._kernels import fan_cosines_areas
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh.angles import (forced_by_corners, ideal_points, raise_min_angles,
+from pipeline.geometry.remesh.angles import (angles_of_cosines, fan_faces, face_min_angles,
+                                             forced_by_corners, ideal_points, raise_min_angles,
                                              triangle_min_angles)
+from pipeline.geometry.rows import cross, norms
 from pipeline.geometry.remesh.improve import skinny_faces
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh.uniform import below_min_angle
@@ -30,6 +33,39 @@ def test_triangle_min_angles_and_ideal_points_are_exact():
     assert np.allclose(A, [[0.5, np.sqrt(3) / 2, 0.0]])
     A = ideal_points(np.array([[0.5, -0.1, 0.0]]), np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]))
     assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
+
+
+
+def test_fan_cosines_areas_are_the_numpy_values_bit_for_bit():
+    # the candidate positions of a vertex against its star's far edges, a coincident corner
+    # among them (nan cosine: angle 0): the smallest angles face_min_angles gives the faces
+    # (i, B, C) of the stacked points and the double areas |(B - Q) x (C - Q)|, exactly
+    rng = np.random.default_rng(3)
+    Q = rng.standard_normal((7, 3)) * 10.0 ** rng.uniform(-3, 3, (7, 1))
+    B, C = rng.standard_normal((5, 3)), rng.standard_normal((5, 3))
+    Q[2] = B[1]
+    cos, A2 = fan_cosines_areas(Q, B, C)
+    angle = face_min_angles(np.vstack([Q, B, C]), fan_faces(7, 5)).reshape(7, 5)
+    assert np.array_equal(angles_of_cosines(cos), angle)
+    assert angle[2, 1] == 0.0
+    Q3 = Q[:, None, :]
+    assert np.array_equal(A2, norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(7, 5))
+
+
+
+def test_ideal_points_are_the_numpy_formula_bit_for_bit():
+    # the apex over the middle of B-C at sqrt(3)/2 |C - B| along the in-plane normal of B-C
+    # turned to A's side, as numpy computes it (a degenerate triangle among them: its mid)
+    rng = np.random.default_rng(5)
+    A, B, C = (rng.standard_normal((9, 3)) * 10.0 ** rng.uniform(-3, 3, (9, 1)) for _ in range(3))
+    A[0] = B[0]
+    e, mid = C - B, 0.5 * (B + C)
+    w = cross(cross(B - A, C - A), e)
+    w /= np.maximum(norms(w), 1e-300)[:, None]
+    w *= np.where(np.einsum("ij,ij->i", w, A - mid) >= 0, 1.0, -1.0)[:, None]
+    expected = mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+    assert np.array_equal(ideal_points(A, B, C), expected)
+    assert np.array_equal(expected[0], mid[0])
 
 
 def _with_cap():

@@ -1227,6 +1227,80 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
     out[2] = ax * by - ay * bx
 
 
+@cython.cdivision(True)
+def apex_points(const double[:, ::1] A, const double[:, ::1] B, const double[:, ::1] C,
+                const double[:, ::1] N):
+    """:func:`..remesh.angles.ideal_points` of the triangles ``(A, B, C)`` (k×3 each) with
+    their normals ``N = (B − A) × (C − A)`` (k×3): ``w = N × (C − B)`` over its length (at
+    least 1e-300; nan stays nan), turned towards ``A``'s side of ``B–C`` (``w·(A − mid) ≥
+    0``), ``mid + (√3/2 · |C − B|) · w``; k×3."""
+    cdef Py_ssize_t r, k = A.shape[0]
+    cdef double w[3]
+    cdef double ex, ey, ez, mx, my, mz, length, side, h
+    out_arr = np.empty((k, 3), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    cdef double half_root3 = sqrt(3.0) / 2.0
+    for r in range(k):
+        ex, ey, ez = C[r, 0] - B[r, 0], C[r, 1] - B[r, 1], C[r, 2] - B[r, 2]
+        mx, my, mz = 0.5 * (B[r, 0] + C[r, 0]), 0.5 * (B[r, 1] + C[r, 1]), 0.5 * (B[r, 2] + C[r, 2])
+        _cross(N[r, 0], N[r, 1], N[r, 2], ex, ey, ez, w)
+        length = sqrt((w[0] * w[0] + w[2] * w[2]) + w[1] * w[1])
+        if length < 1e-300:
+            length = 1e-300
+        w[0], w[1], w[2] = w[0] / length, w[1] / length, w[2] / length
+        side = ((w[0] * (A[r, 0] - mx) + w[2] * (A[r, 2] - mz)) + w[1] * (A[r, 1] - my))
+        if not (side >= 0):
+            w[0], w[1], w[2] = w[0] * -1.0, w[1] * -1.0, w[2] * -1.0
+        h = half_root3 * sqrt((ex * ex + ez * ez) + ey * ey)
+        out[r, 0] = mx + h * w[0]
+        out[r, 1] = my + h * w[1]
+        out[r, 2] = mz + h * w[2]
+    return out_arr
+
+
+@cython.cdivision(True)
+def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C):
+    """For each position ``Q[i]`` (k×3) of a vertex ``v`` and each face ``(v, B[m], C[m])``
+    of its star (``B``, ``C``: d×3): the largest cosine of the face's corners with ``v`` at
+    ``Q[i]`` (those of :func:`corner_cosines`, their ``max``: nan where one is nan) and twice
+    the face's area, ``|(B − Q) × (C − Q)|`` as :func:`..rows.cross` and
+    :func:`..rows.norms` compute it. Returns both as k×d arrays."""
+    cdef Py_ssize_t i, m, c, u, k = Q.shape[0], d = B.shape[0]
+    cdef double P[3][3]
+    cdef double N[3]
+    cdef double ux, uy, uz, vx, vy, vz, cos, best
+    cos_arr = np.empty((k, d), dtype=np.float64)
+    area_arr = np.empty((k, d), dtype=np.float64)
+    cdef double[:, ::1] out_cos = cos_arr
+    cdef double[:, ::1] out_area = area_arr
+    for i in range(k):
+        for m in range(d):
+            for u in range(3):
+                P[0][u] = Q[i, u]
+                P[1][u] = B[m, u]
+                P[2][u] = C[m, u]
+            best = -INFINITY
+            for c in range(3):
+                ux = P[(c + 1) % 3][0] - P[c][0]
+                uy = P[(c + 1) % 3][1] - P[c][1]
+                uz = P[(c + 1) % 3][2] - P[c][2]
+                vx = P[(c + 2) % 3][0] - P[c][0]
+                vy = P[(c + 2) % 3][1] - P[c][1]
+                vz = P[(c + 2) % 3][2] - P[c][2]
+                cos = ((ux * vx + uz * vz) + uy * vy) / (
+                    sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
+                if cos != cos:
+                    best = NAN
+                    break
+                if cos > best:
+                    best = cos
+            out_cos[i, m] = best
+            _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+                   P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+            out_area[i, m] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
+    return cos_arr, area_arr
+
+
 cdef inline double _sphere_face(const double[:, ::1] S, const int64_t[:, ::1] F, Py_ssize_t t,
                                 double P[3][3], double edge[3][3], double N[3]):
     """Face ``t`` of ``(S, F)``: its corners ``P``, the edges ``edge[c] = P[c+2] − P[c+1]``

@@ -51,11 +51,13 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import corner_cosines
+from .._kernels import apex_points, corner_cosines, fan_cosines_areas
+from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
+from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
 from .refine import split_long_edges
@@ -94,28 +96,34 @@ def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
     float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
     gathering them first."""
-    cos = corner_cosines(X, T).max(axis=1)
+    return angles_of_cosines(corner_cosines(X, T).max(axis=1))
+
+
+def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
+    """The angles (degrees) of the cosines ``cos`` (any shape), 0 where one is nan (a face
+    with coincident corners)."""
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
-def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray) -> np.ndarray:
+def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray,
+                 normals: np.ndarray | None = None) -> np.ndarray:
     """For each triangle ``(A, B, C)`` the point ``A*`` that makes it equilateral: on the side
-    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C``.
+    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C`` (compiled:
+    :func:`.._kernels.apex_points`).
 
     Parameters
     ----------
     A, B, C : (k, 3) float
+    normals : (k, 3) float, optional
+        ``(B − A) × (C − A)`` when the caller has it.
 
     Returns
     -------
     (k, 3) float
     """
-    e = C - B
-    mid = 0.5 * (B + C)
-    w = cross(cross(B - A, C - A), e)               # in the plane, perpendicular to B–C
-    w /= np.maximum(norms(w), 1e-300)[:, None]
-    w *= np.where(dots(w, A - mid) >= 0, 1.0, -1.0)[:, None]
-    return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+    if normals is None:
+        normals = cross(B - A, C - A)
+    return apex_points(*(np.ascontiguousarray(P, dtype=np.float64) for P in (A, B, C, normals)))
 
 
 def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
@@ -134,15 +142,18 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
     (PATTERN_DIRS · len(PATTERN_STEPS), 2 or 3) float
         Not yet projected onto the domain.
     """
-    theta = 2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS
     if len(u) == 2:
-        E = np.eye(2)
+        dirs = _PLANE_DIRS
     else:                                           # an orthonormal basis of the tangent plane
         e1 = np.cross(u, np.eye(3)[np.argmin(np.abs(u))])
         e1 /= np.linalg.norm(e1)
-        E = np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
-    dirs = np.column_stack([np.cos(theta), np.sin(theta)]) @ E
+        dirs = _CIRCLE_DIRS @ np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
+
+
+_CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
+                                np.sin(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS)])
+_PLANE_DIRS = _CIRCLE_DIRS @ np.eye(2)          # :func:`pattern_points`' directions on the disk
 
 
 def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:
@@ -198,12 +209,19 @@ def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | No
     """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) are at a
     vertex on an input vertex (:func:`on_input_corners`) too sharp for any fan to give its
     faces ``min_angle_deg`` (:func:`forced_by_corners`)."""
+    return sharp_vertices(S, min_angle_deg)[S.F if faces is None else S.F[faces]]
+
+
+def sharp_vertices(S: RemeshState, min_angle_deg: float) -> np.ndarray:
+    """The vertices (n bool) on an input vertex (:func:`on_input_corners`) whose angle sum on
+    the input is below ``min_angle_deg`` × the fewest faces a vertex there can have (3 inside,
+    2 on the rim): the corners of :func:`forcing_corners`."""
     on = np.flatnonzero(on_input_corners(S))
     sharp = np.zeros(S.n, bool)
     if len(on):
         sums = S.angle_sums_in()[input_vertex_under(S, on)]
         sharp[on] = sums < min_angle_deg * np.where(S.is_rim[on], 2, 3)
-    return sharp[S.F if faces is None else S.F[faces]]
+    return sharp
 
 
 def on_input_corners(S: RemeshState) -> np.ndarray:
@@ -233,7 +251,9 @@ def corner_angles_deg(X: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
                      faces: np.ndarray, memo: dict | None = None,
-                     count_below: bool = True) -> int:
+                     count_below: bool = True, first_enough: bool = False,
+                     judge=None, collapses: bool = True, mean_area: float | None = None
+                     ) -> int:
     """Flips, vertex moves and collapses around the faces with a 3D angle below
     ``min_angle_deg`` (module docstring), worst first; returns the number made.
 
@@ -263,6 +283,22 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
         (:func:`forced_by_corners`) its faces share the corner's angle out, each below the
         threshold, only through states with more of them below (two faces of 18° at a 36°
         rim corner instead of 4° and 32°).
+    first_enough : bool
+        Whether a face takes the first of its options that lifts its faces' smallest angle
+        to ``min_angle_deg`` (the others not judged) instead of the one that lifts it most.
+    judge : callable ``judge(T) -> (angle, costs)``, optional
+        For faces ``T`` (k×3 vertex rows of ``S``): the smallest angle (k, degrees) of each
+        face that counts against the operations (+inf for the others), and costs of each
+        face (k×c). Given, the operations are kept or undone per group
+        (:meth:`_Patch.undo_worse`: the operations whose faces share an inner vertex): a group
+        is undone where its faces after it have more that count, a smaller smallest angle
+        among those, or a larger sum of any cost than its faces before.
+    collapses : bool
+        Whether the collapses are among the operations (without, the vertex count stays).
+    mean_area : float, optional
+        Given (a mean double face area ``Ā``), an operation that raises the sum of the squared
+        relative area deviations ``(A / Ā − 1)²`` of the faces it touches is refused
+        (:meth:`_Patch.spread`).
 
     Returns
     -------
@@ -270,8 +306,11 @@ def raise_min_angles(S: RemeshState, min_angle_deg: float, tol: float | None,
     """
     if len(faces) == 0:
         return 0
-    patch = _Patch(S, faces, tol, memo, count_below)
+    patch = _Patch(S, faces, tol, memo, count_below, first_enough, judge, collapses,
+                   mean_area)
     done = patch.run(min_angle_deg, OPERATIONS_PER_FACE * len(faces))
+    if judge is not None:
+        patch.undo_worse()
     patch.write_back()
     S.tally("min_angle_operations", done)
     return done
@@ -287,9 +326,14 @@ class _Patch:
     (:meth:`write_back`)."""
 
     def __init__(self, S: RemeshState, start: np.ndarray, tol: float | None,
-                 memo: dict | None = None, count_below: bool = True):
+                 memo: dict | None = None, count_below: bool = True,
+                 first_enough: bool = False, judge=None, collapses: bool = True,
+                 mean_area: float | None = None):
         self.S, self.tol = S, tol
+        self.collapses = collapses            # whether the options include the collapses
+        self.mean_area = mean_area            # the evenness guard's mean double area (spread)
         self.count_below = count_below        # judge the faces left below too (better)
+        self.first_enough = first_enough      # take the first option reaching the threshold
         self.memo = memo                      # the answers of earlier judgements (best_option)
         near = np.zeros(S.n, bool)
         near[S.F[start].ravel()] = True
@@ -312,6 +356,14 @@ class _Patch:
         # neighbour); a move refused at a version is refused again until it changes
         self.version = defaultdict(int)
         self.no_move = {}
+        self.judge = judge                    # per group of operations (undo_worse)
+        if judge is not None:
+            self.group = inner_groups(S.F[self.rows], inner)
+            self.original = dict(self.faces)
+            at = np.flatnonzero(inner)
+            self.saved_at = (at, S.X[at].copy(), S.uv[at].copy(), S.face[at].copy(),
+                             S.bary[at].copy())
+            self.before = self.group_measures(self.original)
 
     # ------------------------------------------------------------------------------ measures
 
@@ -329,14 +381,31 @@ class _Patch:
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and, with :attr:`count_below`, no more faces below the
-        threshold), else None."""
-        a_old, a_new = self.face_min_angles(old), self.face_min_angles(new)
+        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None."""
+        both = list(old) + list(new)           # each measure asked once for the two sides
+        a = self.face_min_angles(both)
+        a_old, a_new = a[:len(old)], a[len(old):]
         if a_new.min() <= a_old.min():
             return None
         if self.count_below and \
                 (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
             return None
+        if self.mean_area is not None:
+            dev = self.deviations(both)
+            if float(dev[len(old):].sum()) > float(dev[:len(old)].sum()):
+                return None
         return float(a_new.min())
+
+    def spread(self, tris) -> float:
+        """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
+        ``tris`` (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
+        return float(self.deviations(tris).sum())
+
+    def deviations(self, tris) -> np.ndarray:
+        """The squared relative area deviation ``(A / Ā − 1)²`` of each face of ``tris``
+        (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
+        A = face_double_areas(self.S.X, np.asarray(tris, np.int64).reshape(-1, 3))
+        return (A / self.mean_area - 1) ** 2
 
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
@@ -436,21 +505,25 @@ class _Patch:
         if key is not None and key in self.memo:
             i = self.memo[key]
             return None if i is None else options[i](floor)
-        best = self._best(options, floor)
+        best = self._best(options, floor,
+                          self.threshold if self.first_enough else np.inf)
         if key is not None:
             self.memo[key] = None if best is None else best[1]
         return None if best is None else best[0]
 
     @staticmethod
-    def _best(options, floor: float):
+    def _best(options, floor: float, enough: float = np.inf):
         """``(op, index)`` of the first option with the largest smallest angle after it,
-        above ``floor``, or None; each option is asked only for one above the best so far
-        (the guards of those that cannot win are not evaluated)."""
+        above ``floor``, or of the first one reaching ``enough``; None where none is above
+        ``floor``. Each option is asked only for one above the best so far (the guards of
+        those that cannot win are not evaluated)."""
         best = None
         for i, option in enumerate(options):
             op = option(floor)
             if op is not None:
                 best, floor = (op, i), op[0]
+                if floor >= enough:
+                    break
         return best
 
     def surroundings(self, t) -> tuple:
@@ -473,15 +546,18 @@ class _Patch:
                                   S.is_rim[V], self.inner[V]]).astype(np.float64)
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
-                joined, self.threshold, self.tol, self.count_below)
+                joined, self.threshold, self.tol, self.count_below, self.first_enough)
 
     def options(self, t) -> list:
         """The candidate operations at face ``t``, each a function of a ``floor`` that returns
         ``(smallest angle after, commit)``, or None where it is not allowed or the smallest
         angle after it is not above the floor: the flip of each edge and its collapses either
-        way, then the moves of the corners."""
+        way (without :attr:`collapses`, the flips alone), then the moves of the corners."""
         f = self.faces[t]
         edges = [(f[i], f[(i + 1) % 3]) for i in range(3)]
+        if not self.collapses:
+            return [partial(self.flip, a, b) for a, b in edges] + \
+                [partial(self.move, v) for v in f]
         return [op for a, b in edges for op in (partial(self.flip, a, b),
                                                 partial(self.collapse, a, b),
                                                 partial(self.collapse, b, a))] + \
@@ -602,7 +678,8 @@ class _Patch:
         that keep the star counter-clockwise on the domain (:func:`star_shapes_ok`) are
         tried, those not above ``floor`` not (a refusal for the floor is not remembered).
         With :attr:`count_below`, a position that leaves more faces of the star below the
-        threshold is not among them."""
+        threshold is not among them, nor with :attr:`mean_area` one that raises the star's
+        :meth:`spread`."""
         S = self.S
         if not self.inner[v] or S.is_rim[v] or S.locked[v]:
             return None
@@ -613,22 +690,24 @@ class _Patch:
         # below in the last bit, and the outcome with it, from one patch to the next)
         ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
-        before = self.min_angle(star)
-        X = S.X
+        angles = self.face_min_angles(star)
+        before = float(angles.min())
+        X, x, d = S.X, S.X[v].copy(), len(star)
         B, C = X[star[:, 1]], X[star[:, 2]]
-        A = np.repeat(X[v][None], len(star), axis=0)
-        ideal = ideal_points(A, B, C)
-        angles = triangle_min_angles(A, B, C)
-        targets = [ideal.mean(axis=0), ideal[np.argmin(angles)],
-                   X[np.unique(star[:, 1:])].mean(axis=0)]
-        normal = cross(B - A, C - A).sum(axis=0)
+        A = np.repeat(x[None], d, axis=0)
+        N = cross(B - A, C - A)
+        ideal = ideal_points(A, B, C, N)
+        targets = np.array([ideal.mean(axis=0), ideal[np.argmin(angles)],
+                            X[np.unique(star[:, 1:])].mean(axis=0)])
+        normal = N.sum(axis=0)
         normal /= max(np.linalg.norm(normal), 1e-300)
-        D = np.array([s * (p - X[v]) for p in targets for s in MOVE_FRACTIONS])
+        D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
         h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
         M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
         # only the candidates that keep the star's shape on the domain are located and lifted
+        # (so every candidate tried below passes :meth:`shapes_ok`: it is not asked again)
         score = np.full(len(M), -1.0)
         ok = np.flatnonzero(star_shapes_ok(S.uv, M, star[:, 1:]))
         mf = np.full(len(M), S.face[v])
@@ -636,26 +715,26 @@ class _Patch:
         P = np.zeros((len(M), 3))
         mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
         P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
-        d, k = len(star), len(ok)
-        each = triangle_min_angles(np.repeat(P[ok], d, axis=0), np.tile(B, (k, 1)),
-                                   np.tile(C, (k, 1))).reshape(k, d)
+        k = len(ok)
+        cos, A2 = fan_cosines_areas(np.ascontiguousarray(P[ok]), B, C)
+        each = angles_of_cosines(cos)
         more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
                       if self.count_below else np.zeros(k, bool))
+        if self.mean_area is not None:         # the evenness guard (spread)
+            more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
         score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
-        sag_before = self.sag([v] * len(star), star[:, 1])
+        sag_before = None                      # measured for the first candidate asked
         for j in np.argsort(-score)[:3]:
             if score[j] <= max(before, floor):
                 if score[j] > before:          # refused for the floor: not for good
                     del self.no_move[v]
                 break
-            old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
-            S.uv[v], S.face[v], S.bary[v], S.X[v] = M[j], mf[j], mb[j], P[j]
-            ok = (self.shapes_ok(star) and _same_side_points(old[3], P[j], B, C)
-                  and self.gap_ok(old[3], star)
-                  and self.sag_ok([v] * len(star), star[:, 1], sag_before))
-            S.uv[v], S.face[v], S.bary[v], S.X[v] = old
-            if ok:
-                where = (M[j], mf[j], mb[j], P[j])
+            where = (M[j], mf[j], mb[j], P[j])
+            if not _same_side_points(N, P[j], B, C) or not self._moved_ok(v, where, x, star):
+                continue
+            if sag_before is None:
+                sag_before = self.sag([v] * d, star[:, 1])
+            if self._moved_ok(v, where, x, star, sag_before):
 
                 def commit(where=where):
                     S.uv[v], S.face[v], S.bary[v], S.X[v] = where
@@ -663,6 +742,22 @@ class _Patch:
                 del self.no_move[v]
                 return float(score[j]), commit
         return None
+
+    def _moved_ok(self, v, where, x, star, sag_before=None) -> bool:
+        """With ``v`` put at ``where`` (domain point, input face, barycentrics, 3D point) for
+        the time of the question: whether its old position ``x`` (3,) stays within the
+        tolerance of its star ``star`` (d×3, :meth:`gap_ok`), or, given ``sag_before`` (the
+        sag of its edges ``v–star[:, 1]`` before the move), whether those edges pass
+        :meth:`sag_ok`."""
+        S = self.S
+        old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
+        S.uv[v], S.face[v], S.bary[v], S.X[v] = where
+        if sag_before is None:
+            ok = self.gap_ok(x, star)
+        else:
+            ok = self.sag_ok([v] * len(star), star[:, 1], sag_before)
+        S.uv[v], S.face[v], S.bary[v], S.X[v] = old
+        return ok
 
     def replace(self, old_ids, new) -> list:
         """Replace the faces ``old_ids`` by ``new`` (lists of corners); returns the new ids
@@ -680,6 +775,45 @@ class _Patch:
             for v in f:
                 self.vf[v].add(t)
         return ids
+
+    def face_groups(self, faces: dict) -> np.ndarray:
+        """The group (:func:`inner_groups`) of each face of ``faces`` (``{id: corners}``, in
+        its order): that of its inner corners."""
+        T = np.asarray(list(faces.values()), np.int64).reshape(-1, 3)
+        return self.group[T].max(axis=1)
+
+    def group_measures(self, faces: dict) -> np.ndarray:
+        """Per group (rows, by :attr:`group`'s labels) of ``faces`` (``{id: corners}``): how
+        many count against the operations, minus their smallest angle, and the sums of the
+        costs (:attr:`judge`; each column: smaller is better)."""
+        T = np.asarray(list(faces.values()), np.int64).reshape(-1, 3)
+        g, k = self.face_groups(faces), int(self.group.max(initial=-1)) + 1
+        angle, costs = self.judge(T)
+        counts = np.isfinite(angle)
+        worst = np.full(k, -np.inf)
+        np.maximum.at(worst, g[counts], -angle[counts])
+        return np.column_stack([np.bincount(g, counts, k), worst] +
+                               [np.bincount(g, c, k) for c in np.asarray(costs).T])
+
+    def undo_worse(self) -> int:
+        """Put back, group by group, the operations whose faces came out worse than they went
+        in on any measure of :meth:`group_measures` (faces, removals and positions); returns
+        the number of groups undone."""
+        worse = np.flatnonzero((self.group_measures(self.faces) > self.before).any(axis=1))
+        if len(worse) == 0:
+            return 0
+        S, undo = self.S, np.isin(self.group, worse)
+        drop = np.isin(self.face_groups(self.faces), worse)
+        faces = {t: f for (t, f), d in zip(self.faces.items(), drop) if not d}
+        back = np.isin(self.face_groups(self.original), worse)
+        faces.update((t, f) for (t, f), b in zip(self.original.items(), back) if b)
+        self.faces = faces
+        at, X, uv, face, bary = self.saved_at
+        put = undo[at]
+        S.X[at[put]], S.uv[at[put]], S.face[at[put]], S.bary[at[put]] = \
+            X[put], uv[put], face[put], bary[put]
+        self.removed[undo] = False
+        return len(worse)
 
     def write_back(self) -> None:
         """The patch's faces into ``S.F`` (those outside it keep their rows), the removed
@@ -726,6 +860,25 @@ class _BoundaryCorners:
         return self.X[(d > 0) & (d < span)]
 
 
+def inner_groups(T: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """The groups of the ``inner`` vertices (n bool) of the faces ``T`` (k×3): two inner
+    vertices are in one group when a chain of faces of ``T`` joins them, each sharing an
+    inner vertex with the next (the operations of :class:`_Patch` change only the faces at
+    inner vertices, so those of different groups touch no face or vertex in common).
+
+    Returns
+    -------
+    (n,) int
+        The group of each inner vertex of ``T`` (0, 1, ...), -1 for the other vertices.
+    """
+    n = len(inner)
+    apart = np.where(inner[T], T, n + np.arange(T.size).reshape(T.shape))
+    _, label = connected_components(apart, n + T.size)
+    group = np.full(n, -1, np.int64)
+    group[T[inner[T]]] = np.repeat(label, 3)[inner[T].ravel()]
+    return group
+
+
 def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
     """For each candidate domain position ``M[j]`` of a vertex whose star's faces are
     ``(v, B, C)`` (``BC``: d×2 vertex indices, counter-clockwise after ``v``), whether every
@@ -733,10 +886,19 @@ def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
     domain with ``v`` there (j bool): where the map's stretch changes fast, the position best
     on the surface often folds a face on the domain, and the next best must be tried."""
     j, d = len(M), len(BC)
-    U = np.vstack([M, uv[BC.ravel()]])
-    T = np.column_stack([np.repeat(np.arange(j), d), j + np.tile(2 * np.arange(d), j),
-                         j + np.tile(2 * np.arange(d) + 1, j)])
-    return (disk_shape(U, T) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
+    U = np.vstack([M, uv[BC[:, 0]], uv[BC[:, 1]]])
+    return (disk_shape(U, fan_faces(j, d)) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
+
+
+def fan_faces(k: int, d: int) -> np.ndarray:
+    """The faces ``(i, B_m, C_m)`` of ``k`` positions ``i`` of a vertex with a star of ``d``
+    faces ``(v, B_m, C_m)``, as rows of the points stacked as ``[positions (k), B (d), C
+    (d)]``: ``(i, k + m, k + d + m)``, position by position (k·d×3 int)."""
+    T = np.empty((k, d, 3), np.int64)
+    T[:, :, 0] = np.arange(k)[:, None]
+    T[:, :, 1] = k + np.arange(d)
+    T[:, :, 2] = k + d + np.arange(d)
+    return T.reshape(-1, 3)
 
 
 def _rotate_to(f, v) -> list:
@@ -754,9 +916,9 @@ def _same_side(X: np.ndarray, old, new) -> bool:
     return bool((n_new @ n_old > 0).all())
 
 
-def _same_side_points(A0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
-    """Whether every face ``(A, B, C)`` keeps the side its normal points to when ``A`` moves
-    from ``A0`` to ``A1`` (3D; a move that turns a face over is refused)."""
-    n0 = cross(B - A0, C - A0)
+def _same_side_points(n0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarray) -> bool:
+    """Whether every face ``(A, B, C)`` keeps the side its normal ``n0`` (k×3, ``(B − A) ×
+    (C − A)``) points to when ``A`` moves to ``A1`` (3,) (3D; a move that turns a face over
+    is refused)."""
     n1 = cross(B - A1, C - A1)
     return bool((dots(n0, n1) > 0).all())
