@@ -224,7 +224,7 @@ EVEN_FOLD_DEG = 45.0  # than this staying (moving them too lets the farthest inp
                       # drift away from the remesh at creases; test_remesh_fidelity)
 RAISE_DEG = 30.0      # after them, the minimum-angle operations at the faces below this,
 RAISE_SAG = 0.5       # their sag and gap guards at this × the tolerance (at the full one
-                      # their moves took igl_camel_b's Hausdorff 0.276 -> 0.291 % at 5k)
+                      # their moves take the remesh farther from the input: README)
 RING_STEPS = 2        # then smoothing steps keeping a vertex's move only where it raises the
 RING_FLOOR_DEG = 30.0  # sum of its faces' smallest angles without spreading their areas, no
                        # face's smallest angle below this (or the minimum-angle pass's) and what
