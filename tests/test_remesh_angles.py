@@ -35,7 +35,6 @@ def test_triangle_min_angles_and_ideal_points_are_exact():
     assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
 
 
-
 def test_fan_cosines_areas_are_the_numpy_values_bit_for_bit():
     # the candidate positions of a vertex against its star's far edges, a coincident corner
     # among them (nan cosine: angle 0): the smallest angles face_min_angles gives the faces
@@ -50,7 +49,6 @@ def test_fan_cosines_areas_are_the_numpy_values_bit_for_bit():
     assert angle[2, 1] == 0.0
     Q3 = Q[:, None, :]
     assert np.array_equal(A2, norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(7, 5))
-
 
 
 def test_ideal_points_are_the_numpy_formula_bit_for_bit():

@@ -1206,18 +1206,24 @@ def corner_cosines(const double[:, ::1] X, const int64_t[:, ::1] F):
     summed as numpy's einsum does (x, z, then y), the norms as ``np.linalg.norm`` (x, y,
     then z; a zero norm gives nan or ±inf, as numpy does)."""
     cdef Py_ssize_t t, c
-    cdef int64_t p, q, o
-    cdef double ux, uy, uz, vx, vy, vz
     out_arr = np.empty((F.shape[0], 3), dtype=np.float64)
     cdef double[:, ::1] out = out_arr
     for t in range(F.shape[0]):
         for c in range(3):
-            o, p, q = F[t, c], F[t, (c + 1) % 3], F[t, (c + 2) % 3]
-            ux, uy, uz = X[p, 0] - X[o, 0], X[p, 1] - X[o, 1], X[p, 2] - X[o, 2]
-            vx, vy, vz = X[q, 0] - X[o, 0], X[q, 1] - X[o, 1], X[q, 2] - X[o, 2]
-            out[t, c] = ((ux * vx + uz * vz) + uy * vy) / (
-                sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
+            out[t, c] = _corner_cosine(&X[F[t, c], 0], &X[F[t, (c + 1) % 3], 0],
+                                       &X[F[t, (c + 2) % 3], 0])
     return out_arr
+
+
+@cython.cdivision(True)
+cdef inline double _corner_cosine(const double* o, const double* p, const double* q
+                                  ) noexcept nogil:
+    """The cosine of the angle at ``o`` of the triangle ``(o, p, q)`` (3-vectors), as
+    :func:`corner_cosines` computes it: the dot summed x, z, then y, the norms x, y, then z."""
+    cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
+    cdef double vx = q[0] - o[0], vy = q[1] - o[1], vz = q[2] - o[2]
+    return ((ux * vx + uz * vz) + uy * vy) / (
+        sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
 
 
 cdef inline void _cross(double ax, double ay, double az, double bx, double by, double bz,
@@ -1268,7 +1274,7 @@ def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const doub
     cdef Py_ssize_t i, m, c, u, k = Q.shape[0], d = B.shape[0]
     cdef double P[3][3]
     cdef double N[3]
-    cdef double ux, uy, uz, vx, vy, vz, cos, best
+    cdef double cos, best
     cos_arr = np.empty((k, d), dtype=np.float64)
     area_arr = np.empty((k, d), dtype=np.float64)
     cdef double[:, ::1] out_cos = cos_arr
@@ -1281,14 +1287,7 @@ def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const doub
                 P[2][u] = C[m, u]
             best = -INFINITY
             for c in range(3):
-                ux = P[(c + 1) % 3][0] - P[c][0]
-                uy = P[(c + 1) % 3][1] - P[c][1]
-                uz = P[(c + 1) % 3][2] - P[c][2]
-                vx = P[(c + 2) % 3][0] - P[c][0]
-                vy = P[(c + 2) % 3][1] - P[c][1]
-                vz = P[(c + 2) % 3][2] - P[c][2]
-                cos = ((ux * vx + uz * vz) + uy * vy) / (
-                    sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
+                cos = _corner_cosine(P[c], P[(c + 1) % 3], P[(c + 2) % 3])
                 if cos != cos:
                     best = NAN
                     break

@@ -143,7 +143,7 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
         Not yet projected onto the domain.
     """
     if len(u) == 2:
-        dirs = _PLANE_DIRS
+        dirs = _CIRCLE_DIRS
     else:                                           # an orthonormal basis of the tangent plane
         e1 = np.cross(u, np.eye(3)[np.argmin(np.abs(u))])
         e1 /= np.linalg.norm(e1)
@@ -151,9 +151,9 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
 
 
+#: :func:`pattern_points`' directions on the disk (unit vectors, PATTERN_DIRS×2)
 _CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
                                 np.sin(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS)])
-_PLANE_DIRS = _CIRCLE_DIRS @ np.eye(2)          # :func:`pattern_points`' directions on the disk
 
 
 def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:
