@@ -70,6 +70,9 @@ SAG_TS = np.arange(1, 8) / 8.0          # points along an edge where the sag gua
 MOVE_FRACTIONS = (1.0, 0.5, 0.25)       # of the step towards each relocation target
 PATTERN_DIRS = 16                       # and a pattern search around the vertex: directions,
 PATTERN_STEPS = (0.03, 0.1, 0.25, 0.5)  # steps × the shortest domain edge of its star
+MOVE_WALK = 64                          # walk steps from the vertex's input face to a candidate
+#                                         (an input far finer than the remesh puts many faces
+#                                         between them; a candidate the walk misses takes the grid)
 OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces it started with
 
 
@@ -713,7 +716,7 @@ class _Patch:
         mf = np.full(len(M), S.face[v])
         mb = np.zeros((len(M), 3))
         P = np.zeros((len(M), 3))
-        mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok])
+        mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok], walk=MOVE_WALK)
         P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
         k = len(ok)
         cos, A2 = fan_cosines_areas(np.ascontiguousarray(P[ok]), B, C)
