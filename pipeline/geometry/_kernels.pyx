@@ -269,7 +269,16 @@ def stretch_weights(const double[::1] W_data, const int[::1] W_indices, const in
 
 
 cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) noexcept nogil:
-    """The barycentrics ``lam`` (3) clamped at 0 and renormalised to sum 1, into ``bary[i]``."""
+    """The barycentrics ``lam`` (3) clamped at 0 and renormalised to sum 1 (:func:`_clean`),
+    into ``bary[i]``."""
+    cdef Py_ssize_t c
+    _clean(lam)
+    for c in range(3):
+        bary[i, c] = lam[c]
+
+
+cdef inline void _clean(double* lam) noexcept nogil:
+    """In place, the barycentrics ``lam`` (3) clamped at 0 and renormalised to sum 1."""
     cdef Py_ssize_t c
     cdef double s
     for c in range(3):
@@ -277,7 +286,7 @@ cdef inline void _store_clean(double* lam, double[:, ::1] bary, Py_ssize_t i) no
             lam[c] = 0.0
     s = lam[0] + lam[1] + lam[2]
     for c in range(3):
-        bary[i, c] = lam[c] / s
+        lam[c] = lam[c] / s
 
 
 def walk_rows(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] twin):
@@ -1055,6 +1064,24 @@ def disk_shapes(const double[:, ::1] uv, const int64_t[:, ::1] F):
     for t in range(F.shape[0]):
         out[t] = _disk_shape(uv, F[t, 0], F[t, 1], F[t, 2],
                              _signed2(uv, F[t, 0], F[t, 1], F[t, 2]))
+    return out_arr
+
+
+def fan_shapes_ok(const double[:, ::1] U, Py_ssize_t k, Py_ssize_t d, double shape_min):
+    """For each of ``k`` positions ``U[i]`` of a vertex whose star has ``d`` faces, whether
+    every face ``(i, k + m, k + d + m)`` of the points ``U`` (stacked ``[positions (k), B (d),
+    C (d)]``) has a :func:`disk_shapes` value at least ``shape_min`` (k bool; NaN fails):
+    ``(disk_shape(U, fan_faces(k, d)) >= shape_min).reshape(k, d).all(axis=1)``."""
+    cdef Py_ssize_t i, m
+    cdef int64_t b, c
+    out_arr = np.ones(k, dtype=np.bool_)
+    cdef unsigned char[::1] out = out_arr.view(np.uint8)
+    for i in range(k):
+        for m in range(d):
+            b, c = k + m, k + d + m
+            if not (_disk_shape(U, i, b, c, _signed2(U, i, b, c)) >= shape_min):
+                out[i] = 0
+                break
     return out_arr
 
 
@@ -1950,64 +1977,192 @@ def sag_along_block(const double[:, ::1] P, const int64_t[::1] mf, const double[
                     Py_ssize_t lo, double[::1] best, double[::1] t_best):
     """The sags of the edges ``lo … lo + m − 1`` of :func:`.remesh.sag.edge_sag_along` from
     their lifted samples ``P`` (s·m × 3, sample-major: row ``j·m + q`` is ``t = ts[j]`` on edge
-    ``lo + q``) in the input faces ``mf``: at each sample the offset ``D = P − ((1 − t)·X[a] +
-    t·X[b])``, its largest absolute component along the input normal there (``N_in[mf]``) and
-    the ends' normals (``n_a``, ``n_b``; NaN if any is, as ``np.maximum``), and per edge the
-    largest over the samples (the first of equals; a NaN wins, as ``np.argmax``) into
-    ``best[e]`` and its ``t`` into ``t_best[e]``."""
+    ``lo + q``) in the input faces ``mf``: at each sample :func:`_sample_sag`, and per edge
+    the largest over the samples (:func:`_larger_sag`) into ``best[e]`` and its ``t`` into
+    ``t_best[e]``."""
     cdef Py_ssize_t s = ts.shape[0], m = P.shape[0] // s if s else 0
-    cdef Py_ssize_t q, j, i, e, c, jb
-    cdef double D[3]
-    cdef double t, u, v, vb
+    cdef Py_ssize_t q, j, i, e, jb
+    cdef double v, vb
     for q in range(m):
         e = lo + q
         jb = -1
         vb = 0.0
         for j in range(s):
             i = j * m + q
-            t = ts[j]
-            u = 1.0 - t
-            for c in range(3):
-                D[c] = P[i, c] - (u * X[a[e], c] + t * X[b[e], c])
-            v = fabs(_dot3(D, &N_in[mf[i], 0]))
-            v = _max_nan(v, fabs(_dot3(D, &n_a[e, 0])))
-            v = _max_nan(v, fabs(_dot3(D, &n_b[e, 0])))
-            if jb < 0 or v > vb or (v != v and vb == vb):
+            v = _sample_sag(&P[i, 0], &N_in[mf[i], 0], &X[a[e], 0], &X[b[e], 0], ts[j],
+                            &n_a[e, 0], &n_b[e, 0])
+            if _larger_sag(jb, v, vb):
                 jb, vb = j, v
         best[e] = vb
         t_best[e] = ts[jb]
 
 
+cdef inline double _sample_sag(const double* p, const double* n, const double* xa,
+                               const double* xb, double t, const double* na, const double* nb
+                               ) noexcept nogil:
+    """The sag at one sample: the offset ``D = p − ((1 − t)·xa + t·xb)`` between the lifted
+    sample ``p`` and the edge's 3D point, and its largest absolute component along the input
+    normal there (``n``) and the ends' normals (``na``, ``nb``; NaN if any is, as
+    ``np.maximum``)."""
+    cdef double D[3]
+    cdef double u = 1.0 - t, v
+    cdef Py_ssize_t c
+    for c in range(3):
+        D[c] = p[c] - (u * xa[c] + t * xb[c])
+    v = fabs(_dot3(D, n))
+    v = _max_nan(v, fabs(_dot3(D, na)))
+    return _max_nan(v, fabs(_dot3(D, nb)))
+
+
+cdef inline bint _larger_sag(Py_ssize_t jb, double v, double vb) noexcept nogil:
+    """Whether the sample's sag ``v`` replaces the edge's largest so far ``vb`` (none yet when
+    ``jb < 0``): the first of equals wins and a NaN wins, as ``np.argmax``."""
+    return jb < 0 or v > vb or (v != v and vb == vb)
+
+
+cdef inline int64_t _walk_one(const double[:, ::1] rows, double px, double py, int64_t f,
+                              int walk, double tol, double* lam) noexcept nogil:
+    """One point's walk of :func:`walk_to_faces` from the face ``f``: the face found (its
+    clamped, renormalised barycentrics in ``lam``), or −1 where the walk leaves the rim or
+    takes more than ``walk`` steps."""
+    cdef const int32_t* nbr = <const int32_t*> &rows[0, 0]
+    cdef Py_ssize_t r
+    cdef int step = 0
+    while True:
+        r = _face_test(rows, f, px, py, tol, lam)
+        if r < 0:
+            _clean(lam)
+            return f
+        if step == walk:
+            return -1
+        f = nbr[16 * f + 12 + (r + 1) % 3]
+        if f < 0:
+            return -1
+        step += 1
+
+
+def walked_sags(const double[:, ::1] rows, const double[:, ::1] uv, const int64_t[::1] face,
+                const int64_t[::1] a, const int64_t[::1] b, const double[::1] ts, int walk,
+                double tol, const double[:, ::1] V_in, const int64_t[:, ::1] F_in,
+                const double[:, ::1] N_in, const double[:, ::1] X, double[::1] best,
+                double[::1] t_best):
+    """:func:`.remesh.sag.edge_sag_along` of the edges ``a–b`` (k) at the points ``ts`` in
+    one pass, where every sample is found by a walk: each domain point ``(1 − t)·uv[a] +
+    t·uv[b]`` (:func:`points_along`) walked (:func:`_walk_one`, as ``PointLocator.relocate``
+    with ``walk`` steps and ``tol``) from the face under the nearer end, lifted (eq. 1, as
+    :func:`lift_rows`), its :func:`_sample_sag` with the normals of ``N_in`` under it and under
+    the ends ``face[a]``, ``face[b]``; per edge the largest (:func:`_larger_sag`) into
+    ``best`` and its ``t`` into ``t_best``. Returns False, with ``best`` and ``t_best``
+    incomplete, as soon as a walk does not find its point (the caller then locates them all
+    the general way)."""
+    cdef Py_ssize_t e, j, c, jb
+    cdef int64_t f, t0, t1, t2
+    cdef double lam[3]
+    cdef double M[2]
+    cdef double P[3]
+    cdef double t, u, v, vb
+    if rows.shape[0] == 0 or ts.shape[0] == 0:
+        return False
+    for e in range(a.shape[0]):
+        jb = -1
+        vb = 0.0
+        for j in range(ts.shape[0]):
+            t = ts[j]
+            u = 1.0 - t
+            for c in range(2):
+                M[c] = u * uv[a[e], c] + t * uv[b[e], c]
+            f = _walk_one(rows, M[0], M[1], face[a[e]] if t <= 0.5 else face[b[e]], walk, tol,
+                          lam)
+            if f < 0:
+                return False
+            t0, t1, t2 = F_in[f, 0], F_in[f, 1], F_in[f, 2]
+            for c in range(3):
+                P[c] = lam[0] * V_in[t0, c] + lam[1] * V_in[t1, c] + lam[2] * V_in[t2, c]
+            v = _sample_sag(P, &N_in[f, 0], &X[a[e], 0], &X[b[e], 0], t,
+                            &N_in[face[a[e]], 0], &N_in[face[b[e]], 0])
+            if _larger_sag(jb, v, vb):
+                jb, vb = j, v
+        best[e] = vb
+        t_best[e] = ts[jb]
+    return True
+
+
 def closest_points(const double[:, ::1] P, const double[:, ::1] A, const double[:, ::1] B,
                    const double[:, ::1] C):
     """The closest point of triangle ``(A[i], B[i], C[i])`` to ``P[i]`` (all k×3,
-    :func:`_closest_on_triangle`: the vertex regions A, B, C first, then the edges AB, AC, BC,
-    else the face interior); a point that comes out not finite (a degenerate triangle) goes
-    to the nearest corner (the first of equals; a NaN distance wins)."""
-    cdef Py_ssize_t i, c, k = P.shape[0], j
-    cdef double t, s, best
+    :func:`_closest_point`)."""
+    cdef Py_ssize_t i, k = P.shape[0]
     out_arr = np.empty((k, 3), dtype=np.float64)
     cdef double[:, ::1] Q = out_arr
-    cdef const double* corner[3]
     for i in range(k):
-        _closest_on_triangle(&P[i, 0], &A[i, 0], &B[i, 0], &C[i, 0], &Q[i, 0])
-        if not (isfinite(Q[i, 0]) and isfinite(Q[i, 1]) and isfinite(Q[i, 2])):
-            corner[0], corner[1], corner[2] = &A[i, 0], &B[i, 0], &C[i, 0]
-            j = 0
-            for c in range(3):
-                t = corner[c][0] - P[i, 0]
-                s = t * t
-                t = corner[c][1] - P[i, 1]
-                s = s + t * t
-                t = corner[c][2] - P[i, 2]
-                s = s + t * t
-                if c == 0:
-                    best = s
-                elif best == best and (s < best or s != s):
-                    j, best = c, s
-            for c in range(3):
-                Q[i, c] = corner[j][c]
+        _closest_point(&P[i, 0], &A[i, 0], &B[i, 0], &C[i, 0], &Q[i, 0])
     return out_arr
+
+
+cdef void _closest_point(const double* p, const double* a, const double* b, const double* c,
+                         double* q) noexcept nogil:
+    """The closest point ``q`` of the triangle ``(a, b, c)`` to ``p`` (3-vectors,
+    :func:`_closest_on_triangle`: the vertex regions a, b, c first, then the edges ab, ac,
+    bc, else the face interior); a point that comes out not finite (a degenerate triangle)
+    goes to the nearest corner (the first of equals; a NaN distance wins)."""
+    cdef Py_ssize_t c_, x, j
+    cdef double t, s, best = 0.0
+    cdef const double* corner[3]
+    _closest_on_triangle(p, a, b, c, q)
+    if isfinite(q[0]) and isfinite(q[1]) and isfinite(q[2]):
+        return
+    corner[0], corner[1], corner[2] = a, b, c
+    j = 0
+    for c_ in range(3):
+        t = corner[c_][0] - p[0]
+        s = t * t
+        t = corner[c_][1] - p[1]
+        s = s + t * t
+        t = corner[c_][2] - p[2]
+        s = s + t * t
+        if c_ == 0:
+            best = s
+        elif best == best and (s < best or s != s):
+            j, best = c_, s
+    for x in range(3):
+        q[x] = corner[j][x]
+
+
+def point_faces_distance(const double[::1] p, const double[:, ::1] X,
+                         const int64_t[:, ::1] T):
+    """The smallest distance from the point ``p`` (3,) to the triangles ``X[T]`` (``T``: k×3
+    vertex indices): ``norms(p − closest_points(p, X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])).min()``
+    operation for operation (the squares summed x, z, then y; NaN if any distance is, as
+    ``ndarray.min``; inf for no triangle)."""
+    cdef Py_ssize_t i, x
+    cdef double q[3]
+    cdef double e[3]
+    cdef double d, best = INFINITY
+    for i in range(T.shape[0]):
+        _closest_point(&p[0], &X[T[i, 0], 0], &X[T[i, 1], 0], &X[T[i, 2], 0], q)
+        for x in range(3):
+            e[x] = p[x] - q[x]
+        d = sqrt(_dot3(e, e))
+        if d != d:
+            return d
+        if d < best:
+            best = d
+    return best
+
+
+def faces_keep_side(const double[:, ::1] n0, const double[::1] a1, const double[:, ::1] B,
+                    const double[:, ::1] C):
+    """Whether every face ``(A, B[m], C[m])`` with the normal ``n0[m]`` (k×3) keeps its side
+    when ``A`` moves to ``a1`` (3,): ``(dots(n0, cross(B − a1, C − a1)) > 0).all()``, the dot
+    summed x, z, then y as numpy's einsum does."""
+    cdef Py_ssize_t m
+    cdef double n1[3]
+    for m in range(B.shape[0]):
+        _cross(B[m, 0] - a1[0], B[m, 1] - a1[1], B[m, 2] - a1[2],
+               C[m, 0] - a1[0], C[m, 1] - a1[1], C[m, 2] - a1[2], n1)
+        if not (_dot3(&n0[m, 0], n1) > 0):
+            return False
+    return True
 
 
 def pair_lengths(const double[:, ::1] X, const int64_t[::1] a, const int64_t[::1] b):

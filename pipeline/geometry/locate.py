@@ -349,6 +349,11 @@ class PointLocator:
             face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol)
         return face, bary, inside
 
+    def walk_table(self) -> np.ndarray:
+        """The walk's table of the faces (:meth:`_walk_rows`), for compiled walks elsewhere
+        (:func:`._kernels.walked_sags`)."""
+        return self._walk_rows()
+
     def _walk_rows(self) -> np.ndarray:
         """The walk's table of the faces (m×8, computed once): each face's corners and the
         faces across its edges in one 64-byte row (:func:`._kernels.walk_rows`)."""

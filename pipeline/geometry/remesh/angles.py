@@ -51,11 +51,11 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import apex_points, corner_cosines, fan_cosines_areas
+from .._kernels import (apex_points, corner_cosines, fan_cosines_areas, fan_shapes_ok,
+                        faces_keep_side, point_faces_distance)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
-from ..remesh_quality import closest_points_on_triangles
 from ..rows import cross, dots, norms
 from ..topology import connected_components
 from .domain import project
@@ -440,11 +440,10 @@ class _Patch:
         distance)."""
         if self.tol is None:
             return True
-        T = np.asarray(tris, np.int64)
-        X = self.S.X
-        P = np.repeat(point[None], len(T), axis=0)
-        near = closest_points_on_triangles(P, X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])
-        return bool(norms(P - near).min() <= self.tol)
+        return bool(point_faces_distance(np.ascontiguousarray(point, dtype=np.float64),
+                                         np.ascontiguousarray(self.S.X, dtype=np.float64),
+                                         np.ascontiguousarray(tris, dtype=np.int64)
+                                         ) <= self.tol)
 
     def sag(self, a, b) -> np.ndarray | None:
         """The sag of the edges ``a–b`` (None without a tolerance)."""
@@ -888,9 +887,8 @@ def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
     face of the star stays counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` in the
     domain with ``v`` there (j bool): where the map's stretch changes fast, the position best
     on the surface often folds a face on the domain, and the next best must be tried."""
-    j, d = len(M), len(BC)
-    U = np.vstack([M, uv[BC[:, 0]], uv[BC[:, 1]]])
-    return (disk_shape(U, fan_faces(j, d)) >= DISK_SHAPE_MIN).reshape(j, d).all(axis=1)
+    U = np.vstack([M, uv[BC[:, 0]], uv[BC[:, 1]]]).astype(np.float64, copy=False)
+    return fan_shapes_ok(U, len(M), len(BC), DISK_SHAPE_MIN)
 
 
 def fan_faces(k: int, d: int) -> np.ndarray:
@@ -923,5 +921,5 @@ def _same_side_points(n0: np.ndarray, A1: np.ndarray, B: np.ndarray, C: np.ndarr
     """Whether every face ``(A, B, C)`` keeps the side its normal ``n0`` (k×3, ``(B − A) ×
     (C − A)``) points to when ``A`` moves to ``A1`` (3,) (3D; a move that turns a face over
     is refused)."""
-    n1 = cross(B - A1, C - A1)
-    return bool((dots(n0, n1) > 0).all())
+    return bool(faces_keep_side(*(np.ascontiguousarray(P, dtype=np.float64)
+                                  for P in (n0, A1, B, C))))

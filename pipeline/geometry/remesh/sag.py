@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._kernels import points_along, sag_along_block
-from ..locate import lift
+from .._kernels import points_along, sag_along_block, walked_sags
+from ..locate import TOL, PointLocator, lift
 from ..rows import dots
 from .state import RemeshState
 
@@ -176,13 +176,19 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
     a = np.ascontiguousarray(a, dtype=np.int64)
     b = np.ascontiguousarray(b, dtype=np.int64)
     N_in = S.normals_in()
-    n_a, n_b = (np.ascontiguousarray(n, dtype=np.float64) for n in
-                (end_normals if end_normals is not None else [N_in[S.face[v]] for v in (a, b)]))
     X = np.ascontiguousarray(S.X, dtype=np.float64)
     ts = np.ascontiguousarray(ts, dtype=np.float64)
     k, s = len(a), len(ts)
     best = np.empty(k)
     t_best = np.empty(k)
+    if k < CHAIN_MIN and end_normals is None and isinstance(S.locator, PointLocator) and \
+            walked_sags(S.locator.walk_table(), np.ascontiguousarray(S.uv, dtype=np.float64),
+                        np.ascontiguousarray(S.face, dtype=np.int64), a, b, ts, SAG_WALK, TOL,
+                        np.ascontiguousarray(S.V_in, dtype=np.float64),
+                        np.ascontiguousarray(S.F_in, dtype=np.int64), N_in, X, best, t_best):
+        return best, t_best                # a few edges, every sample found by its walk
+    n_a, n_b = (np.ascontiguousarray(n, dtype=np.float64) for n in
+                (end_normals if end_normals is not None else [N_in[S.face[v]] for v in (a, b)]))
     step = max(SAG_BLOCK // max(s, 1), 1)
     for lo in range(0, k, step):
         # all samples of a block of edges in one query (sample-major), each located from the
