@@ -357,3 +357,129 @@ def test_a_forced_rim_corner_is_shared_out_evenly_when_judged_on_the_smallest_an
         assert [(c["vertex"], c["faces"]) for c in below["input_corners"]] == [(0, 2)]
         assert below["input_corners"][0]["smallest_angle_deg"] == pytest.approx(15.0, abs=1e-6)
         assert below["input_corners"][0]["even_split_deg"] == pytest.approx(15.0, abs=1e-9)
+
+
+def _same_bits(a, b) -> bool:
+    """Equal arrays bit for bit (a -0.0 differs from 0.0)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    return a.shape == b.shape and a.tobytes() == b.tobytes()
+
+
+@pytest.mark.parametrize("d", [1, 5, 8, 13, 140])
+def test_fan_scores_are_the_numpy_formula_bit_for_bit(d):
+    """:func:`.._kernels.fan_scores` (the move's scoring of its candidate positions): the
+    star's smallest angle at each position, -1 outside the map, with more faces below the
+    threshold than before, or with a larger sum of squared relative area deviations — the
+    numpy formula it replaces, bit for bit, for stars of fewer and more than 8 faces (numpy
+    sums a row in blocks of 8 from there) and more than 128 (halves), with a coincident
+    corner (nan cosine: angle 0) and a degenerate face among them; every outcome occurs."""
+    from pipeline.geometry._kernels import fan_scores
+
+    rng = np.random.default_rng(17)
+    k = 40
+    Q = rng.standard_normal((k, 3)) * 0.3
+    B, C = rng.standard_normal((d, 3)), rng.standard_normal((d, 3))
+    Q[3] = B[0]                                   # coincident corners
+    C[-1] = B[-1] * 2.0 - Q[5] * 1.0              # on the line of Q[5] and B[-1]: degenerate
+    inside = rng.random(k) < 0.8
+    cos, A2 = fan_cosines_areas(Q, B, C)
+    each = angles_of_cosines(cos)
+    below = int(np.median((each < 30.0).sum(axis=1)))
+    mean_area = float(A2.mean())
+    dev = ((A2 / mean_area - 1) ** 2).sum(axis=1)
+    spread = float(np.median(dev))
+    for count, area in [(below, mean_area), (-1, mean_area), (below, np.nan), (-1, np.nan)]:
+        more = (each < 30.0).sum(axis=1) > below if count >= 0 else np.zeros(k, bool)
+        if area == area:
+            more |= dev > spread
+        want = np.where(inside & ~more, each.min(axis=1, initial=180.0), -1.0)
+        got = fan_scores(Q, B, C, inside.view(np.uint8), 30.0, count, area, spread)
+        assert _same_bits(got, want)
+    assert (got == -1.0).any() and (got >= 0).any() and got[3] == 0.0
+    both = fan_scores(Q, B, C, inside.view(np.uint8), 30.0, below, mean_area, spread)
+    assert (both == -1.0).sum() > (got == -1.0).sum()
+
+
+def test_star_targets_are_the_numpy_formula_bit_for_bit():
+    """:func:`.._kernels.star_targets` (what the move computes before its steps): the corners,
+    normals ``(B − x) × (C − x)``, their sum and the three targets (mean ideal point, that of
+    the worst face, the centroid of the distinct ring vertices in increasing order), bit for
+    bit as numpy computes them — a flat star too, whose normals' zero components are -0.0
+    where numpy gives -0.0 and summed from 0 as numpy sums them."""
+    from pipeline.geometry._kernels import star_targets
+
+    rng = np.random.default_rng(19)
+    for flat in (False, True):
+        X = rng.standard_normal((12, 3)) * 10.0 ** rng.uniform(-2, 2, (12, 1))
+        if flat:
+            X[:, 2] = 0.0
+        ring = [4, 9, 2, 7, 11, 5, 1]
+        star = np.array([[0, ring[i], ring[(i + 1) % 7]] for i in range(7)]
+                        + [[0, 9, 3]], np.int64)              # a repeated ring vertex
+        worst = 4
+        B, C, N, total, T = star_targets(X, star, worst)
+        x = X[0].copy()
+        A = np.repeat(x[None], len(star), axis=0)
+        wB, wC = X[star[:, 1]], X[star[:, 2]]
+        wN = cross(wB - A, wC - A)
+        ideal = ideal_points(A, wB, wC, wN)
+        want = np.array([ideal.mean(axis=0), ideal[worst], X[np.unique(star[:, 1:])].mean(axis=0)])
+        assert _same_bits(B, wB) and _same_bits(C, wC) and _same_bits(N, wN)
+        assert _same_bits(total, wN.sum(axis=0)) and _same_bits(T, want)
+    assert np.signbit(N[:, 0]).any() and not np.signbit(total[0])    # -0.0 summed from 0
+
+
+def test_fan_shapes_ok_and_faces_keep_side_are_the_numpy_formulas():
+    """:func:`.._kernels.fan_shapes_ok` is ``disk_shape`` of the faces :func:`fan_faces`
+    makes of the stacked points, all at least ``DISK_SHAPE_MIN`` per position (a NaN
+    position fails), and :func:`.._kernels.faces_keep_side` is ``(dots(n0, (B − a1) × (C −
+    a1)) > 0).all()``: exactly, with both answers among random cases."""
+    from pipeline.geometry._kernels import fan_shapes_ok, faces_keep_side
+    from pipeline.geometry.remesh.halfedge import DISK_SHAPE_MIN, disk_shape
+    from pipeline.geometry.rows import dots
+
+    rng = np.random.default_rng(23)
+    d = 6
+    ring = np.column_stack([np.cos(np.arange(d) * 2 * np.pi / d), np.sin(np.arange(d) * 2 * np.pi / d)])
+    M = rng.uniform(-1.2, 1.2, (200, 2))
+    M[7] = np.nan
+    M[8] = ring[2]                                  # on a corner: flat faces
+    U = np.vstack([M, ring, np.roll(ring, -1, axis=0)])
+    want = (disk_shape(U, fan_faces(200, d)) >= DISK_SHAPE_MIN).reshape(200, d).all(axis=1)
+    got = fan_shapes_ok(U, 200, d, DISK_SHAPE_MIN)
+    assert np.array_equal(got, want) and want.any() and not want.all()
+    assert not got[7] and not got[8]
+    answers = set()
+    for _ in range(200):
+        n0, B, C = (rng.standard_normal((4, 3)) for _ in range(3))
+        a1 = rng.standard_normal(3) * 0.1
+        want = bool((dots(n0, cross(B - a1, C - a1)) > 0).all())
+        assert faces_keep_side(n0, a1, B, C) == want
+        answers.add(want)
+    assert answers == {True, False}
+
+
+def test_point_faces_distance_is_the_numpy_formula_bit_for_bit():
+    """:func:`.._kernels.point_faces_distance` (the gap guard of the collapses and moves): the
+    smallest ``norms(p − closest_points_on_triangles(p, …))`` over the faces, bit for bit,
+    with degenerate faces (coincident and collinear corners: their nearest corner) and the
+    point on a corner (distance 0); NaN if a corner is NaN, inf for no face."""
+    from pipeline.geometry._kernels import point_faces_distance
+    from pipeline.geometry.remesh_quality import closest_points_on_triangles
+
+    rng = np.random.default_rng(29)
+    X = rng.standard_normal((30, 3)) * 10.0 ** rng.uniform(-3, 1, (30, 1))
+    X[1] = X[0]                                     # coincident
+    X[2] = 2.0 * X[3] - X[4]                        # collinear with 3 and 4
+    for _ in range(50):
+        T = rng.integers(0, 30, (rng.integers(1, 9), 3))
+        T[0] = rng.choice([[0, 1, 5], [2, 3, 4], [6, 7, 8]][rng.integers(0, 3)])
+        p = rng.standard_normal(3)
+        P = np.repeat(p[None], len(T), axis=0)
+        want = norms(P - closest_points_on_triangles(P, X[T[:, 0]], X[T[:, 1]], X[T[:, 2]])).min()
+        assert _same_bits(point_faces_distance(p, X, T), want)
+    assert point_faces_distance(X[5].copy(), X, np.array([[5, 6, 7]])) == 0.0
+    Y = X.copy()
+    Y[9] = np.nan
+    assert np.isnan(point_faces_distance(np.zeros(3), Y, np.array([[5, 6, 7], [9, 10, 11]])))
+    assert point_faces_distance(np.zeros(3), X, np.zeros((0, 3), np.int64)) == np.inf

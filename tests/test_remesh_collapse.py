@@ -234,3 +234,38 @@ def test_samples_located_along_a_chain_are_those_located_from_the_ends():
     s = len(ts)
     want_P, want_f = lift_samples(S, np.tile(a, s), np.tile(b, s), np.repeat(ts, len(a))[:, None])
     assert np.array_equal(P, want_P) and np.array_equal(mf, want_f)
+
+
+def test_walked_sags_of_a_few_edges_are_the_numpy_formula_bit_for_bit():
+    """The sag of fewer than ``CHAIN_MIN`` edges in one kernel (:func:`.._kernels.walked_sags`:
+    every sample walked from the face under the nearer end, lifted, measured) gives the very
+    values and ``t`` of the numpy formula, and some of those edges leave the surface; a walk
+    that does not reach its point (no step allowed) makes the kernel give up, and
+    :func:`.sag.edge_sag_along` then gives the same values the general way."""
+    from pipeline.geometry._kernels import walked_sags
+    from pipeline.geometry.locate import TOL
+    from pipeline.geometry.remesh.sag import CHAIN_MIN, SAG_WALK, edge_sag_along
+    from remesh_helpers import coarse_state
+
+    uv_in, F_in, V_in, loop, locator = disk_map(tent=0.3)
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, rings=6)
+    E = topo.edges_with_faces(S.F)[0]
+    ts = np.arange(1, 8) / 8.0
+    sags = edge_sag_along(S, E[:, 0].copy(), E[:, 1].copy(), ts)[0]
+    pick = np.argsort(-sags, kind="stable")[:CHAIN_MIN - 1]     # the edges that sag most
+    a, b = E[pick, 0].copy(), E[pick, 1].copy()
+    want_sag, want_t = _numpy_sag_along(S, a, b, ts)
+    assert np.count_nonzero(want_sag > 1e-3) > 5
+
+    def walked(walk):
+        best, t_best = np.empty(len(a)), np.empty(len(a))
+        done = walked_sags(S.locator.walk_table(), S.uv, S.face.astype(np.int64), a, b, ts,
+                           walk, TOL, S.V_in, F_in.astype(np.int64), S.normals_in(),
+                           S.X, best, t_best)
+        return done, best, t_best
+
+    done, best, t_best = walked(SAG_WALK)
+    assert done and np.array_equal(best, want_sag) and np.array_equal(t_best, want_t)
+    assert not walked(0)[0]
+    sag, t = edge_sag_along(S, a, b, ts)
+    assert np.array_equal(sag, want_sag) and np.array_equal(t, want_t)

@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, NAN, fabs, isfinite, sqrt
+from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -1264,67 +1264,218 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
 def apex_points(const double[:, ::1] A, const double[:, ::1] B, const double[:, ::1] C,
                 const double[:, ::1] N):
     """:func:`..remesh.angles.ideal_points` of the triangles ``(A, B, C)`` (k×3 each) with
-    their normals ``N = (B − A) × (C − A)`` (k×3): ``w = N × (C − B)`` over its length (at
-    least 1e-300; nan stays nan), turned towards ``A``'s side of ``B–C`` (``w·(A − mid) ≥
-    0``), ``mid + (√3/2 · |C − B|) · w``; k×3."""
+    their normals ``N = (B − A) × (C − A)`` (k×3), row by row (:func:`_apex`); k×3."""
     cdef Py_ssize_t r, k = A.shape[0]
-    cdef double w[3]
-    cdef double ex, ey, ez, mx, my, mz, length, side, h
     out_arr = np.empty((k, 3), dtype=np.float64)
     cdef double[:, ::1] out = out_arr
-    cdef double half_root3 = sqrt(3.0) / 2.0
     for r in range(k):
-        ex, ey, ez = C[r, 0] - B[r, 0], C[r, 1] - B[r, 1], C[r, 2] - B[r, 2]
-        mx, my, mz = 0.5 * (B[r, 0] + C[r, 0]), 0.5 * (B[r, 1] + C[r, 1]), 0.5 * (B[r, 2] + C[r, 2])
-        _cross(N[r, 0], N[r, 1], N[r, 2], ex, ey, ez, w)
-        length = sqrt((w[0] * w[0] + w[2] * w[2]) + w[1] * w[1])
-        if length < 1e-300:
-            length = 1e-300
-        w[0], w[1], w[2] = w[0] / length, w[1] / length, w[2] / length
-        side = ((w[0] * (A[r, 0] - mx) + w[2] * (A[r, 2] - mz)) + w[1] * (A[r, 1] - my))
-        if not (side >= 0):
-            w[0], w[1], w[2] = w[0] * -1.0, w[1] * -1.0, w[2] * -1.0
-        h = half_root3 * sqrt((ex * ex + ez * ez) + ey * ey)
-        out[r, 0] = mx + h * w[0]
-        out[r, 1] = my + h * w[1]
-        out[r, 2] = mz + h * w[2]
+        _apex(&A[r, 0], &B[r, 0], &C[r, 0], &N[r, 0], &out[r, 0])
     return out_arr
+
+
+@cython.cdivision(True)
+cdef inline void _apex(const double* a, const double* b, const double* c, const double* n,
+                       double* out) noexcept nogil:
+    """The apex of the triangle ``(a, b, c)`` with the normal ``n = (b − a) × (c − a)``
+    (3-vectors) that makes it equilateral: ``w = n × (c − b)`` over its length (at least
+    1e-300; nan stays nan), turned towards ``a``'s side of ``b–c`` (``w·(a − mid) ≥ 0``),
+    ``mid + (√3/2 · |c − b|) · w``."""
+    cdef double w[3]
+    cdef double ex, ey, ez, mx, my, mz, length, side, h
+    cdef double half_root3 = sqrt(3.0) / 2.0
+    ex, ey, ez = c[0] - b[0], c[1] - b[1], c[2] - b[2]
+    mx, my, mz = 0.5 * (b[0] + c[0]), 0.5 * (b[1] + c[1]), 0.5 * (b[2] + c[2])
+    _cross(n[0], n[1], n[2], ex, ey, ez, w)
+    length = sqrt((w[0] * w[0] + w[2] * w[2]) + w[1] * w[1])
+    if length < 1e-300:
+        length = 1e-300
+    w[0], w[1], w[2] = w[0] / length, w[1] / length, w[2] / length
+    side = ((w[0] * (a[0] - mx) + w[2] * (a[2] - mz)) + w[1] * (a[1] - my))
+    if not (side >= 0):
+        w[0], w[1], w[2] = w[0] * -1.0, w[1] * -1.0, w[2] * -1.0
+    h = half_root3 * sqrt((ex * ex + ez * ez) + ey * ey)
+    out[0] = mx + h * w[0]
+    out[1] = my + h * w[1]
+    out[2] = mz + h * w[2]
+
+
+@cython.cdivision(True)
+def star_targets(const double[:, ::1] X, const int64_t[:, ::1] star, Py_ssize_t worst):
+    """For the star ``star`` (d×3, ``(v, B_m, C_m)`` counter-clockwise, ``v`` first) of a
+    vertex ``v`` at ``X[v]``, what :meth:`..remesh.angles._Patch.move` computes before its
+    steps, operation for operation: the corners ``B = X[star[:, 1]]``, ``C = X[star[:, 2]]``,
+    the normals ``N = cross(B − X[v], C − X[v])``, their sum (``N.sum(axis=0)``: from 0, in
+    row order, as numpy sums along the first axis) and the relocation targets (3×3): the mean
+    of the faces' apexes (:func:`_apex`; summed so, then divided by d), the apex of the face ``worst``, and the mean of
+    ``X`` over the distinct vertices of ``star[:, 1:]`` in increasing order (as
+    ``X[np.unique(...)].mean(axis=0)``)."""
+    cdef Py_ssize_t d = star.shape[0], m, c, i, j, nv = 0
+    cdef int64_t v = star[0, 0] if d else 0, w
+    cdef double x[3]
+    cdef double apex[3]
+    B_arr = np.empty((d, 3), dtype=np.float64)
+    C_arr = np.empty((d, 3), dtype=np.float64)
+    N_arr = np.empty((d, 3), dtype=np.float64)
+    T_arr = np.zeros((3, 3), dtype=np.float64)
+    S_arr = np.zeros(3, dtype=np.float64)
+    V_arr = np.empty(2 * d, dtype=np.int64)
+    cdef double[:, ::1] B = B_arr, C = C_arr, N = N_arr, T = T_arr
+    cdef double[::1] total = S_arr
+    cdef int64_t[::1] verts = V_arr
+    for c in range(3):
+        x[c] = X[v, c]
+    for m in range(d):
+        for c in range(3):
+            B[m, c] = X[star[m, 1], c]
+            C[m, c] = X[star[m, 2], c]
+        _cross(B[m, 0] - x[0], B[m, 1] - x[1], B[m, 2] - x[2],
+               C[m, 0] - x[0], C[m, 1] - x[1], C[m, 2] - x[2], &N[m, 0])
+        _apex(x, &B[m, 0], &C[m, 0], &N[m, 0], apex)
+        for c in range(3):
+            total[c] = total[c] + N[m, c]
+            T[0, c] = T[0, c] + apex[c]
+            if m == worst:
+                T[1, c] = apex[c]
+        for c in range(1, 3):                 # insertion into the sorted distinct vertices
+            w = star[m, c]
+            i = 0
+            while i < nv and verts[i] < w:
+                i += 1
+            if i < nv and verts[i] == w:
+                continue
+            for j in range(nv, i, -1):
+                verts[j] = verts[j - 1]
+            verts[i] = w
+            nv += 1
+    for i in range(nv):
+        for c in range(3):
+            T[2, c] = T[2, c] + X[verts[i], c]
+    for c in range(3):
+        T[0, c] = T[0, c] / <double>d
+        T[2, c] = T[2, c] / <double>nv
+    return B_arr, C_arr, N_arr, S_arr, T_arr
 
 
 @cython.cdivision(True)
 def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C):
     """For each position ``Q[i]`` (k×3) of a vertex ``v`` and each face ``(v, B[m], C[m])``
     of its star (``B``, ``C``: d×3): the largest cosine of the face's corners with ``v`` at
-    ``Q[i]`` (those of :func:`corner_cosines`, their ``max``: nan where one is nan) and twice
-    the face's area, ``|(B − Q) × (C − Q)|`` as :func:`..rows.cross` and
-    :func:`..rows.norms` compute it. Returns both as k×d arrays."""
-    cdef Py_ssize_t i, m, c, u, k = Q.shape[0], d = B.shape[0]
-    cdef double P[3][3]
-    cdef double N[3]
-    cdef double cos, best
+    ``Q[i]`` and twice the face's area (:func:`_fan_face`). Returns both as k×d arrays."""
+    cdef Py_ssize_t i, m, k = Q.shape[0], d = B.shape[0]
     cos_arr = np.empty((k, d), dtype=np.float64)
     area_arr = np.empty((k, d), dtype=np.float64)
     cdef double[:, ::1] out_cos = cos_arr
     cdef double[:, ::1] out_area = area_arr
     for i in range(k):
         for m in range(d):
-            for u in range(3):
-                P[0][u] = Q[i, u]
-                P[1][u] = B[m, u]
-                P[2][u] = C[m, u]
-            best = -INFINITY
-            for c in range(3):
-                cos = _corner_cosine(P[c], P[(c + 1) % 3], P[(c + 2) % 3])
-                if cos != cos:
-                    best = NAN
-                    break
-                if cos > best:
-                    best = cos
-            out_cos[i, m] = best
-            _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
-                   P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
-            out_area[i, m] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
+            _fan_face(&Q[i, 0], &B[m, 0], &C[m, 0], &out_cos[i, m], &out_area[i, m])
     return cos_arr, area_arr
+
+
+@cython.cdivision(True)
+cdef inline void _fan_face(const double* q, const double* b, const double* c, double* cos_out,
+                           double* area_out) noexcept nogil:
+    """The largest cosine of the corners of the face ``(q, b, c)`` (3-vectors; those of
+    :func:`corner_cosines`, their ``max``: nan where one is nan) and twice its area,
+    ``|(b − q) × (c − q)|`` as :func:`..rows.cross` and :func:`..rows.norms` compute it."""
+    cdef double P[3][3]
+    cdef double N[3]
+    cdef double cos, best = -INFINITY
+    cdef Py_ssize_t c_, u
+    for u in range(3):
+        P[0][u] = q[u]
+        P[1][u] = b[u]
+        P[2][u] = c[u]
+    for c_ in range(3):
+        cos = _corner_cosine(P[c_], P[(c_ + 1) % 3], P[(c_ + 2) % 3])
+        if cos != cos:
+            best = NAN
+            break
+        if cos > best:
+            best = cos
+    cos_out[0] = best
+    _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
+           P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
+    area_out[0] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
+
+
+cdef inline double _degrees_of_cosine(double cos) noexcept nogil:
+    """The angle (degrees) of ``cos`` as :func:`..remesh.angles.angles_of_cosines` computes
+    it: ``np.degrees(np.arccos(np.clip(cos, −1, 1)))``, 0 for nan."""
+    if cos != cos:
+        cos = 1.0
+    if cos < -1.0:
+        cos = -1.0
+    elif cos > 1.0:
+        cos = 1.0
+    return acos(cos) * (180.0 / M_PI)
+
+
+cdef double _pairwise_sum(const double* a, Py_ssize_t n) noexcept nogil:
+    """``a[0] + … + a[n − 1]`` summed as numpy's ``sum`` sums a contiguous float64 row (it
+    then adds the result to 0): in order below 8 terms; else 8 running sums over blocks of 8, combined as ``((r0 + r1) + (r2 +
+    r3)) + ((r4 + r5) + (r6 + r7))``, then the rest in order; halves recursively above 128."""
+    cdef double r[8]
+    cdef double res
+    cdef Py_ssize_t i, j, half
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    if n <= 128:
+        for j in range(8):
+            r[j] = a[j]
+        i = 8
+        while i < n - (n % 8):
+            for j in range(8):
+                r[j] += a[i + j]
+            i += 8
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        while i < n:
+            res += a[i]
+            i += 1
+        return res
+    half = n // 2
+    half -= half % 8
+    return _pairwise_sum(a, half) + _pairwise_sum(a + half, n - half)
+
+
+@cython.cdivision(True)
+def fan_scores(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C,
+               const unsigned char[::1] inside, double threshold, Py_ssize_t below,
+               double mean_area, double spread):
+    """The score of each position ``Q[i]`` (k×3) of a vertex whose star's faces are ``(v,
+    B[m], C[m])`` (d×3 each): the smallest angle (degrees, :func:`_degrees_of_cosine` of
+    :func:`_fan_face`'s cosine; 180 for no face) of the star with ``v`` at ``Q[i]``, or −1
+    where ``inside[i]`` is 0, where more than ``below`` faces are under ``threshold`` degrees
+    (no such test for ``below < 0``), or where the sum (numpy's, :func:`_pairwise_sum`) of
+    the squared relative deviations ``(A / mean_area − 1)²`` of the faces' double areas is
+    above ``spread`` (no such test for a NaN ``mean_area``). Returns (k,) float."""
+    cdef Py_ssize_t i, m, k = Q.shape[0], d = B.shape[0], count
+    cdef double cos, area, angle, low, x
+    score_arr = np.empty(k, dtype=np.float64)
+    dev_arr = np.empty(max(d, 1), dtype=np.float64)
+    cdef double[::1] score = score_arr
+    cdef double[::1] dev = dev_arr
+    for i in range(k):
+        low = 180.0
+        count = 0
+        for m in range(d):
+            _fan_face(&Q[i, 0], &B[m, 0], &C[m, 0], &cos, &area)
+            angle = _degrees_of_cosine(cos)
+            if angle < threshold:
+                count += 1
+            if angle < low:
+                low = angle
+            x = area / mean_area - 1.0
+            dev[m] = x * x
+        if not inside[i] or (below >= 0 and count > below) or \
+                (mean_area == mean_area and 0.0 + _pairwise_sum(&dev[0], d) > spread):
+            score[i] = -1.0
+        else:
+            score[i] = low
+    return score_arr
 
 
 cdef inline double _sphere_face(const double[:, ::1] S, const int64_t[:, ::1] F, Py_ssize_t t,

@@ -51,8 +51,8 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (apex_points, corner_cosines, fan_cosines_areas, fan_shapes_ok,
-                        faces_keep_side, point_faces_distance)
+from .._kernels import (apex_points, corner_cosines, fan_scores, fan_shapes_ok,
+                        faces_keep_side, point_faces_distance, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -694,14 +694,11 @@ class _Patch:
         star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
         angles = self.face_min_angles(star)
         before = float(angles.min())
-        X, x, d = S.X, S.X[v].copy(), len(star)
-        B, C = X[star[:, 1]], X[star[:, 2]]
-        A = np.repeat(x[None], d, axis=0)
-        N = cross(B - A, C - A)
-        ideal = ideal_points(A, B, C, N)
-        targets = np.array([ideal.mean(axis=0), ideal[np.argmin(angles)],
-                            X[np.unique(star[:, 1:])].mean(axis=0)])
-        normal = N.sum(axis=0)
+        x, d = S.X[v].copy(), len(star)
+        # the star's corners and normals, the normals' sum and the relocation targets (the
+        # mean of the faces' ideal points, that of the worst face, the ring's centroid)
+        B, C, N, normal, targets = star_targets(np.ascontiguousarray(S.X, dtype=np.float64),
+                                                star, int(np.argmin(angles)))
         normal /= max(np.linalg.norm(normal), 1e-300)
         D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
@@ -717,14 +714,14 @@ class _Patch:
         P = np.zeros((len(M), 3))
         mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok], walk=MOVE_WALK)
         P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
-        k = len(ok)
-        cos, A2 = fan_cosines_areas(np.ascontiguousarray(P[ok]), B, C)
-        each = angles_of_cosines(cos)
-        more_below = ((each < self.threshold).sum(axis=1) > (angles < self.threshold).sum()
-                      if self.count_below else np.zeros(k, bool))
-        if self.mean_area is not None:         # the evenness guard (spread)
-            more_below |= ((A2 / self.mean_area - 1) ** 2).sum(axis=1) > self.spread(star)
-        score[ok] = np.where(inside & ~more_below, each.min(axis=1, initial=180.0), -1.0)
+        # the smallest angle of the star at each, -1 outside the map or against the guards
+        # (more faces below the threshold; with the evenness guard, a larger spread)
+        score[ok] = fan_scores(np.ascontiguousarray(P[ok]), B, C,
+                               np.ascontiguousarray(inside, dtype=np.bool_).view(np.uint8),
+                               self.threshold,
+                               int((angles < self.threshold).sum()) if self.count_below else -1,
+                               np.nan if self.mean_area is None else self.mean_area,
+                               np.nan if self.mean_area is None else self.spread(star))
         sag_before = None                      # measured for the first candidate asked
         for j in np.argsort(-score)[:3]:
             if score[j] <= max(before, floor):
