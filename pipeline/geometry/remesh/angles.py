@@ -56,7 +56,7 @@ from .._kernels import (apex_points, corner_cosines, fan_scores, fan_shapes_ok,
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
-from ..rows import cross, dots, norms
+from ..rows import cross, norms
 from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching

@@ -156,6 +156,11 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
     into a strip much thinner than the edge on the disk, only a point inside the strip sees
     it, which the midpoint seldom is; hence several ``t``.
 
+    Fewer than ``CHAIN_MIN`` edges (the guards of the local operations) go through one
+    compiled pass (:func:`.._kernels.walked_sags`) when every sample's walk from the face
+    under the nearer end finds it; otherwise, and for more edges, the samples are located in
+    blocks (:func:`lift_along`). Both give the same values, bit for bit.
+
     Parameters
     ----------
     S : RemeshState
