@@ -7,12 +7,11 @@ import numpy as np
 import pytest
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry._kernels import fan_cosines_areas
+from pipeline.geometry._kernels import star_targets
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh.angles import (angles_of_cosines, fan_faces, face_min_angles,
-                                             forced_by_corners, ideal_points, raise_min_angles,
-                                             triangle_min_angles)
+from pipeline.geometry.remesh.angles import (face_min_angles, forced_by_corners,
+                                             raise_min_angles, triangle_min_angles)
 from pipeline.geometry.rows import cross, norms
 from pipeline.geometry.remesh.improve import skinny_faces
 from pipeline.geometry.remesh.state import RemeshState
@@ -25,45 +24,60 @@ def _smallest(S):
     return np.degrees(corner_angles(S.X, S.F)).min()
 
 
-def test_triangle_min_angles_and_ideal_points_are_exact():
-    P0, P1, P2 = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
-    assert abs(triangle_min_angles(P0, P1, P2)[0] - 45.0) < 1e-12
-    # the apex that makes the triangle equilateral, on the side of the given one
-    A = ideal_points(np.array([[0.5, 0.1, 0.0]]), np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]))
-    assert np.allclose(A, [[0.5, np.sqrt(3) / 2, 0.0]])
-    A = ideal_points(np.array([[0.5, -0.1, 0.0]]), np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]))
-    assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
+def _fan_faces(k: int, d: int) -> np.ndarray:
+    """The faces ``(i, k + m, k + d + m)`` of ``k`` positions of a vertex with a star of ``d``
+    faces, the points stacked as ``[positions (k), B (d), C (d)]``, position by position."""
+    T = np.empty((k, d, 3), np.int64)
+    T[:, :, 0] = np.arange(k)[:, None]
+    T[:, :, 1] = k + np.arange(d)
+    T[:, :, 2] = k + d + np.arange(d)
+    return T.reshape(-1, 3)
 
 
-def test_fan_cosines_areas_are_the_numpy_values_bit_for_bit():
-    # the candidate positions of a vertex against its star's far edges, a coincident corner
-    # among them (nan cosine: angle 0): the smallest angles face_min_angles gives the faces
-    # (i, B, C) of the stacked points and the double areas |(B - Q) x (C - Q)|, exactly
-    rng = np.random.default_rng(3)
-    Q = rng.standard_normal((7, 3)) * 10.0 ** rng.uniform(-3, 3, (7, 1))
-    B, C = rng.standard_normal((5, 3)), rng.standard_normal((5, 3))
-    Q[2] = B[1]
-    cos, A2 = fan_cosines_areas(Q, B, C)
-    angle = face_min_angles(np.vstack([Q, B, C]), fan_faces(7, 5)).reshape(7, 5)
-    assert np.array_equal(angles_of_cosines(cos), angle)
-    assert angle[2, 1] == 0.0
+def _fan_angles_areas(Q, B, C):
+    """The numpy formulas of the move's scoring: the smallest angle of each face ``(Q[i], B[m],
+    C[m])`` (:func:`face_min_angles`) and its double area ``|(B − Q) × (C − Q)|`` (k×d each)."""
+    k, d = len(Q), len(B)
+    angle = face_min_angles(np.vstack([Q, B, C]), _fan_faces(k, d)).reshape(k, d)
     Q3 = Q[:, None, :]
-    assert np.array_equal(A2, norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(7, 5))
+    return angle, norms(cross(B[None] - Q3, C[None] - Q3).reshape(-1, 3)).reshape(k, d)
 
 
-def test_ideal_points_are_the_numpy_formula_bit_for_bit():
-    # the apex over the middle of B-C at sqrt(3)/2 |C - B| along the in-plane normal of B-C
-    # turned to A's side, as numpy computes it (a degenerate triangle among them: its mid)
-    rng = np.random.default_rng(5)
-    A, B, C = (rng.standard_normal((9, 3)) * 10.0 ** rng.uniform(-3, 3, (9, 1)) for _ in range(3))
-    A[0] = B[0]
+def _ideal_points(A, B, C):
+    """The apex over the middle of ``B–C`` at ``√3/2 |C − B|`` along the in-plane normal of
+    ``B–C`` turned to ``A``'s side (the equilateral triangle's), as numpy computes it."""
     e, mid = C - B, 0.5 * (B + C)
     w = cross(cross(B - A, C - A), e)
     w /= np.maximum(norms(w), 1e-300)[:, None]
     w *= np.where(np.einsum("ij,ij->i", w, A - mid) >= 0, 1.0, -1.0)[:, None]
-    expected = mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
-    assert np.array_equal(ideal_points(A, B, C), expected)
-    assert np.array_equal(expected[0], mid[0])
+    return mid + (np.sqrt(3.0) / 2.0) * norms(e)[:, None] * w
+
+
+def _apexes(A, B, C):
+    """The move's ideal point of each triangle ``(A, B, C)``: :func:`star_targets`' target of
+    the worst face of the one-face star ``(A, B, C)``."""
+    return np.array([star_targets(np.array([a, b, c]), np.array([[0, 1, 2]], np.int64), 0)[4][1]
+                     for a, b, c in zip(A, B, C)])
+
+
+def test_triangle_min_angles_and_ideal_points_are_exact():
+    P0, P1, P2 = np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]])
+    assert abs(triangle_min_angles(P0, P1, P2)[0] - 45.0) < 1e-12
+    # the apex that makes the triangle equilateral, on the side of the given one
+    A = _apexes(np.array([[0.5, 0.1, 0.0]]), np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]))
+    assert np.allclose(A, [[0.5, np.sqrt(3) / 2, 0.0]])
+    A = _apexes(np.array([[0.5, -0.1, 0.0]]), np.array([[0.0, 0, 0]]), np.array([[1.0, 0, 0]]))
+    assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
+
+
+def test_ideal_points_are_the_numpy_formula_bit_for_bit():
+    # a degenerate triangle among them: its apex is the middle of B-C
+    rng = np.random.default_rng(5)
+    A, B, C = (rng.standard_normal((9, 3)) * 10.0 ** rng.uniform(-3, 3, (9, 1)) for _ in range(3))
+    A[0] = B[0]
+    expected = _ideal_points(A, B, C)
+    assert np.array_equal(_apexes(A, B, C), expected)
+    assert np.array_equal(expected[0], 0.5 * (B[0] + C[0]))
 
 
 def _with_cap():
@@ -382,8 +396,7 @@ def test_fan_scores_are_the_numpy_formula_bit_for_bit(d):
     Q[3] = B[0]                                   # coincident corners
     C[-1] = B[-1] * 2.0 - Q[5] * 1.0              # on the line of Q[5] and B[-1]: degenerate
     inside = rng.random(k) < 0.8
-    cos, A2 = fan_cosines_areas(Q, B, C)
-    each = angles_of_cosines(cos)
+    each, A2 = _fan_angles_areas(Q, B, C)
     below = int(np.median((each < 30.0).sum(axis=1)))
     mean_area = float(A2.mean())
     dev = ((A2 / mean_area - 1) ** 2).sum(axis=1)
@@ -406,8 +419,6 @@ def test_star_targets_are_the_numpy_formula_bit_for_bit():
     the worst face, the centroid of the distinct ring vertices in increasing order), bit for
     bit as numpy computes them — a flat star too, whose normals' zero components are -0.0
     where numpy gives -0.0 and summed from 0 as numpy sums them."""
-    from pipeline.geometry._kernels import star_targets
-
     rng = np.random.default_rng(19)
     for flat in (False, True):
         X = rng.standard_normal((12, 3)) * 10.0 ** rng.uniform(-2, 2, (12, 1))
@@ -422,7 +433,7 @@ def test_star_targets_are_the_numpy_formula_bit_for_bit():
         A = np.repeat(x[None], len(star), axis=0)
         wB, wC = X[star[:, 1]], X[star[:, 2]]
         wN = cross(wB - A, wC - A)
-        ideal = ideal_points(A, wB, wC, wN)
+        ideal = _ideal_points(A, wB, wC)
         want = np.array([ideal.mean(axis=0), ideal[worst], X[np.unique(star[:, 1:])].mean(axis=0)])
         assert _same_bits(B, wB) and _same_bits(C, wC) and _same_bits(N, wN)
         assert _same_bits(total, wN.sum(axis=0)) and _same_bits(T, want)
@@ -430,7 +441,7 @@ def test_star_targets_are_the_numpy_formula_bit_for_bit():
 
 
 def test_fan_shapes_ok_and_faces_keep_side_are_the_numpy_formulas():
-    """:func:`.._kernels.fan_shapes_ok` is ``disk_shape`` of the faces :func:`fan_faces`
+    """:func:`.._kernels.fan_shapes_ok` is ``disk_shape`` of the faces :func:`_fan_faces`
     makes of the stacked points, all at least ``DISK_SHAPE_MIN`` per position (a NaN
     position fails), and :func:`.._kernels.faces_keep_side` is ``(dots(n0, (B − a1) × (C −
     a1)) > 0).all()``: exactly, with both answers among random cases."""
@@ -445,7 +456,7 @@ def test_fan_shapes_ok_and_faces_keep_side_are_the_numpy_formulas():
     M[7] = np.nan
     M[8] = ring[2]                                  # on a corner: flat faces
     U = np.vstack([M, ring, np.roll(ring, -1, axis=0)])
-    want = (disk_shape(U, fan_faces(200, d)) >= DISK_SHAPE_MIN).reshape(200, d).all(axis=1)
+    want = (disk_shape(U, _fan_faces(200, d)) >= DISK_SHAPE_MIN).reshape(200, d).all(axis=1)
     got = fan_shapes_ok(U, 200, d, DISK_SHAPE_MIN)
     assert np.array_equal(got, want) and want.any() and not want.all()
     assert not got[7] and not got[8]

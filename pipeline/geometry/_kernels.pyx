@@ -1071,7 +1071,7 @@ def fan_shapes_ok(const double[:, ::1] U, Py_ssize_t k, Py_ssize_t d, double sha
     """For each of ``k`` positions ``U[i]`` of a vertex whose star has ``d`` faces, whether
     every face ``(i, k + m, k + d + m)`` of the points ``U`` (stacked ``[positions (k), B (d),
     C (d)]``) has a :func:`disk_shapes` value at least ``shape_min`` (k bool; NaN fails):
-    ``(disk_shape(U, fan_faces(k, d)) >= shape_min).reshape(k, d).all(axis=1)``."""
+    ``(disk_shape(U, T) >= shape_min).reshape(k, d).all(axis=1)`` for those faces ``T``."""
     cdef Py_ssize_t i, m
     cdef int64_t b, c
     out_arr = np.ones(k, dtype=np.bool_)
@@ -1261,19 +1261,6 @@ cdef inline void _cross(double ax, double ay, double az, double bx, double by, d
 
 
 @cython.cdivision(True)
-def apex_points(const double[:, ::1] A, const double[:, ::1] B, const double[:, ::1] C,
-                const double[:, ::1] N):
-    """:func:`..remesh.angles.ideal_points` of the triangles ``(A, B, C)`` (k×3 each) with
-    their normals ``N = (B − A) × (C − A)`` (k×3), row by row (:func:`_apex`); k×3."""
-    cdef Py_ssize_t r, k = A.shape[0]
-    out_arr = np.empty((k, 3), dtype=np.float64)
-    cdef double[:, ::1] out = out_arr
-    for r in range(k):
-        _apex(&A[r, 0], &B[r, 0], &C[r, 0], &N[r, 0], &out[r, 0])
-    return out_arr
-
-
-@cython.cdivision(True)
 cdef inline void _apex(const double* a, const double* b, const double* c, const double* n,
                        double* out) noexcept nogil:
     """The apex of the triangle ``(a, b, c)`` with the normal ``n = (b − a) × (c − a)``
@@ -1354,22 +1341,6 @@ def star_targets(const double[:, ::1] X, const int64_t[:, ::1] star, Py_ssize_t 
         T[0, c] = T[0, c] / <double>d
         T[2, c] = T[2, c] / <double>nv
     return B_arr, C_arr, N_arr, S_arr, T_arr
-
-
-@cython.cdivision(True)
-def fan_cosines_areas(const double[:, ::1] Q, const double[:, ::1] B, const double[:, ::1] C):
-    """For each position ``Q[i]`` (k×3) of a vertex ``v`` and each face ``(v, B[m], C[m])``
-    of its star (``B``, ``C``: d×3): the largest cosine of the face's corners with ``v`` at
-    ``Q[i]`` and twice the face's area (:func:`_fan_face`). Returns both as k×d arrays."""
-    cdef Py_ssize_t i, m, k = Q.shape[0], d = B.shape[0]
-    cos_arr = np.empty((k, d), dtype=np.float64)
-    area_arr = np.empty((k, d), dtype=np.float64)
-    cdef double[:, ::1] out_cos = cos_arr
-    cdef double[:, ::1] out_area = area_arr
-    for i in range(k):
-        for m in range(d):
-            _fan_face(&Q[i, 0], &B[m, 0], &C[m, 0], &out_cos[i, m], &out_area[i, m])
-    return cos_arr, area_arr
 
 
 @cython.cdivision(True)

@@ -51,8 +51,8 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (apex_points, corner_cosines, fan_scores, fan_shapes_ok,
-                        faces_keep_side, point_faces_distance, star_targets)
+from .._kernels import (corner_cosines, fan_scores, fan_shapes_ok, faces_keep_side,
+                        point_faces_distance, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -106,27 +106,6 @@ def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
     """The angles (degrees) of the cosines ``cos`` (any shape), 0 where one is nan (a face
     with coincident corners)."""
     return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
-
-
-def ideal_points(A: np.ndarray, B: np.ndarray, C: np.ndarray,
-                 normals: np.ndarray | None = None) -> np.ndarray:
-    """For each triangle ``(A, B, C)`` the point ``A*`` that makes it equilateral: on the side
-    of ``A`` in its plane, at height ``√3/2 · |C − B|`` over the middle of ``B–C`` (compiled:
-    :func:`.._kernels.apex_points`).
-
-    Parameters
-    ----------
-    A, B, C : (k, 3) float
-    normals : (k, 3) float, optional
-        ``(B − A) × (C − A)`` when the caller has it.
-
-    Returns
-    -------
-    (k, 3) float
-    """
-    if normals is None:
-        normals = cross(B - A, C - A)
-    return apex_points(*(np.ascontiguousarray(P, dtype=np.float64) for P in (A, B, C, normals)))
 
 
 def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
@@ -886,17 +865,6 @@ def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
     on the surface often folds a face on the domain, and the next best must be tried."""
     U = np.vstack([M, uv[BC[:, 0]], uv[BC[:, 1]]]).astype(np.float64, copy=False)
     return fan_shapes_ok(U, len(M), len(BC), DISK_SHAPE_MIN)
-
-
-def fan_faces(k: int, d: int) -> np.ndarray:
-    """The faces ``(i, B_m, C_m)`` of ``k`` positions ``i`` of a vertex with a star of ``d``
-    faces ``(v, B_m, C_m)``, as rows of the points stacked as ``[positions (k), B (d), C
-    (d)]``: ``(i, k + m, k + d + m)``, position by position (k·d×3 int)."""
-    T = np.empty((k, d, 3), np.int64)
-    T[:, :, 0] = np.arange(k)[:, None]
-    T[:, :, 1] = k + np.arange(d)
-    T[:, :, 2] = k + d + np.arange(d)
-    return T.reshape(-1, 3)
 
 
 def _rotate_to(f, v) -> list:
