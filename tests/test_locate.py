@@ -272,7 +272,7 @@ def test_a_batch_walks_each_point_as_it_would_alone():
 
     uv, F, loop = grid_mesh(20, 0.3)
     L = PointLocator(uv, F, loop)
-    rows = L._walk_rows()
+    rows = L.walk_table()
     rng = np.random.default_rng(5)
     P = np.ascontiguousarray(rng.uniform(-0.2, 1.2, (500, 2)))
     start = rng.integers(0, len(F), len(P))

@@ -341,7 +341,7 @@ class PointLocator:
         for hint in [face] + ([] if face2 is None else [face2]):
             if len(todo) == 0:
                 break
-            todo = walk_to_faces(self._walk_rows(), P,
+            todo = walk_to_faces(self.walk_table(), P,
                                  np.ascontiguousarray(hint, dtype=np.int64), todo, walk, tol,
                                  face, bary)
         moved = todo
@@ -350,13 +350,9 @@ class PointLocator:
         return face, bary, inside
 
     def walk_table(self) -> np.ndarray:
-        """The walk's table of the faces (:meth:`_walk_rows`), for compiled walks elsewhere
-        (:func:`._kernels.walked_sags`)."""
-        return self._walk_rows()
-
-    def _walk_rows(self) -> np.ndarray:
         """The walk's table of the faces (m×8, computed once): each face's corners and the
-        faces across its edges in one 64-byte row (:func:`._kernels.walk_rows`)."""
+        faces across its edges in one 64-byte row (:func:`._kernels.walk_rows`); read by the
+        compiled walks here and elsewhere (:func:`._kernels.walked_sags`)."""
         if self._rows is None:
             self._rows = walk_rows(self.uv, self.F, topo.interior_edge_twins(self.F))
         return self._rows
