@@ -35,8 +35,9 @@ def _fan_faces(k: int, d: int) -> np.ndarray:
 
 
 def _fan_angles_areas(Q, B, C):
-    """The numpy formulas of the move's scoring: the smallest angle of each face ``(Q[i], B[m],
-    C[m])`` (:func:`face_min_angles`) and its double area ``|(B − Q) × (C − Q)|`` (k×d each)."""
+    """The numpy formulas of the move's scoring: the smallest angle of each face ``(Q[i],
+    B[m], C[m])`` (:func:`face_min_angles`) and its double area ``|(B − Q) × (C − Q)|``
+    (k×d each)."""
     k, d = len(Q), len(B)
     angle = face_min_angles(np.vstack([Q, B, C]), _fan_faces(k, d)).reshape(k, d)
     Q3 = Q[:, None, :]
@@ -451,7 +452,8 @@ def test_fan_shapes_ok_and_faces_keep_side_are_the_numpy_formulas():
 
     rng = np.random.default_rng(23)
     d = 6
-    ring = np.column_stack([np.cos(np.arange(d) * 2 * np.pi / d), np.sin(np.arange(d) * 2 * np.pi / d)])
+    turn = np.arange(d) * 2 * np.pi / d
+    ring = np.column_stack([np.cos(turn), np.sin(turn)])
     M = rng.uniform(-1.2, 1.2, (200, 2))
     M[7] = np.nan
     M[8] = ring[2]                                  # on a corner: flat faces

@@ -1293,9 +1293,9 @@ def star_targets(const double[:, ::1] X, const int64_t[:, ::1] star, Py_ssize_t 
     steps, operation for operation: the corners ``B = X[star[:, 1]]``, ``C = X[star[:, 2]]``,
     the normals ``N = cross(B − X[v], C − X[v])``, their sum (``N.sum(axis=0)``: from 0, in
     row order, as numpy sums along the first axis) and the relocation targets (3×3): the mean
-    of the faces' apexes (:func:`_apex`; summed so, then divided by d), the apex of the face ``worst``, and the mean of
-    ``X`` over the distinct vertices of ``star[:, 1:]`` in increasing order (as
-    ``X[np.unique(...)].mean(axis=0)``)."""
+    of the faces' apexes (:func:`_apex`; summed so, then divided by d), the apex of the face
+    ``worst``, and the mean of ``X`` over the distinct vertices of ``star[:, 1:]`` in
+    increasing order (as ``X[np.unique(...)].mean(axis=0)``)."""
     cdef Py_ssize_t d = star.shape[0], m, c, i, j, nv = 0
     cdef int64_t v = star[0, 0] if d else 0, w
     cdef double x[3]
@@ -1384,8 +1384,9 @@ cdef inline double _degrees_of_cosine(double cos) noexcept nogil:
 
 cdef double _pairwise_sum(const double* a, Py_ssize_t n) noexcept nogil:
     """``a[0] + … + a[n − 1]`` summed as numpy's ``sum`` sums a contiguous float64 row (it
-    then adds the result to 0): in order below 8 terms; else 8 running sums over blocks of 8, combined as ``((r0 + r1) + (r2 +
-    r3)) + ((r4 + r5) + (r6 + r7))``, then the rest in order; halves recursively above 128."""
+    then adds the result to 0): in order below 8 terms; else 8 running sums over blocks of 8,
+    combined as ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))``, then the rest in
+    order; halves recursively above 128."""
     cdef double r[8]
     cdef double res
     cdef Py_ssize_t i, j, half
