@@ -36,7 +36,11 @@ where the map's stretch turns, and the round, judged on the fold count, would be
 its other insertions). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
-after that many in a row that beat no earlier state, none); the remesh ends as the best state:
+after that many in a row that beat no earlier state, none; nor after one that changes nothing
+measurable: as many faces to refine with the same smallest angle, vertices and faces turned
+over as before it, most often its insertions all collapsed again by the caller's operations
+where a ragged rim's teeth leave faces no vertex mends, which the next round would insert
+again); the remesh ends as the best state:
 the fewest faces below the minimum that no input corner forces
 (:func:`.angles.forced_by_corners`), then the largest smallest angle among them, with no more
 faces turned over than at the start (the start itself if no round beat it).
@@ -235,6 +239,7 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     n_folds = len(folds())
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
     stale = 0                              # rounds in a row that beat no earlier state
+    start = (best[0], S.n, n_folds)        # what a round started from, as measured
     for _ in range(rounds):
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
@@ -243,12 +248,17 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
             break
         done += k
         after = unforced_shortfall(S, min_angle_deg)
-        if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
+        n_turned = len(folds())
+        if shortfall_order(after) < shortfall_order(best[0]) and n_turned <= n_folds:
             best, stale = (after, saved_state(S), done), 0
+            start = (after, S.n, n_turned)
             continue
         stale += 1
         if after[0] > RUNAWAY * best[0][0] + RUNAWAY:
             break                          # the rounds make more faces than they mend
+        if (after, S.n, n_turned) == start:
+            break                          # the round changed nothing measurable
+        start = (after, S.n, n_turned)
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])
     return best[2]
