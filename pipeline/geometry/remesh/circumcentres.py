@@ -240,12 +240,14 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
     stale = 0                              # rounds in a row that beat no earlier state
     start = (best[0], S.n, n_folds)        # what a round started from, as measured
+    avoid = np.zeros((0, 3))               # where an earlier round's insertions made folds
     for _ in range(rounds):
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
-        k = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds)
+        k, near_folds = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds, avoid)
         if k == 0:
             break
+        avoid = np.vstack([avoid, near_folds])
         done += k
         after = unforced_shortfall(S, min_angle_deg)
         n_turned = len(folds())
@@ -265,29 +267,33 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
 
 
 def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, folds,
-                    n_folds: int) -> int:
-    """A round of insertions (:func:`insert_round`) and the caller's ``flip(F_before)``;
-    where that leaves more than ``n_folds`` faces turned over (``folds()``, indices), the
-    round made again from the start without the faces with a corner on a fold before or after
-    it (their vertices found by position, :func:`.state.at_points`): the fold repair's to
-    mend, and one fold-making insertion would lose the round its other insertions. Returns
-    how many vertices the round kept inserted."""
+                    n_folds: int, avoid: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """A round of insertions (:func:`insert_round`, none for the faces with a corner at the
+    points ``avoid``, k×3, if given) and the caller's ``flip(F_before)``; where that leaves
+    more than ``n_folds`` faces turned over (``folds()``, indices), the round made again from
+    the start without the faces with a corner on a fold before or after it (their vertices
+    found by position, :func:`.state.at_points`): the fold repair's to mend, and one
+    fold-making insertion would lose the round its other insertions. Returns how many
+    vertices the round kept inserted and the corners of the folds it was made again without
+    (j×3 points; none if it was not)."""
     F0, start = S.F.copy(), saved_state(S)
-    k = insert_round(S, min_angle_deg, caps)
+    skip = None if avoid is None or len(avoid) == 0 else at_points(S.X, avoid)
+    none = np.zeros((0, 3))
+    k = insert_round(S, min_angle_deg, caps, skip=skip)
     if k == 0:
-        return 0
+        return 0, none
     flip(F0)
     turned = folds()
     if len(turned) <= n_folds:
-        return k
+        return k, none
     P = S.X[S.F[turned].ravel()]
     restore_state(S, start)
-    skip = at_points(S.X, P)
-    skip[S.F[folds()].ravel()] = True
-    k = insert_round(S, min_angle_deg, caps, skip=skip)
+    redo = at_points(S.X, P)
+    redo[S.F[folds()].ravel()] = True
+    k = insert_round(S, min_angle_deg, caps, skip=redo if skip is None else redo | skip)
     if k:
         flip(F0)
-    return k
+    return k, S.X[np.flatnonzero(redo)] if k else none
 
 
 def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
