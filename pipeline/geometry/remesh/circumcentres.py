@@ -33,7 +33,8 @@ A round takes one insertion per face, worst face first, those in distinct parts 
 over than at the start is made again without the faces with a corner on a fold before or after
 it (:func:`fold_free_round`: the fold repair's to mend; an insertion there turns faces over
 where the map's stretch turns, and the round, judged on the fold count, would be lost with all
-its other insertions). The rounds go on while there are faces
+its other insertions; the later rounds of the same refinement pass over the faces at those
+folds from their first attempt on). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
 after that many in a row that beat no earlier state, none; nor after one that changes nothing
