@@ -8,8 +8,10 @@ import numpy as np
 from pipeline.geometry.locate import lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh.circumcentres import (EDGE_BARY, cap_split, circumcentre_weights,
-                                                    encroached, off_centre_weights,
-                                                    refine_at_circumcentres,
+                                                    encroached, fold_free_round,
+                                                    off_centre_weights,
+                                                    refine_at_circumcentres, restore_state,
+                                                    saved_state, unforced_below,
                                                     unforced_shortfall)
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
 from pipeline.geometry.remesh.state import RemeshState
@@ -143,6 +145,57 @@ def test_rounds_stop_after_patience_rounds_that_beat_no_earlier_state():
     assert k == 0 and S.log["circumcentre_insertions"] == 0
     assert np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
     assert unforced_shortfall(S, 20.0) == before
+
+
+def test_rounds_stop_after_one_that_changes_nothing_measurable():
+    """On the short rim edge, with a ``flip`` that undoes each round's insertions (as the
+    local operations do where they collapse them all again), every round ends where it
+    started: the rounds stop after the first (not after ``ROUNDS``, there being no
+    patience), no vertex is kept and the remesh is the start."""
+    S = _short_rim_edge_state()
+    start, F0, X0 = saved_state(S), S.F.copy(), S.X.copy()
+    calls = []
+
+    def undo(F_before):
+        calls.append(len(S.F) - len(F_before))
+        restore_state(S, {key: value.copy() for key, value in start.items()})
+
+    k = refine_at_circumcentres(S, 20.0, undo, lambda: turned_over_faces(S))
+    assert len(calls) == 1 and calls[0] > 0
+    assert k == 0 and np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
+
+
+def test_a_round_passes_over_the_faces_at_points_to_avoid():
+    """With ``avoid`` at the corners of every face to refine, a round inserts nothing and
+    leaves the remesh as it was; without, it inserts. Made again without the faces at folds
+    (the two short rim edges and the fold stand-in of the test above), it returns the
+    corners of the faces at folds, ``v`` among them, for the later rounds to avoid, and
+    keeps the far edge's insertions."""
+    S = _short_rim_edge_state()
+    F0, X0 = S.F.copy(), S.X.copy()
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    bad, _ = unforced_below(S, 20.0)
+    k, near = fold_free_round(S, 20.0, False, lambda F: ops.flip(since=F),
+                              lambda: np.zeros(0, np.int64), 0, avoid=S.X[S.F[bad].ravel()])
+    assert k == 0 and len(near) == 0
+    assert np.array_equal(S.F, F0) and np.array_equal(S.X, X0)
+    k, near = fold_free_round(S, 20.0, False, lambda F: ops.flip(since=F),
+                              lambda: np.zeros(0, np.int64), 0)
+    assert k >= 1 and len(near) == 0
+
+    S = _short_rim_edge_state((1, 121))
+    n0, v = S.n, np.flatnonzero(S.locked)[0]
+
+    def folds():
+        new = (np.arange(S.n) >= n0) & (np.linalg.norm(S.uv - S.uv[v], axis=1) < 0.3)
+        return np.flatnonzero((S.F == v).any(axis=1) | new[S.F].any(axis=1))
+
+    ops = _Operations(S, 0.26, True, 20.0, 0.5, 0.2)
+    k, near = fold_free_round(S, 20.0, False, lambda F: ops.flip(since=F), folds,
+                              len(folds()))
+    assert k >= 1 and S.n == n0 + k
+    assert (near == S.X[v]).all(axis=1).any()
+    assert np.linalg.norm(S.uv[n0:] - S.uv[v], axis=1).min() >= 0.3
 
 
 def test_real_mesh_faces_beside_short_rim_edges_are_graded_to_the_minimum():

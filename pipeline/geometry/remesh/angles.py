@@ -515,18 +515,28 @@ class _Patch:
         inner; ``t``'s corners in its order, which of its edges are kept ones
         (``S.joined``), the threshold, the tolerance and the judgement (:attr:`count_below`).
         Equal surroundings give equal options."""
-        S, f = self.S, self.faces[t]
-        around = set(f).union(*(self.ring(v) for v in f))
-        ids = {u for v in around if self.inner[v] for u in self.vf[v]}
-        verts = sorted(set(f).union(*(self.faces[u] for u in ids)))
+        S, f, faces, vf = self.S, self.faces[t], self.faces, self.vf
+        around = set(f)                       # f's corners and their neighbours
+        for v in f:
+            for u in vf[v]:
+                around.update(faces[u])
+        around = list(around)
+        ids = set()
+        for v, inner in zip(around, self.inner[around].tolist()):
+            if inner:
+                ids.update(vf[v])
+        verts = set(f)
+        for u in ids:
+            verts.update(faces[u])
+        verts = sorted(verts)
         label = {v: i for i, v in enumerate(verts)}
-        tris = sorted(_rotate_to(g, min(g)) for g in
-                      ([label[w] for w in self.faces[u]] for u in ids))
+        tris = sorted(_smallest_first(label[a], label[b], label[c])
+                      for a, b, c in (faces[u] for u in ids))
         V = np.asarray(verts, np.int64)
         values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
-                                  S.is_rim[V], self.inner[V]]).astype(np.float64)
+                                  S.is_rim[V], self.inner[V]]).astype(np.float64, copy=False)
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
-        return (values.tobytes(), tuple(map(tuple, tris)), tuple(label[v] for v in f),
+        return (values.tobytes(), tuple(tris), tuple(label[v] for v in f),
                 joined, self.threshold, self.tol, self.count_below, self.first_enough)
 
     def options(self, t) -> list:
@@ -871,6 +881,14 @@ def _rotate_to(f, v) -> list:
     """The face ``f`` (3 vertices) with its corners rotated so that ``v`` comes first."""
     i = f.index(v)
     return [f[i], f[(i + 1) % 3], f[(i + 2) % 3]]
+
+
+def _smallest_first(a: int, b: int, c: int) -> tuple:
+    """The face ``(a, b, c)`` (3 distinct vertices) with its corners rotated so that the
+    smallest comes first."""
+    if a < b and a < c:
+        return a, b, c
+    return (b, c, a) if b < c else (c, a, b)
 
 
 def _same_side(X: np.ndarray, old, new) -> bool:

@@ -33,10 +33,15 @@ A round takes one insertion per face, worst face first, those in distinct parts 
 over than at the start is made again without the faces with a corner on a fold before or after
 it (:func:`fold_free_round`: the fold repair's to mend; an insertion there turns faces over
 where the map's stretch turns, and the round, judged on the fold count, would be lost with all
-its other insertions). The rounds go on while there are faces
+its other insertions; the later rounds of the same refinement pass over the faces at those
+folds from their first attempt on). The rounds go on while there are faces
 to refine, at most ``ROUNDS`` (a round may make things worse on the way to better ones; after
 one that leaves more than ``RUNAWAY`` × the best round's count + 1, or, given ``patience``,
-after that many in a row that beat no earlier state, none); the remesh ends as the best state:
+after that many in a row that beat no earlier state, none; nor after one that changes nothing
+measurable: as many faces to refine with the same smallest angle, vertices and faces turned
+over as before it, most often its insertions all collapsed again by the caller's operations
+where a ragged rim's teeth leave faces no vertex mends, which the next round would insert
+again); the remesh ends as the best state:
 the fewest faces below the minimum that no input corner forces
 (:func:`.angles.forced_by_corners`), then the largest smallest angle among them, with no more
 faces turned over than at the start (the start itself if no round beat it).
@@ -63,6 +68,7 @@ OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edg
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
 CAP_DEG = 120.0       # a face with an angle this wide or wider is a cap: its long edge is split
+LOCATE_WALK = 64      # walk steps locating a target from a known input face
 DRIFT = 1.0           # a target whose lift is farther from it in 3D than this × its distance
                       # to the face's corners (the surface bends away) is not inserted
 _STATE = ("X", "F", "uv", "is_rim", "face", "bary", "locked", "joined")
@@ -112,14 +118,16 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
 
 
 def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
-                      steps: int = NEWTON_STEPS) -> np.ndarray:
+                      steps: int = NEWTON_STEPS, near: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Domain points whose lifts come near the 3D points ``C``: from the first guesses ``c``,
     ``steps`` steps ``c += J⁺ (C − lift(c))`` with the pull-back ``J⁺`` of the input face
     under ``c`` (:meth:`.state.RemeshState.pullback`), each point put back on the domain
     (:func:`.domain.project`: on the sphere, normalised): where the map's stretch changes
     within a remesh face, the face's own affine map carries a point of its plane far from
     where it lifts. A step that does not bring the lift nearer is halved, up to ``HALVINGS``
-    times, then not made.
+    times, then not made. Each point's input face and barycentrics are kept from where it
+    was located last (:func:`_miss`), and a step's point is located by a walk from that face.
 
     Parameters
     ----------
@@ -127,34 +135,46 @@ def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
     c : (k, 2) or (k, 3) float
         Disk points, or points of the sphere's ambient space.
     C : (k, 3) float
+    steps : int
+    near : (k,) int, optional
+        Input faces near the first guesses (e.g. under a corner of the remesh face each one
+        was computed in), where their location walks from.
 
     Returns
     -------
-    (k, 2) or (k, 3) float
+    c : (k, 2) or (k, 3) float
         On the domain.
+    face, bary : (k,) int, (k, 3) float
+        Where they are in the input map.
     """
     c = project(np.array(c, dtype=np.float64))
     J = S.pullback()
-    miss = _miss(S, c, C)
+    miss, mf, mb = _miss(S, c, C, near)
     for _ in range(steps):
-        mf, mb = S.locator.locate(c)
         step = np.einsum("ijk,ik->ij", J[mf], C - lift(S.V_in, S.F_in, mf, mb))
         for _ in range(HALVINGS):
             trial = project(c + step)
-            nxt = _miss(S, trial, C)
+            nxt, tf, tb = _miss(S, trial, C, mf)
             better = nxt < miss
             c[better] = trial[better]
-            miss[better] = nxt[better]
+            miss[better], mf[better], mb[better] = nxt[better], tf[better], tb[better]
             step[better] = 0.0
             step *= 0.5
-    return c
+    return c, mf, mb
 
 
-def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray) -> np.ndarray:
+def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray, near: np.ndarray | None = None
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How far (k) the lifts of the domain points ``c`` (k×2 or k×3) are from the 3D points
-    ``C`` (k×3); infinite for a point outside the input map."""
-    mf, mb, inside = S.locator.locate_with_inside(c)
-    return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf)
+    ``C`` (k×3), infinite for a point outside the input map; and where the points are in the
+    input map (input faces k and barycentrics k×3, :meth:`.locate.PointLocator.locate`, or
+    given input faces ``near`` (k) walked from, up to ``LOCATE_WALK`` steps:
+    :meth:`.locate.PointLocator.relocate`)."""
+    if near is None:
+        mf, mb, inside = S.locator.locate_with_inside(c)
+    else:
+        mf, mb, inside = S.locator.relocate(c, near, walk=LOCATE_WALK)
+    return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf), mf, mb
 
 
 def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -220,49 +240,61 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     n_folds = len(folds())
     best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
     stale = 0                              # rounds in a row that beat no earlier state
+    start = (best[0], S.n, n_folds)        # what a round started from, as measured
+    avoid = np.zeros((0, 3))               # where an earlier round's insertions made folds
     for _ in range(rounds):
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
-        k = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds)
+        k, near_folds = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds, avoid)
         if k == 0:
             break
+        avoid = np.vstack([avoid, near_folds])
         done += k
         after = unforced_shortfall(S, min_angle_deg)
-        if shortfall_order(after) < shortfall_order(best[0]) and len(folds()) <= n_folds:
+        n_turned = len(folds())
+        if shortfall_order(after) < shortfall_order(best[0]) and n_turned <= n_folds:
             best, stale = (after, saved_state(S), done), 0
+            start = (after, S.n, n_turned)
             continue
         stale += 1
         if after[0] > RUNAWAY * best[0][0] + RUNAWAY:
             break                          # the rounds make more faces than they mend
+        if (after, S.n, n_turned) == start:
+            break                          # the round changed nothing measurable
+        start = (after, S.n, n_turned)
     restore_state(S, best[1])
     S.tally("circumcentre_insertions", best[2])
     return best[2]
 
 
 def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, folds,
-                    n_folds: int) -> int:
-    """A round of insertions (:func:`insert_round`) and the caller's ``flip(F_before)``;
-    where that leaves more than ``n_folds`` faces turned over (``folds()``, indices), the
-    round made again from the start without the faces with a corner on a fold before or after
-    it (their vertices found by position, :func:`.state.at_points`): the fold repair's to
-    mend, and one fold-making insertion would lose the round its other insertions. Returns
-    how many vertices the round kept inserted."""
+                    n_folds: int, avoid: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+    """A round of insertions (:func:`insert_round`, none for the faces with a corner at the
+    points ``avoid``, k×3, if given) and the caller's ``flip(F_before)``; where that leaves
+    more than ``n_folds`` faces turned over (``folds()``, indices), the round made again from
+    the start without the faces with a corner on a fold before or after it (their vertices
+    found by position, :func:`.state.at_points`): the fold repair's to mend, and one
+    fold-making insertion would lose the round its other insertions. Returns how many
+    vertices the round kept inserted and the corners of the folds it was made again without
+    (j×3 points; none if it was not)."""
     F0, start = S.F.copy(), saved_state(S)
-    k = insert_round(S, min_angle_deg, caps)
+    skip = None if avoid is None or len(avoid) == 0 else at_points(S.X, avoid)
+    none = np.zeros((0, 3))
+    k = insert_round(S, min_angle_deg, caps, skip=skip)
     if k == 0:
-        return 0
+        return 0, none
     flip(F0)
     turned = folds()
     if len(turned) <= n_folds:
-        return k
+        return k, none
     P = S.X[S.F[turned].ravel()]
     restore_state(S, start)
-    skip = at_points(S.X, P)
-    skip[S.F[folds()].ravel()] = True
-    k = insert_round(S, min_angle_deg, caps, skip=skip)
+    redo = at_points(S.X, P)
+    redo[S.F[folds()].ravel()] = True
+    k = insert_round(S, min_angle_deg, caps, skip=redo if skip is None else redo | skip)
     if k:
         flip(F0)
-    return k
+    return k, S.X[np.flatnonzero(redo)] if k else none
 
 
 def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
@@ -298,13 +330,16 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
     W = off_centre_weights(S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]], OFF_CENTRE_DEG)
     C3 = np.einsum("ij,ijk->ik", W, S.X[T])
     R = norms(C3 - S.X[T[:, 0]])
-    c = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv[T]), C3)
+    c, mf, mb = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv[T]), C3,
+                                  near=S.face[T[:, 0]])
+    drift = norms(lift(S.V_in, S.F_in, mf, mb) - C3)
     f, bary, inside = locate_near(S, c)
     twin = S.twins()
     used = np.zeros(len(S.F), bool)
     edges, faces, points = [], [], []
     for i in range(len(bad)):
-        act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], twin, caps)
+        act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], drift[i],
+                      twin, caps)
         if act is None:
             continue
         kind, h, t = act
@@ -329,13 +364,14 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
 
 
 def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c: np.ndarray,
-            C3: np.ndarray, R: float, twin: np.ndarray, caps: bool = False):
+            C3: np.ndarray, R: float, drift: float, twin: np.ndarray, caps: bool = False):
     """What a round does for the bad face ``bad`` whose off-centre (domain ``c``, 3D ``C3``,
-    ``R`` from the face's first corner) was located in face ``f`` at ``bary`` (``inside`` the
-    remesh or not): with ``caps``, a split of a cap's long edge (:func:`cap_split`); a split
-    of the rim edge it lies beyond or encroaches (``("edge", h, t)`` with ``t`` along the
-    half-edge ``h``, None for the middle), a split of the edge it lies next to, a split of
-    ``f`` at it (``("face", f, None)``), or None when none is allowed."""
+    ``R`` from the face's first corner, ``drift`` from the lift of ``c``) was located in face
+    ``f`` at ``bary`` (``inside`` the remesh or not): with ``caps``, a split of a cap's long
+    edge (:func:`cap_split`); a split of the rim edge it lies beyond or encroaches
+    (``("edge", h, t)`` with ``t`` along the half-edge ``h``, None for the middle), a split
+    of the edge it lies next to, a split of ``f`` at it (``("face", f, None)``), or None when
+    none is allowed."""
     F = S.F
     cap = cap_split(S, bad) if caps else None
     if cap is not None:
@@ -354,8 +390,7 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
                                            # next to a vertex has one
     if not inside:
         return _edge_split(S, h, twin, t) if twin[h] < 0 else None
-    mf, mb = S.locator.locate(c[None])
-    if norms(lift(S.V_in, S.F_in, mf, mb) - C3[None])[0] > DRIFT * R:
+    if drift > DRIFT * R:
         return None
     if bary[j] < EDGE_BARY:
         return _edge_split(S, h, twin, t)

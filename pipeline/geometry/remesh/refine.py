@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..locate import _closest_on_segments
+from ..locate import Segments
 from ..rows import norms, row_min
 from .domain import project
 from .halfedge import (DISK_SHAPE_MIN, disk_shape, edge_lengths, edge_table, independent_edges,
@@ -103,8 +103,14 @@ def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray
     M = project(0.5 * (S.uv[a] + S.uv[b]) if t is None
                 else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
-        _, _, M[on_b] = _closest_on_segments(M[on_b], S.polygon, np.roll(S.polygon, -1, 0))
+        _, _, M[on_b] = S.of_input(polygon_segments).closest(M[on_b])
     return M
+
+
+def polygon_segments(S: RemeshState) -> Segments:
+    """The edges of the image polygon ``S.polygon`` as :class:`.locate.Segments` (for
+    :meth:`.state.RemeshState.of_input`: their search tree built once)."""
+    return Segments(S.polygon, np.roll(S.polygon, -1, 0))
 
 
 def split_balance(S: RemeshState, a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -54,7 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import Delaunay
 
-from ..locate import _closest_on_segments
+from ..locate import Segments
 from .halfedge import double_areas
 
 __all__ = ["DiskSamples", "PATTERNS", "sample_disk", "triangulate_samples", "rim_polygon",
@@ -99,6 +99,7 @@ class _Polygon:
     def __init__(self, P: np.ndarray):
         self.P = P
         self.A, self.B = P, np.roll(P, -1, axis=0)
+        self.segments = Segments(self.A, self.B)     # closest-point queries, tree built once
         seg = np.linalg.norm(self.B - self.A, axis=1)
         self.cum = np.r_[0.0, np.cumsum(seg)]
         self.length = float(self.cum[-1])
@@ -113,7 +114,7 @@ class _Polygon:
 
     def arc_position(self, points: np.ndarray) -> np.ndarray:
         """Arc length (k,) from the first vertex to each point's closest point on the polygon."""
-        seg, t, _ = _closest_on_segments(points, self.A, self.B)
+        seg, t, _ = self.segments.closest(points)
         return self.cum[seg] + t * (self.cum[seg + 1] - self.cum[seg])
 
     def at_arclength(self, s: np.ndarray) -> np.ndarray:
@@ -129,7 +130,7 @@ class _Polygon:
     def inner_distance(self, X: np.ndarray) -> np.ndarray:
         """Signed distance to the polygon, positive inside (the polygon is convex: a SEM image
         is inscribed in the circle with its vertices in angular order)."""
-        seg, _, q = _closest_on_segments(X, self.A, self.B)
+        seg, _, q = self.segments.closest(X)
         d = np.linalg.norm(X - q, axis=1)
         e = self.B[seg] - self.A[seg]
         w = X - self.A[seg]
