@@ -163,6 +163,28 @@ def test_the_notch_ends_of_a_ragged_rim_keep_no_face_turned_over():
 
 
 @pytest.mark.timeout(120)
+def test_a_round_made_again_around_its_folds_survives_collapses_in_the_flips_after_it():
+    """The ragged paraboloid on an 80×80 grid (seed 6, 3 passes dropping 0.3 of the rim faces:
+    4,696 vertices) remeshed at 1,500 vertices: a refinement round of the minimum-angle pass
+    is made again without the faces at the folds it made, and the flips and operations after
+    it collapse vertices, so the corners of those folds must be taken before it (an index
+    past the shrunk vertex array raised ``IndexError``). The remesh completes: one disk, the
+    count, no fold."""
+    from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=80, seed=6, passes=3, drop=0.3)
+    mesh = repair_mesh(V, F)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1500))
+    assert len(r.V) == 1500 and is_disk(mesh_facts(r.V, r.F))
+    assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
+
+
+@pytest.mark.timeout(120)
 def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothing(monkeypatch):
     """The ragged paraboloid on a 50×50 grid (seed 3, 3 passes dropping a quarter of the rim
     faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,

@@ -291,10 +291,11 @@ def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, fold
     restore_state(S, start)
     redo = at_points(S.X, P)
     redo[S.F[folds()].ravel()] = True
+    at_folds = S.X[redo]                # before the round: its flips may collapse vertices
     k = insert_round(S, min_angle_deg, caps, skip=redo if skip is None else redo | skip)
     if k:
         flip(F0)
-    return k, S.X[np.flatnonzero(redo)] if k else none
+    return k, at_folds if k else none
 
 
 def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
