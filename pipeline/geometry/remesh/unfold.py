@@ -42,6 +42,13 @@ across the input's normals there with the region's outline flipped in
 (:func:`chart_triangulation`, :func:`recover_edges`) — where the outline is a simple polygon in
 that plane and the faces are counter-clockwise and not thin on the domain; of the rings, the
 one with the best score.
+
+Where neither removes the fold — at a ragged rim's notch end beside a locked spike tip, the
+fold's rim corners the locked tip and a vertex on the notch, each operation there leaving the
+fold count as it was — a rim collapse at the fold that keeps the count is made
+(:meth:`_FoldPatch.two_step`, under the rim collapses' guards) where an operation at the faces
+it makes then removes a fold, and the two are made together; where none does, the collapse is
+put back.
 """
 
 from __future__ import annotations
@@ -240,6 +247,7 @@ class _FoldPatch(_Patch):
         self.inner = np.zeros(S.n, bool)       # those the other operations may change
         self.inner[S.F[faces_within(S.F, folds, 0, S.n)].ravel()] = True
         self.own = set(np.flatnonzero(touching(S.F, self.inner)).tolist())
+        self.least_removed = 1                 # the folds an operation must remove (better)
 
     def n_folds(self, tris) -> int:
         """How many of the faces ``tris`` (lists of 3 vertices) are turned over."""
@@ -247,9 +255,11 @@ class _FoldPatch(_Patch):
 
     def better(self, old, new) -> float | None:
         """The score of replacing the faces ``old`` by ``new`` (``FOLD_WEIGHT`` × the folds
-        removed + the smallest angle of ``new``) if ``new`` has fewer folds, else None."""
+        removed + the smallest angle of ``new``) if ``new`` has at least ``least_removed``
+        fewer folds (1; 0 for the first step of :meth:`two_step`), else None."""
         removed = self.n_folds(old) - self.n_folds(new)
-        return FOLD_WEIGHT * removed + self.min_angle(new) if removed > 0 else None
+        return FOLD_WEIGHT * removed + self.min_angle(new) if removed >= self.least_removed \
+            else None
 
     def same_side(self, old, new) -> bool:
         """No test against the old faces' summed normal: it counts a fold's own turned normal
@@ -410,28 +420,96 @@ class _FoldPatch(_Patch):
             return ids
         return FOLD_WEIGHT * (now - n_after) + angle, commit
 
+    def best_at(self, t):
+        """The best operation at face ``t`` (:meth:`.angles._Patch.options`): the
+        ``(score, commit)`` with the highest score (the first of equals), or None where none
+        removes a fold."""
+        return max((op for op in (option() for option in self.options(t)) if op is not None),
+                   key=lambda op: op[0], default=None)
+
+    def rim_pairs(self, t) -> list:
+        """The rim edges at the rim corners of face ``t``: ``(r, k)``, each rim corner ``r``
+        with each of its neighbours ``k`` along the rim."""
+        return [(r, k) for r in self.faces[t] if self.S.is_rim[r]
+                for k in [w for w in self.ring(r) if len(self.edge_faces(r, w)) == 1]]
+
+    def level_collapse(self, r, k):
+        """:meth:`.angles._Patch.collapse` of ``r`` into ``k`` under its guards
+        (:meth:`removable`, the link condition, the faces' shapes, :meth:`rim_chord_ok`) with
+        ``least_removed`` 0: allowed where it leaves the folds of the faces it changes no more
+        than before."""
+        self.least_removed = 0
+        try:
+            return self.collapse(r, k)
+        finally:
+            self.least_removed = 1
+
+    def snapshot(self) -> tuple:
+        """The patch's faces, incidences, removals and next face id, for :meth:`restore`
+        (positions are not saved: a collapse does not change them)."""
+        return (dict(self.faces), {v: set(s) for v, s in self.vf.items()},
+                self.removed.copy(), self.next_id)
+
+    def restore(self, saved: tuple) -> None:
+        """Put back the patch as :meth:`snapshot` saved it."""
+        self.faces, vf, self.removed, self.next_id = saved
+        self.vf.clear()
+        self.vf.update(vf)
+
+    def two_step(self, t) -> list | None:
+        """Where no single operation and no chart removes the fold ``t``: a rim collapse at it
+        that keeps the fold count (:meth:`rim_pairs`, :meth:`level_collapse`), kept only where
+        an operation at the faces it makes then removes a fold (:meth:`best_at`), made with
+        it; else put back (:meth:`snapshot`, :meth:`restore`). Returns the ids of the faces the two made, or
+        None where no pair does.
+
+        At a ragged rim's notch end beside a locked spike tip, the fold's rim corners are the
+        locked tip and a vertex whose removal moves the fold to a face the second operation
+        undoes: each alone leaves the fold count as it was."""
+        for r, k in self.rim_pairs(t):
+            first = self.level_collapse(r, k)
+            if first is None:
+                continue
+            saved = self.snapshot()
+            made = first[1]()
+            second = None
+            for u in made:
+                if u in self.faces and self.n_folds([self.faces[u]]):
+                    op = self.best_at(u)
+                    if op is not None and (second is None or op[0] > second[0]):
+                        second = op
+            if second is not None:
+                self.S.tally("fold_two_steps", 1)
+                return made + list(second[1]())
+            self.restore(saved)
+        return None
+
     def unfold(self, max_operations: int) -> int:
-        """Fold after fold: the best operation at it (:meth:`.angles._Patch.options`), or its
-        chart triangulation (:meth:`chart`) where that removes more folds than the best of
-        them, the folds it makes taken up in turn, until none is left or none helps; returns
-        the number made."""
+        """Fold after fold: the best operation at it (:meth:`best_at`), or its chart
+        triangulation (:meth:`chart`) where that removes more folds than the best of them, or
+        where neither removes one, a rim collapse and an operation after it
+        (:meth:`two_step`, two operations); the folds it makes taken up in turn, until none is
+        left or none helps; returns the number made."""
         queue = [t for t in self.start if t in self.faces]
         done = 0
         while queue and done < max_operations:
             t = queue.pop()
             if t not in self.faces or not self.n_folds([self.faces[t]]):
                 continue
-            best = max((op for op in (option() for option in self.options(t)) if op is not None),
-                       key=lambda op: op[0], default=None)
+            best = self.best_at(t)
             chart = self.chart(t)
             if chart is not None and (best is None or
                                       chart[0] // FOLD_WEIGHT > best[0] // FOLD_WEIGHT):
                 best = chart
-            if best is None:
-                continue
-            done += 1
-            queue.extend(f for f in best[1]()
-                         if f in self.faces and self.n_folds([self.faces[f]]))
+            if best is not None:
+                done += 1
+                made = best[1]()
+            else:
+                made = self.two_step(t)
+                if made is None:
+                    continue
+                done += 2
+            queue.extend(f for f in made if f in self.faces and self.n_folds([self.faces[f]]))
         return done
 
 
