@@ -324,3 +324,30 @@ def test_notch_ends_resolved_finer_than_the_input_keep_no_face_turned_over():
     assert r.info["improve"]["fold_charts"] >= 1
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] == 0
+
+
+@pytest.mark.timeout(120)
+def test_a_fold_no_single_operation_undoes_is_undone_by_a_rim_collapse_and_one_after_it():
+    """The ragged paraboloid of seed 2 on an 80×80 grid with 3 passes dropping 0.3 of the rim's
+    faces (4,660 vertices) remeshed at 600 vertices: at a rim fold where no flip, collapse,
+    move or chart removes a fold, a rim collapse that keeps the fold count, then an operation
+    at the faces it makes, does (:meth:`.unfold._FoldPatch.two_step`, made twice): one disk of
+    600 vertices and 1,022 faces, no face turned over by the report's test, 8 faces below 20°
+    of which 5 no input corner forces. Without the two-step, 1 fold is left, 599 vertices,
+    11 faces below 20° (5 unforced)."""
+    from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3)
+    mesh = repair_mesh(V, F)
+    assert len(mesh.V) == 4660
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    assert (len(r.V), len(r.F)) == (600, 1022) and is_disk(mesh_facts(r.V, r.F))
+    assert r.info["improve"]["fold_two_steps"] == 2
+    assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
+    below = r.info["improve"]["below_min_angle"]
+    assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (8, 3, 5)
