@@ -25,10 +25,10 @@ angle (:func:`star_grid`: a barycentric grid over each face of the star, and the
 vertices under the star — where the map is that anisotropic the good positions are a small
 part of the domain star, often at the input vertex where the stretch turns, which a pull-back
 step would miss), among those that keep the star counter-clockwise and not thinner than
-``DISK_SHAPE_MIN`` on the domain (:func:`.angles.star_shapes_ok`). Every operation removes a
-fold, so the pass ends; no sag or gap guard but the rim collapses' (the folds are where the
-remesh already leaves the surface) and no angle floor (the minimum-angle pass comes after and
-raises what the operations leave skinny).
+``DISK_SHAPE_MIN`` on the domain (:func:`.angles.star_shapes_ok`). Every operation (and every
+two-step, below) removes a fold, so the pass ends; no sag or gap guard but the rim collapses'
+(the folds are where the remesh already leaves the surface) and no angle floor (the
+minimum-angle pass comes after and raises what the operations leave skinny).
 
 Where the input's boundary turns back on itself (a notch's end of a ragged rim, an input
 vertex whose faces span up to 360° squeezed into half a turn on the domain) and the remesh is
