@@ -48,7 +48,9 @@ fold's rim corners the locked tip and a vertex on the notch, each operation ther
 fold count as it was — a rim collapse at the fold that keeps the count is made
 (:meth:`_FoldPatch.two_step`, under the rim collapses' guards) where an operation at the faces
 it makes then removes a fold, and the two are made together; where none does, the collapse is
-put back.
+put back. The two-steps come last, once the single operations and charts have done what they
+can at every other fold: a fold set aside may be removed by an operation at a neighbouring
+one, and a two-step made earlier sets the later operations on another course.
 """
 
 from __future__ import annotations
@@ -486,13 +488,25 @@ class _FoldPatch(_Patch):
 
     def unfold(self, max_operations: int) -> int:
         """Fold after fold: the best operation at it (:meth:`best_at`), or its chart
-        triangulation (:meth:`chart`) where that removes more folds than the best of them, or
-        where neither removes one, a rim collapse and an operation after it
-        (:meth:`two_step`, two operations); the folds it makes taken up in turn, until none is
-        left or none helps; returns the number made."""
+        triangulation (:meth:`chart`) where that removes more folds than the best of them, the
+        folds it makes taken up in turn; the folds neither removes set aside, and once no
+        other fold is left, a rim collapse and an operation after it at each of them still
+        turned over (:meth:`two_step`, two operations), the folds it makes taken up in turn as
+        before; until none is left or none helps. Returns the number made."""
         queue = [t for t in self.start if t in self.faces]
+        stuck = []
         done = 0
-        while queue and done < max_operations:
+        while (queue or stuck) and done < max_operations:
+            if not queue:
+                t = stuck.pop()
+                if t not in self.faces or not self.n_folds([self.faces[t]]):
+                    continue
+                made = self.two_step(t)
+                if made is None:
+                    continue
+                done += 2
+                queue.extend(f for f in made if f in self.faces and self.n_folds([self.faces[f]]))
+                continue
             t = queue.pop()
             if t not in self.faces or not self.n_folds([self.faces[t]]):
                 continue
@@ -501,15 +515,11 @@ class _FoldPatch(_Patch):
             if chart is not None and (best is None or
                                       chart[0] // FOLD_WEIGHT > best[0] // FOLD_WEIGHT):
                 best = chart
-            if best is not None:
-                done += 1
-                made = best[1]()
-            else:
-                made = self.two_step(t)
-                if made is None:
-                    continue
-                done += 2
-            queue.extend(f for f in made if f in self.faces and self.n_folds([self.faces[f]]))
+            if best is None:
+                stuck.append(t)
+                continue
+            done += 1
+            queue.extend(f for f in best[1]() if f in self.faces and self.n_folds([self.faces[f]]))
         return done
 
 
