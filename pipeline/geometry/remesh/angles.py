@@ -342,10 +342,13 @@ class _Patch:
         if judge is not None:
             self.group = inner_groups(S.F[self.rows], inner)
             self.original = dict(self.faces)
-            at = np.flatnonzero(inner)
-            self.saved_at = (at, S.X[at].copy(), S.uv[at].copy(), S.face[at].copy(),
-                             S.bary[at].copy())
+            self.saved_at = self.positions(np.flatnonzero(inner))
             self.before = self.group_measures(self.original)
+
+    def positions(self, at: np.ndarray) -> tuple:
+        """``(at, X, uv, face, bary)``: copies of the positions of the vertices ``at`` (k,)."""
+        S = self.S
+        return at, S.X[at].copy(), S.uv[at].copy(), S.face[at].copy(), S.bary[at].copy()
 
     # ------------------------------------------------------------------------------ measures
 

@@ -47,10 +47,11 @@ Where neither removes the fold — at a ragged rim's notch end beside a locked s
 fold's rim corners the locked tip and a vertex on the notch, each operation there leaving the
 fold count as it was — a rim collapse at the fold that keeps the count is made
 (:meth:`_FoldPatch.two_step`, under the rim collapses' guards) where an operation at the faces
-it makes then removes a fold, and the two are made together; where none does, the collapse is
-put back. The two-steps come last, once the single operations and charts have done what they
-can at every other fold: a fold set aside may be removed by an operation at a neighbouring
-one, and a two-step made earlier sets the later operations on another course.
+it makes then removes a fold and the two leave no smaller smallest angle among the faces they
+change, and the two are made together; where none does, the collapse is put back. The two-steps
+come last, once the single operations and charts have done what they can at every other fold: a
+fold set aside may be removed by an operation at a neighbouring one, and a two-step made
+earlier sets the later operations on another course.
 """
 
 from __future__ import annotations
@@ -63,7 +64,8 @@ from .. import topology as topo
 from ..locate import lift
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms
-from .angles import _Patch, input_vertex_under, star_shapes_ok, triangle_min_angles
+from .angles import (_Patch, face_min_angles, input_vertex_under, star_shapes_ok,
+                     triangle_min_angles)
 from .domain import project
 from .fidelity import input_distance
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, touching
@@ -447,27 +449,48 @@ class _FoldPatch(_Patch):
             self.least_removed = 1
 
     def snapshot(self) -> tuple:
-        """The patch's faces, incidences, removals and next face id, for :meth:`restore`
-        (positions are not saved: a collapse does not change them)."""
+        """The patch's faces, incidences, removals and next face id, and the positions of its
+        inner vertices (:meth:`.angles._Patch.positions`), for :meth:`restore`."""
         return (dict(self.faces), {v: set(s) for v, s in self.vf.items()},
-                self.removed.copy(), self.next_id)
+                self.removed.copy(), self.next_id, self.positions(np.flatnonzero(self.inner)))
 
     def restore(self, saved: tuple) -> None:
         """Put back the patch as :meth:`snapshot` saved it."""
-        self.faces, vf, self.removed, self.next_id = saved
+        self.faces, vf, self.removed, self.next_id, (at, X, uv, face, bary) = saved
         self.vf.clear()
         self.vf.update(vf)
+        S = self.S
+        S.X[at], S.uv[at], S.face[at], S.bary[at] = X, uv, face, bary
+
+    def keeps_smallest_angle(self, saved: tuple) -> bool:
+        """Whether the faces changed since :meth:`snapshot` saved ``saved`` (their corners, or
+        a corner's position) have no smaller smallest angle than the faces they replaced, each
+        measured at its own positions."""
+        faces, at, X0 = saved[0], saved[4][0], saved[4][1]
+        moved = set(at[(self.S.X[at] != X0).any(axis=1)].tolist())
+        old = [f for t, f in faces.items() if self.faces.get(t) != f or moved.intersection(f)]
+        new = [f for t, f in self.faces.items() if faces.get(t) != f or moved.intersection(f)]
+        X = self.S.X.copy()
+        X[at] = X0
+        return self.min_angle(new) >= float(face_min_angles(X, np.asarray(old, np.int64)
+                                                             .reshape(-1, 3)).min(initial=180.0))
 
     def two_step(self, t) -> list | None:
         """Where no single operation and no chart removes the fold ``t``: a rim collapse at it
         that keeps the fold count (:meth:`rim_pairs`, :meth:`level_collapse`), kept only where
-        an operation at the faces it makes then removes a fold (:meth:`best_at`), made with
-        it; else put back (:meth:`snapshot`, :meth:`restore`). Returns the ids of the faces the two made, or
-        None where no pair does.
+        an operation at the faces it makes then removes a fold (:meth:`best_at`) and the two
+        leave no smaller smallest angle among the faces they change
+        (:meth:`keeps_smallest_angle`), made with it; else put back (:meth:`snapshot`,
+        :meth:`restore`). Returns the ids of the faces the two made, or None where no pair
+        does.
 
         At a ragged rim's notch end beside a locked spike tip, the fold's rim corners are the
         locked tip and a vertex whose removal moves the fold to a face the second operation
-        undoes: each alone leaves the fold count as it was."""
+        undoes: each alone leaves the fold count as it was. The angle test keeps the pair from
+        trading a fold for a face the later steps cannot raise: where it makes one skinnier
+        than any it replaced, the fold stays rather (the refinements after it, undone where
+        they add a fold, may have to leave faces below the minimum elsewhere to keep from
+        turning the spot over again)."""
         for r, k in self.rim_pairs(t):
             first = self.level_collapse(r, k)
             if first is None:
@@ -481,8 +504,10 @@ class _FoldPatch(_Patch):
                     if op is not None and (second is None or op[0] > second[0]):
                         second = op
             if second is not None:
-                self.S.tally("fold_two_steps", 1)
-                return made + list(second[1]())
+                made = made + list(second[1]())
+                if self.keeps_smallest_angle(saved):
+                    self.S.tally("fold_two_steps", 1)
+                    return made
             self.restore(saved)
         return None
 
