@@ -486,11 +486,11 @@ class _FoldPatch(_Patch):
 
         At a ragged rim's notch end beside a locked spike tip, the fold's rim corners are the
         locked tip and a vertex whose removal moves the fold to a face the second operation
-        undoes: each alone leaves the fold count as it was. The angle test keeps the pair from
-        trading a fold for a face the later steps cannot raise: where it makes one skinnier
-        than any it replaced, the fold stays rather (the refinements after it, undone where
-        they add a fold, may have to leave faces below the minimum elsewhere to keep from
-        turning the spot over again)."""
+        undoes: each alone leaves the fold count as it was. A pair that makes a face skinnier
+        than any it replaced leaves the fold instead: the minimum-angle pass would have to
+        raise that face where the remesh folded, and its refinements, undone as a whole where
+        they turn a face over, can turn that spot over again and so leave faces below the
+        minimum elsewhere that they would have raised."""
         for r, k in self.rim_pairs(t):
             first = self.level_collapse(r, k)
             if first is None:
