@@ -394,7 +394,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     lap("rim_fans")
     followed = S.X[S.locked].copy()
     S.locked = at_points(S.X, corners)         # the followed vertices free again
-    ops.repair_folds(target)
+    ops.repair_folds(target, floor=min_angle_deg)
     lap("folds")
     if min_angle_deg > 0:
         ops.guarantee(target, min_angle_deg, kept=(followed, corners))
@@ -1020,7 +1020,7 @@ class _Operations:
             return False
         return True
 
-    def repair_folds(self, target: int, passes: int = 3) -> None:
+    def repair_folds(self, target: int, passes: int = 3, floor: float = 0.0) -> None:
         """Undo the folds (:func:`turned_over_faces`) by the local operations judged on them
         (:meth:`unfold`); then, for the folds left, collapse an edge between interior corners
         of each, shortest first (:meth:`collapse_at_faces`), under the sag and gap guards, then
@@ -1029,12 +1029,14 @@ class _Operations:
         over where the map is that anisotropic). Where a fold has a rim corner, the local
         operations may also remove rim vertices on reflex input corners where that leaves the
         input no farther from the remesh than its farthest point is now (:attr:`chord`,
-        :func:`.fidelity.input_reach`; these and the later ones of :meth:`unfold_kept`)."""
+        :func:`.fidelity.input_reach`; these and the later ones of :meth:`unfold_kept`). The
+        two-steps of the local operations push no face below ``floor`` (degrees) where none
+        of those they replace was."""
         S = self.S
         folds = lambda: np.flatnonzero(self.folds(S))        # noqa: E731
         if self.tol is not None and S.is_rim[S.F[folds()]].any():
             self.chord = input_reach(S, self.tol)
-        self.unfold()
+        self.unfold(floor=floor)
         for guard in (self.tol, None):
             n_folds = len(folds())
             if n_folds == 0:
@@ -1042,7 +1044,7 @@ class _Operations:
             saved = self.saved()
             self.collapse_at_faces(target, folds, "folds_repaired", passes, rim=False,
                                    guard=guard)
-            self.unfold()
+            self.unfold(floor=floor)
             if len(folds()) >= n_folds:
                 self.restore(saved)
 
@@ -1070,7 +1072,7 @@ class _Operations:
             before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
             rim = int(S.is_rim.sum())
             corners = S.X[S.F[at].ravel()]
-            self.unfold(at)
+            self.unfold(at, floor=min_angle_deg)
             if S.is_rim.sum() < rim:
                 split_for_count(S, rim - int(S.is_rim.sum()), min_angle_deg)
             self.raise_angles(min_angle_deg)
@@ -1081,15 +1083,15 @@ class _Operations:
                 self.restore(saved)
                 tried = np.vstack([tried, corners])
 
-    def unfold(self, bad: np.ndarray | None = None) -> None:
+    def unfold(self, bad: np.ndarray | None = None, floor: float = 0.0) -> None:
         """The local operations around the folds ``bad`` (face indices; default: all of them,
-        :func:`.unfold.unfold_locally`), the feature vertices at them freed first
-        (:meth:`release`)."""
+        :func:`.unfold.unfold_locally`, its two-steps under ``floor``, degrees), the feature
+        vertices at them freed first (:meth:`release`)."""
         if bad is None:
             bad = np.flatnonzero(self.folds(self.S))
         if len(bad):
             self.release(bad)
-            unfold_locally(self.S, bad, chord=self.chord)
+            unfold_locally(self.S, bad, chord=self.chord, floor=floor)
 
     def saved(self) -> tuple:
         """The state of the remesh, its log and the fold counts (:attr:`folds`), for

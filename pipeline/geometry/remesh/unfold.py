@@ -47,11 +47,11 @@ Where neither removes the fold — at a ragged rim's notch end beside a locked s
 fold's rim corners the locked tip and a vertex on the notch, each operation there leaving the
 fold count as it was — a rim collapse at the fold that keeps the count is made
 (:meth:`_FoldPatch.two_step`, under the rim collapses' guards) where an operation at the faces
-it makes then removes a fold and the two leave no smaller smallest angle among the faces they
-change, and the two are made together; where none does, the collapse is put back. The two-steps
-come last, once the single operations and charts have done what they can at every other fold: a
-fold set aside may be removed by an operation at a neighbouring one, and a two-step made
-earlier sets the later operations on another course.
+it makes then removes a fold and the two push no face below the minimum angle where none of
+those they replaced was, and the two are made together; where none does, the collapse is put
+back. The two-steps come last, once the single operations and charts have done what they can at
+every other fold: a fold set aside may be removed by an operation at a neighbouring one, and a
+two-step made earlier sets the later operations on another course.
 """
 
 from __future__ import annotations
@@ -208,7 +208,8 @@ def star_grid(uv: np.ndarray, star: np.ndarray, steps: int = GRID) -> np.ndarray
     return project(np.einsum("gc,dck->dgk", ijk, uv[star]).reshape(-1, uv.shape[1]))
 
 
-def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None) -> int:
+def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None,
+                   floor: float = 0.0) -> int:
     """The local operations around the faces ``folds`` (turned over), each made only where it
     leaves fewer of the faces it changes turned over (module docstring); returns the number
     made.
@@ -223,6 +224,9 @@ def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None
         With it, a collapse may also remove a rim vertex that stands on a reflex corner of
         the input boundary along the rim (:meth:`_FoldPatch.removable`) where that leaves the
         input no farther than ``chord`` from the remesh (:meth:`_FoldPatch.rim_chord_ok`).
+    floor : float
+        The minimum angle (degrees) a two-step may not push the faces it changes below
+        (:meth:`_FoldPatch.keeps_floor`).
 
     Returns
     -------
@@ -230,7 +234,7 @@ def unfold_locally(S: RemeshState, folds: np.ndarray, chord: float | None = None
     """
     if len(folds) == 0:
         return 0
-    patch = _FoldPatch(S, folds, chord)
+    patch = _FoldPatch(S, folds, chord, floor)
     done = patch.unfold(OPERATIONS_PER_FOLD * len(folds))
     patch.write_back()
     S.tally("fold_operations", done)
@@ -241,12 +245,14 @@ class _FoldPatch(_Patch):
     """The patch of :mod:`.angles` around some folds, its operations judged by the faces they
     leave turned over (:func:`turned_over`) rather than by angles alone; no guards (``tol``
     None) but the rim collapses', ``chord`` (:meth:`rim_chord_ok`; None: no rim vertex
-    removed)."""
+    removed), and the two-steps' ``floor`` (:meth:`keeps_floor`)."""
 
-    def __init__(self, S: RemeshState, folds: np.ndarray, chord: float | None = None):
+    def __init__(self, S: RemeshState, folds: np.ndarray, chord: float | None = None,
+                 floor: float = 0.0):
         super().__init__(S, faces_within(S.F, folds, CHART_RINGS - 2, S.n), None)
         self.start = [int(t) for t in folds]
         self.chord = chord
+        self.floor = floor
         self.wide = self.inner                 # the vertices a chart's region may hold
         self.inner = np.zeros(S.n, bool)       # those the other operations may change
         self.inner[S.F[faces_within(S.F, folds, 0, S.n)].ravel()] = True
@@ -462,35 +468,36 @@ class _FoldPatch(_Patch):
         S = self.S
         S.X[at], S.uv[at], S.face[at], S.bary[at] = X, uv, face, bary
 
-    def keeps_smallest_angle(self, saved: tuple) -> bool:
+    def keeps_floor(self, saved: tuple) -> bool:
         """Whether the faces changed since :meth:`snapshot` saved ``saved`` (their corners, or
-        a corner's position) have no smaller smallest angle than the faces they replaced, each
-        measured at its own positions."""
+        a corner's position) have no smallest angle below :attr:`floor`, or one of the faces
+        they replaced had (each measured at its own positions)."""
         faces, at, X0 = saved[0], saved[4][0], saved[4][1]
         moved = set(at[(self.S.X[at] != X0).any(axis=1)].tolist())
-        old = [f for t, f in faces.items() if self.faces.get(t) != f or moved.intersection(f)]
         new = [f for t, f in self.faces.items() if faces.get(t) != f or moved.intersection(f)]
+        if self.min_angle(new) >= self.floor:
+            return True
+        old = [f for t, f in faces.items() if self.faces.get(t) != f or moved.intersection(f)]
         X = self.S.X.copy()
         X[at] = X0
-        return self.min_angle(new) >= float(face_min_angles(X, np.asarray(old, np.int64)
-                                                             .reshape(-1, 3)).min(initial=180.0))
+        return bool((face_min_angles(X, np.asarray(old, np.int64).reshape(-1, 3))
+                     < self.floor).any())
 
     def two_step(self, t) -> list | None:
         """Where no single operation and no chart removes the fold ``t``: a rim collapse at it
         that keeps the fold count (:meth:`rim_pairs`, :meth:`level_collapse`), kept only where
         an operation at the faces it makes then removes a fold (:meth:`best_at`) and the two
-        leave no smaller smallest angle among the faces they change
-        (:meth:`keeps_smallest_angle`), made with it; else put back (:meth:`snapshot`,
-        :meth:`restore`). Returns the ids of the faces the two made, or None where no pair
-        does.
+        push none of the faces they change below the floor (:meth:`keeps_floor`), made with
+        it; else put back (:meth:`snapshot`, :meth:`restore`). Returns the ids of the faces
+        the two made, or None where no pair does.
 
         At a ragged rim's notch end beside a locked spike tip, the fold's rim corners are the
         locked tip and a vertex whose removal moves the fold to a face the second operation
-        undoes: each alone leaves the fold count as it was. A pair that makes a face skinnier
-        than any it replaced leaves the fold instead: the minimum-angle pass would have to
-        raise that face where the remesh folded, and its refinements, undone as a whole where
-        they turn a face over, can turn that spot over again and so leave faces below the
-        minimum elsewhere that they would have raised."""
+        undoes: each alone leaves the fold count as it was. A pair that makes a face below the
+        floor where none of those it replaced was leaves the fold instead: the minimum-angle
+        pass would have to raise that face where the remesh folded, and its refinements,
+        undone as a whole where they turn a face over, can turn that spot over again and so
+        leave faces below the minimum elsewhere that they would have raised."""
         for r, k in self.rim_pairs(t):
             first = self.level_collapse(r, k)
             if first is None:
@@ -505,7 +512,7 @@ class _FoldPatch(_Patch):
                         second = op
             if second is not None:
                 made = made + list(second[1]())
-                if self.keeps_smallest_angle(saved):
+                if self.keeps_floor(saved):
                     self.S.tally("fold_two_steps", 1)
                     return made
             self.restore(saved)
