@@ -36,7 +36,7 @@ from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
                               middle_offsets)
 from ..rows import norms, row_min
 from .corners import snap_vertices
-from .domain import locator, project
+from .domain import locate_once, project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
 from .sag import edge_sag_along, lift_samples
@@ -147,7 +147,7 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     Where the input has at least ``VERTICES_PER_FACE_TO_BOUND`` vertices per remesh face (a
     fine input remeshed coarsely), each vertex is first bounded by its exact distance to the
     remesh face over it on the domain (a point location in the remesh's own triangulation,
-    :func:`.domain.locator`); only the vertices whose bound may reach ``tol``
+    :func:`.domain.locate_once`); only the vertices whose bound may reach ``tol``
     (:func:`..remesh_quality.may_reach`) are measured (``measure``). A bound at most ``tol``
     leaves the vertex, and every midpoint or centroid bounded through it, no farther than
     ``tol``, as its distance would.
@@ -168,7 +168,7 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     nv = len(pts.vertices)
     if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
         return measure(pts.P[:nv])
-    face, _ = locator(S.uv, S.F).locate(pts.P_uv[:nv])
+    face = locate_once(S.uv, S.F, pts.P_uv[:nv])
     d = candidate_face_distances(pts.P[:nv], face[:, None], measure)
     ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
     d[ask], face[ask] = measure(pts.P[ask])
