@@ -10,7 +10,7 @@ import pytest
 from pipeline.geometry import topology as topo
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input,
+from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input, input_beyond,
                                               input_point_tree, input_points, remesh_reach,
                                               settle_on_far_input)
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
@@ -97,6 +97,29 @@ def test_far_input_points_measure_only_the_midpoints_and_centroids_their_bounds_
     all_far, all_d = far_input_points(S, 0.05)
     assert measured == [4777, 2207 - 365]
     assert np.array_equal(far, all_far) and np.array_equal(far_d, all_d)
+
+
+@pytest.mark.timeout(60)
+def test_input_beyond_is_the_far_points_prefix_and_the_next_distance(monkeypatch):
+    """On the coarse remesh of the creased disk (as above): for thresholds below the
+    tolerance, between far distances, at one of them, and above the largest,
+    :func:`input_beyond` gives exactly the far points of :func:`far_input_points` farther than
+    the threshold (positions and distances, in order) and, as the next distance, the first far
+    one not farther (the tolerance where there is none), measuring fewer points where the
+    threshold is above the tolerance."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    measured = count_measured(monkeypatch)
+    far, far_d = far_input_points(S, 0.05)
+    all_measured = sum(measured)
+    assert len(far) == 2207
+    for beyond in (0.0, 0.08, 0.1, float(far_d[10]), 0.2):
+        measured.clear()
+        got = input_beyond(S, 0.05, beyond)
+        k = int(np.count_nonzero(far_d > beyond))
+        assert np.array_equal(got.P_uv, far[:k]) and np.array_equal(got.distances, far_d[:k])
+        assert got.next == (far_d[k] if k < len(far_d) else 0.05)
+        if beyond > 0.05:
+            assert sum(measured) < all_measured
 
 
 @pytest.mark.timeout(120)

@@ -84,12 +84,8 @@ def input_points(S: RemeshState) -> InputPoints:
 def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """The input points of :func:`input_points` (made once per state,
     :meth:`.state.RemeshState.of_input`) farther than ``tol`` from the remesh ``(S.X, S.F)``,
-    farthest first.
-
-    The vertices are measured first; a midpoint or centroid is measured only if neither its
-    corners' distances (:func:`..remesh_quality.middle_bounds`) nor its distance to the faces
-    closest to its corners (:func:`..remesh_quality.face_bounds`) already bound it within
-    ``tol``.
+    farthest first (:func:`input_point_bounds`: only the points its bounds leave are
+    measured).
 
     Parameters
     ----------
@@ -105,24 +101,118 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
         In the mesh's units.
     """
     pts = S.of_input(input_points)
-    measure = MeshDistance(S.X, S.F)
+    d, _, _ = input_point_bounds(S, pts, tol, MeshDistance(S.X, S.F))
+    far = np.flatnonzero(d > tol)
+    far = far[np.argsort(-d[far], kind="stable")]
+    return pts.P_uv[far], d[far]
+
+
+def input_point_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances of the input points ``pts`` (:func:`input_points`) to the remesh
+    ``(S.X, S.F)`` where they may exceed ``tol``, upper bounds of them elsewhere.
+
+    The vertices are measured first (:func:`vertex_distances`); a midpoint or centroid is
+    measured only if neither its corners' distances (:func:`..remesh_quality.middle_bounds`)
+    nor its distance to the faces closest to its corners
+    (:func:`..remesh_quality.face_bounds`) already bound it within ``tol``.
+
+    Parameters
+    ----------
+    S : RemeshState
+    pts : InputPoints
+    tol : float
+        In the mesh's units.
+    measure : MeshDistance
+        Of ``(S.X, S.F)``.
+
+    Returns
+    -------
+    distance : (k,) float
+        Exact where ``measured``, an upper bound at most ``tol`` elsewhere.
+    measured : (k,) bool
+    face : (n,) int
+        Per input vertex, a face of the remesh at its ``distance`` (any face on the rim).
+    """
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
-    d_vertex[pts.vertices], f_vertex[pts.vertices] = vertex_distances(S, pts, tol, measure)
+    measured = np.zeros(len(pts.P), bool)
+    d_vertex[pts.vertices], f_vertex[pts.vertices], measured[:nv] = vertex_distances(
+        S, pts, tol, measure)
     mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
                                                  pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
-    ne = len(pts.edges)
-    mids, cents = ask[ask < nv + ne], ask[ask >= nv + ne]
-    d[mids] = face_bounds(pts.P[mids], pts.edges[mids - nv], f_vertex, measure)
-    d[cents] = face_bounds(pts.P[cents], pts.faces[cents - nv - ne], f_vertex, measure)
+    d[ask] = middle_face_bounds(pts, ask, f_vertex, measure)
     ask = ask[d[ask] > tol]
     d[ask] = measure(pts.P[ask])[0]
-    far = np.flatnonzero(d > tol)
+    measured[ask] = True
+    return d, measured, f_vertex
+
+
+def middle_face_bounds(pts: InputPoints, ask: np.ndarray, f_vertex: np.ndarray,
+                       measure: MeshDistance) -> np.ndarray:
+    """The distances of the midpoints and centroids ``ask`` (j,) (indices into ``pts``, past
+    its vertices) to the faces of ``measure``'s surface closest to their corners
+    (:func:`..remesh_quality.face_bounds`; ``f_vertex`` (n,) per input vertex): upper bounds
+    of their distances (j,)."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    mid = ask < nv + ne
+    out = np.empty(len(ask))
+    out[mid] = face_bounds(pts.P[ask[mid]], pts.edges[ask[mid] - nv], f_vertex, measure)
+    out[~mid] = face_bounds(pts.P[ask[~mid]], pts.faces[ask[~mid] - nv - ne], f_vertex,
+                            measure)
+    return out
+
+
+class InputBeyond(NamedTuple):
+    """What :func:`input_beyond` found: the domain positions ``P_uv`` (j×2 or j×3) and
+    ``distances`` (j,) of the input points farther than its ``beyond`` from the remesh,
+    farthest first, and ``next``, the largest distance of the others that are farther than
+    its ``tol`` (``tol`` where none is)."""
+
+    P_uv: np.ndarray
+    distances: np.ndarray
+    next: float
+
+
+def input_beyond(S: RemeshState, tol: float, beyond: float) -> InputBeyond:
+    """The input points of :func:`far_input_points` (farther than ``tol``) that are farther
+    than ``beyond`` from the remesh, farthest first, and the distance of the farthest of the
+    others, as :func:`far_input_points` would give them, with fewer points measured: the
+    bounds leave only the points that may be farther than ``max(tol, beyond)``
+    (:func:`input_point_bounds`); of the others, only those whose bound exceeds the largest
+    distance below that found so far are bounded again through their corners' faces and then
+    measured, the largest bounds first (:func:`..remesh_quality.largest_distance`).
+
+    Parameters
+    ----------
+    S : RemeshState
+    tol, beyond : float
+        In the mesh's units.
+
+    Returns
+    -------
+    InputBeyond
+    """
+    pts = S.of_input(input_points)
+    measure = MeshDistance(S.X, S.F)
+    top = max(tol, beyond)
+    d, measured, f_vertex = input_point_bounds(S, pts, top, measure)
+    far = np.flatnonzero(d > top)
     far = far[np.argsort(-d[far], kind="stable")]
-    return pts.P_uv[far], d[far]
+    nearer = float(tol)
+    if top > tol:
+        nearer = float(d[measured & (d > tol) & (d <= top)].max(initial=tol))
+        ask = np.flatnonzero(~measured & (d > nearer))
+        middle = ask[ask >= len(pts.vertices)]
+        d[middle] = middle_face_bounds(pts, middle, f_vertex, measure)
+        ask = ask[d[ask] > nearer]
+        if len(ask):
+            nearer = max(nearer, largest_distance(pts.P[ask], d[ask], measure,
+                                                  S.of_input(input_slack)))
+    return InputBeyond(pts.P_uv[far], d[far], nearer)
 
 
 def input_reach(S: RemeshState, tol: float) -> float:
@@ -139,7 +229,7 @@ VERTICES_PER_FACE_TO_BOUND = 4.0
 
 
 def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distances of the input vertices of ``pts`` to the remesh ``(S.X, S.F)`` where they
     may exceed ``tol``, and upper bounds of them elsewhere; a face of the remesh at that
     distance from each.
@@ -164,15 +254,19 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     -------
     distance : (v,) float
     face : (v,) int
+    measured : (v,) bool
+        Where ``distance`` is exact.
     """
     nv = len(pts.vertices)
     if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
-        return measure(pts.P[:nv])
+        return *measure(pts.P[:nv]), np.ones(nv, bool)
     face = locate_once(S.uv, S.F, pts.P_uv[:nv])
     d = candidate_face_distances(pts.P[:nv], face[:, None], measure)
     ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
     d[ask], face[ask] = measure(pts.P[ask])
-    return d, face
+    measured = np.zeros(nv, bool)
+    measured[ask] = True
+    return d, face, measured
 
 
 def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
@@ -284,7 +378,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
     movable vertices on the disk that can move there (:func:`move_keeps_shape`); only points
     farther than the remesh's own farthest edge middle from the input (:func:`remesh_reach`)
-    are taken. It stops at the first point no vertex can take: the Hausdorff distance is a
+    are taken (:func:`input_beyond`). It stops at the first point no vertex can take: the Hausdorff distance is a
     maximum, and vertices on the nearer points after it cannot lower it (they would only cost
     triangle shape).
 
@@ -314,9 +408,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     """
     from scipy.spatial import cKDTree
 
-    far, d_all = far_input_points(S, tol)
-    kept = int(np.count_nonzero(d_all > remesh_reach(S))) if len(far) else 0   # a prefix
-    far, d = far[:kept], d_all[:kept]
+    far, d, nearer = input_beyond(S, tol, remesh_reach(S))
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:
@@ -324,8 +416,8 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     free = np.flatnonzero(movable)
 
     def settled(put: list, stop: int, P: np.ndarray) -> Settled:
-        return Settled(np.asarray(put, np.int64), float(d_all[stop]) if stop < len(d_all)
-                       else tol, far[stop:], P[stop:], d[stop:])
+        return Settled(np.asarray(put, np.int64), float(d[stop]) if stop < len(d) else nearer,
+                       far[stop:], P[stop:], d[stop:])
 
     k = min(candidates, len(free))
     if len(far) == 0:
