@@ -207,7 +207,8 @@ class PointLocator:
         if m == 0:
             raise ValueError("cannot locate points in an empty triangulation")
         T = self.uv[self.F]                                          # (m, 3, 2)
-        lo, hi = T.min(axis=1), T.max(axis=1)
+        lo = np.minimum(np.minimum(T[:, 0], T[:, 1]), T[:, 2])        # corner by corner:
+        hi = np.maximum(np.maximum(T[:, 0], T[:, 1]), T[:, 2])        # the same, faster
         self.origin = lo.min(axis=0)
         extent = np.maximum(hi.max(axis=0) - self.origin, 1e-300)
         cell = np.sqrt(extent[0] * extent[1] / max(cell_factor * m, 1.0))
