@@ -24,6 +24,7 @@ surface are undone (:func:`undo_sagging_snaps`). The counts go to the state's lo
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -81,17 +82,21 @@ def input_points(S: RemeshState) -> InputPoints:
                        S.F_in, offsets)
 
 
-def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
+def far_input_points(S: RemeshState, tol: float, memo: FarMemo | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """The input points of :func:`input_points` (made once per state,
     :meth:`.state.RemeshState.of_input`) farther than ``tol`` from the remesh ``(S.X, S.F)``,
     farthest first (:func:`input_point_bounds`: only the points its bounds leave are
-    measured).
+    measured). Given a ``memo`` of an earlier call (:class:`FarMemo`), only the points whose
+    bound from then may reach ``tol`` or no longer holds are measured.
 
     Parameters
     ----------
     S : RemeshState
     tol : float
         In the mesh's units.
+    memo : FarMemo, optional
+        Updated in place.
 
     Returns
     -------
@@ -101,16 +106,144 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
         In the mesh's units.
     """
     pts = S.of_input(input_points)
-    d, _, _ = input_point_bounds(S, pts, tol, MeshDistance(S.X, S.F))
+    measure = MeshDistance(S.X, S.F)
+    keys = S.X[S.F].reshape(-1, 9)
+    if memo is None or memo.keys is None:
+        bounds = input_point_bounds(S, pts, tol, measure)
+        d = bounds.distance
+        if memo is not None:
+            memo.keys, memo.bound, memo.witness = keys, d, bound_witnesses(pts, bounds)
+    else:
+        d, W = carried_bounds(memo, keys)
+        rebound(S, pts, d, W, measure)
+        ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
+        d[ask], W[ask, 0] = measure(pts.P[ask])
+        W[ask, 1:] = -1
+        memo.keys, memo.bound, memo.witness = keys, d, W
     far = np.flatnonzero(d > tol)
     far = far[np.argsort(-d[far], kind="stable")]
     return pts.P_uv[far], d[far]
 
 
+@dataclass
+class FarMemo:
+    """What :func:`far_input_points` keeps between its calls on one remesh as it changes (the
+    follow step's rounds): the remesh faces' corner coordinates ``keys`` (m×9) then, and per
+    input point an upper bound ``bound`` (k,) of its distance that holds while its
+    ``witness`` faces (k×3, numbered then, −1 for none) are all still faces of the remesh —
+    the distance to the nearest of them, or a corner's distance to one plus the way to it
+    (:func:`bound_witnesses`); a face with the same corners at the same coordinates in the
+    same order is the same face (:func:`carried_faces`), at the same distance from each
+    point."""
+
+    keys: np.ndarray | None = None
+    bound: np.ndarray | None = None
+    witness: np.ndarray | None = None
+
+
+def bound_witnesses(pts: InputPoints, bounds: PointBounds) -> np.ndarray:
+    """The faces through which each bound of ``bounds`` holds (:class:`FarMemo`): a measured
+    point's closest face; for the others a vertex's face and a midpoint's or centroid's
+    corners' faces (its bound is their distance or a corner's distance plus the way to the
+    corner, :func:`..remesh_quality.middle_bounds`); (k, 3) int, −1 for none."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    f = bounds.vertex_face
+    W = np.full((len(pts.P), 3), -1, np.int64)
+    W[:nv, 0] = f[pts.vertices]
+    W[nv:nv + ne, :2] = f[pts.edges]
+    W[nv + ne:] = f[pts.faces]
+    W[bounds.measured] = -1
+    W[bounds.measured, 0] = bounds.closest[bounds.measured]
+    return W
+
+
+def rebound(S: RemeshState, pts: InputPoints, d: np.ndarray, W: np.ndarray,
+            measure: MeshDistance) -> None:
+    """New bounds ``d`` (k,) and witnesses ``W`` (k×3) of :class:`FarMemo` for the points
+    without a witness left (``W[:, 0] < 0``), in place: such a vertex measured (its closest
+    face) or, where :func:`vertex_distances` bounds the vertices, bounded through the remesh
+    face over it on the domain, such a midpoint or centroid bounded by its distance to its corners' witnesses
+    (:func:`middle_face_bounds`; a rim corner's: any face)."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    lost = np.flatnonzero(W[:nv, 0] < 0)
+    if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
+        d[lost], W[lost, 0] = measure(pts.P[lost])
+    else:
+        W[lost, 0] = locate_once(S.uv, S.F, pts.P_uv[lost])
+        d[lost] = candidate_face_distances(pts.P[lost], W[lost, :1], measure)
+    f_vertex = np.zeros(len(S.V_in), np.int64)
+    f_vertex[pts.vertices] = W[:nv, 0]
+    lost = nv + np.flatnonzero(W[nv:, 0] < 0)
+    d[lost] = middle_face_bounds(pts, lost, f_vertex, measure)
+    mid, cent = lost[lost < nv + ne], lost[lost >= nv + ne]
+    W[mid, :2] = f_vertex[pts.edges[mid - nv]]
+    W[cent] = f_vertex[pts.faces[cent - nv - ne]]
+
+
+def carried_bounds(memo: FarMemo, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of ``memo`` (a copy, k) and their witnesses renumbered in the remesh whose
+    faces' corner coordinates are ``keys`` (m×9): a point any of whose witnesses is gone has
+    none left (a row of −1; its bound no longer holds)."""
+    carried = np.append(carried_faces(memo.keys, keys), -1)       # W = −1 reads the −1
+    renumbered = carried[memo.witness]
+    kept = (renumbered >= 0) | (memo.witness < 0)
+    renumbered[~(kept[:, 0] & kept[:, 1] & kept[:, 2])] = -1
+    return memo.bound.copy(), renumbered
+
+
+def carried_faces(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """For each face whose corner coordinates are a row of ``old`` (m₀×9), the face of
+    ``new`` (m×9) with the very same row, or −1 (matched by a hash of the rows' bits, each
+    match checked row for row).
+
+    Returns
+    -------
+    (m₀,) int
+    """
+    out = np.full(len(old), -1, np.int64)
+    if len(old) == 0 or len(new) == 0:
+        return out
+
+    def hashes(K):
+        bits = np.ascontiguousarray(K).view(np.uint64)
+        h = bits[:, 0] * _ROW_HASH[0]
+        for j in range(1, 9):
+            h += bits[:, j] * _ROW_HASH[j]
+        return h
+
+    h_new, h_old = hashes(new), hashes(old)
+    o_new, o_old = np.argsort(h_new), np.argsort(h_old)
+    at = np.minimum(np.searchsorted(h_new[o_new], h_old[o_old]), len(new) - 1)
+    match = o_new[at]
+    same = (h_new[match] == h_old[o_old]) & np.all(new[match] == old[o_old], axis=1)
+    out[o_old[same]] = match[same]
+    return out
+
+
+#: the multipliers of :func:`carried_faces`' row hash (odd, fixed)
+_ROW_HASH = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+                      0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
+                      0x94D049BB133111EB, 0xBF58476D1CE4E5B9, 0x2545F4914F6CDD1D], np.uint64)
+
+
+class PointBounds(NamedTuple):
+    """What :func:`input_point_bounds` found for the ``k`` input points of
+    :func:`input_points`: their ``distance`` (k,) to the remesh, exact where ``measured``
+    (k,) and an upper bound elsewhere; per input vertex (n,), the remesh face
+    ``vertex_face`` at its distance (any face on the rim); and per point the ``closest``
+    (k,) remesh face where measured (−1 elsewhere)."""
+
+    distance: np.ndarray
+    measured: np.ndarray
+    vertex_face: np.ndarray
+    closest: np.ndarray
+
+
 def input_point_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                       ) -> PointBounds:
     """The distances of the input points ``pts`` (:func:`input_points`) to the remesh
-    ``(S.X, S.F)`` where they may exceed ``tol``, upper bounds of them elsewhere.
+    ``(S.X, S.F)`` where they may exceed ``tol``, upper bounds of them (at most ``tol``)
+    elsewhere.
 
     The vertices are measured first (:func:`vertex_distances`); a midpoint or centroid is
     measured only if neither its corners' distances (:func:`..remesh_quality.middle_bounds`)
@@ -128,27 +261,25 @@ def input_point_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: Me
 
     Returns
     -------
-    distance : (k,) float
-        Exact where ``measured``, an upper bound at most ``tol`` elsewhere.
-    measured : (k,) bool
-    face : (n,) int
-        Per input vertex, a face of the remesh at its ``distance`` (any face on the rim).
+    PointBounds
     """
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
     measured = np.zeros(len(pts.P), bool)
+    closest = np.full(len(pts.P), -1, np.int64)
     d_vertex[pts.vertices], f_vertex[pts.vertices], measured[:nv] = vertex_distances(
         S, pts, tol, measure)
+    closest[:nv][measured[:nv]] = f_vertex[pts.vertices][measured[:nv]]
     mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
                                                  pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
     d[ask] = middle_face_bounds(pts, ask, f_vertex, measure)
     ask = ask[d[ask] > tol]
-    d[ask] = measure(pts.P[ask])[0]
+    d[ask], closest[ask] = measure(pts.P[ask])
     measured[ask] = True
-    return d, measured, f_vertex
+    return PointBounds(d, measured, f_vertex, closest)
 
 
 def middle_face_bounds(pts: InputPoints, ask: np.ndarray, f_vertex: np.ndarray,
@@ -199,7 +330,7 @@ def input_beyond(S: RemeshState, tol: float, beyond: float) -> InputBeyond:
     pts = S.of_input(input_points)
     measure = MeshDistance(S.X, S.F)
     top = max(tol, beyond)
-    d, measured, f_vertex = input_point_bounds(S, pts, top, measure)
+    d, measured, f_vertex, _ = input_point_bounds(S, pts, top, measure)
     far = np.flatnonzero(d > top)
     far = far[np.argsort(-d[far], kind="stable")]
     nearer = float(tol)
@@ -269,8 +400,8 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     return d, face, measured
 
 
-def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
-                 ) -> np.ndarray:
+def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None,
+                 memo: FarMemo | None = None) -> np.ndarray:
     """Snap (or insert) a locked remesh vertex onto every input point of
     :func:`far_input_points` (farther than ``tol`` from the remesh), farthest first, none
     within ``min_gap`` on the surface of one snapped before or of a locked vertex
@@ -285,13 +416,15 @@ def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | No
         In the mesh's units.
     max_sag : float, optional
         In the mesh's units.
+    memo : FarMemo, optional
+        Of the calls before on this remesh (:func:`far_input_points`).
 
     Returns
     -------
     (j,) int
         The snapped and inserted vertices that stay.
     """
-    far, _ = far_input_points(S, tol)
+    far, _ = far_input_points(S, tol, memo)
     S.tally("far_input_points", len(far))
     if len(far) == 0:
         return np.zeros(0, np.int64)

@@ -193,7 +193,7 @@ from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
-from .fidelity import Settled, input_distance, input_reach, settle_on_far_input
+from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
@@ -598,15 +598,17 @@ class _Operations:
         of the first refinement's); snap (or insert) a locked vertex onto every input point
         farther than ``tol`` from the remesh (an interior vertex, the middle of an interior
         edge or of a face), that gap × ``L`` apart, no snap leaving an edge farther than the
-        sag tolerance from the surface (:func:`.fidelity.follow_input`), flips, as many
+        sag tolerance from the surface (:func:`.fidelity.follow_input`; the rounds' searches
+        share a :class:`.fidelity.FarMemo`), flips, as many
         collapses of the shortest edges under the guards as vertices were added, none of the
         rim's (their gap guard lets a rim vertex go that stands out less than the sag
         tolerance, and the chord left can cut off a boundary vertex farther), flips."""
         S = self.S
+        memo = FarMemo()
         for gap in FOLLOW_GAPS:
             n0 = S.n
             refine_rim(S, RIM_TOL * self.tol, FOLLOW_RIM_GAP * self.L, S.n)
-            snap_far_input(S, tol, gap * self.L, self.tol)
+            snap_far_input(S, tol, gap * self.L, self.tol, memo)
             self.flip()
             if S.n > n0:
                 free_rim = S.X[S.is_rim & ~S.locked]
