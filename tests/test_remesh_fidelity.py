@@ -145,7 +145,8 @@ def test_carried_faces_match_rows_with_the_same_bits():
 def test_far_input_points_with_a_memo_finds_what_a_fresh_search_finds(monkeypatch):
     """On the coarse remesh of the creased disk (as above), searches with a memo kept across
     the follow step's snaps (which move vertices and insert some, most faces of so coarse a
-    remesh changing) give exactly the far points and distances of a fresh search; on a
+    remesh changing) give exactly the far points and distances of a fresh search, and so does
+    :func:`input_beyond` with the memo (the next distance too); on a
     remesh unchanged since the memo's search, only the points whose bound may reach the
     tolerance are measured: the 2,207 far ones and a few near it, none of the others."""
     S, _ = coarse_state(*creased_disk(1.0), 4)
@@ -159,6 +160,9 @@ def test_far_input_points_with_a_memo_finds_what_a_fresh_search_finds(monkeypatc
         far, far_d = far_input_points(S, then, memo)
         fresh, fresh_d = far_input_points(S, then)
         assert len(far) > 0 and np.array_equal(far, fresh) and np.array_equal(far_d, fresh_d)
+        got, want = input_beyond(S, then / 2, then, memo), input_beyond(S, then / 2, then)
+        assert len(got.P_uv) and np.array_equal(got.P_uv, want.P_uv)
+        assert np.array_equal(got.distances, want.distances) and got.next == want.next
 
 
 @pytest.mark.timeout(120)

@@ -106,23 +106,51 @@ def far_input_points(S: RemeshState, tol: float, memo: FarMemo | None = None
         In the mesh's units.
     """
     pts = S.of_input(input_points)
-    measure = MeshDistance(S.X, S.F)
-    keys = S.X[S.F].reshape(-1, 9)
-    if memo is None or memo.keys is None:
-        bounds = input_point_bounds(S, pts, tol, measure)
-        d = bounds.distance
-        if memo is not None:
-            memo.keys, memo.bound, memo.witness = keys, d, bound_witnesses(pts, bounds)
-    else:
-        d, W = carried_bounds(memo, keys)
-        rebound(S, pts, d, W, measure)
-        ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
-        d[ask], W[ask, 0] = measure(pts.P[ask])
-        W[ask, 1:] = -1
-        memo.keys, memo.bound, memo.witness = keys, d, W
+    d = searched_bounds(S, pts, tol, MeshDistance(S.X, S.F), memo)[0]
     far = np.flatnonzero(d > tol)
     far = far[np.argsort(-d[far], kind="stable")]
     return pts.P_uv[far], d[far]
+
+
+#: a search with a memo whose faces are fewer than this share of the remesh's searches afresh
+MEMO_MIN_CARRIED = 0.5
+
+
+def searched_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance,
+                    memo: FarMemo | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances of the input points ``pts`` to the remesh where they may exceed ``tol``
+    and upper bounds of them elsewhere, as :func:`input_point_bounds` finds them or, given a
+    ``memo`` (:class:`FarMemo`, updated in place) that at least ``MEMO_MIN_CARRIED`` of the
+    remesh's faces are still in, from its bounds: those whose faces are gone bounded again
+    (:func:`rebound`), those that may reach ``tol`` measured.
+
+    Returns
+    -------
+    distance : (k,) float
+        The memo's own array where there is one (not to be changed).
+    measured : (k,) bool
+    face : (n,) int
+        Per input vertex, a remesh face at its distance (any face on the rim).
+    """
+    keys = S.X[S.F].reshape(-1, 9)
+    carried = None if memo is None or memo.keys is None else carried_faces(memo.keys, keys)
+    if carried is None or np.count_nonzero(carried >= 0) < MEMO_MIN_CARRIED * len(keys):
+        bounds = input_point_bounds(S, pts, tol, measure)
+        if memo is not None:
+            memo.keys, memo.bound, memo.witness = keys, bounds.distance, bound_witnesses(
+                pts, bounds)
+        return bounds.distance, bounds.measured, bounds.vertex_face
+    d, W = carried_bounds(memo, carried)
+    rebound(S, pts, d, W, measure)
+    ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
+    d[ask], W[ask, 0] = measure(pts.P[ask])
+    W[ask, 1:] = -1
+    memo.keys, memo.bound, memo.witness = keys, d, W
+    measured = np.zeros(len(d), bool)
+    measured[ask] = True
+    f_vertex = np.zeros(len(S.V_in), np.int64)
+    f_vertex[pts.vertices] = W[:len(pts.vertices), 0]
+    return d, measured, f_vertex
 
 
 @dataclass
@@ -180,11 +208,11 @@ def rebound(S: RemeshState, pts: InputPoints, d: np.ndarray, W: np.ndarray,
     W[cent] = f_vertex[pts.faces[cent - nv - ne]]
 
 
-def carried_bounds(memo: FarMemo, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The bounds of ``memo`` (a copy, k) and their witnesses renumbered in the remesh whose
-    faces' corner coordinates are ``keys`` (m×9): a point any of whose witnesses is gone has
+def carried_bounds(memo: FarMemo, carried: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of ``memo`` (a copy, k) and their witnesses renumbered by ``carried``
+    (:func:`carried_faces` of its faces, m₀): a point any of whose witnesses is gone has
     none left (a row of −1; its bound no longer holds)."""
-    carried = np.append(carried_faces(memo.keys, keys), -1)       # W = −1 reads the −1
+    carried = np.append(carried, -1)                              # W = −1 reads the −1
     renumbered = carried[memo.witness]
     kept = (renumbered >= 0) | (memo.witness < 0)
     renumbered[~(kept[:, 0] & kept[:, 1] & kept[:, 2])] = -1
@@ -308,20 +336,24 @@ class InputBeyond(NamedTuple):
     next: float
 
 
-def input_beyond(S: RemeshState, tol: float, beyond: float) -> InputBeyond:
+def input_beyond(S: RemeshState, tol: float, beyond: float, memo: FarMemo | None = None
+                 ) -> InputBeyond:
     """The input points of :func:`far_input_points` (farther than ``tol``) that are farther
     than ``beyond`` from the remesh, farthest first, and the distance of the farthest of the
     others, as :func:`far_input_points` would give them, with fewer points measured: the
     bounds leave only the points that may be farther than ``max(tol, beyond)``
     (:func:`input_point_bounds`); of the others, only those whose bound exceeds the largest
     distance below that found so far are bounded again through their corners' faces and then
-    measured, the largest bounds first (:func:`..remesh_quality.largest_distance`).
+    measured, the largest bounds first (:func:`..remesh_quality.largest_distance`). Given a
+    ``memo``, the bounds start from it (:func:`searched_bounds`).
 
     Parameters
     ----------
     S : RemeshState
     tol, beyond : float
         In the mesh's units.
+    memo : FarMemo, optional
+        Updated in place.
 
     Returns
     -------
@@ -330,7 +362,8 @@ def input_beyond(S: RemeshState, tol: float, beyond: float) -> InputBeyond:
     pts = S.of_input(input_points)
     measure = MeshDistance(S.X, S.F)
     top = max(tol, beyond)
-    d, measured, f_vertex, _ = input_point_bounds(S, pts, top, measure)
+    d, measured, f_vertex = searched_bounds(S, pts, top, measure, memo)
+    d = d.copy()
     far = np.flatnonzero(d > top)
     far = far[np.argsort(-d[far], kind="stable")]
     nearer = float(tol)
@@ -338,7 +371,7 @@ def input_beyond(S: RemeshState, tol: float, beyond: float) -> InputBeyond:
         nearer = float(d[measured & (d > tol) & (d <= top)].max(initial=tol))
         ask = np.flatnonzero(~measured & (d > nearer))
         middle = ask[ask >= len(pts.vertices)]
-        d[middle] = middle_face_bounds(pts, middle, f_vertex, measure)
+        d[middle] = np.minimum(d[middle], middle_face_bounds(pts, middle, f_vertex, measure))
         ask = ask[d[ask] > nearer]
         if len(ask):
             nearer = max(nearer, largest_distance(pts.P[ask], d[ask], measure,
@@ -505,7 +538,7 @@ class Settled(NamedTuple):
 
 def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
                         max_sag: float, fixed: np.ndarray | None = None,
-                        candidates: int = 8) -> Settled:
+                        candidates: int = 8, memo: FarMemo | None = None) -> Settled:
     """Put a remesh vertex exactly on each input point of :func:`far_input_points` (farther
     than ``tol`` from the remesh), farthest first, skipping those within ``min_gap`` on the
     surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
@@ -533,6 +566,8 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     fixed : (n,) bool, optional
         Vertices not to move, besides the rim's and the locked ones.
     candidates : int
+    memo : FarMemo, optional
+        Of the searches before on this remesh (:func:`input_beyond`).
 
     Returns
     -------
@@ -541,7 +576,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     """
     from scipy.spatial import cKDTree
 
-    far, d, nearer = input_beyond(S, tol, remesh_reach(S))
+    far, d, nearer = input_beyond(S, tol, remesh_reach(S), memo)
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:
