@@ -287,10 +287,12 @@ def test_a_batch_walks_each_point_as_it_would_alone():
     assert list(left) == alone_left and 0 < len(left) < len(P)
 
 
-def test_large_batches_walk_from_the_nearest_vertex(monkeypatch):
+@pytest.mark.parametrize("method", ["locate_with_inside", "locate_from_cells"])
+def test_large_batches_walk_to_the_grids_answer(method, monkeypatch):
     """A batch of at least half as many points as image vertices walks from the nearest
-    vertex's face: the same inside/outside answer and positions as the grid, vertices still
-    located with weight exactly 1, and only a few points left for the grid."""
+    vertex's face (``locate_with_inside``) or from a face of its grid cell
+    (``locate_from_cells``): the same inside/outside answer and positions as the grid,
+    vertices still located with weight exactly 1, and only a few points left for the grid."""
     uv, F, loop = grid_mesh(60, 0.3)
     L = PointLocator(uv, F, loop)
     rng = np.random.default_rng(3)
@@ -302,7 +304,7 @@ def test_large_batches_walk_from_the_nearest_vertex(monkeypatch):
     grid = L._grid_locate
     monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-10: calls.append(len(pts))
                         or grid(pts, tol))
-    f, b, inside = L.locate_with_inside(P)
+    f, b, inside = getattr(L, method)(P)
     check_valid(f, b, len(P))
     want_f, want_b, want_inside = grid(P)
     assert np.array_equal(inside, want_inside) and not inside[-500:][

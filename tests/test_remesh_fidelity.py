@@ -10,9 +10,9 @@ import pytest
 from pipeline.geometry import topology as topo
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh import uniform_remesh
-from pipeline.geometry.remesh.fidelity import (far_input_points, follow_input,
-                                              input_point_tree, input_points, remesh_reach,
-                                              settle_on_far_input)
+from pipeline.geometry.remesh.fidelity import (FarMemo, carried_faces, far_input_points,
+                                              follow_input, input_beyond, input_point_tree,
+                                              input_points, remesh_reach, settle_on_far_input)
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
 from pipeline.geometry.rows import row_min
@@ -97,6 +97,72 @@ def test_far_input_points_measure_only_the_midpoints_and_centroids_their_bounds_
     all_far, all_d = far_input_points(S, 0.05)
     assert measured == [4777, 2207 - 365]
     assert np.array_equal(far, all_far) and np.array_equal(far_d, all_d)
+
+
+@pytest.mark.timeout(60)
+def test_input_beyond_is_the_far_points_prefix_and_the_next_distance(monkeypatch):
+    """On the coarse remesh of the creased disk (as above): for thresholds below the
+    tolerance, between far distances, at one of them, and above the largest,
+    :func:`input_beyond` gives exactly the far points of :func:`far_input_points` farther than
+    the threshold (positions and distances, in order) and, as the next distance, the first far
+    one not farther (the tolerance where there is none), measuring fewer points where the
+    threshold is above the tolerance."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    measured = count_measured(monkeypatch)
+    far, far_d = far_input_points(S, 0.05)
+    all_measured = sum(measured)
+    assert len(far) == 2207
+    for beyond in (0.0, 0.08, 0.1, float(far_d[10]), 0.2):
+        measured.clear()
+        got = input_beyond(S, 0.05, beyond)
+        k = int(np.count_nonzero(far_d > beyond))
+        assert np.array_equal(got.P_uv, far[:k]) and np.array_equal(got.distances, far_d[:k])
+        assert got.next == (far_d[k] if k < len(far_d) else 0.05)
+        if beyond > 0.05:
+            assert sum(measured) < all_measured
+
+
+def test_carried_faces_match_rows_with_the_same_bits():
+    """Faces kept in another order are found at their new rows; a face with a corner moved by
+    one unit in the last place, its corners rotated, or -0.0 for 0.0, is not; nor one of an
+    empty remesh."""
+    rng = np.random.default_rng(3)
+    old = rng.normal(size=(50, 9))
+    old[7, 4] = 0.0
+    perm = rng.permutation(50)
+    new = old[perm].copy()
+    moved, rotated, signed = (int(np.flatnonzero(perm == i)[0]) for i in (3, 5, 7))
+    new[moved, 2] = np.nextafter(new[moved, 2], np.inf)
+    new[rotated] = np.roll(new[rotated], 3)
+    new[signed, 4] = -0.0
+    want = np.argsort(perm)
+    want[[3, 5, 7]] = -1
+    assert np.array_equal(carried_faces(old, new), want)
+    assert np.array_equal(carried_faces(old, new[:0]), np.full(50, -1))
+
+
+@pytest.mark.timeout(60)
+def test_far_input_points_with_a_memo_finds_what_a_fresh_search_finds(monkeypatch):
+    """On the coarse remesh of the creased disk (as above), searches with a memo kept across
+    the follow step's snaps (which move vertices and insert some, most faces of so coarse a
+    remesh changing) give exactly the far points and distances of a fresh search, and so does
+    :func:`input_beyond` with the memo (the next distance too); on a
+    remesh unchanged since the memo's search, only the points whose bound may reach the
+    tolerance are measured: the 2,207 far ones and a few near it, none of the others."""
+    S, _ = coarse_state(*creased_disk(1.0), 4)
+    memo = FarMemo()
+    far_input_points(S, 0.05, memo)
+    measured = count_measured(monkeypatch)
+    far, far_d = far_input_points(S, 0.05, memo)
+    assert len(far) == 2207 and 2207 <= sum(measured) < 2300
+    for tol, gap, then in ((0.05, 0.3, 0.03), (0.03, 0.1, 0.005), (0.01, 0.05, 0.005)):
+        follow_input(S, tol, min_gap=gap)
+        far, far_d = far_input_points(S, then, memo)
+        fresh, fresh_d = far_input_points(S, then)
+        assert len(far) > 0 and np.array_equal(far, fresh) and np.array_equal(far_d, fresh_d)
+        got, want = input_beyond(S, then / 2, then, memo), input_beyond(S, then / 2, then)
+        assert len(got.P_uv) and np.array_equal(got.P_uv, want.P_uv)
+        assert np.array_equal(got.distances, want.distances) and got.next == want.next
 
 
 @pytest.mark.timeout(120)

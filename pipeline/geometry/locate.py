@@ -207,7 +207,8 @@ class PointLocator:
         if m == 0:
             raise ValueError("cannot locate points in an empty triangulation")
         T = self.uv[self.F]                                          # (m, 3, 2)
-        lo, hi = T.min(axis=1), T.max(axis=1)
+        lo = np.minimum(np.minimum(T[:, 0], T[:, 1]), T[:, 2])        # corner by corner:
+        hi = np.maximum(np.maximum(T[:, 0], T[:, 1]), T[:, 2])        # the same, faster
         self.origin = lo.min(axis=0)
         extent = np.maximum(hi.max(axis=0) - self.origin, 1e-300)
         cell = np.sqrt(extent[0] * extent[1] / max(cell_factor * m, 1.0))
@@ -295,6 +296,22 @@ class PointLocator:
         if len(P) < max(_WALK_MIN, 0.5 * len(self.uv)):        # the tree would not pay
             return self._grid_locate(P, tol)
         return self.relocate(P, self._near_faces(P), tol, walk=_WALK)
+
+    def locate_from_cells(self, points: np.ndarray, tol: float = TOL
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Like :meth:`locate_with_inside`, each point walking ``_WALK`` steps from the first
+        face registered in its grid cell (:meth:`relocate`; the grid takes the points the walk
+        does not settle and those of empty cells) instead of from a face at its nearest image
+        vertex: no tree to build and query, for a large batch located once in a triangulation
+        built for it. A point the walk settles lies in the face it stops at, so it gets the
+        position :meth:`locate_with_inside` gives; only on an edge may the face differ."""
+        P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        ij = self._cell_xy(P)
+        cell = ij[:, 1] * self.shape[0] + ij[:, 0]
+        s, e = self.cell_start[cell], self.cell_start[cell + 1]
+        start = self.cell_faces[np.minimum(s, len(self.cell_faces) - 1)]
+        face, bary, inside = self.relocate(P, np.where(e > s, start, 0), tol, walk=_WALK)
+        return face, bary, inside
 
     def _near_faces(self, P: np.ndarray) -> np.ndarray:
         """A face at the image vertex nearest to each point (a KD-tree, built once)."""

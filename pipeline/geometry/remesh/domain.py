@@ -53,3 +53,19 @@ def locator(P: np.ndarray, F: np.ndarray, boundary: np.ndarray | None = None):
         return SphereLocator(P, F)
     from ..locate import PointLocator
     return PointLocator(P, F, boundary)
+
+
+def locate_once(P: np.ndarray, F: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The face of the triangulation ``(P, F)`` of the domain holding each of ``points`` (k×2
+    or k×3), for one large batch: on the disk each point walks from a face of its grid cell
+    (:meth:`..locate.PointLocator.locate_from_cells`), on the sphere from a face at its
+    nearest vertex (:meth:`..locate_sphere.SphereLocator.locate`).
+
+    Returns
+    -------
+    (k,) int
+    """
+    loc = locator(P, F)
+    if on_sphere(P):
+        return loc.locate(points)[0]
+    return loc.locate_from_cells(points)[0]

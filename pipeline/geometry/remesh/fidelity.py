@@ -24,6 +24,7 @@ surface are undone (:func:`undo_sagging_snaps`). The counts go to the state's lo
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -36,7 +37,7 @@ from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
                               middle_offsets)
 from ..rows import norms, row_min
 from .corners import snap_vertices
-from .domain import locator, project
+from .domain import locate_once, project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
 from .sag import edge_sag_along, lift_samples
@@ -81,21 +82,21 @@ def input_points(S: RemeshState) -> InputPoints:
                        S.F_in, offsets)
 
 
-def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray]:
+def far_input_points(S: RemeshState, tol: float, memo: FarMemo | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """The input points of :func:`input_points` (made once per state,
     :meth:`.state.RemeshState.of_input`) farther than ``tol`` from the remesh ``(S.X, S.F)``,
-    farthest first.
-
-    The vertices are measured first; a midpoint or centroid is measured only if neither its
-    corners' distances (:func:`..remesh_quality.middle_bounds`) nor its distance to the faces
-    closest to its corners (:func:`..remesh_quality.face_bounds`) already bound it within
-    ``tol``.
+    farthest first (:func:`input_point_bounds`: only the points its bounds leave are
+    measured). Given a ``memo`` of an earlier call (:class:`FarMemo`), only the points whose
+    bound from then may reach ``tol`` or no longer holds are measured.
 
     Parameters
     ----------
     S : RemeshState
     tol : float
         In the mesh's units.
+    memo : FarMemo, optional
+        Updated in place.
 
     Returns
     -------
@@ -105,24 +106,277 @@ def far_input_points(S: RemeshState, tol: float) -> tuple[np.ndarray, np.ndarray
         In the mesh's units.
     """
     pts = S.of_input(input_points)
-    measure = MeshDistance(S.X, S.F)
+    d = searched_bounds(S, pts, tol, MeshDistance(S.X, S.F), memo)[0]
+    far = np.flatnonzero(d > tol)
+    far = far[np.argsort(-d[far], kind="stable")]
+    return pts.P_uv[far], d[far]
+
+
+#: a search with a memo whose faces are fewer than this share of the remesh's searches afresh
+MEMO_MIN_CARRIED = 0.5
+
+
+def searched_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance,
+                    memo: FarMemo | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The distances of the input points ``pts`` to the remesh where they may exceed ``tol``
+    and upper bounds of them elsewhere, as :func:`input_point_bounds` finds them or, given a
+    ``memo`` (:class:`FarMemo`, updated in place) that at least ``MEMO_MIN_CARRIED`` of the
+    remesh's faces are still in, from its bounds: those whose faces are gone bounded again
+    (:func:`rebound`), those that may reach ``tol`` measured.
+
+    Returns
+    -------
+    distance : (k,) float
+        The memo's own array where there is one (not to be changed).
+    measured : (k,) bool
+    face : (n,) int
+        Per input vertex, a remesh face at its distance (any face on the rim).
+    """
+    keys = S.X[S.F].reshape(-1, 9)
+    carried = None if memo is None or memo.keys is None else carried_faces(memo.keys, keys)
+    if carried is None or np.count_nonzero(carried >= 0) < MEMO_MIN_CARRIED * len(keys):
+        bounds = input_point_bounds(S, pts, tol, measure)
+        if memo is not None:
+            memo.keys, memo.bound, memo.witness = keys, bounds.distance, bound_witnesses(
+                pts, bounds)
+        return bounds.distance, bounds.measured, bounds.vertex_face
+    d, W = carried_bounds(memo, carried)
+    rebound(S, pts, d, W, measure)
+    ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
+    d[ask], W[ask, 0] = measure(pts.P[ask])
+    W[ask, 1:] = -1
+    memo.keys, memo.bound, memo.witness = keys, d, W
+    measured = np.zeros(len(d), bool)
+    measured[ask] = True
+    f_vertex = np.zeros(len(S.V_in), np.int64)
+    f_vertex[pts.vertices] = W[:len(pts.vertices), 0]
+    return d, measured, f_vertex
+
+
+@dataclass
+class FarMemo:
+    """What :func:`far_input_points` keeps between its calls on one remesh as it changes (the
+    follow step's rounds): the remesh faces' corner coordinates ``keys`` (m×9) then, and per
+    input point an upper bound ``bound`` (k,) of its distance that holds while its
+    ``witness`` faces (k×3, numbered then, −1 for none) are all still faces of the remesh —
+    the distance to the nearest of them, or a corner's distance to one plus the way to it
+    (:func:`bound_witnesses`); a face with the same corners at the same coordinates in the
+    same order is the same face (:func:`carried_faces`), at the same distance from each
+    point."""
+
+    keys: np.ndarray | None = None
+    bound: np.ndarray | None = None
+    witness: np.ndarray | None = None
+
+
+def bound_witnesses(pts: InputPoints, bounds: PointBounds) -> np.ndarray:
+    """The faces through which each bound of ``bounds`` holds (:class:`FarMemo`): a measured
+    point's closest face; for the others a vertex's face and a midpoint's or centroid's
+    corners' faces (its bound is their distance or a corner's distance plus the way to the
+    corner, :func:`..remesh_quality.middle_bounds`); (k, 3) int, −1 for none."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    f = bounds.vertex_face
+    W = np.full((len(pts.P), 3), -1, np.int64)
+    W[:nv, 0] = f[pts.vertices]
+    W[nv:nv + ne, :2] = f[pts.edges]
+    W[nv + ne:] = f[pts.faces]
+    W[bounds.measured] = -1
+    W[bounds.measured, 0] = bounds.closest[bounds.measured]
+    return W
+
+
+def rebound(S: RemeshState, pts: InputPoints, d: np.ndarray, W: np.ndarray,
+            measure: MeshDistance) -> None:
+    """New bounds ``d`` (k,) and witnesses ``W`` (k×3) of :class:`FarMemo` for the points
+    without a witness left (``W[:, 0] < 0``), in place: such a vertex measured (its closest
+    face) or, where :func:`vertex_distances` bounds the vertices, bounded through the remesh
+    face over it on the domain, such a midpoint or centroid bounded by its distance to its corners' witnesses
+    (:func:`middle_face_bounds`; a rim corner's: any face)."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    lost = np.flatnonzero(W[:nv, 0] < 0)
+    if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
+        d[lost], W[lost, 0] = measure(pts.P[lost])
+    else:
+        W[lost, 0] = locate_once(S.uv, S.F, pts.P_uv[lost])
+        d[lost] = candidate_face_distances(pts.P[lost], W[lost, :1], measure)
+    f_vertex = np.zeros(len(S.V_in), np.int64)
+    f_vertex[pts.vertices] = W[:nv, 0]
+    lost = nv + np.flatnonzero(W[nv:, 0] < 0)
+    d[lost] = middle_face_bounds(pts, lost, f_vertex, measure)
+    mid, cent = lost[lost < nv + ne], lost[lost >= nv + ne]
+    W[mid, :2] = f_vertex[pts.edges[mid - nv]]
+    W[cent] = f_vertex[pts.faces[cent - nv - ne]]
+
+
+def carried_bounds(memo: FarMemo, carried: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bounds of ``memo`` (a copy, k) and their witnesses renumbered by ``carried``
+    (:func:`carried_faces` of its faces, m₀): a point any of whose witnesses is gone has
+    none left (a row of −1; its bound no longer holds)."""
+    carried = np.append(carried, -1)                              # W = −1 reads the −1
+    renumbered = carried[memo.witness]
+    kept = (renumbered >= 0) | (memo.witness < 0)
+    renumbered[~(kept[:, 0] & kept[:, 1] & kept[:, 2])] = -1
+    return memo.bound.copy(), renumbered
+
+
+def carried_faces(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """For each face whose corner coordinates are a row of ``old`` (m₀×9), the face of
+    ``new`` (m×9) with the very same row, or −1 (matched by a hash of the rows' bits, each
+    match checked row for row).
+
+    Returns
+    -------
+    (m₀,) int
+    """
+    out = np.full(len(old), -1, np.int64)
+    if len(old) == 0 or len(new) == 0:
+        return out
+
+    def hashes(K):
+        bits = np.ascontiguousarray(K).view(np.uint64)
+        h = bits[:, 0] * _ROW_HASH[0]
+        for j in range(1, 9):
+            h += bits[:, j] * _ROW_HASH[j]
+        return h
+
+    h_new, h_old = hashes(new), hashes(old)
+    o_new, o_old = np.argsort(h_new), np.argsort(h_old)
+    at = np.minimum(np.searchsorted(h_new[o_new], h_old[o_old]), len(new) - 1)
+    match = o_new[at]
+    same = (h_new[match] == h_old[o_old]) & np.all(new[match] == old[o_old], axis=1)
+    out[o_old[same]] = match[same]
+    return out
+
+
+#: the multipliers of :func:`carried_faces`' row hash (odd, fixed)
+_ROW_HASH = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+                      0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
+                      0x94D049BB133111EB, 0xBF58476D1CE4E5B9, 0x2545F4914F6CDD1D], np.uint64)
+
+
+class PointBounds(NamedTuple):
+    """What :func:`input_point_bounds` found for the ``k`` input points of
+    :func:`input_points`: their ``distance`` (k,) to the remesh, exact where ``measured``
+    (k,) and an upper bound elsewhere; per input vertex (n,), the remesh face
+    ``vertex_face`` at its distance (any face on the rim); and per point the ``closest``
+    (k,) remesh face where measured (−1 elsewhere)."""
+
+    distance: np.ndarray
+    measured: np.ndarray
+    vertex_face: np.ndarray
+    closest: np.ndarray
+
+
+def input_point_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
+                       ) -> PointBounds:
+    """The distances of the input points ``pts`` (:func:`input_points`) to the remesh
+    ``(S.X, S.F)`` where they may exceed ``tol``, upper bounds of them (at most ``tol``)
+    elsewhere.
+
+    The vertices are measured first (:func:`vertex_distances`); a midpoint or centroid is
+    measured only if neither its corners' distances (:func:`..remesh_quality.middle_bounds`)
+    nor its distance to the faces closest to its corners
+    (:func:`..remesh_quality.face_bounds`) already bound it within ``tol``.
+
+    Parameters
+    ----------
+    S : RemeshState
+    pts : InputPoints
+    tol : float
+        In the mesh's units.
+    measure : MeshDistance
+        Of ``(S.X, S.F)``.
+
+    Returns
+    -------
+    PointBounds
+    """
     nv = len(pts.vertices)
     d_vertex = np.full(len(S.V_in), np.inf)
     f_vertex = np.zeros(len(S.V_in), np.int64)          # a rim vertex's: any face bounds
-    d_vertex[pts.vertices], f_vertex[pts.vertices] = vertex_distances(S, pts, tol, measure)
+    measured = np.zeros(len(pts.P), bool)
+    closest = np.full(len(pts.P), -1, np.int64)
+    d_vertex[pts.vertices], f_vertex[pts.vertices], measured[:nv] = vertex_distances(
+        S, pts, tol, measure)
+    closest[:nv][measured[:nv]] = f_vertex[pts.vertices][measured[:nv]]
     mid_bound, _, centroid_bound = middle_bounds(S.V_in, pts.faces, pts.edges, d_vertex,
                                                  pts.offsets)
     d = np.concatenate([d_vertex[pts.vertices], mid_bound, centroid_bound])
     ask = nv + np.flatnonzero(d[nv:] > tol)
-    ne = len(pts.edges)
-    mids, cents = ask[ask < nv + ne], ask[ask >= nv + ne]
-    d[mids] = face_bounds(pts.P[mids], pts.edges[mids - nv], f_vertex, measure)
-    d[cents] = face_bounds(pts.P[cents], pts.faces[cents - nv - ne], f_vertex, measure)
+    d[ask] = middle_face_bounds(pts, ask, f_vertex, measure)
     ask = ask[d[ask] > tol]
-    d[ask] = measure(pts.P[ask])[0]
-    far = np.flatnonzero(d > tol)
+    d[ask], closest[ask] = measure(pts.P[ask])
+    measured[ask] = True
+    return PointBounds(d, measured, f_vertex, closest)
+
+
+def middle_face_bounds(pts: InputPoints, ask: np.ndarray, f_vertex: np.ndarray,
+                       measure: MeshDistance) -> np.ndarray:
+    """The distances of the midpoints and centroids ``ask`` (j,) (indices into ``pts``, past
+    its vertices) to the faces of ``measure``'s surface closest to their corners
+    (:func:`..remesh_quality.face_bounds`; ``f_vertex`` (n,) per input vertex): upper bounds
+    of their distances (j,)."""
+    nv, ne = len(pts.vertices), len(pts.edges)
+    mid = ask < nv + ne
+    out = np.empty(len(ask))
+    out[mid] = face_bounds(pts.P[ask[mid]], pts.edges[ask[mid] - nv], f_vertex, measure)
+    out[~mid] = face_bounds(pts.P[ask[~mid]], pts.faces[ask[~mid] - nv - ne], f_vertex,
+                            measure)
+    return out
+
+
+class InputBeyond(NamedTuple):
+    """What :func:`input_beyond` found: the domain positions ``P_uv`` (j×2 or j×3) and
+    ``distances`` (j,) of the input points farther than its ``beyond`` from the remesh,
+    farthest first, and ``next``, the largest distance of the others that are farther than
+    its ``tol`` (``tol`` where none is)."""
+
+    P_uv: np.ndarray
+    distances: np.ndarray
+    next: float
+
+
+def input_beyond(S: RemeshState, tol: float, beyond: float, memo: FarMemo | None = None
+                 ) -> InputBeyond:
+    """The input points of :func:`far_input_points` (farther than ``tol``) that are farther
+    than ``beyond`` from the remesh, farthest first, and the distance of the farthest of the
+    others, as :func:`far_input_points` would give them, with fewer points measured: the
+    bounds leave only the points that may be farther than ``max(tol, beyond)``
+    (:func:`input_point_bounds`); of the others, only those whose bound exceeds the largest
+    distance below that found so far are bounded again through their corners' faces and then
+    measured, the largest bounds first (:func:`..remesh_quality.largest_distance`). Given a
+    ``memo``, the bounds start from it (:func:`searched_bounds`).
+
+    Parameters
+    ----------
+    S : RemeshState
+    tol, beyond : float
+        In the mesh's units.
+    memo : FarMemo, optional
+        Updated in place.
+
+    Returns
+    -------
+    InputBeyond
+    """
+    pts = S.of_input(input_points)
+    measure = MeshDistance(S.X, S.F)
+    top = max(tol, beyond)
+    d, measured, f_vertex = searched_bounds(S, pts, top, measure, memo)
+    d = d.copy()
+    far = np.flatnonzero(d > top)
     far = far[np.argsort(-d[far], kind="stable")]
-    return pts.P_uv[far], d[far]
+    nearer = float(tol)
+    if top > tol:
+        nearer = float(d[measured & (d > tol) & (d <= top)].max(initial=tol))
+        ask = np.flatnonzero(~measured & (d > nearer))
+        middle = ask[ask >= len(pts.vertices)]
+        d[middle] = np.minimum(d[middle], middle_face_bounds(pts, middle, f_vertex, measure))
+        ask = ask[d[ask] > nearer]
+        if len(ask):
+            nearer = max(nearer, largest_distance(pts.P[ask], d[ask], measure,
+                                                  S.of_input(input_slack)))
+    return InputBeyond(pts.P_uv[far], d[far], nearer)
 
 
 def input_reach(S: RemeshState, tol: float) -> float:
@@ -139,7 +393,7 @@ VERTICES_PER_FACE_TO_BOUND = 4.0
 
 
 def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: MeshDistance
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The distances of the input vertices of ``pts`` to the remesh ``(S.X, S.F)`` where they
     may exceed ``tol``, and upper bounds of them elsewhere; a face of the remesh at that
     distance from each.
@@ -147,7 +401,7 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     Where the input has at least ``VERTICES_PER_FACE_TO_BOUND`` vertices per remesh face (a
     fine input remeshed coarsely), each vertex is first bounded by its exact distance to the
     remesh face over it on the domain (a point location in the remesh's own triangulation,
-    :func:`.domain.locator`); only the vertices whose bound may reach ``tol``
+    :func:`.domain.locate_once`); only the vertices whose bound may reach ``tol``
     (:func:`..remesh_quality.may_reach`) are measured (``measure``). A bound at most ``tol``
     leaves the vertex, and every midpoint or centroid bounded through it, no farther than
     ``tol``, as its distance would.
@@ -164,19 +418,23 @@ def vertex_distances(S: RemeshState, pts: InputPoints, tol: float, measure: Mesh
     -------
     distance : (v,) float
     face : (v,) int
+    measured : (v,) bool
+        Where ``distance`` is exact.
     """
     nv = len(pts.vertices)
     if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
-        return measure(pts.P[:nv])
-    face, _ = locator(S.uv, S.F).locate(pts.P_uv[:nv])
+        return *measure(pts.P[:nv]), np.ones(nv, bool)
+    face = locate_once(S.uv, S.F, pts.P_uv[:nv])
     d = candidate_face_distances(pts.P[:nv], face[:, None], measure)
     ask = np.flatnonzero(may_reach(d, tol, S.of_input(input_slack)))
     d[ask], face[ask] = measure(pts.P[ask])
-    return d, face
+    measured = np.zeros(nv, bool)
+    measured[ask] = True
+    return d, face, measured
 
 
-def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None
-                 ) -> np.ndarray:
+def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | None = None,
+                 memo: FarMemo | None = None) -> np.ndarray:
     """Snap (or insert) a locked remesh vertex onto every input point of
     :func:`far_input_points` (farther than ``tol`` from the remesh), farthest first, none
     within ``min_gap`` on the surface of one snapped before or of a locked vertex
@@ -191,13 +449,15 @@ def follow_input(S: RemeshState, tol: float, min_gap: float, max_sag: float | No
         In the mesh's units.
     max_sag : float, optional
         In the mesh's units.
+    memo : FarMemo, optional
+        Of the calls before on this remesh (:func:`far_input_points`).
 
     Returns
     -------
     (j,) int
         The snapped and inserted vertices that stay.
     """
-    far, _ = far_input_points(S, tol)
+    far, _ = far_input_points(S, tol, memo)
     S.tally("far_input_points", len(far))
     if len(far) == 0:
         return np.zeros(0, np.int64)
@@ -278,13 +538,13 @@ class Settled(NamedTuple):
 
 def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: float,
                         max_sag: float, fixed: np.ndarray | None = None,
-                        candidates: int = 8) -> Settled:
+                        candidates: int = 8, memo: FarMemo | None = None) -> Settled:
     """Put a remesh vertex exactly on each input point of :func:`far_input_points` (farther
     than ``tol`` from the remesh), farthest first, skipping those within ``min_gap`` on the
     surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
     movable vertices on the disk that can move there (:func:`move_keeps_shape`); only points
     farther than the remesh's own farthest edge middle from the input (:func:`remesh_reach`)
-    are taken. It stops at the first point no vertex can take: the Hausdorff distance is a
+    are taken (:func:`input_beyond`). It stops at the first point no vertex can take: the Hausdorff distance is a
     maximum, and vertices on the nearer points after it cannot lower it (they would only cost
     triangle shape).
 
@@ -306,6 +566,8 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     fixed : (n,) bool, optional
         Vertices not to move, besides the rim's and the locked ones.
     candidates : int
+    memo : FarMemo, optional
+        Of the searches before on this remesh (:func:`input_beyond`).
 
     Returns
     -------
@@ -314,9 +576,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     """
     from scipy.spatial import cKDTree
 
-    far, d_all = far_input_points(S, tol)
-    kept = int(np.count_nonzero(d_all > remesh_reach(S))) if len(far) else 0   # a prefix
-    far, d = far[:kept], d_all[:kept]
+    far, d, nearer = input_beyond(S, tol, remesh_reach(S), memo)
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
     if fixed is not None:
@@ -324,8 +584,8 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     free = np.flatnonzero(movable)
 
     def settled(put: list, stop: int, P: np.ndarray) -> Settled:
-        return Settled(np.asarray(put, np.int64), float(d_all[stop]) if stop < len(d_all)
-                       else tol, far[stop:], P[stop:], d[stop:])
+        return Settled(np.asarray(put, np.int64), float(d[stop]) if stop < len(d) else nearer,
+                       far[stop:], P[stop:], d[stop:])
 
     k = min(candidates, len(free))
     if len(far) == 0:

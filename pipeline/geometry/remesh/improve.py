@@ -193,7 +193,7 @@ from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
-from .fidelity import Settled, input_distance, input_reach, settle_on_far_input
+from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
 from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
@@ -400,8 +400,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ops.guarantee(target, min_angle_deg, kept=(followed, corners))
         lap("guarantee")
     settle = follow_input > 0 and ops.tol is not None
-    settled = (ops.settle(min_angle_deg, followed, follow).vertices if settle
-               else np.zeros(0, np.int64))
+    settled = (ops.settle(min_angle_deg, followed, follow, ops.far).vertices if settle
+               else np.zeros(0, np.int64))               # most faces as the follow step left
     lap("settle")
     if relax_iterations > 0 and EVEN_STEPS > 0:
         S.locked[settled] = True
@@ -458,6 +458,8 @@ class _Operations:
                                           # surroundings (raise_min_angles' memo)
     chord: float | None = None            # how far the fold repair's rim collapses may
                                           # leave the input from the remesh (repair_folds)
+    far: FarMemo = field(default_factory=FarMemo)   # the follow step's searches of the far
+                                          # input points and the first settle step's
 
     @property
     def tol(self) -> float | None:
@@ -598,7 +600,8 @@ class _Operations:
         of the first refinement's); snap (or insert) a locked vertex onto every input point
         farther than ``tol`` from the remesh (an interior vertex, the middle of an interior
         edge or of a face), that gap × ``L`` apart, no snap leaving an edge farther than the
-        sag tolerance from the surface (:func:`.fidelity.follow_input`), flips, as many
+        sag tolerance from the surface (:func:`.fidelity.follow_input`; the rounds' searches
+        share :attr:`far`), flips, as many
         collapses of the shortest edges under the guards as vertices were added, none of the
         rim's (their gap guard lets a rim vertex go that stands out less than the sag
         tolerance, and the chord left can cut off a boundary vertex farther), flips."""
@@ -606,7 +609,7 @@ class _Operations:
         for gap in FOLLOW_GAPS:
             n0 = S.n
             refine_rim(S, RIM_TOL * self.tol, FOLLOW_RIM_GAP * self.L, S.n)
-            snap_far_input(S, tol, gap * self.L, self.tol)
+            snap_far_input(S, tol, gap * self.L, self.tol, self.far)
             self.flip()
             if S.n > n0:
                 free_rim = S.X[S.is_rim & ~S.locked]
@@ -616,19 +619,20 @@ class _Operations:
                 S.locked &= ~at_points(S.X, free_rim)
                 self.flip()
 
-    def settle(self, min_angle_deg: float, followed: np.ndarray, insert_beyond: float
-               ) -> Settled:
+    def settle(self, min_angle_deg: float, followed: np.ndarray, insert_beyond: float,
+               memo: FarMemo | None = None) -> Settled:
         """A vertex moved onto each input point farther than ``SETTLE_TOL × L`` from the
         remesh, farthest first, while one can be without a new angle below ``min_angle_deg``,
         a new fold, an edge farther than the sag tolerance from the surface or another input
-        point left as far (:func:`.fidelity.settle_on_far_input`; the vertices at
-        ``followed``, k×3 points, stay); where it stops at a point farther than
+        point left as far (:func:`.fidelity.settle_on_far_input`, its search from ``memo``
+        where given; the vertices at ``followed``, k×3 points, stay); where it stops at a point farther than
         ``insert_beyond`` (the follow tolerance), vertices inserted at the points left
         instead (:meth:`insert_at_far_input`). Returns the vertices moved and inserted and
         the input's reach left."""
         S = self.S
         settled = settle_on_far_input(S, SETTLE_TOL * self.L, FOLLOW_GAPS[1] * self.L,
-                                      min_angle_deg, self.tol, fixed=at_points(S.X, followed))
+                                      min_angle_deg, self.tol, fixed=at_points(S.X, followed),
+                                      memo=memo)
         beyond = settled.distances > insert_beyond
         if not beyond.any():
             return settled

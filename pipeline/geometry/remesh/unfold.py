@@ -79,6 +79,10 @@ CHART_RINGS = 3            # the region of a chart triangulation: the faces with
                            # rings of a fold's corners at most
 ON_EDGE = 1e-9             # a barycentric coordinate at most this puts a point on the edge of
                            # its input face opposite that corner (and two, on a vertex)
+CENTROID_WALK = 64         # walk steps from a corner's input face to a face's domain centroid
+                           # or to a candidate of unfolding_position (an input far finer than
+                           # the remesh puts many faces between them; a point the walk misses
+                           # takes the grid)
 
 
 def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
@@ -129,7 +133,8 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
     out = np.all(least < 0, axis=1)
     suspect = np.flatnonzero(out)
     if len(suspect):
-        at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0])
+        at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0],
+                                      walk=CENTROID_WALK)
         out[suspect] = dots(normal[suspect], S.normals_in()[at]) < 0
         across = suspect[~out[suspect]]
         if len(across):
@@ -691,7 +696,7 @@ def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
     M = M[star_shapes_ok(S.uv, M, star[:, 1:])]
     if len(M) == 0:
         return None
-    mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]))
+    mf, mb, inside = S.locator.relocate(M, np.full(len(M), S.face[v]), walk=CENTROID_WALK)
     M, mf, mb = M[inside], mf[inside], mb[inside]
     if len(M) == 0:
         return None
