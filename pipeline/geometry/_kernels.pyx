@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, isfinite, sqrt
+from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, floor, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -854,6 +854,88 @@ def cells_touch_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const in
                 ok[i] = 0
                 break
     return ok_arr
+
+
+@cython.cdivision(True)
+def grid_candidates(const double[:, ::1] uv, const int64_t[:, ::1] F,
+                    const int64_t[::1] cell_start, const int64_t[::1] cell_faces,
+                    const double[:, ::1] P, double ox, double oy, double cell, int64_t nx,
+                    int64_t ny):
+    """For each point ``P[i]``, the best face of its grid cell (origin ``(ox, oy)``, side
+    ``cell``, ``nx × ny`` cells; the CSR table ``cell_start``, ``cell_faces`` of
+    :class:`pipeline.geometry.locate.PointLocator`): the first of the largest smallest
+    barycentric, the barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates`
+    computes them, a non-finite smallest one counted as −inf. The point's cell is
+    ``floor((P − origin) / cell)`` clipped to the grid, as numpy's ``astype(int64)`` and
+    ``clip`` make it (NaN and values beyond int64 become the first cell).
+
+    Returns
+    -------
+    face : (k,) int64
+        −1 where the cell is empty.
+    bary : (k, 3) float64
+        NaN where the cell is empty.
+    score : (k,) float64
+        The smallest barycentric, −inf where the cell is empty.
+    """
+    cdef Py_ssize_t i, c, k = P.shape[0]
+    cdef int64_t j, f, ix, iy, cl, best_f
+    cdef double q, px, py, ax, ay, bx, by, cx, cy, d, sc, best
+    cdef double lam[3]
+    cdef double best_lam[3]
+    face_arr = np.empty(k, dtype=np.int64)
+    bary_arr = np.empty((k, 3), dtype=np.float64)
+    score_arr = np.empty(k, dtype=np.float64)
+    cdef int64_t[::1] face = face_arr
+    cdef double[:, ::1] bary = bary_arr
+    cdef double[::1] score = score_arr
+    for i in range(k):
+        px, py = P[i, 0], P[i, 1]
+        ix = _cell_index((px - ox) / cell, nx)
+        iy = _cell_index((py - oy) / cell, ny)
+        cl = iy * nx + ix
+        best_f = -1
+        best = -INFINITY
+        best_lam[0] = best_lam[1] = best_lam[2] = NAN
+        for j in range(cell_start[cl], cell_start[cl + 1]):
+            f = cell_faces[j]
+            ax, ay = uv[F[f, 0], 0] - px, uv[F[f, 0], 1] - py
+            bx, by = uv[F[f, 1], 0] - px, uv[F[f, 1], 1] - py
+            cx, cy = uv[F[f, 2], 0] - px, uv[F[f, 2], 1] - py
+            d = ((uv[F[f, 1], 0] - uv[F[f, 0], 0]) * (uv[F[f, 2], 1] - uv[F[f, 0], 1])
+                 - (uv[F[f, 1], 1] - uv[F[f, 0], 1]) * (uv[F[f, 2], 0] - uv[F[f, 0], 0]))
+            lam[0] = (bx * cy - by * cx) / d
+            lam[1] = (cx * ay - cy * ax) / d
+            lam[2] = (ax * by - ay * bx) / d
+            sc = lam[0]
+            for c in range(1, 3):                 # np.minimum: a NaN wins, ties the second
+                if lam[c] != lam[c] or lam[c] <= sc:
+                    sc = lam[c] if sc == sc else sc
+            if not isfinite(sc):
+                sc = -INFINITY
+            if best_f < 0 or sc > best:           # the first of the largest
+                best_f, best = f, sc
+                best_lam[0], best_lam[1], best_lam[2] = lam[0], lam[1], lam[2]
+        face[i] = best_f
+        score[i] = best
+        for c in range(3):
+            bary[i, c] = best_lam[c]
+    return face_arr, bary_arr, score_arr
+
+
+cdef inline int64_t _cell_index(double q, int64_t n) noexcept nogil:
+    """``clip(floor(q).astype(int64), 0, n − 1)`` as numpy computes it on x86-64 (NaN and
+    values beyond the int64 range convert to the smallest int64, clipped to 0)."""
+    cdef int64_t i
+    q = floor(q)
+    if not (q >= -9.2e18 and q <= 9.2e18):
+        return 0
+    i = <int64_t>q
+    if i < 0:
+        return 0
+    if i > n - 1:
+        return n - 1
+    return i
 
 
 def faces_kept_by_collapses(const int64_t[::1] vf_ptr, const int64_t[::1] vf_idx,
