@@ -61,8 +61,7 @@ from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
 from .refine import split_long_edges
-from .rim import RIM_TOL, segment_distances
-from .sampling import arc_parameters
+from .rim import RIM_TOL, polygon_arcs, segment_distances
 from .sag import edge_sag_along, lift_samples
 from .state import RemeshState
 
@@ -821,9 +820,9 @@ class _BoundaryCorners:
 
     def __init__(self, S: RemeshState):
         f, bary, _ = S.locator.locate_with_inside(S.polygon)
-        self.polygon = S.polygon
+        self.polygon = S.of_input(polygon_arcs)          # arc lengths along S.polygon
         self.X = lift(S.V_in, S.F_in, f, bary)
-        self.s = arc_parameters(S.polygon, S.polygon)
+        self.s = self.polygon.arc_position(S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
         self.arcs = {}                        # arc_parameters of the rim points asked
 
@@ -833,7 +832,7 @@ class _BoundaryCorners:
         keys = [p.tobytes() for p in uv]
         new = [i for i, key in enumerate(keys) if key not in self.arcs]
         if new:
-            for i, s in zip(new, arc_parameters(self.polygon, uv[new])):
+            for i, s in zip(new, self.polygon.arc_position(uv[new])):
                 self.arcs[keys[i]] = s
         return [self.arcs[key] for key in keys]
 
