@@ -71,6 +71,23 @@ def test_triangle_min_angles_and_ideal_points_are_exact():
     assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
 
 
+def test_face_min_angles_are_the_numpy_formula_bit_for_bit():
+    """The compiled smallest angle of each face is ``angles_of_cosines`` of the largest of
+    its corners' cosines to the bit: random faces, a right and a straight one, and faces
+    with coincident corners (0)."""
+    from pipeline.geometry._kernels import corner_cosines
+    from pipeline.geometry.remesh.angles import angles_of_cosines
+
+    rng = np.random.default_rng(4)
+    X = np.vstack([rng.normal(size=(200, 3)), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]]])
+    T = np.vstack([rng.integers(0, 200, (3000, 3)),
+                   [[200, 201, 202], [200, 201, 203], [200, 200, 201], [201, 201, 201]]])
+    got = face_min_angles(X, T)
+    assert got.tobytes() == angles_of_cosines(corner_cosines(X, T).max(axis=1)).tobytes()
+    assert abs(got[-4] - 45.0) < 1e-12 and got[-3] == 0.0
+    assert got[-2] == 0.0 and got[-1] == 0.0
+
+
 def test_ideal_points_are_the_numpy_formula_bit_for_bit():
     # a degenerate triangle among them: its apex is the middle of B-C
     rng = np.random.default_rng(5)

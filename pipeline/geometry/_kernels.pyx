@@ -1452,6 +1452,28 @@ cdef inline void _fan_face(const double* q, const double* b, const double* c, do
     area_out[0] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
 
 
+def face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T):
+    """The smallest interior angle (degrees, k) of each face ``T`` (k×3) of ``X`` (n×3):
+    :func:`..remesh.angles.angles_of_cosines` of the face's largest :func:`corner_cosines`
+    (nan where one is nan, then 0), bit for bit, in one pass."""
+    cdef Py_ssize_t t, c
+    cdef double cos, best
+    out_arr = np.empty(T.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(T.shape[0]):
+        best = -INFINITY
+        for c in range(3):
+            cos = _corner_cosine(&X[T[t, c], 0], &X[T[t, (c + 1) % 3], 0],
+                                 &X[T[t, (c + 2) % 3], 0])
+            if cos != cos:
+                best = NAN
+                break
+            if cos > best:
+                best = cos
+        out[t] = _degrees_of_cosine(best)
+    return out_arr
+
+
 cdef inline double _degrees_of_cosine(double cos) noexcept nogil:
     """The angle (degrees) of ``cos`` as :func:`..remesh.angles.angles_of_cosines` computes
     it: ``np.degrees(np.arccos(np.clip(cos, −1, 1)))``, 0 for nan."""

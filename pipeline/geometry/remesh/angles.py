@@ -51,7 +51,7 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (corner_cosines, fan_scores, fan_shapes_ok, faces_keep_side,
+from .._kernels import (face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
                         point_faces_distance, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
@@ -77,7 +77,7 @@ OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces
 
 def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees) of each triangle ``P0, P1, P2`` (the largest of
-    its corners' cosines, compiled: :func:`.._kernels.corner_cosines`).
+    its corners' cosines, compiled: :func:`.._kernels.face_min_degrees`).
 
     Parameters
     ----------
@@ -97,8 +97,8 @@ def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.nd
 def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
     float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
-    gathering them first."""
-    return angles_of_cosines(corner_cosines(X, T).max(axis=1))
+    gathering them first (compiled: :func:`.._kernels.face_min_degrees`)."""
+    return face_min_degrees(X, np.ascontiguousarray(T, dtype=np.int64))
 
 
 def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
