@@ -1456,22 +1456,75 @@ def face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T):
     """The smallest interior angle (degrees, k) of each face ``T`` (k×3) of ``X`` (n×3):
     :func:`..remesh.angles.angles_of_cosines` of the face's largest :func:`corner_cosines`
     (nan where one is nan, then 0), bit for bit, in one pass."""
-    cdef Py_ssize_t t, c
-    cdef double cos, best
+    cdef Py_ssize_t t
     out_arr = np.empty(T.shape[0], dtype=np.float64)
     cdef double[::1] out = out_arr
     for t in range(T.shape[0]):
-        best = -INFINITY
-        for c in range(3):
-            cos = _corner_cosine(&X[T[t, c], 0], &X[T[t, (c + 1) % 3], 0],
-                                 &X[T[t, (c + 2) % 3], 0])
-            if cos != cos:
-                best = NAN
-                break
-            if cos > best:
-                best = cos
-        out[t] = _degrees_of_cosine(best)
+        out[t] = _face_min_degrees(X, T, t)
     return out_arr
+
+
+cdef inline double _face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T,
+                                     Py_ssize_t t) noexcept nogil:
+    """:func:`face_min_degrees` of the face ``T[t]``: the angle of its largest corner cosine
+    (nan where one is nan, then 0)."""
+    cdef Py_ssize_t c
+    cdef double cos, best = -INFINITY
+    for c in range(3):
+        cos = _corner_cosine(&X[T[t, c], 0], &X[T[t, (c + 1) % 3], 0],
+                             &X[T[t, (c + 2) % 3], 0])
+        if cos != cos:
+            best = NAN
+            break
+        if cos > best:
+            best = cos
+    return _degrees_of_cosine(best)
+
+
+@cython.cdivision(True)
+def replacement_angle(const double[:, ::1] X, const int64_t[:, ::1] T, Py_ssize_t n_old,
+                      double threshold, bint count_below, double mean_area):
+    """The judgement of :meth:`..remesh.angles._Patch.better` in one pass: the faces
+    ``T[:n_old]`` (of ``X``) replaced by ``T[n_old:]`` (both non-empty). Their smallest angles
+    as :func:`face_min_degrees`; the new faces must have a larger smallest angle, with
+    ``count_below`` no more faces below ``threshold``, and with ``mean_area`` (nan: none)
+    no larger sum of the squared relative area deviations ``(A / mean_area − 1)²`` (``A``:
+    :func:`..laplacian.face_double_areas`' ``sqrt((cx² + cy²) + cz²)``, the sums as numpy's,
+    :func:`_pairwise_sum`). Returns the new faces' smallest angle, or nan where they do not
+    beat the old ones."""
+    cdef Py_ssize_t t, c, k = T.shape[0]
+    cdef double a, min_old = INFINITY, min_new = INFINITY
+    cdef double e1[3]
+    cdef double e2[3]
+    cdef double cx, cy, cz, q
+    cdef Py_ssize_t below_old = 0, below_new = 0
+    dev_arr = np.empty(k, dtype=np.float64)
+    cdef double[::1] dev = dev_arr
+    for t in range(k):
+        a = _face_min_degrees(X, T, t)
+        if t < n_old:
+            min_old = a if a < min_old else min_old
+            below_old += a < threshold
+        else:
+            min_new = a if a < min_new else min_new
+            below_new += a < threshold
+    if min_new <= min_old:
+        return NAN
+    if count_below and below_new > below_old:
+        return NAN
+    if mean_area == mean_area:
+        for t in range(k):
+            for c in range(3):
+                e1[c] = X[T[t, 1], c] - X[T[t, 0], c]
+                e2[c] = X[T[t, 2], c] - X[T[t, 0], c]
+            cx = e1[1] * e2[2] - e1[2] * e2[1]
+            cy = e1[2] * e2[0] - e1[0] * e2[2]
+            cz = e1[0] * e2[1] - e1[1] * e2[0]
+            q = sqrt((cx * cx + cy * cy) + cz * cz) / mean_area - 1.0
+            dev[t] = q * q
+        if _pairwise_sum(&dev[n_old], k - n_old) > _pairwise_sum(&dev[0], n_old):
+            return NAN
+    return min_new
 
 
 cdef inline double _degrees_of_cosine(double cos) noexcept nogil:

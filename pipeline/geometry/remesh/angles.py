@@ -52,7 +52,7 @@ from functools import partial
 import numpy as np
 
 from .._kernels import (face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
-                        point_faces_distance, star_targets)
+                        point_faces_distance, replacement_angle, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -362,20 +362,13 @@ class _Patch:
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and, with :attr:`count_below`, no more faces below the
-        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None."""
-        both = list(old) + list(new)           # each measure asked once for the two sides
-        a = self.face_min_angles(both)
-        a_old, a_new = a[:len(old)], a[len(old):]
-        if a_new.min() <= a_old.min():
-            return None
-        if self.count_below and \
-                (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
-            return None
-        if self.mean_area is not None:
-            dev = self.deviations(both)
-            if float(dev[len(old):].sum()) > float(dev[:len(old)].sum()):
-                return None
-        return float(a_new.min())
+        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None (compiled:
+        :func:`.._kernels.replacement_angle`)."""
+        after = replacement_angle(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                                  np.asarray(list(old) + list(new), np.int64).reshape(-1, 3),
+                                  len(old), float(self.threshold), bool(self.count_below),
+                                  np.nan if self.mean_area is None else float(self.mean_area))
+        return None if np.isnan(after) else after
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
