@@ -368,3 +368,36 @@ def test_closest_on_segments_matches_the_brute_force_where_segment_lengths_vary(
     np.testing.assert_array_equal(d2[r, seg], d2.min(axis=1))
     np.testing.assert_array_equal(t, tt[r, seg])
     np.testing.assert_array_equal(Q, A[seg] + t[:, None] * D[seg])
+
+
+def test_grid_candidates_are_the_first_best_face_of_the_cell_bit_for_bit():
+    """The compiled cell search gives, per point, the first face of its cell (in the cell's
+    order) with the largest smallest barycentric (a non-finite one counting as −inf), and
+    that face's barycentrics as :func:`barycentric_coordinates` computes them, to the bit:
+    at vertices, on edges (ties between the two faces), inside, outside the square and at a
+    NaN point (the first cell)."""
+    uv, F, loop = grid_mesh(9, 0.3)
+    L = PointLocator(uv, F, loop)
+    rng = np.random.default_rng(5)
+    P = np.vstack([uv, (uv[F[:, 0]] + uv[F[:, 1]]) / 2, rng.uniform(-0.3, 1.3, (3000, 2)),
+                   [[np.nan, 0.5], [0.5, np.inf]]])
+    face, bary, score = L._candidates(P)
+    with np.errstate(invalid="ignore"):
+        ij = L._cell_xy(P)                       # numpy's cells (NaN, inf: the first)
+    for i, p in enumerate(P):
+        cx, cy = ij[i]
+        cell = cy * L.shape[0] + cx
+        cand = L.cell_faces[L.cell_start[cell]:L.cell_start[cell + 1]]
+        if len(cand) == 0:
+            assert face[i] == -1 and score[i] == -np.inf and np.isnan(bary[i]).all()
+            continue
+        T = F[cand]
+        with np.errstate(invalid="ignore"):
+            lam = barycentric_coordinates(np.repeat(p[None], len(cand), axis=0),
+                                          uv[T[:, 0]], uv[T[:, 1]], uv[T[:, 2]])
+        sc = lam.min(axis=1)
+        sc[~np.isfinite(sc)] = -np.inf
+        j = int(np.flatnonzero(sc == sc.max())[0])
+        assert face[i] == cand[j]
+        assert bary[i].tobytes() == lam[j].tobytes()
+        assert score[i] == sc[j]

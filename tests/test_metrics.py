@@ -326,3 +326,21 @@ def test_boundary_self_crossings_of_constructed_polygons():
     # long edges' side (the arc's edges look only as far as their own length)
     P = np.vstack([_circle(200)[:101], [[0.0, 2.0]]])
     assert metrics.boundary_self_crossings(P, np.arange(len(P))) == 2
+
+
+def test_min_corner_angles_are_the_row_minima_of_the_corner_angles_bit_for_bit():
+    """The smallest angle of each face, taken from its largest cosine, is the row minimum of
+    :func:`metrics.corner_angles` to the bit, in 3D and 2D, for faces with a right angle, a
+    near-zero angle, a straight angle and coincident corners (nan, of either sign)."""
+    rng = np.random.default_rng(3)
+    V = np.vstack([rng.normal(size=(300, 3)), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0],
+                                               [1, 1e-13, 0]]])
+    F = np.vstack([rng.integers(0, 300, (2000, 3)),
+                   [[300, 301, 302], [300, 301, 303], [300, 304, 301], [300, 300, 301]]])
+    for P in (V, V[:, :2]):
+        got = metrics.min_corner_angles(P, F)
+        want = metrics.corner_angles(P, F).min(axis=1)
+        assert np.array_equal(np.isnan(got), np.isnan(want))
+        real = ~np.isnan(want)
+        assert got[real].tobytes() == want[real].tobytes()
+    assert np.isnan(got[-1]) and got[-4] == metrics.corner_angles(V, F)[-4].min()

@@ -71,6 +71,58 @@ def test_triangle_min_angles_and_ideal_points_are_exact():
     assert np.allclose(A, [[0.5, -np.sqrt(3) / 2, 0.0]])
 
 
+def test_face_min_angles_are_the_numpy_formula_bit_for_bit():
+    """The compiled smallest angle of each face is ``angles_of_cosines`` of the largest of
+    its corners' cosines to the bit: random faces, a right and a straight one, and faces
+    with coincident corners (0)."""
+    from pipeline.geometry._kernels import corner_cosines
+    from pipeline.geometry.remesh.angles import angles_of_cosines
+
+    rng = np.random.default_rng(4)
+    X = np.vstack([rng.normal(size=(200, 3)), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]]])
+    T = np.vstack([rng.integers(0, 200, (3000, 3)),
+                   [[200, 201, 202], [200, 201, 203], [200, 200, 201], [201, 201, 201]]])
+    got = face_min_angles(X, T)
+    assert got.tobytes() == angles_of_cosines(corner_cosines(X, T).max(axis=1)).tobytes()
+    assert abs(got[-4] - 45.0) < 1e-12 and got[-3] == 0.0
+    assert got[-2] == 0.0 and got[-1] == 0.0
+
+
+def test_replacement_angle_is_the_numpy_judgement():
+    """The compiled judgement of a replacement (old faces by new ones) is the numpy one of
+    ``_Patch.better``: the new faces' smallest angle where it is larger than the old faces',
+    with no more faces below the threshold and (given a mean area) no larger sum of squared
+    relative area deviations, else nan; on random replacements every branch is taken."""
+    from pipeline.geometry._kernels import replacement_angle
+    from pipeline.geometry.laplacian import face_double_areas
+
+    rng = np.random.default_rng(6)
+    X = rng.normal(size=(40, 3))
+    taken = set()
+    for _ in range(3000):
+        n_old, n_new = rng.integers(1, 7, 2)
+        T = np.array([rng.choice(40, 3, replace=False) for _ in range(n_old + n_new)])
+        threshold, count_below = float(rng.uniform(10, 40)), bool(rng.integers(2))
+        mean = float(rng.uniform(0.5, 2.0)) if rng.integers(2) else None
+        a = face_min_angles(X, T)
+        want = float(a[n_old:].min())
+        if a[n_old:].min() <= a[:n_old].min():
+            want, why = np.nan, "angle"
+        elif count_below and (a[n_old:] < threshold).sum() > (a[:n_old] < threshold).sum():
+            want, why = np.nan, "count"
+        elif mean is not None and (
+                float(((face_double_areas(X, T) / mean - 1) ** 2)[n_old:].sum())
+                > float(((face_double_areas(X, T) / mean - 1) ** 2)[:n_old].sum())):
+            want, why = np.nan, "spread"
+        else:
+            why = "better"
+        taken.add(why)
+        got = replacement_angle(X, T, n_old, threshold, count_below,
+                                np.nan if mean is None else mean)
+        assert (np.isnan(got) and np.isnan(want)) or got == want
+    assert taken == {"angle", "count", "spread", "better"}
+
+
 def test_ideal_points_are_the_numpy_formula_bit_for_bit():
     # a degenerate triangle among them: its apex is the middle of B-C
     rng = np.random.default_rng(5)

@@ -8,8 +8,9 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import lift
 from pipeline.geometry.remesh.halfedge import DISK_SHAPE_MIN, disk_shape
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh.rim import (arc_parameters, open_rim_fans, refine_rim, rim_gaps,
+from pipeline.geometry.remesh.rim import (open_rim_fans, refine_rim, rim_gaps,
                                           segment_distances)
+from pipeline.geometry.remesh.sampling import arc_parameters
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import ccw_delaunay, disk_map

@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, isfinite, sqrt
+from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, floor, isfinite, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -856,6 +856,88 @@ def cells_touch_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const in
     return ok_arr
 
 
+@cython.cdivision(True)
+def grid_candidates(const double[:, ::1] uv, const int64_t[:, ::1] F,
+                    const int64_t[::1] cell_start, const int64_t[::1] cell_faces,
+                    const double[:, ::1] P, double ox, double oy, double cell, int64_t nx,
+                    int64_t ny):
+    """For each point ``P[i]``, the best face of its grid cell (origin ``(ox, oy)``, side
+    ``cell``, ``nx × ny`` cells; the CSR table ``cell_start``, ``cell_faces`` of
+    :class:`pipeline.geometry.locate.PointLocator`): the first of the largest smallest
+    barycentric, the barycentrics as :func:`pipeline.geometry.locate.barycentric_coordinates`
+    computes them, a non-finite smallest one counted as −inf. The point's cell is
+    ``floor((P − origin) / cell)`` clipped to the grid, as numpy's ``astype(int64)`` and
+    ``clip`` make it (NaN and values beyond int64 become the first cell).
+
+    Returns
+    -------
+    face : (k,) int64
+        −1 where the cell is empty.
+    bary : (k, 3) float64
+        NaN where the cell is empty.
+    score : (k,) float64
+        The smallest barycentric, −inf where the cell is empty.
+    """
+    cdef Py_ssize_t i, c, k = P.shape[0]
+    cdef int64_t j, f, ix, iy, cl, best_f
+    cdef double q, px, py, ax, ay, bx, by, cx, cy, d, sc, best
+    cdef double lam[3]
+    cdef double best_lam[3]
+    face_arr = np.empty(k, dtype=np.int64)
+    bary_arr = np.empty((k, 3), dtype=np.float64)
+    score_arr = np.empty(k, dtype=np.float64)
+    cdef int64_t[::1] face = face_arr
+    cdef double[:, ::1] bary = bary_arr
+    cdef double[::1] score = score_arr
+    for i in range(k):
+        px, py = P[i, 0], P[i, 1]
+        ix = _cell_index((px - ox) / cell, nx)
+        iy = _cell_index((py - oy) / cell, ny)
+        cl = iy * nx + ix
+        best_f = -1
+        best = -INFINITY
+        best_lam[0] = best_lam[1] = best_lam[2] = NAN
+        for j in range(cell_start[cl], cell_start[cl + 1]):
+            f = cell_faces[j]
+            ax, ay = uv[F[f, 0], 0] - px, uv[F[f, 0], 1] - py
+            bx, by = uv[F[f, 1], 0] - px, uv[F[f, 1], 1] - py
+            cx, cy = uv[F[f, 2], 0] - px, uv[F[f, 2], 1] - py
+            d = ((uv[F[f, 1], 0] - uv[F[f, 0], 0]) * (uv[F[f, 2], 1] - uv[F[f, 0], 1])
+                 - (uv[F[f, 1], 1] - uv[F[f, 0], 1]) * (uv[F[f, 2], 0] - uv[F[f, 0], 0]))
+            lam[0] = (bx * cy - by * cx) / d
+            lam[1] = (cx * ay - cy * ax) / d
+            lam[2] = (ax * by - ay * bx) / d
+            sc = lam[0]
+            for c in range(1, 3):                 # np.minimum: a NaN wins, ties the second
+                if lam[c] != lam[c] or lam[c] <= sc:
+                    sc = lam[c] if sc == sc else sc
+            if not isfinite(sc):
+                sc = -INFINITY
+            if best_f < 0 or sc > best:           # the first of the largest
+                best_f, best = f, sc
+                best_lam[0], best_lam[1], best_lam[2] = lam[0], lam[1], lam[2]
+        face[i] = best_f
+        score[i] = best
+        for c in range(3):
+            bary[i, c] = best_lam[c]
+    return face_arr, bary_arr, score_arr
+
+
+cdef inline int64_t _cell_index(double q, int64_t n) noexcept nogil:
+    """``clip(floor(q).astype(int64), 0, n − 1)`` as numpy computes it on x86-64 (NaN and
+    values beyond the int64 range convert to the smallest int64, clipped to 0)."""
+    cdef int64_t i
+    q = floor(q)
+    if not (q >= -9.2e18 and q <= 9.2e18):
+        return 0
+    i = <int64_t>q
+    if i < 0:
+        return 0
+    if i > n - 1:
+        return n - 1
+    return i
+
+
 def faces_kept_by_collapses(const int64_t[::1] vf_ptr, const int64_t[::1] vf_idx,
                             const int64_t[:, ::1] F, const int64_t[::1] r, const int64_t[::1] k):
     """For collapses ``r[i] → k[i]``, the faces of ``r[i]`` that survive (those without
@@ -1368,6 +1450,81 @@ cdef inline void _fan_face(const double* q, const double* b, const double* c, do
     _cross(P[1][0] - P[0][0], P[1][1] - P[0][1], P[1][2] - P[0][2],
            P[2][0] - P[0][0], P[2][1] - P[0][1], P[2][2] - P[0][2], N)
     area_out[0] = sqrt((N[0] * N[0] + N[2] * N[2]) + N[1] * N[1])
+
+
+def face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T):
+    """The smallest interior angle (degrees, k) of each face ``T`` (k×3) of ``X`` (n×3):
+    :func:`..remesh.angles.angles_of_cosines` of the face's largest :func:`corner_cosines`
+    (nan where one is nan, then 0), bit for bit, in one pass."""
+    cdef Py_ssize_t t
+    out_arr = np.empty(T.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(T.shape[0]):
+        out[t] = _face_min_degrees(X, T, t)
+    return out_arr
+
+
+cdef inline double _face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T,
+                                     Py_ssize_t t) noexcept nogil:
+    """:func:`face_min_degrees` of the face ``T[t]``: the angle of its largest corner cosine
+    (nan where one is nan, then 0)."""
+    cdef Py_ssize_t c
+    cdef double cos, best = -INFINITY
+    for c in range(3):
+        cos = _corner_cosine(&X[T[t, c], 0], &X[T[t, (c + 1) % 3], 0],
+                             &X[T[t, (c + 2) % 3], 0])
+        if cos != cos:
+            best = NAN
+            break
+        if cos > best:
+            best = cos
+    return _degrees_of_cosine(best)
+
+
+@cython.cdivision(True)
+def replacement_angle(const double[:, ::1] X, const int64_t[:, ::1] T, Py_ssize_t n_old,
+                      double threshold, bint count_below, double mean_area):
+    """The judgement of :meth:`..remesh.angles._Patch.better` in one pass: the faces
+    ``T[:n_old]`` (of ``X``) replaced by ``T[n_old:]`` (both non-empty). Their smallest angles
+    as :func:`face_min_degrees`; the new faces must have a larger smallest angle, with
+    ``count_below`` no more faces below ``threshold``, and with ``mean_area`` (nan: none)
+    no larger sum of the squared relative area deviations ``(A / mean_area − 1)²`` (``A``:
+    :func:`..laplacian.face_double_areas`' ``sqrt((cx² + cy²) + cz²)``, the sums as numpy's,
+    :func:`_pairwise_sum`). Returns the new faces' smallest angle, or nan where they do not
+    beat the old ones."""
+    cdef Py_ssize_t t, c, k = T.shape[0]
+    cdef double a, min_old = INFINITY, min_new = INFINITY
+    cdef double e1[3]
+    cdef double e2[3]
+    cdef double cx, cy, cz, q
+    cdef Py_ssize_t below_old = 0, below_new = 0
+    dev_arr = np.empty(k, dtype=np.float64)
+    cdef double[::1] dev = dev_arr
+    for t in range(k):
+        a = _face_min_degrees(X, T, t)
+        if t < n_old:
+            min_old = a if a < min_old else min_old
+            below_old += a < threshold
+        else:
+            min_new = a if a < min_new else min_new
+            below_new += a < threshold
+    if min_new <= min_old:
+        return NAN
+    if count_below and below_new > below_old:
+        return NAN
+    if mean_area == mean_area:
+        for t in range(k):
+            for c in range(3):
+                e1[c] = X[T[t, 1], c] - X[T[t, 0], c]
+                e2[c] = X[T[t, 2], c] - X[T[t, 0], c]
+            cx = e1[1] * e2[2] - e1[2] * e2[1]
+            cy = e1[2] * e2[0] - e1[0] * e2[2]
+            cz = e1[0] * e2[1] - e1[1] * e2[0]
+            q = sqrt((cx * cx + cy * cy) + cz * cz) / mean_area - 1.0
+            dev[t] = q * q
+        if _pairwise_sum(&dev[n_old], k - n_old) > _pairwise_sum(&dev[0], n_old):
+            return NAN
+    return min_new
 
 
 cdef inline double _degrees_of_cosine(double cos) noexcept nogil:

@@ -47,8 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import cells_touch_faces, lift_rows, walk_rows, walk_to_faces
-from .rows import row_min
+from ._kernels import cells_touch_faces, grid_candidates, lift_rows, walk_rows, walk_to_faces
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -250,36 +249,12 @@ class PointLocator:
 
     def _candidates(self, P: np.ndarray):
         """Best face per point among its cell's faces: ``(face, bary, min bary)``; −1/−inf when
-        the cell is empty."""
-        ij = self._cell_xy(P)
-        cell = ij[:, 1] * self.shape[0] + ij[:, 0]
-        s, e = self.cell_start[cell], self.cell_start[cell + 1]
-        cnt = e - s
-        k = len(P)
-        face = np.full(k, -1, np.int64)
-        bary = np.full((k, 3), np.nan)
-        score = np.full(k, -np.inf)
-        has = np.flatnonzero(cnt > 0)
-        if len(has) == 0:
-            return face, bary, score
-        c = cnt[has]
-        pt = np.repeat(has, c)
-        first = np.repeat(np.cumsum(c) - c, c)
-        cand = self.cell_faces[np.repeat(s[has], c) + np.arange(len(pt)) - first]
-        tri = self.F[cand]
-        uv = self.uv
-        lam = barycentric_coordinates(P[pt], uv[tri[:, 0]], uv[tri[:, 1]], uv[tri[:, 2]])
-        sc = row_min(lam)
-        sc[~np.isfinite(sc)] = -np.inf                               # degenerate image faces
-        seg_start = np.cumsum(c) - c
-        best = np.maximum.reduceat(sc, seg_start)
-        is_best = np.flatnonzero(sc >= np.repeat(best, c))
-        keep = np.r_[True, pt[is_best][1:] != pt[is_best][:-1]]      # first best per point
-        win = is_best[keep]
-        face[pt[win]] = cand[win]
-        bary[pt[win]] = lam[win]
-        score[pt[win]] = sc[win]
-        return face, bary, score
+        the cell is empty. The first face of the largest smallest barycentric (a non-finite one
+        counts as −inf), compiled (:func:`._kernels.grid_candidates`)."""
+        return grid_candidates(self.uv, self.F, self.cell_start, self.cell_faces,
+                               np.ascontiguousarray(P, dtype=np.float64),
+                               float(self.origin[0]), float(self.origin[1]), float(self.cell),
+                               int(self.shape[0]), int(self.shape[1]))
 
     def locate(self, points: np.ndarray, tol: float = TOL) -> tuple[np.ndarray, np.ndarray]:
         """``(face int64 k, bary float64 k×3)`` for every point; see the module docstring."""

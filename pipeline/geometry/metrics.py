@@ -11,6 +11,7 @@ import numpy as np
 
 from . import _kernels
 from .laplacian import face_double_areas
+from .rows import row_max
 from .topology import _as_faces, boundary_loops
 
 
@@ -171,12 +172,24 @@ def corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     ``arccos(u·v / (|u| |v|))`` with ``u``, ``v`` the corner's two edge vectors, the cosines
     from the compiled :func:`._kernels.corner_cosines` (2D points as 3D points with z = 0,
     which adds exact zeros). A degenerate corner (a zero-length edge) gives nan."""
+    return np.arccos(np.clip(_corner_cosines(P, F), -1.0, 1.0))
+
+
+def min_corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The smallest interior angle (radians, m) of every face: the values of
+    ``row_min(corner_angles(P, F))`` bit for bit, taken as the angle of the face's largest
+    cosine (``arccos`` and the clip are monotone: one ``arccos`` a face instead of three; a
+    nan cosine gives nan, as the row minimum of the angles does)."""
+    return np.arccos(np.clip(row_max(_corner_cosines(P, F)), -1.0, 1.0))
+
+
+def _corner_cosines(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The cosines (m×3) of :func:`corner_angles`."""
     P = np.asarray(P, dtype=np.float64)
     if P.shape[1] == 2:
         P = np.column_stack([P, np.zeros(len(P))])
-    cos = _kernels.corner_cosines(np.ascontiguousarray(P),
-                                  np.ascontiguousarray(_as_faces(F), dtype=np.int64))
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+    return _kernels.corner_cosines(np.ascontiguousarray(P),
+                                   np.ascontiguousarray(_as_faces(F), dtype=np.int64))
 
 
 def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:

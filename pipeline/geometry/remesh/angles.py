@@ -51,8 +51,8 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (corner_cosines, fan_scores, fan_shapes_ok, faces_keep_side,
-                        point_faces_distance, star_targets)
+from .._kernels import (face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
+                        point_faces_distance, replacement_angle, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -61,8 +61,7 @@ from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
 from .refine import split_long_edges
-from .rim import RIM_TOL, segment_distances
-from .sampling import arc_parameters
+from .rim import RIM_TOL, polygon_arcs, segment_distances
 from .sag import edge_sag_along, lift_samples
 from .state import RemeshState
 
@@ -78,7 +77,7 @@ OPERATIONS_PER_FACE = 20                # the pass stops after this × the faces
 
 def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees) of each triangle ``P0, P1, P2`` (the largest of
-    its corners' cosines, compiled: :func:`.._kernels.corner_cosines`).
+    its corners' cosines, compiled: :func:`.._kernels.face_min_degrees`).
 
     Parameters
     ----------
@@ -98,8 +97,8 @@ def triangle_min_angles(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray) -> np.nd
 def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The smallest interior angle (degrees, k) of each face ``T`` (k×3 int) of ``X`` (n×3
     float, C-contiguous), as :func:`triangle_min_angles` of its corners, bit for bit, without
-    gathering them first."""
-    return angles_of_cosines(corner_cosines(X, T).max(axis=1))
+    gathering them first (compiled: :func:`.._kernels.face_min_degrees`)."""
+    return face_min_degrees(X, np.ascontiguousarray(T, dtype=np.int64))
 
 
 def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
@@ -366,20 +365,13 @@ class _Patch:
     def better(self, old, new) -> float | None:
         """The smallest angle of the faces ``new`` if they beat the faces ``old`` they replace
         (a larger smallest angle and, with :attr:`count_below`, no more faces below the
-        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None."""
-        both = list(old) + list(new)           # each measure asked once for the two sides
-        a = self.face_min_angles(both)
-        a_old, a_new = a[:len(old)], a[len(old):]
-        if a_new.min() <= a_old.min():
-            return None
-        if self.count_below and \
-                (a_new < self.threshold).sum() > (a_old < self.threshold).sum():
-            return None
-        if self.mean_area is not None:
-            dev = self.deviations(both)
-            if float(dev[len(old):].sum()) > float(dev[:len(old)].sum()):
-                return None
-        return float(a_new.min())
+        threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None (compiled:
+        :func:`.._kernels.replacement_angle`)."""
+        after = replacement_angle(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                                  np.asarray(list(old) + list(new), np.int64).reshape(-1, 3),
+                                  len(old), float(self.threshold), bool(self.count_below),
+                                  np.nan if self.mean_area is None else float(self.mean_area))
+        return None if np.isnan(after) else after
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
@@ -824,9 +816,9 @@ class _BoundaryCorners:
 
     def __init__(self, S: RemeshState):
         f, bary, _ = S.locator.locate_with_inside(S.polygon)
-        self.polygon = S.polygon
+        self.polygon = S.of_input(polygon_arcs)          # arc lengths along S.polygon
         self.X = lift(S.V_in, S.F_in, f, bary)
-        self.s = arc_parameters(S.polygon, S.polygon)
+        self.s = self.polygon.arc_position(S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
         self.arcs = {}                        # arc_parameters of the rim points asked
 
@@ -836,7 +828,7 @@ class _BoundaryCorners:
         keys = [p.tobytes() for p in uv]
         new = [i for i, key in enumerate(keys) if key not in self.arcs]
         if new:
-            for i, s in zip(new, arc_parameters(self.polygon, uv[new])):
+            for i, s in zip(new, self.polygon.arc_position(uv[new])):
                 self.arcs[keys[i]] = s
         return [self.arcs[key] for key in keys]
 

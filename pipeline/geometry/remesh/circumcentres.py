@@ -52,7 +52,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import lift
-from ..rows import norms, row_min
+from ..metrics import min_corner_angles
+from ..rows import norms
 from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
 from .domain import project
@@ -199,10 +200,10 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
     """The faces (k indices) below ``min_angle_deg`` that no input corner forces
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first."""
-    A = corner_angles_deg(S.X, S.F)
-    bad = np.flatnonzero(row_min(A) < min_angle_deg)
+    smallest = np.degrees(min_corner_angles(S.X, S.F))
+    bad = np.flatnonzero(smallest < min_angle_deg)
     bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
-    worst = row_min(A[bad])
+    worst = smallest[bad]
     order = np.argsort(worst, kind="stable")
     return bad[order], worst[order]
 

@@ -178,7 +178,7 @@ from functools import partial
 import numpy as np
 
 from ..laplacian import face_double_areas
-from ..metrics import corner_angles
+from ..metrics import min_corner_angles
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
@@ -742,13 +742,13 @@ class _Operations:
         locked = S.locked
         followed = at_points(S.X, kept) & ~at_points(S.X, self.features)
         S.locked = locked | _ring(S.F, followed) | folded_vertices(S, EVEN_FOLD_DEG)
-        floor = np.minimum(row_min(corner_angles(S.X, S.F)), np.radians(min_angle_deg))
+        floor = np.minimum(min_corner_angles(S.X, S.F), np.radians(min_angle_deg))
         sag = None if self.tol is None else partial(sag_veto, S, self.tol,
                                                     samples=EVEN_SAG_SAMPLES)
         for _ in range(steps):
             self.relax(veto=partial(angle_veto, S, floor, sag), equalize=AREA_EQUALIZE)
         if ring_steps > 0:
-            floor = np.minimum(row_min(corner_angles(S.X, S.F)),
+            floor = np.minimum(min_corner_angles(S.X, S.F),
                                np.radians(max(min_angle_deg, RING_FLOOR_DEG)))
             veto = ring_step_veto(S, floor, sag)
             for _ in range(ring_steps):
@@ -923,7 +923,7 @@ class _Operations:
         (:meth:`faces_at`); 180 where no vertex is there."""
         S = self.S
         T = S.F[self.faces_at(point)]
-        return float(np.degrees(row_min(corner_angles(S.X, T))).min(initial=180.0))
+        return float(np.degrees(min_corner_angles(S.X, T)).min(initial=180.0))
 
     def restore_angle_count(self, target: int, min_angle_deg: float,
                             keep: np.ndarray | None = None) -> None:
@@ -1307,7 +1307,7 @@ def angle_veto(S: RemeshState, floor: np.ndarray, then, uv: np.ndarray, face: np
     moved = np.any(uv != S.uv, axis=1)
     drop = np.zeros(len(uv), bool) if then is None else then(uv, face, bary, X) & moved
     while True:
-        corners = S.F[row_min(corner_angles(np.where(drop[:, None], S.X, X), S.F)) < floor]
+        corners = S.F[min_corner_angles(np.where(drop[:, None], S.X, X), S.F) < floor]
         corners = corners[moved[corners] & ~drop[corners]]
         if len(corners) == 0:
             return drop
@@ -1327,7 +1327,7 @@ def ring_veto(S: RemeshState, then, uv: np.ndarray, face: np.ndarray, bary: np.n
     moved = np.any(uv != S.uv, axis=1)
     drop = np.zeros(len(uv), bool) if then is None else then(uv, face, bary, X) & moved
     X_kept = np.where(drop[:, None], S.X, X)
-    angle_gain = row_min(corner_angles(X_kept, S.F)) - row_min(corner_angles(S.X, S.F))
+    angle_gain = min_corner_angles(X_kept, S.F) - min_corner_angles(S.X, S.F)
     area_before, area_after = face_double_areas(S.X, S.F), face_double_areas(X_kept, S.F)
     mean = area_before.mean()
     spread_gain = (area_after / mean - 1) ** 2 - (area_before / mean - 1) ** 2
@@ -1385,7 +1385,7 @@ def raise_judge(S: RemeshState, min_angle_deg: float, sharp: np.ndarray, mean_ar
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
     """The faces (indices) with a 3D angle below ``min_angle_deg`` (the angles of
     :func:`..metrics.corner_angles`)."""
-    return np.flatnonzero(row_min(corner_angles(X, F)) < np.radians(min_angle_deg))
+    return np.flatnonzero(min_corner_angles(X, F) < np.radians(min_angle_deg))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:

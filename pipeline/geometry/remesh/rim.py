@@ -28,7 +28,7 @@ from ..metrics import corner_angles
 from ..rows import dots, norms
 from .halfedge import edge_table, independent_edges
 from .refine import split_edges, split_keeps_shape
-from .sampling import arc_parameters
+from .sampling import arc_polygon
 from .state import RemeshState
 
 #: the rim is held to this × the sag tolerance: a chord that cuts off a boundary vertex is
@@ -69,7 +69,7 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     h, a, b, twin = edge_table(S.F, twin=S.twins())
     rim = twin < 0
     h, a, b = h[rim], a[rim], b[rim]
-    s_a = arc_parameters(S.polygon, S.uv[a])
+    s_a = S.of_input(polygon_arcs).arc_position(S.uv[a])
     order = np.argsort(s_a, kind="stable")
     # the rim edge each corner falls on: the last one starting at or before it (cyclically)
     e = order[(np.searchsorted(s_a[order], corner_s, side="right") - 1) % len(order)]
@@ -88,7 +88,15 @@ def rim_corners(S: RemeshState) -> tuple[np.ndarray, np.ndarray]:
     in the input map and lifted) and their arc lengths along the polygon (k); a value of the
     input map (:meth:`.state.RemeshState.of_input`)."""
     f, bary, _ = S.locator.locate_with_inside(S.polygon)
-    return lift(S.V_in, S.F_in, f, bary), arc_parameters(S.polygon, S.polygon)
+    return lift(S.V_in, S.F_in, f, bary), S.of_input(polygon_arcs).arc_position(S.polygon)
+
+
+def polygon_arcs(S: RemeshState):
+    """The image polygon of ``S`` made for arc lengths along it (:func:`.sampling.arc_polygon`:
+    ``arc_position(points)`` is :func:`.sampling.arc_parameters` of ``S.polygon``); a value of
+    the input map (:meth:`.state.RemeshState.of_input`), so that the rim steps' questions
+    share one closest-segment tree."""
+    return arc_polygon(S.polygon)
 
 
 def refine_rim(S: RemeshState, tol: float, min_gap: float, budget: int,

@@ -520,7 +520,14 @@ def _flip_leaves(P: np.ndarray, F: np.ndarray, nb: int) -> np.ndarray:
 def arc_parameters(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Arc length (k,) from the first vertex of the closed polygon (k'×2) to each point's
     closest point on it."""
-    return _Polygon(np.asarray(polygon, dtype=np.float64)).arc_position(points)
+    return arc_polygon(polygon).arc_position(points)
+
+
+def arc_polygon(polygon: np.ndarray) -> _Polygon:
+    """The closed polygon (k×2) made once for many :func:`arc_parameters` questions: its
+    ``arc_position(points)`` is ``arc_parameters(polygon, points)`` (its closest-segment tree
+    built at the first)."""
+    return _Polygon(np.asarray(polygon, dtype=np.float64))
 
 
 def snap_rim(samples: DiskSamples, targets: np.ndarray) -> np.ndarray:
