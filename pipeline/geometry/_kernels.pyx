@@ -1154,17 +1154,72 @@ def fan_shapes_ok(const double[:, ::1] U, Py_ssize_t k, Py_ssize_t d, double sha
     every face ``(i, k + m, k + d + m)`` of the points ``U`` (stacked ``[positions (k), B (d),
     C (d)]``) has a :func:`disk_shapes` value at least ``shape_min`` (k bool; NaN fails):
     ``(disk_shape(U, T) >= shape_min).reshape(k, d).all(axis=1)`` for those faces ``T``."""
+    out_arr = np.ones(k, dtype=np.bool_)
+    _fan_shapes(U, k, d, shape_min, out_arr.view(np.uint8))
+    return out_arr
+
+
+cdef void _fan_shapes(const double[:, ::1] U, Py_ssize_t k, Py_ssize_t d, double shape_min,
+                      unsigned char[::1] out) noexcept:
+    """:func:`fan_shapes_ok` into ``out`` (k, set to 1): 0 where a face fails."""
     cdef Py_ssize_t i, m
     cdef int64_t b, c
-    out_arr = np.ones(k, dtype=np.bool_)
-    cdef unsigned char[::1] out = out_arr.view(np.uint8)
     for i in range(k):
         for m in range(d):
             b, c = k + m, k + d + m
             if not (_disk_shape(U, i, b, c, _signed2(U, i, b, c)) >= shape_min):
                 out[i] = 0
                 break
-    return out_arr
+
+
+@cython.cdivision(True)
+def disk_move_candidates(const double[:, ::1] uv, int64_t v, const int64_t[:, ::1] BC,
+                         const double[:, ::1] aimed, const double[::1] steps,
+                         const double[:, ::1] dirs, double shape_min):
+    """The candidate disk positions of :meth:`..remesh.angles._Patch.move` for the vertex
+    ``v`` whose star's faces are ``(v, BC[m, 0], BC[m, 1])`` (d×2), on the disk (``uv``
+    n×2), and which keep the star's shape there, operation for operation as the numpy form
+    computes them: the rows ``aimed`` (j×2) then the pattern points ``uv[v] + (h · steps[s])
+    · dirs[r]`` (row ``j + s·r_count + r``; :func:`..remesh.angles.pattern_points`) with
+    ``h`` the shortest disk edge of the star (``sqrt(dx·dx + dy·dy)``, as
+    :func:`..rows.norms` computes a 2-vector's length, over ``BC`` in row order), and
+    :func:`fan_shapes_ok` of each. Returns ``M`` (k×2) and the indices of those that keep
+    the shape (increasing, int64)."""
+    cdef Py_ssize_t d = BC.shape[0], j = aimed.shape[0], nd = dirs.shape[0]
+    cdef Py_ssize_t k = j + steps.shape[0] * nd, i, m, c, s, r, n_ok = 0
+    cdef double h = INFINITY, dx, dy, e, hs
+    for m in range(d):
+        for c in range(2):
+            dx = uv[BC[m, c], 0] - uv[v, 0]
+            dy = uv[BC[m, c], 1] - uv[v, 1]
+            e = sqrt(dx * dx + dy * dy)
+            if e < h or e != e:
+                h = e
+    U_arr = np.empty((k + 2 * d, 2), dtype=np.float64)
+    cdef double[:, ::1] U = U_arr
+    for i in range(j):
+        U[i, 0] = aimed[i, 0]
+        U[i, 1] = aimed[i, 1]
+    for s in range(steps.shape[0]):
+        hs = h * steps[s]
+        for r in range(nd):
+            i = j + s * nd + r
+            U[i, 0] = uv[v, 0] + hs * dirs[r, 0]
+            U[i, 1] = uv[v, 1] + hs * dirs[r, 1]
+    for m in range(d):
+        for c in range(2):
+            U[k + m, c] = uv[BC[m, 0], c]
+            U[k + d + m, c] = uv[BC[m, 1], c]
+    ok_arr = np.ones(k, dtype=np.uint8)
+    cdef unsigned char[::1] ok = ok_arr
+    _fan_shapes(U, k, d, shape_min, ok)
+    idx_arr = np.empty(k, dtype=np.int64)
+    cdef int64_t[::1] idx = idx_arr
+    for i in range(k):
+        if ok[i]:
+            idx[n_ok] = i
+            n_ok += 1
+    return U_arr[:k], idx_arr[:n_ok]
 
 
 def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] faces,

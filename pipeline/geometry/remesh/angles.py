@@ -51,8 +51,8 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
-                        point_faces_distance, replacement_angle, star_targets)
+from .._kernels import (disk_move_candidates, face_min_degrees, fan_scores, fan_shapes_ok,
+                        faces_keep_side, point_faces_distance, replacement_angle, star_targets)
 from ..laplacian import face_double_areas
 from ..locate import lift
 from ..metrics import corner_angles
@@ -687,12 +687,10 @@ class _Patch:
         D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
-        h = norms(S.uv[star[:, 1:]].reshape(-1, S.uv.shape[1]) - S.uv[v]).min()
-        M = project(np.vstack([S.uv[v] + D @ J.T, pattern_points(S.uv[v], h)]))
         # only the candidates that keep the star's shape on the domain are located and lifted
         # (so every candidate tried below passes :meth:`shapes_ok`: it is not asked again)
+        M, ok = move_candidates(S.uv, v, star, S.uv[v] + D @ J.T)
         score = np.full(len(M), -1.0)
-        ok = np.flatnonzero(star_shapes_ok(S.uv, M, star[:, 1:]))
         mf = np.full(len(M), S.face[v])
         mb = np.zeros((len(M), 3))
         P = np.zeros((len(M), 3))
@@ -860,6 +858,31 @@ def inner_groups(T: np.ndarray, inner: np.ndarray) -> np.ndarray:
     group = np.full(n, -1, np.int64)
     group[T[inner[T]]] = np.repeat(label, 3)[inner[T].ravel()]
     return group
+
+
+def move_candidates(uv: np.ndarray, v: int, star: np.ndarray, aimed: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The candidate domain positions of a move of ``v`` (its star ``star``, d×3, ``v``
+    first): the positions ``aimed`` (j×2 or j×3) and the :func:`pattern_points` around
+    ``uv[v]`` (the step unit: the shortest domain edge of the star), put on the domain
+    (:func:`.domain.project`), and the indices of those that keep the star's shape
+    (:func:`star_shapes_ok`). On the disk in one compiled pass
+    (:func:`.._kernels.disk_move_candidates`, the same values bit for bit).
+
+    Returns
+    -------
+    M : (k, 2) or (k, 3) float
+    ok : (j,) int
+    """
+    BC = np.ascontiguousarray(star[:, 1:], dtype=np.int64)
+    if uv.shape[1] == 2:
+        return disk_move_candidates(np.ascontiguousarray(uv, dtype=np.float64), int(v), BC,
+                                    np.ascontiguousarray(aimed, dtype=np.float64),
+                                    np.asarray(PATTERN_STEPS, dtype=np.float64), _CIRCLE_DIRS,
+                                    DISK_SHAPE_MIN)
+    h = norms(uv[BC].reshape(-1, uv.shape[1]) - uv[v]).min()
+    M = project(np.vstack([aimed, pattern_points(uv[v], h)]))
+    return M, np.flatnonzero(star_shapes_ok(uv, M, BC))
 
 
 def star_shapes_ok(uv: np.ndarray, M: np.ndarray, BC: np.ndarray) -> np.ndarray:
