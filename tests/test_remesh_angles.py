@@ -581,3 +581,25 @@ def test_disk_move_candidates_are_the_numpy_form_bit_for_bit():
         folded += len(M) - len(ok)
         kept += len(ok)
     assert folded > 0 and kept > 0
+
+
+@pytest.mark.parametrize("k", [1, 5, 8, 13, 140])
+def test_area_spread_is_the_numpy_sum_bit_for_bit(k):
+    """:func:`.._kernels.area_spread` (:meth:`.angles._Patch.spread`): the sum of the squared
+    relative deviations of :func:`.laplacian.face_double_areas` from a mean, as numpy sums
+    them, bit for bit, for fewer and more than 8 faces (blocks of 8) and more than 128
+    (halves), with a degenerate face (area 0: deviation 1) among several."""
+    from pipeline.geometry._kernels import area_spread
+    from pipeline.geometry.laplacian import face_double_areas
+
+    rng = np.random.default_rng(29)
+    for scale in (1e-3, 1.0, 1e3):
+        X = rng.standard_normal((3 * k, 3)) * scale
+        T = rng.permutation(3 * k).reshape(k, 3).astype(np.int64)
+        if k > 1:
+            X[T[-1, 2]] = 2.0 * X[T[-1, 1]] - X[T[-1, 0]]    # collinear corners
+        A = face_double_areas(X, T)
+        mean = float(A.mean()) * rng.uniform(0.5, 2.0)
+        want = float(((A / mean - 1) ** 2).sum())
+        got = area_spread(X, T, mean)
+        assert np.float64(got).tobytes() == np.float64(want).tobytes()

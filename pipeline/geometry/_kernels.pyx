@@ -1547,11 +1547,8 @@ def replacement_angle(const double[:, ::1] X, const int64_t[:, ::1] T, Py_ssize_
     :func:`..laplacian.face_double_areas`' ``sqrt((cx² + cy²) + cz²)``, the sums as numpy's,
     :func:`_pairwise_sum`). Returns the new faces' smallest angle, or nan where they do not
     beat the old ones."""
-    cdef Py_ssize_t t, c, k = T.shape[0]
+    cdef Py_ssize_t t, k = T.shape[0]
     cdef double a, min_old = INFINITY, min_new = INFINITY
-    cdef double e1[3]
-    cdef double e2[3]
-    cdef double cx, cy, cz, q
     cdef Py_ssize_t below_old = 0, below_new = 0
     dev_arr = np.empty(k, dtype=np.float64)
     cdef double[::1] dev = dev_arr
@@ -1569,17 +1566,41 @@ def replacement_angle(const double[:, ::1] X, const int64_t[:, ::1] T, Py_ssize_
         return NAN
     if mean_area == mean_area:
         for t in range(k):
-            for c in range(3):
-                e1[c] = X[T[t, 1], c] - X[T[t, 0], c]
-                e2[c] = X[T[t, 2], c] - X[T[t, 0], c]
-            cx = e1[1] * e2[2] - e1[2] * e2[1]
-            cy = e1[2] * e2[0] - e1[0] * e2[2]
-            cz = e1[0] * e2[1] - e1[1] * e2[0]
-            q = sqrt((cx * cx + cy * cy) + cz * cz) / mean_area - 1.0
-            dev[t] = q * q
+            dev[t] = _area_deviation(X, T, t, mean_area)
         if _pairwise_sum(&dev[n_old], k - n_old) > _pairwise_sum(&dev[0], n_old):
             return NAN
     return min_new
+
+
+@cython.cdivision(True)
+cdef inline double _area_deviation(const double[:, ::1] X, const int64_t[:, ::1] T,
+                                   Py_ssize_t t, double mean_area) noexcept nogil:
+    """The squared relative area deviation ``(A / mean_area − 1)²`` of the face ``T[t]`` of
+    ``X`` (``A``: :func:`..laplacian.face_double_areas`' ``sqrt((cx² + cy²) + cz²)``)."""
+    cdef Py_ssize_t c
+    cdef double e1[3]
+    cdef double e2[3]
+    cdef double cx, cy, cz, q
+    for c in range(3):
+        e1[c] = X[T[t, 1], c] - X[T[t, 0], c]
+        e2[c] = X[T[t, 2], c] - X[T[t, 0], c]
+    cx = e1[1] * e2[2] - e1[2] * e2[1]
+    cy = e1[2] * e2[0] - e1[0] * e2[2]
+    cz = e1[0] * e2[1] - e1[1] * e2[0]
+    q = sqrt((cx * cx + cy * cy) + cz * cz) / mean_area - 1.0
+    return q * q
+
+
+def area_spread(const double[:, ::1] X, const int64_t[:, ::1] T, double mean_area):
+    """The sum of the squared relative area deviations ``(A / mean_area − 1)²`` of the faces
+    ``T`` (k×3) of ``X`` (:func:`_area_deviation`), as numpy sums them (:func:`_pairwise_sum`,
+    then added to 0): :meth:`..remesh.angles._Patch.spread` in one pass."""
+    cdef Py_ssize_t t, k = T.shape[0]
+    dev_arr = np.empty(max(k, 1), dtype=np.float64)
+    cdef double[::1] dev = dev_arr
+    for t in range(k):
+        dev[t] = _area_deviation(X, T, t, mean_area)
+    return 0.0 + _pairwise_sum(&dev[0], k)
 
 
 cdef inline double _degrees_of_cosine(double cos) noexcept nogil:

@@ -51,9 +51,9 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (disk_move_candidates, face_min_degrees, fan_scores, fan_shapes_ok,
-                        faces_keep_side, point_faces_distance, replacement_angle, star_targets)
-from ..laplacian import face_double_areas
+from .._kernels import (area_spread, disk_move_candidates, face_min_degrees, fan_scores,
+                        fan_shapes_ok, faces_keep_side, point_faces_distance, replacement_angle,
+                        star_targets)
 from ..locate import lift
 from ..metrics import corner_angles
 from ..rows import cross, norms
@@ -375,14 +375,11 @@ class _Patch:
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
-        ``tris`` (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
-        return float(self.deviations(tris).sum())
-
-    def deviations(self, tris) -> np.ndarray:
-        """The squared relative area deviation ``(A / Ā − 1)²`` of each face of ``tris``
-        (lists of 3 vertices; ``Ā``: :attr:`mean_area`)."""
-        A = face_double_areas(self.S.X, np.asarray(tris, np.int64).reshape(-1, 3))
-        return (A / self.mean_area - 1) ** 2
+        ``tris`` (lists of 3 vertices; ``A``: :func:`..laplacian.face_double_areas`, ``Ā``:
+        :attr:`mean_area`), summed as numpy sums them (compiled:
+        :func:`.._kernels.area_spread`)."""
+        return area_spread(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                           np.asarray(tris, np.int64).reshape(-1, 3), float(self.mean_area))
 
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
