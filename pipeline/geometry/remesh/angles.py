@@ -691,11 +691,13 @@ class _Patch:
         mf = np.full(len(M), S.face[v])
         mb = np.zeros((len(M), 3))
         P = np.zeros((len(M), 3))
-        mf[ok], mb[ok], inside = S.locator.relocate(M[ok], mf[ok], walk=MOVE_WALK)
-        P[ok] = lift(S.V_in, S.F_in, mf[ok], mb[ok])
+        f_ok, b_ok, inside = S.locator.relocate(M[ok], mf[ok], walk=MOVE_WALK)
+        mf[ok], mb[ok] = f_ok, b_ok
+        P_ok = np.ascontiguousarray(lift(S.V_in, S.F_in, f_ok, b_ok), dtype=np.float64)
+        P[ok] = P_ok
         # the smallest angle of the star at each, -1 outside the map or against the guards
         # (more faces below the threshold; with the evenness guard, a larger spread)
-        score[ok] = fan_scores(np.ascontiguousarray(P[ok]), B, C,
+        score[ok] = fan_scores(P_ok, B, C,
                                np.ascontiguousarray(inside, dtype=np.bool_).view(np.uint8),
                                self.threshold,
                                int((angles < self.threshold).sum()) if self.count_below else -1,
@@ -728,12 +730,15 @@ class _Patch:
         sag of its edges ``v–star[:, 1]`` before the move), whether those edges pass
         :meth:`sag_ok`."""
         S = self.S
+        if sag_before is None:                 # gap_ok reads the surface positions alone
+            old = S.X[v].copy()
+            S.X[v] = where[3]
+            ok = self.gap_ok(x, star)
+            S.X[v] = old
+            return ok
         old = (S.uv[v].copy(), S.face[v], S.bary[v].copy(), S.X[v].copy())
         S.uv[v], S.face[v], S.bary[v], S.X[v] = where
-        if sag_before is None:
-            ok = self.gap_ok(x, star)
-        else:
-            ok = self.sag_ok([v] * len(star), star[:, 1], sag_before)
+        ok = self.sag_ok([v] * len(star), star[:, 1], sag_before)
         S.uv[v], S.face[v], S.bary[v], S.X[v] = old
         return ok
 
