@@ -322,7 +322,7 @@ class _Patch:
         inner[S.F[touching(S.F, near)].ravel()] = True
         self.rows = np.flatnonzero(touching(S.F, inner))
         self.inner = inner
-        self.faces = {int(t): list(map(int, S.F[t])) for t in self.rows}
+        self.faces = dict(zip(self.rows.tolist(), S.F[self.rows].tolist()))
         self.vf = defaultdict(set)
         for t, f in self.faces.items():
             for v in f:
