@@ -603,3 +603,23 @@ def test_area_spread_is_the_numpy_sum_bit_for_bit(k):
         want = float(((A / mean - 1) ** 2).sum())
         got = area_spread(X, T, mean)
         assert np.float64(got).tobytes() == np.float64(want).tobytes()
+
+
+def test_corners_min_degrees_is_face_min_degrees_of_the_one_face():
+    """:func:`.._kernels.corners_min_degrees` (one face, :meth:`.angles._Patch.min_angle`):
+    the value :func:`.angles.face_min_angles` gives that face, bit for bit, on random faces
+    at scales from 1e-6 to 1e6, needles, a coincident corner (0) and collinear corners."""
+    from pipeline.geometry._kernels import corners_min_degrees
+
+    rng = np.random.default_rng(31)
+    X = rng.standard_normal((600, 3)) * 10.0 ** rng.uniform(-6, 6, (600, 1))
+    X[1] = X[0]                                            # coincident corners
+    X[5] = 2.0 * X[4] - X[3]                               # collinear corners
+    X[8] = X[6] + 1e-9 * (X[7] - X[6])                     # a needle
+    T = np.vstack([[[0, 1, 2], [3, 4, 5], [6, 7, 8]],
+                   rng.integers(0, 600, (500, 3))]).astype(np.int64)
+    T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 0] != T[:, 2])]
+    want = face_min_angles(X, T)
+    got = np.array([corners_min_degrees(X, *map(int, f)) for f in T])
+    assert _same_bits(got, want)
+    assert want[0] == 0.0 and want[1] < 1e-6 and want[2] < 1e-4 and (want > 10).any()

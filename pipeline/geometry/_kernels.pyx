@@ -1521,13 +1521,25 @@ def face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T):
 
 cdef inline double _face_min_degrees(const double[:, ::1] X, const int64_t[:, ::1] T,
                                      Py_ssize_t t) noexcept nogil:
-    """:func:`face_min_degrees` of the face ``T[t]``: the angle of its largest corner cosine
-    (nan where one is nan, then 0)."""
+    """:func:`face_min_degrees` of the face ``T[t]``."""
+    return _corners_min_degrees(X, T[t, 0], T[t, 1], T[t, 2])
+
+
+def corners_min_degrees(const double[:, ::1] X, int64_t a, int64_t b, int64_t c):
+    """:func:`face_min_degrees` of the one face ``(a, b, c)`` of ``X``, as a float."""
+    return _corners_min_degrees(X, a, b, c)
+
+
+cdef inline double _corners_min_degrees(const double[:, ::1] X, int64_t a, int64_t b,
+                                        int64_t d) noexcept nogil:
+    """The smallest interior angle (degrees) of the face ``(a, b, d)`` of ``X``: the angle of
+    its largest corner cosine (nan where one is nan, then 0)."""
     cdef Py_ssize_t c
+    cdef int64_t f[3]
     cdef double cos, best = -INFINITY
+    f[0], f[1], f[2] = a, b, d
     for c in range(3):
-        cos = _corner_cosine(&X[T[t, c], 0], &X[T[t, (c + 1) % 3], 0],
-                             &X[T[t, (c + 2) % 3], 0])
+        cos = _corner_cosine(&X[f[c], 0], &X[f[(c + 1) % 3], 0], &X[f[(c + 2) % 3], 0])
         if cos != cos:
             best = NAN
             break

@@ -51,9 +51,9 @@ from functools import partial
 
 import numpy as np
 
-from .._kernels import (area_spread, disk_move_candidates, face_min_degrees, fan_scores,
-                        fan_shapes_ok, faces_keep_side, point_faces_distance, replacement_angle,
-                        star_targets)
+from .._kernels import (area_spread, corners_min_degrees, disk_move_candidates,
+                        face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
+                        point_faces_distance, replacement_angle, star_targets)
 from ..locate import lift
 from ..metrics import corner_angles
 from ..rows import cross, norms
@@ -357,9 +357,14 @@ class _Patch:
                                np.asarray(tris, dtype=np.int64).reshape(-1, 3))
 
     def min_angle(self, tris) -> float:
-        """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices)."""
+        """The smallest 3D angle (degrees) of the faces ``tris`` (lists of 3 vertices; one
+        face compiled in one call: :func:`.._kernels.corners_min_degrees`)."""
         if len(tris) == 0:
             return 180.0
+        if len(tris) == 1:
+            a, b, c = tris[0]
+            return corners_min_degrees(np.ascontiguousarray(self.S.X, dtype=np.float64),
+                                       a, b, c)
         return float(self.face_min_angles(tris).min())
 
     def better(self, old, new) -> float | None:
