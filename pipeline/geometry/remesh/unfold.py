@@ -63,7 +63,7 @@ from ...errors import UserError
 from .. import topology as topo
 from ..locate import lift
 from ..remesh_quality import closest_points_on_triangles
-from ..rows import dots, norms
+from ..rows import cross, dots, norms
 from .angles import (_Patch, face_min_angles, input_vertex_under, star_shapes_ok,
                      triangle_min_angles)
 from .domain import project
@@ -124,7 +124,7 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
     (k,) bool
     """
     k = len(P)
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    normal = cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     if ties:
         least = least_dots(S, np.repeat(normal, 3, axis=0), under.reshape(-1),
                            bary.reshape(-1, 3)).reshape(k, 3)
@@ -593,8 +593,8 @@ def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
     """
     vs = np.concatenate([outline, inside])
     normal = S.normals_in()[S.face[vs]].sum(axis=0)
-    e1 = np.cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
-    e2 = np.cross(normal, e1)
+    e1 = cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
+    e2 = cross(normal, e1)
     Q = S.X[vs] @ np.column_stack([e1 / np.linalg.norm(e1), e2 / np.linalg.norm(e2)])
     b = len(outline)
     loop = np.column_stack([np.arange(b), np.roll(np.arange(b), -1)])
