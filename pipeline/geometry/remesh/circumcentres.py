@@ -344,6 +344,8 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
     used = np.zeros(len(S.F), bool)
     edges, faces, points = [], [], []
     for i in range(len(bad)):
+        if used[bad[i]]:                  # a face of the round touches it: skipped whatever
+            continue                      # its action
         act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], drift[i],
                       twin, caps)
         if act is None:
