@@ -299,8 +299,10 @@ class _FoldPatch(_Patch):
         P, X = cut[1], self.S.X
         shared = self.edge_faces(r, k)
         if len(P):
+            inner = self.inner                 # a face's corners one by one: no index array
             T = np.asarray([[k if v == r else v for v in f] for t, f in self.faces.items()
-                            if t not in shared and self.inner[f].any()], np.int64)
+                            if t not in shared and (inner[f[0]] or inner[f[1]] or inner[f[2]])],
+                           np.int64)
             Q = np.repeat(P, len(T), axis=0)
             near = closest_points_on_triangles(Q, *(np.tile(X[T[:, c]], (len(P), 1))
                                                     for c in range(3)))
