@@ -643,8 +643,9 @@ def recover_edges(Q: np.ndarray, T: np.ndarray, edges: np.ndarray) -> np.ndarray
     T = T.copy()
     for a, b in edges.tolist():
         for _ in range(len(T) + 1):
-            h = np.column_stack([T.ravel(), np.roll(T, -1, axis=1).ravel()])
-            if ((h[:, 0] == a) & (h[:, 1] == b)).any() or ((h[:, 0] == b) & (h[:, 1] == a)).any():
+            h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)      # row 3f + c: T[f, c] → T[f, c + 1]
+            have = set(map(tuple, h.tolist()))
+            if (a, b) in have or (b, a) in have:
                 break
             if not _flip_across(Q, T, h, a, b):
                 return None
