@@ -234,14 +234,34 @@ def test_relocate_walks_to_the_same_answer(walk, monkeypatch):
     Q[:50] = [1.3, 0.5]                                         # outside the unit square
     calls = []
     grid = L._grid_locate
-    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-12: calls.append(len(pts))
-                        or grid(pts, tol))
+    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-12, project=True:
+                        calls.append(len(pts)) or grid(pts, tol, project))
     f1, b1, inside = L.relocate(Q, f0, walk=walk)
     want_f, want_b, want_inside = grid(Q)
     assert np.array_equal(inside, want_inside) and not inside[:50].any()
     assert np.abs(lift(uv, F, f1, b1) - lift(uv, F, want_f, want_b)).max() <= 1e-12
     if walk >= 2:
         assert sum(calls) < 0.2 * len(Q)          # most points found by walking
+
+
+def test_relocate_without_projection_marks_outside_points():
+    """Without ``project``, the points outside the square (the walk stops at the rim, the
+    grid finds no face) get face −1 and zero barycentrics; the inside ones get the projecting
+    call's faces and barycentrics, bit for bit."""
+    uv, F, loop = grid_mesh(20, 0.3)
+    L = PointLocator(uv, F, loop)
+    rng = np.random.default_rng(5)
+    P = 0.05 + 0.9 * rng.random((2000, 2))
+    f0, _ = L.locate(P)
+    Q = P + rng.normal(scale=0.015, size=P.shape)
+    Q[:40] = [1.3, 0.5]
+    Q[40:80] = [-0.2, 0.7]
+    f1, b1, in1 = L.relocate(Q, f0, walk=3)
+    f2, b2, in2 = L.relocate(Q, f0, walk=3, project=False)
+    assert np.array_equal(in1, in2) and not in2[:80].any() and in2[80:].all()
+    assert (f2[:80] == -1).all() and (b2[:80] == 0.0).all()
+    assert (f1[:80] >= 0).all()
+    assert np.array_equal(f1[80:], f2[80:]) and np.array_equal(b1[80:], b2[80:])
 
 
 def test_walk_rows_hold_each_faces_corners_and_neighbours():
@@ -302,8 +322,8 @@ def test_large_batches_walk_to_the_grids_answer(method, monkeypatch):
     assert len(P) >= max(4096, len(uv) / 2)
     calls = []
     grid = L._grid_locate
-    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-10: calls.append(len(pts))
-                        or grid(pts, tol))
+    monkeypatch.setattr(L, "_grid_locate", lambda pts, tol=1e-10, project=True:
+                        calls.append(len(pts)) or grid(pts, tol, project))
     f, b, inside = getattr(L, method)(P)
     check_valid(f, b, len(P))
     want_f, want_b, want_inside = grid(P)

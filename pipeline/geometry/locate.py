@@ -300,9 +300,11 @@ class PointLocator:
         tree, vface = self._tree
         return vface[tree.query(P)[1]]
 
-    def _grid_locate(self, P: np.ndarray, tol: float = TOL
+    def _grid_locate(self, P: np.ndarray, tol: float = TOL, project: bool = True
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Steps 2–4 of the module docstring for every point (the grid)."""
+        """Steps 2–4 of the module docstring for every point (the grid); without ``project``,
+        a point outside the image gets face −1 and zero barycentrics instead of its closest
+        boundary point's."""
         k = len(P)
         face = np.empty(k, np.int64)
         bary = np.empty((k, 3))
@@ -312,18 +314,22 @@ class PointLocator:
             ins = s >= -tol
             b[ins] = _clean_rows(b[ins])
             out = np.flatnonzero(~ins)
-            if len(out):
+            if len(out) and project:
                 f[out], b[out] = self._on_boundary(P[lo + out])
+            elif len(out):
+                f[out], b[out] = -1, 0.0
             face[lo:lo + _CHUNK], bary[lo:lo + _CHUNK], inside[lo:lo + _CHUNK] = f, b, ins
         return face, bary, inside
 
     def relocate(self, points: np.ndarray, face: np.ndarray, tol: float = TOL,
-                 face2: np.ndarray | None = None, walk: int = 2
+                 face2: np.ndarray | None = None, walk: int = 2, project: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Locate points near known faces: ``face`` (and then ``face2``, if given) is tested
         first; a point outside it steps up to ``walk`` times to the neighbouring face across
         the edge of its most negative barycentric coordinate (a walk); only the points still
-        not found go through the grid. Returns like :meth:`locate_with_inside`."""
+        not found go through the grid. Returns like :meth:`locate_with_inside`; without
+        ``project``, a point outside the image gets face −1 and zero barycentrics (for a
+        caller that only needs the inside points' places)."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
         face = np.array(face, dtype=np.int64, copy=True)
         bary = np.empty((len(P), 3))
@@ -338,7 +344,7 @@ class PointLocator:
                                  face, bary)
         moved = todo
         if len(moved):
-            face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol)
+            face[moved], bary[moved], inside[moved] = self._grid_locate(P[moved], tol, project)
         return face, bary, inside
 
     def walk_table(self) -> np.ndarray:

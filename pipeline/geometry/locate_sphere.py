@@ -142,14 +142,15 @@ class SphereLocator:
         return face, bary, inside
 
     def relocate(self, points: np.ndarray, face: np.ndarray, tol: float = TOL,
-                 face2: np.ndarray | None = None, walk: int = 2
+                 face2: np.ndarray | None = None, walk: int = 2, project: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Locate directions near known faces: ``face`` (then ``face2``, if given) is tested
         first and a query outside it walks up to ``walk`` steps across the edge of its most
         negative coordinate; a query still unsettled walks on up to ``_FAR_WALK`` steps from
         where it stopped, then as many from a face at its nearest map vertex, and the few left
         are found among the faces near them (module docstring). Returns ``(face, bary,
-        inside)``, ``inside`` all True."""
+        inside)``, ``inside`` all True (``project``, the disk locator's choice for outside
+        points, changes nothing: no direction is outside the sphere)."""
         P = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
         out_face = np.array(face, dtype=np.int64, copy=True).reshape(-1)
         bary = np.empty((len(P), 3))

@@ -155,7 +155,7 @@ def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
         step = np.einsum("ijk,ik->ij", J[mf], C - lift(S.V_in, S.F_in, mf, mb))
         for _ in range(HALVINGS):
             trial = project(c + step)
-            nxt, tf, tb = _miss(S, trial, C, mf)
+            nxt, tf, tb = _miss(S, trial, C, mf, project=False)
             better = nxt < miss
             c[better] = trial[better]
             miss[better], mf[better], mb[better] = nxt[better], tf[better], tb[better]
@@ -164,18 +164,22 @@ def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
     return c, mf, mb
 
 
-def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray, near: np.ndarray | None = None
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _miss(S: RemeshState, c: np.ndarray, C: np.ndarray, near: np.ndarray | None = None,
+          project: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """How far (k) the lifts of the domain points ``c`` (k×2 or k×3) are from the 3D points
     ``C`` (k×3), infinite for a point outside the input map; and where the points are in the
     input map (input faces k and barycentrics k×3, :meth:`.locate.PointLocator.locate`, or
     given input faces ``near`` (k) walked from, up to ``LOCATE_WALK`` steps:
-    :meth:`.locate.PointLocator.relocate`)."""
+    :meth:`.locate.PointLocator.relocate`). Without ``project`` (``near`` given), a point
+    outside the input map gets face −1 and zero barycentrics instead of its closest rim
+    point's, for a caller that keeps only nearer points."""
     if near is None:
         mf, mb, inside = S.locator.locate_with_inside(c)
     else:
-        mf, mb, inside = S.locator.relocate(c, near, walk=LOCATE_WALK)
-    return np.where(inside, norms(lift(S.V_in, S.F_in, mf, mb) - C), np.inf), mf, mb
+        mf, mb, inside = S.locator.relocate(c, near, walk=LOCATE_WALK, project=project)
+    miss = np.full(len(mf), np.inf)
+    miss[inside] = norms(lift(S.V_in, S.F_in, mf[inside], mb[inside]) - C[inside])
+    return miss, mf, mb
 
 
 def encroached(C: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -340,6 +344,8 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
     used = np.zeros(len(S.F), bool)
     edges, faces, points = [], [], []
     for i in range(len(bad)):
+        if used[bad[i]]:                  # a face of the round touches it: skipped whatever
+            continue                      # its action
         act = _action(S, bad[i], f[i], bary[i], bool(inside[i]), c[i], C3[i], R[i], drift[i],
                       twin, caps)
         if act is None:

@@ -17,7 +17,7 @@ from ..rows import dots
 from .state import RemeshState
 
 SAG_BLOCK = 262144    # sample points per point-location query
-SAG_WALK = 16         # walk steps from the face under an edge's nearer end to a point on it
+SAG_WALK = 64         # walk steps from the face under an edge's nearer end to a point on it
 CHAIN_MIN = 64        # edges from which the samples along them are located one t at a time
 
 

@@ -63,7 +63,7 @@ from ...errors import UserError
 from .. import topology as topo
 from ..locate import lift
 from ..remesh_quality import closest_points_on_triangles
-from ..rows import dots, norms
+from ..rows import cross, dots, norms
 from .angles import (_Patch, face_min_angles, input_vertex_under, star_shapes_ok,
                      triangle_min_angles)
 from .domain import project
@@ -124,7 +124,7 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
     (k,) bool
     """
     k = len(P)
-    normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    normal = cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     if ties:
         least = least_dots(S, np.repeat(normal, 3, axis=0), under.reshape(-1),
                            bary.reshape(-1, 3)).reshape(k, 3)
@@ -299,8 +299,10 @@ class _FoldPatch(_Patch):
         P, X = cut[1], self.S.X
         shared = self.edge_faces(r, k)
         if len(P):
+            inner = self.inner                 # a face's corners one by one: no index array
             T = np.asarray([[k if v == r else v for v in f] for t, f in self.faces.items()
-                            if t not in shared and self.inner[f].any()], np.int64)
+                            if t not in shared and (inner[f[0]] or inner[f[1]] or inner[f[2]])],
+                           np.int64)
             Q = np.repeat(P, len(T), axis=0)
             near = closest_points_on_triangles(Q, *(np.tile(X[T[:, c]], (len(P), 1))
                                                     for c in range(3)))
@@ -593,8 +595,8 @@ def chart_triangulation(S: RemeshState, outline: np.ndarray, inside: np.ndarray
     """
     vs = np.concatenate([outline, inside])
     normal = S.normals_in()[S.face[vs]].sum(axis=0)
-    e1 = np.cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
-    e2 = np.cross(normal, e1)
+    e1 = cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
+    e2 = cross(normal, e1)
     Q = S.X[vs] @ np.column_stack([e1 / np.linalg.norm(e1), e2 / np.linalg.norm(e2)])
     b = len(outline)
     loop = np.column_stack([np.arange(b), np.roll(np.arange(b), -1)])
@@ -641,8 +643,9 @@ def recover_edges(Q: np.ndarray, T: np.ndarray, edges: np.ndarray) -> np.ndarray
     T = T.copy()
     for a, b in edges.tolist():
         for _ in range(len(T) + 1):
-            h = np.column_stack([T.ravel(), np.roll(T, -1, axis=1).ravel()])
-            if ((h[:, 0] == a) & (h[:, 1] == b)).any() or ((h[:, 0] == b) & (h[:, 1] == a)).any():
+            h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)      # row 3f + c: T[f, c] → T[f, c + 1]
+            have = set(map(tuple, h.tolist()))
+            if (a, b) in have or (b, a) in have:
                 break
             if not _flip_across(Q, T, h, a, b):
                 return None
