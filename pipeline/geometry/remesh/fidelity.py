@@ -190,8 +190,8 @@ def rebound(S: RemeshState, pts: InputPoints, d: np.ndarray, W: np.ndarray,
     """New bounds ``d`` (k,) and witnesses ``W`` (k×3) of :class:`FarMemo` for the points
     without a witness left (``W[:, 0] < 0``), in place: such a vertex measured (its closest
     face) or, where :func:`vertex_distances` bounds the vertices, bounded through the remesh
-    face over it on the domain, such a midpoint or centroid bounded by its distance to its corners' witnesses
-    (:func:`middle_face_bounds`; a rim corner's: any face)."""
+    face over it on the domain, such a midpoint or centroid bounded by its distance to its
+    corners' witnesses (:func:`middle_face_bounds`; a rim corner's: any face)."""
     nv, ne = len(pts.vertices), len(pts.edges)
     lost = np.flatnonzero(W[:nv, 0] < 0)
     if nv < VERTICES_PER_FACE_TO_BOUND * len(S.F):
@@ -544,9 +544,9 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     surface of a vertex put before: the nearest on the surface of the ``candidates`` nearest
     movable vertices on the disk that can move there (:func:`move_keeps_shape`); only points
     farther than the remesh's own farthest edge middle from the input (:func:`remesh_reach`)
-    are taken (:func:`input_beyond`). It stops at the first point no vertex can take: the Hausdorff distance is a
-    maximum, and vertices on the nearer points after it cannot lower it (they would only cost
-    triangle shape).
+    are taken (:func:`input_beyond`). It stops at the first point no vertex can take: the
+    Hausdorff distance is a maximum, and vertices on the nearer points after it cannot lower
+    it (they would only cost triangle shape).
 
     Made after the minimum-angle pass, and again after the last smoothing: the follow step's
     snaps (:func:`follow_input`) are free again in the fold repairs and that pass, whose

@@ -625,10 +625,10 @@ class _Operations:
         remesh, farthest first, while one can be without a new angle below ``min_angle_deg``,
         a new fold, an edge farther than the sag tolerance from the surface or another input
         point left as far (:func:`.fidelity.settle_on_far_input`, its search from ``memo``
-        where given; the vertices at ``followed``, k×3 points, stay); where it stops at a point farther than
-        ``insert_beyond`` (the follow tolerance), vertices inserted at the points left
-        instead (:meth:`insert_at_far_input`). Returns the vertices moved and inserted and
-        the input's reach left."""
+        where given; the vertices at ``followed``, k×3 points, stay); where it stops at a
+        point farther than ``insert_beyond`` (the follow tolerance), vertices inserted at the
+        points left instead (:meth:`insert_at_far_input`). Returns the vertices moved and
+        inserted and the input's reach left."""
         S = self.S
         settled = settle_on_far_input(S, SETTLE_TOL * self.L, FOLLOW_GAPS[1] * self.L,
                                       min_angle_deg, self.tol, fixed=at_points(S.X, followed),
