@@ -349,6 +349,15 @@ class _Patch:
         S = self.S
         return at, S.X[at].copy(), S.uv[at].copy(), S.face[at].copy(), S.bary[at].copy()
 
+    def put_positions(self, saved: tuple, put: np.ndarray | None = None) -> None:
+        """Put back the positions :meth:`positions` saved in ``saved`` (of its vertices at the
+        mask ``put`` (k,) over them, where given)."""
+        at, X, uv, face, bary = saved
+        if put is not None:
+            at, X, uv, face, bary = at[put], X[put], uv[put], face[put], bary[put]
+        S = self.S
+        S.X[at], S.uv[at], S.face[at], S.bary[at] = X, uv, face, bary
+
     # ------------------------------------------------------------------------------ measures
 
     def face_min_angles(self, tris) -> np.ndarray:
@@ -790,16 +799,13 @@ class _Patch:
         worse = np.flatnonzero((self.group_measures(self.faces) > self.before).any(axis=1))
         if len(worse) == 0:
             return 0
-        S, undo = self.S, np.isin(self.group, worse)
+        undo = np.isin(self.group, worse)
         drop = np.isin(self.face_groups(self.faces), worse)
         faces = {t: f for (t, f), d in zip(self.faces.items(), drop) if not d}
         back = np.isin(self.face_groups(self.original), worse)
         faces.update((t, f) for (t, f), b in zip(self.original.items(), back) if b)
         self.faces = faces
-        at, X, uv, face, bary = self.saved_at
-        put = undo[at]
-        S.X[at[put]], S.uv[at[put]], S.face[at[put]], S.bary[at[put]] = \
-            X[put], uv[put], face[put], bary[put]
+        self.put_positions(self.saved_at, undo[self.saved_at[0]])
         self.removed[undo] = False
         return len(worse)
 

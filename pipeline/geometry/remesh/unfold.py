@@ -469,11 +469,10 @@ class _FoldPatch(_Patch):
 
     def restore(self, saved: tuple) -> None:
         """Put back the patch as :meth:`snapshot` saved it."""
-        self.faces, vf, self.removed, self.next_id, (at, X, uv, face, bary) = saved
+        self.faces, vf, self.removed, self.next_id, positions = saved
         self.vf.clear()
         self.vf.update(vf)
-        S = self.S
-        S.X[at], S.uv[at], S.face[at], S.bary[at] = X, uv, face, bary
+        self.put_positions(positions)
 
     def keeps_floor(self, saved: tuple) -> bool:
         """Whether the faces changed since :meth:`snapshot` saved ``saved`` (their corners, or
