@@ -238,6 +238,31 @@ def test_default_samples_give_the_exact_rms_and_maximum_of_a_height_field():
     assert error < 3 * standard_error and error < 0.005
 
 
+def test_random_samples_are_the_numpy_formula_bit_for_bit():
+    """A random sample is ``p0 + u (p1 − p0) + v (p2 − p0)`` of its drawn face, ``(u, v)``
+    reflected into the triangle where ``u + v > 1``, evaluated as numpy evaluates it one
+    coordinate at a time: the same bits."""
+    from pipeline.geometry.laplacian import face_double_areas
+    from pipeline.geometry.remesh_quality import _area_weighted_faces, _random_samples
+
+    rng = np.random.default_rng(2)
+    V = rng.normal(size=(40, 3)) * [1.0, 1e-3, 1e6]
+    F = np.array([rng.choice(40, 3, replace=False) for _ in range(60)])
+    got = _random_samples(V, F, 5000, seed=7)
+    draws = np.random.default_rng(7)
+    f = _area_weighted_faces(face_double_areas(V, F), 5000, draws)
+    u, v = draws.random(5000), draws.random(5000)
+    flip = u + v > 1
+    assert 1000 < flip.sum() < 4000                      # both cases are exercised
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    T = F[f]
+    for axis in range(3):
+        x = V[:, axis]
+        x0 = x[T[:, 0]]
+        np.testing.assert_array_equal(got[:, axis],
+                                      x0 + u * (x[T[:, 1]] - x0) + v * (x[T[:, 2]] - x0))
+
+
 def test_area_weighted_faces_are_the_draws_of_numpys_choice():
     from pipeline.geometry.remesh_quality import _area_weighted_faces
 

@@ -981,6 +981,63 @@ def lift_rows(const double[:, ::1] values, const int64_t[:, ::1] F, const int64_
     return out_arr
 
 
+def triangle_points(const double[:, ::1] V, const int64_t[:, ::1] F, const int64_t[::1] face,
+                    const double[::1] u, const double[::1] v):
+    """Row ``i`` (k×d): the point ``p0 + u' (p1 − p0) + v' (p2 − p0)`` of the triangle
+    ``F[face[i]]`` of ``V`` (n×d), with ``(u', v') = (u[i], v[i])``, or ``(1 − u[i], 1 − v[i])``
+    where ``u[i] + v[i] > 1`` (reflected into the triangle), one coordinate at a time."""
+    cdef Py_ssize_t i, j, d = V.shape[1]
+    cdef int64_t t0, t1, t2
+    cdef double a, b, x0
+    out_arr = np.empty((face.shape[0], d), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    with nogil:
+        for i in range(face.shape[0]):
+            a, b = u[i], v[i]
+            if a + b > 1:
+                a, b = 1 - a, 1 - b
+            t0, t1, t2 = F[face[i], 0], F[face[i], 1], F[face[i], 2]
+            for j in range(d):
+                x0 = V[t0, j]
+                out[i, j] = x0 + a * (V[t1, j] - x0) + b * (V[t2, j] - x0)
+    return out_arr
+
+
+def guided_draws(const double[::1] cdf, const int64_t[::1] guide, const double[::1] u,
+                 int64_t walk):
+    """For each draw ``u[i]`` in [0, 1), the first index of ``cdf`` (m,: non-decreasing, last
+    entry 1) whose value exceeds it (``cdf.searchsorted(u, side="right")``): from
+    ``guide[max(⌊u[i]·m⌋ − 1, 0)]`` (``guide[j]``: the first index whose value exceeds
+    ``j / m``) forward one index at a time, or, when ``walk`` steps do not get there, by
+    bisection."""
+    cdef Py_ssize_t i, m = cdf.shape[0]
+    cdef int64_t t, j, k, lo, hi, mid
+    cdef double x
+    out_arr = np.empty(u.shape[0], dtype=np.int64)
+    cdef int64_t[::1] out = out_arr
+    with nogil:
+        for i in range(u.shape[0]):
+            x = u[i]
+            j = <int64_t>(x * <double>m) - 1
+            t = guide[j if j > 0 else 0]
+            k = 0
+            while cdf[t] <= x:
+                t += 1
+                k += 1
+                if k == walk:
+                    lo, hi = 0, m
+                    while lo < hi:
+                        mid = lo + (hi - lo) // 2
+                        if cdf[mid] <= x:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    t = lo
+                    break
+            out[i] = t
+    return out_arr
+
+
 cdef inline double _length(const double[:, ::1] X, int64_t a, int64_t b) noexcept nogil:
     """``|X[a] − X[b]|`` summing the squares as numpy's einsum does here (x, z, then y)."""
     cdef double dx = X[a, 0] - X[b, 0], dy = X[a, 1] - X[b, 1], dz = X[a, 2] - X[b, 2]

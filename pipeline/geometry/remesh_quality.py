@@ -36,7 +36,8 @@ from typing import NamedTuple
 import numpy as np
 
 from . import topology as topo
-from ._kernels import closest_points, face_distances, tree_boxes, tree_distances, triangle_tree
+from ._kernels import (closest_points, face_distances, guided_draws, tree_boxes, tree_distances,
+                       triangle_points, triangle_tree)
 from .laplacian import face_double_areas
 from .metrics import corner_angles
 from .rows import norms, row_max, row_min
@@ -343,15 +344,8 @@ def _random_samples(V: np.ndarray, F: np.ndarray, n_random: int, seed: int,
     dA = face_double_areas(V, F) if double_area is None else double_area
     f = _area_weighted_faces(dA, n_random, rng)
     u, v = rng.random(n_random), rng.random(n_random)
-    flip = u + v > 1
-    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
-    T = F[f]
-    out = np.empty((n_random, 3))
-    for axis in range(3):
-        x = np.ascontiguousarray(V[:, axis])
-        x0 = x[T[:, 0]]
-        out[:, axis] = x0 + u * (x[T[:, 1]] - x0) + v * (x[T[:, 2]] - x0)
-    return out
+    return triangle_points(np.ascontiguousarray(V, dtype=np.float64),
+                           np.ascontiguousarray(F, dtype=np.int64), f, u, v)
 
 
 #: forward steps from the guide table before a draw's face is found by bisection instead
@@ -375,16 +369,7 @@ def _area_weighted_faces(A: np.ndarray, k: int, rng: np.random.Generator) -> np.
     u = rng.random(k)
     m = len(cdf)
     guide = cdf.searchsorted(np.arange(m) / m, side="right")
-    f = guide[np.maximum((u * m).astype(np.int64) - 1, 0)]
-    behind = np.arange(k)
-    for _ in range(GUIDE_WALK):
-        behind = behind[cdf[f[behind]] <= u[behind]]
-        if len(behind) == 0:
-            return f
-        f[behind] += 1
-    # draws among many faces far smaller than a step (slivers): bisect, as choice does
-    f[behind] = cdf.searchsorted(u[behind], side="right")
-    return f
+    return guided_draws(cdf, guide, u, GUIDE_WALK)
 
 
 #: relative margin of the Lipschitz bound below which a structured sample is not queried:
