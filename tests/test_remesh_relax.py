@@ -178,3 +178,27 @@ def test_compiled_disk_double_areas_are_the_cross_product():
     tri = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     assert double_areas(tri, np.array([[0, 1, 2]])).tolist() == [1.0]
     assert double_areas(tri, np.zeros((0, 3), np.int64)).shape == (0,)
+
+
+def test_put_rows_is_the_fancy_assignment():
+    """``put_rows(dst, rows, src)`` leaves ``dst`` as ``dst[rows] = src`` does, bit for bit
+    (2 and 3 columns, rows in any order, none), the rows outside untouched; a row out of
+    range or a src of the wrong shape is refused before anything is written."""
+    from pipeline.geometry._kernels import put_rows
+
+    rng = np.random.default_rng(12)
+    for d in (2, 3):
+        dst = rng.normal(size=(300, d))
+        rows = rng.permutation(300)[:120]
+        src = rng.normal(size=(120, d)) * 1e-300
+        want = dst.copy()
+        want[rows] = src
+        put_rows(dst, rows, src)
+        assert dst.tobytes() == want.tobytes()
+        put_rows(dst, rows[:0], src[:0])
+        assert dst.tobytes() == want.tobytes()
+    with pytest.raises(IndexError):
+        put_rows(dst, np.array([0, 300]), np.zeros((2, 3)))
+    with pytest.raises(ValueError):
+        put_rows(dst, np.array([0, 1]), np.zeros((2, 2)))
+    assert dst.tobytes() == want.tobytes()

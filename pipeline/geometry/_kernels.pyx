@@ -1234,6 +1234,21 @@ def domain_double_areas(const double[:, ::1] uv, const int64_t[:, ::1] F):
     return out_arr
 
 
+def put_rows(double[:, ::1] dst, const int64_t[::1] rows, const double[:, ::1] src):
+    """``dst[rows] = src`` (k rows, ``rows`` distinct), the values copied as they are: numpy's
+    fancy assignment of rows without its general index iterator. Raises IndexError for a row
+    outside ``[0, len(dst))``."""
+    cdef Py_ssize_t i, j, d = dst.shape[1], n = dst.shape[0]
+    if src.shape[0] != rows.shape[0] or src.shape[1] != d:
+        raise ValueError("put_rows: src must have one row of dst's width per index")
+    for i in range(rows.shape[0]):
+        if rows[i] < 0 or rows[i] >= n:
+            raise IndexError(f"put_rows: row {rows[i]} is outside [0, {n})")
+    for i in range(rows.shape[0]):
+        for j in range(d):
+            dst[rows[i], j] = src[i, j]
+
+
 def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] faces,
                const double[::1] area_floor, double shape_min):
     """The entries of ``faces`` (increasing, as given) whose twice signed disk area is at most
