@@ -1234,6 +1234,34 @@ def domain_double_areas(const double[:, ::1] uv, const int64_t[:, ::1] F):
     return out_arr
 
 
+@cython.cdivision(True)
+def valence_gains(const int64_t[:, ::1] F, const int64_t[::1] twin, const int64_t[::1] dev):
+    """The interior edges whose flip lowers ``Σ dev²`` over the quad's corners, for
+    ``remesh.flips.valence_flips``: every half-edge ``h = 3 f + c`` with ``twin[h] > h``
+    (``a → b`` with ``p`` the third corner of its face, ``q`` that of the twin's) and its gain
+    ``2 (dev[a] + dev[b] − dev[p] − dev[q]) − 4`` when positive (the flip takes one from
+    the valences of ``a`` and ``b`` and gives one to ``p`` and ``q``). Returns ``(h, gain)``,
+    int64, ``h`` increasing."""
+    cdef Py_ssize_t h, k = 0, N = 3 * F.shape[0]
+    cdef int64_t f, c, t, g
+    h_arr = np.empty(N, dtype=np.int64)
+    gain_arr = np.empty(N, dtype=np.int64)
+    cdef int64_t[::1] H = h_arr, G = gain_arr
+    for h in range(N):
+        t = twin[h]
+        if t <= h:
+            continue
+        f = h // 3
+        c = h - 3 * f
+        g = 2 * (dev[F[f, c]] + dev[F[f, (c + 1) % 3]] - dev[F[f, (c + 2) % 3]]
+                 - dev[F[t // 3, (t % 3 + 2) % 3]]) - 4
+        if g > 0:
+            H[k] = h
+            G[k] = g
+            k += 1
+    return h_arr[:k], gain_arr[:k]
+
+
 def put_rows(double[:, ::1] dst, const int64_t[::1] rows, const double[:, ::1] src):
     """``dst[rows] = src`` (k rows, ``rows`` distinct), the values copied as they are: numpy's
     fancy assignment of rows without its general index iterator. Raises IndexError for a row
