@@ -243,7 +243,10 @@ def carried_faces(old: np.ndarray, new: np.ndarray) -> np.ndarray:
     o_new, o_old = np.argsort(h_new), np.argsort(h_old)
     at = np.minimum(np.searchsorted(h_new[o_new], h_old[o_old]), len(new) - 1)
     match = o_new[at]
-    same = (h_new[match] == h_old[o_old]) & np.all(new[match] == old[o_old], axis=1)
+    same = h_new[match] == h_old[o_old]
+    A, B = new.take(match, axis=0), old.take(o_old, axis=0)   # (take: no fancy index)
+    for j in range(A.shape[1]):                 # the rows equal, compared column by column
+        same &= A[:, j] == B[:, j]
     out[o_old[same]] = match[same]
     return out
 
