@@ -16,15 +16,21 @@ from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import disk_map
 
 
+def _map_state() -> RemeshState:
+    """The disk map of :func:`disk_map` as a remesh state of itself (its own vertices and
+    faces, located and lifted)."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    uv = uv_in.copy()
+    face, bary = locator.locate(uv)
+    return RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
+                       face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+
+
 def test_split_edges_keeps_the_cached_twins_right():
     """Rounds of independent splits — inner and rim edges, neighbouring ones whose outer
     half-edges are each other's twins — update the kept half-edge twins in place of
     recomputing them: after every round they equal a fresh computation."""
-    uv_in, F_in, V_in, loop, locator = disk_map()
-    uv = uv_in.copy()
-    face, bary = locator.locate(uv)
-    S = RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
-                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    S = _map_state()
     rng = np.random.default_rng(2)
     for _ in range(4):
         h, a, b, twin = edge_table(S.F, twin=S.twins())
@@ -43,11 +49,7 @@ def test_split_faces_keeps_the_cached_twins_right():
     """Rounds of 1 → 3 splits of many faces at once — neighbouring ones, rim faces — update
     the kept half-edge twins in place of recomputing them: after every round they equal a
     fresh computation; without cached twins none are made up."""
-    uv_in, F_in, V_in, loop, locator = disk_map()
-    uv = uv_in.copy()
-    face, bary = locator.locate(uv)
-    S = RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
-                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    S = _map_state()
     rng = np.random.default_rng(5)
     for _ in range(4):
         S.twins()
