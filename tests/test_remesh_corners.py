@@ -6,7 +6,7 @@ import numpy as np
 
 from pipeline.geometry.locate import PointLocator, _closest_on_segments
 from pipeline.geometry.metrics import signed_double_areas
-from pipeline.geometry.remesh.corners import _kept_apart, insert_vertices
+from pipeline.geometry.remesh.corners import NEAR_DIRECT, _kept_apart, insert_vertices, nearest_rows
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import coarse_state, disk_map
 
@@ -51,3 +51,28 @@ def test_kept_apart_is_the_greedy_pass_over_every_pair():
             if ok:
                 kept_pts.append(p)
         assert np.array_equal(_kept_apart(P, gap), expected)
+
+
+def test_nearest_rows_are_the_trees_and_ties_go_to_the_tree():
+    """For a few points, the rows nearest by all the distances are the KD-tree's, in its
+    order (random points, k from 1 to all rows); a point with tied distances (the centre of a
+    lattice square, four rows equally near) gets the tree's answer too; many points go to the
+    tree."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(4)
+    P = rng.uniform(-1.0, 1.0, (3000, 2))
+    T = rng.uniform(-1.1, 1.1, (NEAR_DIRECT, 2))
+    for k in (1, 4, 24, len(P)):
+        want = np.asarray(cKDTree(P).query(T, k=k)[1]).reshape(len(T), k)
+        assert np.array_equal(nearest_rows(P, T, k), want)
+    g = np.arange(20.0)
+    lattice = np.column_stack([np.repeat(g, 20), np.tile(g, 20)])
+    centre = np.array([[4.5, 7.5]])
+    d = np.sort(np.linalg.norm(lattice - centre, axis=1))
+    assert d[0] == d[3] < d[4]                                  # four equally near rows
+    for k in (2, 4):
+        want = cKDTree(lattice).query(centre, k=k)[1]
+        assert np.array_equal(nearest_rows(lattice, centre, k), want)
+    many = rng.uniform(-1.0, 1.0, (NEAR_DIRECT + 1, 2))
+    assert np.array_equal(nearest_rows(P, many, 3), cKDTree(P).query(many, k=3)[1])

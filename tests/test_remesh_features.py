@@ -287,3 +287,28 @@ def test_remesh_command_follows_a_fold_that_turns_back():
     assert q["triangles"]["min_angle_deg"] >= 20.0
     assert q["distance"]["turned_over_faces"] == 0
     assert q["is_disk"] and abs(len(r.V) - 5000) <= 100
+
+
+def test_face_sets_are_the_loops_sets_and_iterate_alike():
+    """:func:`face_sets` gives every vertex of the faces the set of its faces, laid out as a
+    loop adding the faces in order lays them out: the sets, their unions and intersections
+    iterate in the same order (a Delaunay disk; an unused vertex is no key)."""
+    from pipeline.geometry.remesh.features import face_sets
+
+    from remesh_helpers import ccw_delaunay, disk_points
+
+    uv = disk_points(8, 6)
+    F = ccw_delaunay(uv)
+    n = len(uv)
+    loop = {}
+    for t, f in enumerate(F.tolist()):
+        for v in f:
+            loop.setdefault(v, set()).add(t)
+    got = face_sets(F, n + 1)
+    assert got.keys() == loop.keys() and n not in got
+    assert all(list(got[v]) == list(loop[v]) for v in loop)
+    rng = np.random.default_rng(3)
+    for p, q in rng.integers(0, n, (200, 2)).tolist():
+        assert list(got[p] | got[q]) == list(loop[p] | loop[q])
+        assert list(got[p] & got[q]) == list(loop[p] & loop[q])
+    assert max(len(s) for s in got.values()) >= 6

@@ -153,6 +153,30 @@ def test_valence_flips_keep_the_twins():
     assert np.array_equal(twin, topo.interior_edge_twins(F2))
 
 
+def test_compiled_valence_gains_are_the_numpy_formula():
+    """The valence flips' candidates (every interior edge once, ``twin > h``) and their gains
+    ``2 (dev[a] + dev[b] − dev[p] − dev[q]) − 4``, the positive ones, are those of the numpy
+    formula over a jittered disk with valences off 6 (rim vertices' target 4)."""
+    from pipeline.geometry import topology as topo
+    from pipeline.geometry._kernels import valence_gains
+    from remesh_helpers import ccw_delaunay, disk_points
+
+    uv = disk_points(10, 6)
+    inner = np.linalg.norm(uv, axis=1) < 1 - 1e-9
+    uv[inner] += 0.05 * np.random.default_rng(4).uniform(-1, 1, (inner.sum(), 2))
+    F = ccw_delaunay(uv).astype(np.int64)
+    rim = topo.boundary_vertices_mask(F, len(uv))
+    twin = topo.interior_edge_twins(F)
+    dev = np.bincount(F.ravel(), minlength=len(uv)) - np.where(rim, 4, 6)
+    h = np.flatnonzero(twin > np.arange(3 * len(F)))
+    f, c, t = h // 3, h % 3, twin[h]
+    gain = 2 * (dev[F[f, c]] + dev[F[f, (c + 1) % 3]] - dev[F[f, (c + 2) % 3]]
+                - dev[F[t // 3, (t % 3 + 2) % 3]]) - 4
+    got_h, got_gain = valence_gains(F, twin, dev)
+    assert np.array_equal(got_h, h[gain > 0]) and np.array_equal(got_gain, gain[gain > 0])
+    assert 0 < len(got_h) < len(h)
+
+
 def _roof_quad():
     """A quad ``a, b, p, q`` inside a square ring on the roof ``z = 1 − |x|`` (its ridge on
     ``x = 0``, the disk the plane ``(x, y)``): ``p–q`` lies on the ridge, ``a–b`` crosses

@@ -10,21 +10,27 @@ from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh.halfedge import (DISK_SHAPE_MIN, disk_shape, edge_table,
                                                independent_by_faces)
 from pipeline.geometry.remesh.improve import degenerate_faces
-from pipeline.geometry.remesh.refine import split_edges, split_long_edges
+from pipeline.geometry.remesh.refine import split_edges, split_faces, split_long_edges
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import disk_map
+
+
+def _map_state() -> RemeshState:
+    """The disk map of :func:`disk_map` as a remesh state of itself (its own vertices and
+    faces, located and lifted)."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    uv = uv_in.copy()
+    face, bary = locator.locate(uv)
+    return RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
+                       face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
 
 
 def test_split_edges_keeps_the_cached_twins_right():
     """Rounds of independent splits — inner and rim edges, neighbouring ones whose outer
     half-edges are each other's twins — update the kept half-edge twins in place of
     recomputing them: after every round they equal a fresh computation."""
-    uv_in, F_in, V_in, loop, locator = disk_map()
-    uv = uv_in.copy()
-    face, bary = locator.locate(uv)
-    S = RemeshState(V_in.copy(), F_in.copy(), uv, topo.boundary_vertices_mask(F_in, len(uv)),
-                    face, bary, V_in, F_in, uv_in, locator, uv_in[loop])
+    S = _map_state()
     rng = np.random.default_rng(2)
     for _ in range(4):
         h, a, b, twin = edge_table(S.F, twin=S.twins())
@@ -36,6 +42,28 @@ def test_split_edges_keeps_the_cached_twins_right():
         split_edges(S, h[sel], twin[sel], rng.uniform(0.2, 0.8, len(sel)))
         assert S.cached_twins() is not None                            # kept, not dropped
         assert np.array_equal(S.twins(), topo.interior_edge_twins(S.F))
+    assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
+
+
+def test_split_faces_keeps_the_cached_twins_right():
+    """Rounds of 1 → 3 splits of many faces at once — neighbouring ones, rim faces — update
+    the kept half-edge twins in place of recomputing them: after every round they equal a
+    fresh computation; without cached twins none are made up."""
+    S = _map_state()
+    rng = np.random.default_rng(5)
+    for _ in range(4):
+        S.twins()
+        faces = np.sort(rng.choice(len(S.F), len(S.F) // 3, replace=False))
+        tw = S.twins()
+        nb = tw[3 * faces] // 3
+        assert np.isin(nb[nb >= 0], faces).any() and (tw[3 * faces] < 0).any()
+        M = S.uv[S.F[faces]].mean(axis=1)
+        split_faces(S, faces, M)
+        assert S.cached_twins() is not None
+        assert np.array_equal(S.twins(), topo.interior_edge_twins(S.F))
+    S.set_faces(S.F)
+    split_faces(S, np.array([0]), S.uv[S.F[[0]]].mean(axis=1))
+    assert S.cached_twins() is None
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
 
 

@@ -1279,6 +1279,61 @@ def disk_move_candidates(const double[:, ::1] uv, int64_t v, const int64_t[:, ::
     return U_arr[:k], idx_arr[:n_ok]
 
 
+def domain_double_areas(const double[:, ::1] uv, const int64_t[:, ::1] F):
+    """Twice the signed domain area of every face (m), ``remesh.halfedge.double_areas``' 2D
+    cross product ``(u1 − u0)(v2 − v0) − (v1 − v0)(u2 − u0)`` (:func:`_signed2`) without its
+    six gathered temporaries."""
+    cdef Py_ssize_t t, m = F.shape[0]
+    out_arr = np.empty(m, dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(m):
+        out[t] = _signed2(uv, F[t, 0], F[t, 1], F[t, 2])
+    return out_arr
+
+
+@cython.cdivision(True)
+def valence_gains(const int64_t[:, ::1] F, const int64_t[::1] twin, const int64_t[::1] dev):
+    """The interior edges whose flip lowers ``Σ dev²`` over the quad's corners, for
+    ``remesh.flips.valence_flips``: every half-edge ``h = 3 f + c`` with ``twin[h] > h``
+    (``a → b`` with ``p`` the third corner of its face, ``q`` that of the twin's) and its gain
+    ``2 (dev[a] + dev[b] − dev[p] − dev[q]) − 4`` when positive (the flip takes one from
+    the valences of ``a`` and ``b`` and gives one to ``p`` and ``q``). Returns ``(h, gain)``,
+    int64, ``h`` increasing."""
+    cdef Py_ssize_t h, k = 0, N = 3 * F.shape[0]
+    cdef int64_t f, c, t, g
+    h_arr = np.empty(N, dtype=np.int64)
+    gain_arr = np.empty(N, dtype=np.int64)
+    cdef int64_t[::1] H = h_arr, G = gain_arr
+    for h in range(N):
+        t = twin[h]
+        if t <= h:
+            continue
+        f = h // 3
+        c = h - 3 * f
+        g = 2 * (dev[F[f, c]] + dev[F[f, (c + 1) % 3]] - dev[F[f, (c + 2) % 3]]
+                 - dev[F[t // 3, (t % 3 + 2) % 3]]) - 4
+        if g > 0:
+            H[k] = h
+            G[k] = g
+            k += 1
+    return h_arr[:k], gain_arr[:k]
+
+
+def put_rows(double[:, ::1] dst, const int64_t[::1] rows, const double[:, ::1] src):
+    """``dst[rows] = src`` (k rows, ``rows`` distinct), the values copied as they are: numpy's
+    fancy assignment of rows without its general index iterator. Raises IndexError for a row
+    outside ``[0, len(dst))``."""
+    cdef Py_ssize_t i, j, d = dst.shape[1], n = dst.shape[0]
+    if src.shape[0] != rows.shape[0] or src.shape[1] != d:
+        raise ValueError("put_rows: src must have one row of dst's width per index")
+    for i in range(rows.shape[0]):
+        if rows[i] < 0 or rows[i] >= n:
+            raise IndexError(f"put_rows: row {rows[i]} is outside [0, {n})")
+    for i in range(rows.shape[0]):
+        for j in range(d):
+            dst[rows[i], j] = src[i, j]
+
+
 def thin_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] faces,
                const double[::1] area_floor, double shape_min):
     """The entries of ``faces`` (increasing, as given) whose twice signed disk area is at most

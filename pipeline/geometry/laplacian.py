@@ -100,9 +100,11 @@ def laplacian_pattern(F: np.ndarray, n: int, boundary: np.ndarray) -> LaplacianP
 
 
 def face_double_areas(P: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Twice the unsigned area of every face, ``2|τ|``, for 2D or 3D points."""
-    e1 = P[F[:, 1]] - P[F[:, 0]]
-    e2 = P[F[:, 2]] - P[F[:, 0]]
+    """Twice the unsigned area of every face, ``2|τ|``, for 2D or 3D points (the corners'
+    rows gathered by ``take``, faster than the fancy index)."""
+    P0 = P.take(F[:, 0], axis=0)
+    e1 = P.take(F[:, 1], axis=0) - P0
+    e2 = P.take(F[:, 2], axis=0) - P0
     if P.shape[1] == 2:
         return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     cx = e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1]

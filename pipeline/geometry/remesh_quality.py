@@ -276,7 +276,8 @@ class MeshDistance:
         self.V = np.ascontiguousarray(V, dtype=np.float64)
         self.F = np.ascontiguousarray(F, dtype=np.int64)
         self.faces, *tree = triangle_tree(face_centroids(self.V, self.F))
-        self.triangles = self.V[self.F[self.faces]].reshape(-1, 9)
+        self.triangles = self.V.take(self.F.take(self.faces, axis=0).ravel(), axis=0
+                                     ).reshape(-1, 9)        # V[F[faces]], gathered by take
         self.margin = _TREE_MARGIN * (float(np.abs(self.V).max()) if len(self.V) else 0.0)
         self.tree = (*tree, tree_boxes(self.triangles, *tree[:3], self.margin))
 
@@ -615,8 +616,8 @@ class SampledSurface:
 def face_centroids(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The centroids (m, d) of the faces ``F`` (m, 3) of ``V`` (n, d): the values of
     ``V[F].mean(axis=1)``, summed corner by corner (faster than the mean over the short axis
-    of an m×3×d array)."""
-    return (V[F[:, 0]] + V[F[:, 1]] + V[F[:, 2]]) / 3
+    of an m×3×d array; the rows gathered by ``take``, faster than the fancy index)."""
+    return (V.take(F[:, 0], axis=0) + V.take(F[:, 1], axis=0) + V.take(F[:, 2], axis=0)) / 3
 
 
 def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,

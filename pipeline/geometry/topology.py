@@ -68,7 +68,7 @@ def _n_of(F: np.ndarray, n: int | None) -> int:
 def half_edges(F) -> tuple[np.ndarray, np.ndarray]:
     """Directed half-edges ``(a, b)`` (3m each); half-edge ``3 t + c`` is ``F[t,c] → F[t,c+1]``."""
     F = _as_faces(F)
-    return F.ravel(), F[:, [1, 2, 0]].ravel()
+    return F.ravel(), F.take([1, 2, 0], axis=1).ravel()
 
 
 def _edge_keys(F: np.ndarray, n: int) -> np.ndarray:

@@ -26,6 +26,7 @@ from .refine import split_edges, split_faces
 from .state import RemeshState
 
 NEAR_VERTICES = 24     # a target is located among the faces at its 24 nearest remesh vertices
+NEAR_DIRECT = 32       # up to this many query points, nearest rows from all distances (no tree)
 CORNER_REACH = 1.0     # × L: the scale at which an interior corner is judged
 RIM_REACH = 0.5        # × L: the same for a boundary corner
 NOISE_NEIGHBOURS = 64  # the nearest input vertices that give the noise level around a vertex
@@ -311,6 +312,32 @@ def _kept_apart(P: np.ndarray, gap: float) -> np.ndarray:
     return kept
 
 
+def nearest_rows(P: np.ndarray, T: np.ndarray, k: int) -> np.ndarray:
+    """The indices (j×k) of the ``k`` rows of ``P`` (n×d, k ≤ n) nearest to each point of
+    ``T`` (j×d), nearest first: ``cKDTree(P).query(T, k=k)[1]``. For at most ``NEAR_DIRECT``
+    points in the plane, from the squared distances to every row, ``(Δx)² + (Δy)²`` as the
+    tree sums them (building a tree costs several milliseconds at 10⁴ rows, for a few
+    points), where the ``k + 1`` nearest are at distinct distances, which makes the answer
+    the only one; otherwise (a tie, which the tree settles its own way) by the tree."""
+    P = np.asarray(P, dtype=np.float64)
+    T = np.asarray(T, dtype=np.float64).reshape(-1, P.shape[1])
+    if len(T) <= NEAR_DIRECT and P.shape[1] == 2:
+        out = np.empty((len(T), k), np.int64)
+        m = min(k + 1, len(P))
+        for i, (x, y) in enumerate(T.tolist()):
+            d2 = (P[:, 0] - x) ** 2 + (P[:, 1] - y) ** 2
+            first = np.argpartition(d2, m - 1)[:m]
+            first = first[np.argsort(d2[first], kind="stable")]
+            if not (np.diff(d2[first]) > 0).all():
+                break
+            out[i] = first[:k]
+        else:
+            return out
+    from scipy.spatial import cKDTree
+
+    return np.asarray(cKDTree(P).query(T, k=k)[1], dtype=np.int64).reshape(len(T), k)
+
+
 def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0,
                   counts: str = "corners") -> np.ndarray:
     """Move an interior vertex exactly onto each target (the disk image of a sharp input
@@ -340,16 +367,12 @@ def snap_vertices(S: RemeshState, targets_uv: np.ndarray, min_gap: float = 0.0,
     (j,) int
         The snapped and inserted vertices.
     """
-    from scipy.spatial import cKDTree
-
     T = np.asarray(targets_uv, dtype=np.float64).reshape(-1, S.uv.shape[1])
     T = _apart_on_surface(S, T, min_gap, counts)
     free = np.flatnonzero(~S.is_rim & ~S.locked)
     if len(T) == 0 or len(free) == 0:
         return np.zeros(0, np.int64)
-    K = min(4, len(free))
-    _, J = cKDTree(S.uv[free]).query(T, k=K)
-    J = free[np.asarray(J).reshape(len(T), K)]
+    J = free[nearest_rows(S.uv[free], T, min(4, len(free)))]
     VF = vertex_faces(S.F, S.n)
     taken = np.zeros(S.n, bool)
     snapped, missed = [], []
@@ -395,11 +418,8 @@ def locate_near(S: RemeshState, T: np.ndarray, k: int = NEAR_VERTICES
     outside them comes back outside, on their border. On the sphere, over every face."""
     if on_sphere(S.uv) or len(T) == 0:
         return locator(S.uv, S.F).locate_with_inside(T)
-    from scipy.spatial import cKDTree
-
-    _, J = cKDTree(S.uv).query(T, k=min(k, S.n))
     near = np.zeros(S.n, bool)
-    near[np.ravel(J)] = True
+    near[nearest_rows(S.uv, T, min(k, S.n)).ravel()] = True
     sub = np.flatnonzero(touching(S.F, near))
     f, bary, inside = locator(S.uv, S.F[sub]).locate_with_inside(T)
     return sub[f], bary, inside

@@ -41,7 +41,7 @@ from .. import topology as topo
 from ..metrics import stretch_anisotropy
 from ..rows import dots, norms
 from .corners import snap_vertices
-from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, vertex_faces
 from .state import RemeshState, at_points, face_normals
 from .unfold import turned_over_rows
 
@@ -350,10 +350,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     if len(pairs) == 0:
         return pairs
     F = S.F.copy()
-    VF = {}
-    for t, f in enumerate(F.tolist()):
-        for v in f:
-            VF.setdefault(v, set()).add(t)
+    VF = face_sets(F, S.n)
     done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
     joined = []
     uv = S.uv
@@ -375,6 +372,16 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     return np.asarray(joined, np.int64).reshape(-1, 2)
 
 
+def face_sets(F: np.ndarray, n: int) -> dict:
+    """Each vertex of ``F`` (m×3 over ``n`` vertices) → the set of its faces (indices), every
+    set filled in increasing face order (:func:`.halfedge.vertex_faces`), the order a loop over
+    the faces adds them in: the sets are laid out, and so iterate, as that loop's would. Only
+    vertices at some face are keys."""
+    VF = vertex_faces(F, n)
+    ptr, faces = VF.indptr.tolist(), VF.indices.tolist()
+    return {v: set(faces[ptr[v]:ptr[v + 1]]) for v in range(n) if ptr[v] < ptr[v + 1]}
+
+
 def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
     """Flip the longest edge of every face of ``F`` flat on the surface (twice its area at most
     ``FLAT × `` its longest edge squared) or thinner than ``DISK_SHAPE_MIN`` on the disk —
@@ -384,7 +391,7 @@ def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
 
     flipped = False
     for _ in range(passes):
-        E = X[F[:, [2, 0, 1]]] - X[F[:, [1, 2, 0]]]          # the edge opposite each corner
+        E = X[F.take([2, 0, 1], axis=1)] - X[F.take([1, 2, 0], axis=1)]   # opposite each corner
         l2 = (E ** 2).sum(axis=2)
         thin = (disk_shape(uv, F) < DISK_SHAPE_MIN) | (face_double_areas(X, F)
                                                       <= FLAT * l2.max(axis=1))

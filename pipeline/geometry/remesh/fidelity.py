@@ -36,7 +36,7 @@ from ..remesh_quality import (MeshDistance, MiddleOffsets, bound_slack,
                               face_centroids, largest_distance, may_reach, middle_bounds,
                               middle_offsets)
 from ..rows import norms, row_min
-from .corners import snap_vertices
+from .corners import nearest_rows, snap_vertices
 from .domain import locate_once, project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, double_areas, edge_table, touching, vertex_faces
 from .refine import SAG_TS
@@ -243,7 +243,10 @@ def carried_faces(old: np.ndarray, new: np.ndarray) -> np.ndarray:
     o_new, o_old = np.argsort(h_new), np.argsort(h_old)
     at = np.minimum(np.searchsorted(h_new[o_new], h_old[o_old]), len(new) - 1)
     match = o_new[at]
-    same = (h_new[match] == h_old[o_old]) & np.all(new[match] == old[o_old], axis=1)
+    same = h_new[match] == h_old[o_old]
+    A, B = new.take(match, axis=0), old.take(o_old, axis=0)   # (take: no fancy index)
+    for j in range(A.shape[1]):                 # the rows equal, compared column by column
+        same &= A[:, j] == B[:, j]
     out[o_old[same]] = match[same]
     return out
 
@@ -574,8 +577,6 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     Settled
         The vertices moved and the input's reach left.
     """
-    from scipy.spatial import cKDTree
-
     far, d, nearer = input_beyond(S, tol, remesh_reach(S), memo)
     S.tally("far_input_points_late", len(far))
     movable = ~S.is_rim & ~S.locked
@@ -594,7 +595,7 @@ def settle_on_far_input(S: RemeshState, tol: float, min_gap: float, floor_deg: f
     P = lift(S.V_in, S.F_in, f, b)
     if k == 0:
         return settled([], 0, P)
-    J = free[np.asarray(cKDTree(S.uv[free]).query(far, k=k)[1]).reshape(len(far), k)]
+    J = free[nearest_rows(S.uv[free], far, k)]
     floor = np.radians(floor_deg)
     put: list[int] = []
     VF = vertex_faces(S.F, S.n)

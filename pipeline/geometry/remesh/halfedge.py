@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import (disk_shapes, edge_halves, faces_touching, faces_with_mark, group_by_key,
-                       pair_lengths)
+from .._kernels import (disk_shapes, domain_double_areas, edge_halves, faces_touching,
+                       faces_with_mark, group_by_key, pair_lengths)
 
 DISK_SHAPE_MIN = 1e-8   # no operation makes a face with 2·area < this × longest edge² on the disk
 
@@ -59,12 +59,11 @@ def double_areas(uv: np.ndarray, F: np.ndarray) -> np.ndarray:
     -------
     (m,) float
     """
-    a, b, c = F[:, 0], F[:, 1], F[:, 2]
     if uv.shape[1] == 3:
         from ..sphere import triple_products
         return triple_products(uv, F)
-    return ((uv[b, 0] - uv[a, 0]) * (uv[c, 1] - uv[a, 1])
-            - (uv[b, 1] - uv[a, 1]) * (uv[c, 0] - uv[a, 0]))
+    return domain_double_areas(np.ascontiguousarray(uv, dtype=np.float64),
+                               np.ascontiguousarray(topo._as_faces(F), dtype=np.int64))
 
 
 def edge_lengths(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -205,7 +204,7 @@ def adjacency(F: np.ndarray, n: int, twin: np.ndarray | None = None) -> CSR:
     half-edge also ``a`` to ``b`` (its missing direction), so in a manifold disk every
     neighbour appears once."""
     a = F.ravel()
-    b = F[:, [1, 2, 0]].ravel()
+    b = F.take([1, 2, 0], axis=1).ravel()         # (take: ~10x faster than the fancy index)
     if twin is None:
         twin = topo.interior_edge_twins(F)
     lone = twin < 0

@@ -156,14 +156,11 @@ def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:
     k, j = len(f), len(inner)
     f2 = m + np.arange(k)
     g2 = m + k + np.arange(j)
-    tw = np.full(3 * (m + k + j), -1, np.int64)
-    tw[:3 * m] = tw_old
+    tw = np.concatenate([tw_old, np.full(3 * (k + j), -1, np.int64)])
     # outer half-edges: old slot → new slot
     old = np.concatenate([3 * f + (c + 2) % 3, 3 * f + (c + 1) % 3,
                           3 * g + (d + 2) % 3, 3 * g + (d + 1) % 3])
     new = np.concatenate([3 * f + 2, 3 * f2 + 1, 3 * g + 2, 3 * g2 + 1])
-    slot = np.arange(3 * m)
-    slot[old] = new
     ext = tw_old[old]
     # the inner half-edges of the new fans
     fi, f2i = f[inner], f2[inner]
@@ -178,9 +175,23 @@ def _split_twins(tw_old: np.ndarray, m: int, f, c, inner, g, d) -> np.ndarray:
     for x, y in pairs:
         tw[x] = y
         tw[y] = x
-    tw[new] = np.where(ext >= 0, slot[np.maximum(ext, 0)], -1)
-    tw[slot[ext[ext >= 0]]] = new[ext >= 0]
+    _pair_moved(tw, old, new, ext)
     return tw
+
+
+def _pair_moved(tw: np.ndarray, old: np.ndarray, new: np.ndarray, ext: np.ndarray) -> None:
+    """Give the half-edges moved from slots ``old`` to ``new`` (k distinct each) their twins
+    ``ext`` (k, their twins before, −1 for none) at those twins' own new slots, and those
+    twins the moved half-edges, in ``tw`` (in place; a twin moved too is looked up among
+    ``old``, by a search of the k slots instead of a map of every slot)."""
+    has = ext >= 0
+    there = ext[has]
+    order = np.argsort(old)
+    pos = np.minimum(np.searchsorted(old[order], there), len(old) - 1)
+    there = np.where(old[order][pos] == there, new[order][pos], there)   # the twin's slot now
+    tw[new] = -1
+    tw[new[has]] = there
+    tw[there] = new[has]
 
 
 def split_faces(S: RemeshState, faces: np.ndarray, M: np.ndarray, locked: bool = False
@@ -190,10 +201,34 @@ def split_faces(S: RemeshState, faces: np.ndarray, M: np.ndarray, locked: bool =
     mf, mb, _ = S.locator.locate_with_inside(M)
     w = S.append_vertices(M, mf, mb, np.zeros(len(M), bool), locked)
     a, b, c = S.F[faces, 0], S.F[faces, 1], S.F[faces, 2]
+    tw_old = S.cached_twins()
     F = S.F.copy()
     F[faces] = np.column_stack([a, b, w])
-    S.set_faces(np.vstack([F, np.column_stack([b, c, w]), np.column_stack([c, a, w])]))
+    S.set_faces(np.vstack([F, np.column_stack([b, c, w]), np.column_stack([c, a, w])]),
+                None if tw_old is None else _face_split_twins(tw_old, len(F), faces))
     return w
+
+
+def _face_split_twins(tw_old: np.ndarray, m: int, faces: np.ndarray) -> np.ndarray:
+    """The half-edge twins after :func:`split_faces` (from those before, ``tw_old``; ``m``
+    faces before): face ``t = [a, b, c]`` (the ``i``-th of the ``k`` ``faces``) became
+    ``[a, b, w]`` plus ``t1 = [b, c, w]`` (face ``m + i``) and ``t2 = [c, a, w]`` (face
+    ``m + k + i``). Its outer half-edges ``b→c`` and ``c→a`` moved to the first slots of
+    ``t1`` and ``t2`` and keep their twins, which may themselves have moved; ``a→b`` stays."""
+    k = len(faces)
+    t1 = m + np.arange(k)
+    t2 = m + k + np.arange(k)
+    tw = np.concatenate([tw_old, np.full(6 * k, -1, np.int64)])
+    old = np.concatenate([3 * faces + 1, 3 * faces + 2])        # b→c, c→a
+    new = np.concatenate([3 * t1, 3 * t2])
+    ext = tw_old[old]
+    for x, y in [(3 * faces + 1, 3 * t1 + 2),                   # b→w ↔ w→b
+                 (3 * faces + 2, 3 * t2 + 1),                   # w→a ↔ a→w
+                 (3 * t1 + 1, 3 * t2 + 2)]:                     # c→w ↔ w→c
+        tw[x] = y
+        tw[y] = x
+    _pair_moved(tw, old, new, ext)
+    return tw
 
 
 def _edges_at(S: RemeshState, active: np.ndarray | None):

@@ -128,8 +128,9 @@ def may_sag(S: RemeshState, a: np.ndarray, b: np.ndarray, threshold: float) -> n
     cheap filter before :func:`edge_sag_along` — an edge whose ends lie on input faces within
     10° of parallel, with the edge within ``threshold / 2`` of both tangent planes, is over a
     flat patch (sag 0) unless a feature narrower than the edge sits in between."""
-    na, nb = S.normals_in()[S.face[a]], S.normals_in()[S.face[b]]
-    e = S.X[b] - S.X[a]
+    N_in = S.normals_in()
+    na, nb = N_in.take(S.face.take(a), axis=0), N_in.take(S.face.take(b), axis=0)
+    e = S.X.take(b, axis=0) - S.X.take(a, axis=0)         # (take: faster than fancy rows)
     return ((dots(na, nb) < np.cos(np.radians(10.0)))
             | (np.abs(dots(e, na)) > 0.5 * threshold)
             | (np.abs(dots(e, nb)) > 0.5 * threshold))
@@ -193,7 +194,8 @@ def edge_sag_along(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,),
                         np.ascontiguousarray(S.F_in, dtype=np.int64), N_in, X, best, t_best):
         return best, t_best                # a few edges, every sample found by its walk
     n_a, n_b = (np.ascontiguousarray(n, dtype=np.float64) for n in
-                (end_normals if end_normals is not None else [N_in[S.face[v]] for v in (a, b)]))
+                (end_normals if end_normals is not None
+                 else [N_in.take(S.face.take(v), axis=0) for v in (a, b)]))   # N_in[face[v]]
     step = max(SAG_BLOCK // max(s, 1), 1)
     for lo in range(0, k, step):
         # all samples of a block of edges in one query (sample-major), each located from the
