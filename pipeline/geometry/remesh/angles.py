@@ -522,25 +522,19 @@ class _Patch:
         (``S.joined``), the threshold, the tolerance and the judgement (:attr:`count_below`).
         Equal surroundings give equal options."""
         S, f, faces, vf = self.S, self.faces[t], self.faces, self.vf
-        around = set(f)                       # f's corners and their neighbours
-        for v in f:
-            for u in vf[v]:
-                around.update(faces[u])
-        around = list(around)
-        ids = set()
-        for v, inner in zip(around, self.inner[around].tolist()):
-            if inner:
-                ids.update(vf[v])
-        verts = set(f)
-        for u in ids:
-            verts.update(faces[u])
-        verts = sorted(verts)
+        around = list(set(f).union(*[faces[u] for v in f for u in vf[v]]))
+        ids = set().union(*[vf[v] for v, inner in zip(around, self.inner[around].tolist())
+                            if inner])
+        verts = sorted(set(f).union(*[faces[u] for u in ids]))
         label = {v: i for i, v in enumerate(verts)}
         tris = sorted(_smallest_first(label[a], label[b], label[c])
                       for a, b, c in (faces[u] for u in ids))
         V = np.asarray(verts, np.int64)
-        values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
-                                  S.is_rim[V], self.inner[V]]).astype(np.float64, copy=False)
+        d = S.uv.shape[1]                     # the columns of np.column_stack of them
+        values = np.empty((len(V), d + 10))
+        values[:, :3], values[:, 3:3 + d], values[:, 3 + d:6 + d] = S.X[V], S.uv[V], S.bary[V]
+        values[:, 6 + d], values[:, 7 + d] = S.face[V], S.locked[V]
+        values[:, 8 + d], values[:, 9 + d] = S.is_rim[V], self.inner[V]
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values.tobytes(), tuple(tris), tuple(label[v] for v in f),
                 joined, self.threshold, self.tol, self.count_below, self.first_enough)
@@ -663,11 +657,8 @@ class _Patch:
         if cut is None:
             return False
         x, P = cut
-        X = self.S.X
-        new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
-        old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
-                                                  for w in pair)) for pair in ((k, r), (r, x))))
-        return bool(new.max(initial=0.0) <= max(self.chord_tol(), old.max(initial=0.0)))
+        new, old = self.boundary.chord_gaps(P, self.S.X[[k, r, x]])
+        return bool(new <= max(self.chord_tol(), old))
 
     def move(self, v, floor: float = -np.inf):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
@@ -832,6 +823,8 @@ class _BoundaryCorners:
         self.s = self.polygon.arc_position(S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
         self.arcs = {}                        # arc_parameters of the rim points asked
+        self.cut = {}                         # between() of the rim point triples asked
+        self.gaps = {}                        # chord_gaps() of the chords asked
 
     def arc(self, uv: np.ndarray) -> list:
         """:func:`.sampling.arc_parameters` of the rim points ``uv`` (k×2), each computed
@@ -844,14 +837,33 @@ class _BoundaryCorners:
         return [self.arcs[key] for key in keys]
 
     def between(self, uv: np.ndarray) -> np.ndarray:
-        """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
-        points, 3×2) that passes through ``uv[1]``."""
-        sa, sv, sb = self.arc(uv)
-        span = (sb - sa) % self.length
-        if (sv - sa) % self.length > span:
-            sa, span = sb, (sa - sb) % self.length
-        d = (self.s - sa) % self.length
-        return self.X[(d > 0) & (d < span)]
+        """The lifted corners (k×3, read-only) strictly inside the arc from ``uv[0]`` to
+        ``uv[2]`` (rim points, 3×2) that passes through ``uv[1]``, each triple computed once
+        (rim vertices do not move: the collapses ask the same ones again and again)."""
+        key = uv.tobytes()
+        if key not in self.cut:
+            sa, sv, sb = self.arc(uv)
+            span = (sb - sa) % self.length
+            if (sv - sa) % self.length > span:
+                sa, span = sb, (sa - sb) % self.length
+            d = (self.s - sa) % self.length
+            self.cut[key] = self.X[(d > 0) & (d < span)]
+            self.cut[key].flags.writeable = False
+        return self.cut[key]
+
+    def chord_gaps(self, P: np.ndarray, X: np.ndarray) -> tuple[float, float]:
+        """How far the points ``P`` (j×3: the corners :meth:`between` the rim vertices at
+        ``X``, 3×3, ``k, r, x``) lie from the chord ``k–x`` and from the nearer of ``k–r`` and
+        ``r–x`` (:func:`.rim.segment_distances`; the largest of each, 0 where ``P`` is empty),
+        each computed once."""
+        key = (X.tobytes(), P.tobytes())
+        if key not in self.gaps:
+            new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (0, 2)))
+            old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
+                                                      for w in pair))
+                               for pair in ((0, 1), (1, 2))))
+            self.gaps[key] = (new.max(initial=0.0), old.max(initial=0.0))
+        return self.gaps[key]
 
 
 def inner_groups(T: np.ndarray, inner: np.ndarray) -> np.ndarray:
