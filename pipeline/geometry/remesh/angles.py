@@ -46,6 +46,7 @@ of the pass, counted apart in the report.
 from __future__ import annotations
 
 import heapq
+import math
 from collections import defaultdict
 from functools import partial
 
@@ -53,10 +54,11 @@ import numpy as np
 
 from .._kernels import (area_spread, corners_min_degrees, disk_move_candidates,
                         face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
-                        point_faces_distance, replacement_angle, star_targets)
+                        point_faces_distance, replacement_angle, replacement_normals,
+                        star_targets)
 from ..locate import lift
 from ..metrics import corner_angles
-from ..rows import cross, norms
+from ..rows import norms
 from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
@@ -131,6 +133,10 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
         dirs = _CIRCLE_DIRS @ np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
 
+
+#: MOVE_FRACTIONS as the array (1×f×1) that scales each target's step, and PATTERN_STEPS
+_MOVE_FRACTIONS = np.asarray(MOVE_FRACTIONS)[None, :, None]
+_PATTERN_STEPS = np.asarray(PATTERN_STEPS, dtype=np.float64)
 
 #: :func:`pattern_points`' directions on the disk (unit vectors, PATTERN_DIRS×2)
 _CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
@@ -530,13 +536,12 @@ class _Patch:
         tris = sorted(_smallest_first(label[a], label[b], label[c])
                       for a, b, c in (faces[u] for u in ids))
         V = np.asarray(verts, np.int64)
-        d = S.uv.shape[1]                     # the columns of np.column_stack of them
-        values = np.empty((len(V), d + 10))
-        values[:, :3], values[:, 3:3 + d], values[:, 3 + d:6 + d] = S.X[V], S.uv[V], S.bary[V]
-        values[:, 6 + d], values[:, 7 + d] = S.face[V], S.locked[V]
-        values[:, 8 + d], values[:, 9 + d] = S.is_rim[V], self.inner[V]
+        # the vertices' values as floats, column block by column block: equal bytes exactly
+        # where their rows would be equal (the number of vertices is in the key)
+        values = b"".join(a[V].astype(np.float64, copy=False).tobytes()
+                          for a in (S.X, S.uv, S.bary, S.face, S.locked, S.is_rim, self.inner))
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
-        return (values.tobytes(), tuple(tris), tuple(label[v] for v in f),
+        return (values, tuple(tris), tuple(label[v] for v in f),
                 joined, self.threshold, self.tol, self.count_below, self.first_enough)
 
     def options(self, t) -> list:
@@ -676,17 +681,18 @@ class _Patch:
         self.no_move[v] = self.version[v]
         # v first, in the order of the next corners (the set's order would change the sums
         # below in the last bit, and the outcome with it, from one patch to the next)
-        ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
-        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
+        rotated = {t: _rotate_to(self.faces[t], v) for t in self.vf[v]}
+        ids = sorted(rotated, key=lambda t: rotated[t][1])
+        star = np.asarray([rotated[t] for t in ids], np.int64)
         angles = self.face_min_angles(star)
-        before = float(angles.min())
+        before = min(angles.tolist())          # (no nan: face_min_angles gives 0 there)
         x, d = S.X[v].copy(), len(star)
         # the star's corners and normals, the normals' sum and the relocation targets (the
         # mean of the faces' ideal points, that of the worst face, the ring's centroid)
         B, C, N, normal, targets = star_targets(np.ascontiguousarray(S.X, dtype=np.float64),
-                                                star, int(np.argmin(angles)))
-        normal /= max(np.linalg.norm(normal), 1e-300)
-        D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
+                                                star, int(angles.argmin()))
+        normal /= max(math.sqrt(normal.dot(normal)), 1e-300)   # np.linalg.norm's sum, bit for bit
+        D = (_MOVE_FRACTIONS * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
         # only the candidates that keep the star's shape on the domain are located and lifted
@@ -903,7 +909,7 @@ def move_candidates(uv: np.ndarray, v: int, star: np.ndarray, aimed: np.ndarray
     if uv.shape[1] == 2:
         return disk_move_candidates(np.ascontiguousarray(uv, dtype=np.float64), int(v), BC,
                                     np.ascontiguousarray(aimed, dtype=np.float64),
-                                    np.asarray(PATTERN_STEPS, dtype=np.float64), _CIRCLE_DIRS,
+                                    _PATTERN_STEPS, _CIRCLE_DIRS,
                                     DISK_SHAPE_MIN)
     h = norms(uv[BC].reshape(-1, uv.shape[1]) - uv[v]).min()
     M = project(np.vstack([aimed, pattern_points(uv[v], h)]))
@@ -936,10 +942,11 @@ def _smallest_first(a: int, b: int, c: int) -> tuple:
 
 def _same_side(X: np.ndarray, old, new) -> bool:
     """Whether each new face's 3D normal agrees (positive dot product) with the summed normal
-    of the old faces: no face of the operation turns over on the surface."""
-    To, Tn = np.asarray(old, np.int64), np.asarray(new, np.int64)
-    n_old = cross(X[To[:, 1]] - X[To[:, 0]], X[To[:, 2]] - X[To[:, 0]]).sum(axis=0)
-    n_new = cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
+    of the old faces: no face of the operation turns over on the surface (the normals
+    compiled: :func:`.._kernels.replacement_normals`)."""
+    n_new, n_old = replacement_normals(np.ascontiguousarray(X, dtype=np.float64),
+                                       np.asarray(old, np.int64).reshape(-1, 3),
+                                       np.asarray(new, np.int64).reshape(-1, 3))
     return bool((n_new @ n_old > 0).all())
 
 
