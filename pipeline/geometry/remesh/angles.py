@@ -388,10 +388,10 @@ class _Patch:
         threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None (compiled:
         :func:`.._kernels.replacement_angle`)."""
         after = replacement_angle(np.ascontiguousarray(self.S.X, dtype=np.float64),
-                                  np.asarray(list(old) + list(new), np.int64).reshape(-1, 3),
+                                  np.asarray([*old, *new], np.int64).reshape(-1, 3),
                                   len(old), float(self.threshold), bool(self.count_below),
                                   np.nan if self.mean_area is None else float(self.mean_area))
-        return None if np.isnan(after) else after
+        return None if after != after else after          # nan: not better
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
@@ -404,10 +404,11 @@ class _Patch:
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
         ``DISK_SHAPE_MIN`` in the domain and have no three rim corners."""
-        T = np.asarray(tris, dtype=np.int64)
-        if self.S.is_rim[T].all(axis=1).any():
+        rim = self.S.is_rim
+        if any(rim[a] and rim[b] and rim[c] for a, b, c in tris):
             return False
-        return bool((disk_shape(self.S.uv, T) >= DISK_SHAPE_MIN).all())
+        return bool((disk_shape(self.S.uv, np.asarray(tris, dtype=np.int64))
+                     >= DISK_SHAPE_MIN).all())
 
     def same_side(self, old, new) -> bool:
         """Whether no new face of ``new`` turns over against the faces ``old`` it replaces
@@ -533,8 +534,9 @@ class _Patch:
                             if inner])
         verts = sorted(set(f).union(*[faces[u] for u in ids]))
         label = {v: i for i, v in enumerate(verts)}
-        tris = sorted(_smallest_first(label[a], label[b], label[c])
-                      for a, b, c in (faces[u] for u in ids))
+        # each face with its corners rotated so that the smallest label comes first
+        tris = sorted([(a, b, c) if a < b and a < c else ((b, c, a) if b < c else (c, a, b))
+                       for a, b, c in (map(label.__getitem__, faces[u]) for u in ids)])
         V = np.asarray(verts, np.int64)
         # the vertices' values as floats, column block by column block: equal bytes exactly
         # where their rows would be equal (the number of vertices is in the key)
@@ -563,7 +565,7 @@ class _Patch:
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
         edge, ``S.joined``)."""
         tf = self.edge_faces(a, b)
-        if len(tf) != 2 or not all(self.inner[[a, b]]) or self.is_joined(a, b):
+        if len(tf) != 2 or not (self.inner[a] and self.inner[b]) or self.is_joined(a, b):
             return None
         f, g = (self.faces[t] for t in tf)
         p = next(v for v in f if v not in (a, b))
@@ -930,14 +932,6 @@ def _rotate_to(f, v) -> list:
     """The face ``f`` (3 vertices) with its corners rotated so that ``v`` comes first."""
     i = f.index(v)
     return [f[i], f[(i + 1) % 3], f[(i + 2) % 3]]
-
-
-def _smallest_first(a: int, b: int, c: int) -> tuple:
-    """The face ``(a, b, c)`` (3 distinct vertices) with its corners rotated so that the
-    smallest comes first."""
-    if a < b and a < c:
-        return a, b, c
-    return (b, c, a) if b < c else (c, a, b)
 
 
 def _same_side(X: np.ndarray, old, new) -> bool:
