@@ -58,7 +58,7 @@ from .._kernels import (area_spread, corners_min_degrees, disk_move_candidates,
                         star_targets)
 from ..locate import lift
 from ..metrics import corner_angles
-from ..rows import norms
+from ..rows import norms, row_max
 from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
@@ -220,8 +220,13 @@ def on_input_corners(S: RemeshState) -> np.ndarray:
     corner's angle; a rim collapse would remove the vertex, and with it the corner, only where
     the chord that replaces its two rim edges stays within the rim tolerance of the input's
     boundary (:meth:`_Patch.rim_chord_ok`). An interior vertex that is not locked is not among
-    them: the operations can move it off its input vertex."""
-    return S.locked | (S.is_rim & (S.bary.max(axis=1) >= 1.0))
+    them: the operations can move it off its input vertex. (The barycentrics are read at
+    the rim vertices alone, their largest by :func:`..rows.row_max`: a row reduction over
+    every vertex costs more than the rest of the minimum-angle bookkeeping.)"""
+    out = S.locked.copy()
+    rim = np.flatnonzero(S.is_rim)
+    out[rim] |= row_max(S.bary[rim]) >= 1.0
+    return out
 
 
 def input_vertex_under(S: RemeshState, v: np.ndarray) -> np.ndarray:
