@@ -820,7 +820,7 @@ class _Patch:
         keep = np.ones(len(S.F), bool)
         keep[self.rows] = False
         F = np.vstack([S.F[keep], np.asarray(list(self.faces.values()), np.int64).reshape(-1, 3)])
-        S.set_faces(F.astype(S.F.dtype))
+        S.set_faces(F.astype(S.F.dtype, copy=False))
         if self.removed.any():
             S.keep_vertices(~self.removed)
 
