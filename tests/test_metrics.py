@@ -344,3 +344,26 @@ def test_min_corner_angles_are_the_row_minima_of_the_corner_angles_bit_for_bit()
         real = ~np.isnan(want)
         assert got[real].tobytes() == want[real].tobytes()
     assert np.isnan(got[-1]) and got[-4] == metrics.corner_angles(V, F)[-4].min()
+
+
+def test_min_corner_angles_below_are_those_of_all_faces_bit_for_bit():
+    """:func:`metrics.min_corner_angles_below` keeps every face whose smallest angle is below
+    the limit (none with a nan angle) and few others, with :func:`metrics.min_corner_angles`'
+    values to the bit: compared in radians or in degrees after it, the faces below and their
+    angles are those of all faces — at limits with faces at a hair above and below them."""
+    rng = np.random.default_rng(31)
+    V = np.vstack([rng.normal(size=(300, 3)), [[0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    F = np.vstack([rng.integers(0, 300, (3000, 3)), [[300, 300, 301], [300, 301, 302]]])
+    every = metrics.min_corner_angles(V, F)
+    finite = np.sort(every[np.isfinite(every)])
+    limits = [np.radians(20.0), np.radians(45.0), finite[100], np.nextafter(finite[200], 0.0),
+              np.nextafter(finite[300], 1.0), 0.0]
+    for limit in limits:
+        faces, angles = metrics.min_corner_angles_below(V, F, limit)
+        assert angles.tobytes() == every[faces].tobytes()
+        assert np.array_equal(faces[angles < limit], np.flatnonzero(every < limit))
+        deg = np.degrees(limit)
+        assert np.array_equal(faces[np.degrees(angles) < deg],
+                              np.flatnonzero(np.degrees(every) < deg))
+        assert len(faces) <= (every < limit).sum() + 5
+    assert 3000 not in metrics.min_corner_angles_below(V, F, np.pi)[0]      # nan: never

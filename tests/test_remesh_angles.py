@@ -524,6 +524,30 @@ def test_fan_shapes_ok_and_faces_keep_side_are_the_numpy_formulas():
     assert answers == {True, False}
 
 
+def test_replacement_normals_are_the_numpy_formula_bit_for_bit():
+    """:func:`.._kernels.replacement_normals` (the normals ``_same_side`` compares): the new
+    faces' normals ``cross(X[b] − X[a], X[c] − X[a])`` and the old faces' summed, bit for bit
+    as numpy computes them — flat faces too, whose -0.0 components numpy's sum from 0 makes
+    +0.0."""
+    from pipeline.geometry._kernels import replacement_normals
+
+    rng = np.random.default_rng(29)
+    negative_zeros = 0                 # old faces whose normals' x are all -0.0: the sum's is +0.0
+    for flat in (False, True):
+        X = rng.standard_normal((15, 3)) * 10.0 ** rng.uniform(-2, 2, (15, 1))
+        if flat:
+            X[:, 2] = 0.0
+        for _ in range(50):
+            old, new = (np.array([rng.choice(15, 3, replace=False) for _ in range(k)])
+                        for k in rng.integers(1, 7, 2))
+            n_new, n_old = replacement_normals(X, old, new)
+            want_new = cross(X[new[:, 1]] - X[new[:, 0]], X[new[:, 2]] - X[new[:, 0]])
+            want_old = cross(X[old[:, 1]] - X[old[:, 0]], X[old[:, 2]] - X[old[:, 0]])
+            assert _same_bits(n_new, want_new) and _same_bits(n_old, want_old.sum(axis=0))
+            negative_zeros += bool(flat and np.signbit(want_old[:, 0]).all())
+    assert negative_zeros > 0
+
+
 def test_point_faces_distance_is_the_numpy_formula_bit_for_bit():
     """:func:`.._kernels.point_faces_distance` (the gap guard of the collapses and moves): the
     smallest ``norms(p − closest_points_on_triangles(p, …))`` over the faces, bit for bit,

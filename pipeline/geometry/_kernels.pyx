@@ -2630,6 +2630,34 @@ def point_faces_distance(const double[::1] p, const double[:, ::1] X,
     return best
 
 
+def replacement_normals(const double[:, ::1] X, const int64_t[:, ::1] old,
+                        const int64_t[:, ::1] new):
+    """The normals ``cross(X[b] − X[a], X[c] − X[a])`` of the faces ``new`` (j×3 → j×3) and
+    the sum of those of the faces ``old`` (k×3 → 3,), as :func:`..rows.cross` and
+    ``.sum(axis=0)`` compute them (from 0, in row order), for
+    :func:`..remesh.angles._same_side`."""
+    cdef Py_ssize_t m, x
+    cdef double n[3]
+    total_arr = np.zeros(3, dtype=np.float64)
+    normals_arr = np.empty((new.shape[0], 3), dtype=np.float64)
+    cdef double[::1] total = total_arr
+    cdef double[:, ::1] normals = normals_arr
+    for m in range(old.shape[0]):
+        _face_normal(X, old[m, 0], old[m, 1], old[m, 2], n)
+        for x in range(3):
+            total[x] = total[x] + n[x]
+    for m in range(new.shape[0]):
+        _face_normal(X, new[m, 0], new[m, 1], new[m, 2], &normals[m, 0])
+    return normals_arr, total_arr
+
+
+cdef inline void _face_normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c,
+                              double* out) noexcept nogil:
+    """``cross(X[b] − X[a], X[c] − X[a])`` into ``out`` (3)."""
+    _cross(X[b, 0] - X[a, 0], X[b, 1] - X[a, 1], X[b, 2] - X[a, 2],
+           X[c, 0] - X[a, 0], X[c, 1] - X[a, 1], X[c, 2] - X[a, 2], out)
+
+
 def faces_keep_side(const double[:, ::1] n0, const double[::1] a1, const double[:, ::1] B,
                     const double[:, ::1] C):
     """Whether every face ``(A, B[m], C[m])`` with the normal ``n0[m]`` (k×3) keeps its side

@@ -183,6 +183,25 @@ def min_corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(row_max(_corner_cosines(P, F)), -1.0, 1.0))
 
 
+def min_corner_angles_below(P: np.ndarray, F: np.ndarray, angle: float
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The faces that may have an angle below ``angle`` (radians) and their
+    :func:`min_corner_angles` (bit for bit): every face whose smallest angle is below it,
+    and the few just above (a largest cosine within 1e-6 of ``cos(angle)``; the caller
+    compares the angles itself, in radians or degrees). Only those faces' cosines go
+    through ``arccos``.
+
+    Returns
+    -------
+    faces : (k,) int
+        Increasing.
+    angles : (k,) float
+    """
+    cos = row_max(_corner_cosines(P, F))
+    faces = np.flatnonzero(cos > np.cos(angle) - 1e-6)
+    return faces, np.arccos(np.clip(cos[faces], -1.0, 1.0))
+
+
 def _corner_cosines(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The cosines (m×3) of :func:`corner_angles`."""
     P = np.asarray(P, dtype=np.float64)

@@ -46,6 +46,7 @@ of the pass, counted apart in the report.
 from __future__ import annotations
 
 import heapq
+import math
 from collections import defaultdict
 from functools import partial
 
@@ -53,10 +54,11 @@ import numpy as np
 
 from .._kernels import (area_spread, corners_min_degrees, disk_move_candidates,
                         face_min_degrees, fan_scores, fan_shapes_ok, faces_keep_side,
-                        point_faces_distance, replacement_angle, star_targets)
+                        point_faces_distance, replacement_angle, replacement_normals,
+                        star_targets)
 from ..locate import lift
 from ..metrics import corner_angles
-from ..rows import cross, norms
+from ..rows import norms, row_max
 from ..topology import connected_components
 from .domain import project
 from .halfedge import DISK_SHAPE_MIN, disk_shape, touching
@@ -131,6 +133,10 @@ def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
         dirs = _CIRCLE_DIRS @ np.vstack([e1, np.cross(u / np.linalg.norm(u), e1)])
     return u + (h * np.asarray(PATTERN_STEPS)[:, None, None] * dirs[None]).reshape(-1, len(u))
 
+
+#: MOVE_FRACTIONS as the array (1×f×1) that scales each target's step, and PATTERN_STEPS
+_MOVE_FRACTIONS = np.asarray(MOVE_FRACTIONS)[None, :, None]
+_PATTERN_STEPS = np.asarray(PATTERN_STEPS, dtype=np.float64)
 
 #: :func:`pattern_points`' directions on the disk (unit vectors, PATTERN_DIRS×2)
 _CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
@@ -214,8 +220,13 @@ def on_input_corners(S: RemeshState) -> np.ndarray:
     corner's angle; a rim collapse would remove the vertex, and with it the corner, only where
     the chord that replaces its two rim edges stays within the rim tolerance of the input's
     boundary (:meth:`_Patch.rim_chord_ok`). An interior vertex that is not locked is not among
-    them: the operations can move it off its input vertex."""
-    return S.locked | (S.is_rim & (S.bary.max(axis=1) >= 1.0))
+    them: the operations can move it off its input vertex. (The barycentrics are read at
+    the rim vertices alone, their largest by :func:`..rows.row_max`: a row reduction over
+    every vertex costs more than the rest of the minimum-angle bookkeeping.)"""
+    out = S.locked.copy()
+    rim = np.flatnonzero(S.is_rim)
+    out[rim] |= row_max(S.bary[rim]) >= 1.0
+    return out
 
 
 def input_vertex_under(S: RemeshState, v: np.ndarray) -> np.ndarray:
@@ -382,10 +393,10 @@ class _Patch:
         threshold; with :attr:`mean_area`, no larger :meth:`spread`), else None (compiled:
         :func:`.._kernels.replacement_angle`)."""
         after = replacement_angle(np.ascontiguousarray(self.S.X, dtype=np.float64),
-                                  np.asarray(list(old) + list(new), np.int64).reshape(-1, 3),
+                                  np.asarray([*old, *new], np.int64).reshape(-1, 3),
                                   len(old), float(self.threshold), bool(self.count_below),
                                   np.nan if self.mean_area is None else float(self.mean_area))
-        return None if np.isnan(after) else after
+        return None if after != after else after          # nan: not better
 
     def spread(self, tris) -> float:
         """The sum of the squared relative area deviations ``(A / Ā − 1)²`` of the faces
@@ -398,10 +409,11 @@ class _Patch:
     def shapes_ok(self, tris) -> bool:
         """Whether the faces ``tris`` are counter-clockwise and not thinner than
         ``DISK_SHAPE_MIN`` in the domain and have no three rim corners."""
-        T = np.asarray(tris, dtype=np.int64)
-        if self.S.is_rim[T].all(axis=1).any():
+        rim = self.S.is_rim
+        if any(rim[a] and rim[b] and rim[c] for a, b, c in tris):
             return False
-        return bool((disk_shape(self.S.uv, T) >= DISK_SHAPE_MIN).all())
+        return bool((disk_shape(self.S.uv, np.asarray(tris, dtype=np.int64))
+                     >= DISK_SHAPE_MIN).all())
 
     def same_side(self, old, new) -> bool:
         """Whether no new face of ``new`` turns over against the faces ``old`` it replaces
@@ -522,27 +534,21 @@ class _Patch:
         (``S.joined``), the threshold, the tolerance and the judgement (:attr:`count_below`).
         Equal surroundings give equal options."""
         S, f, faces, vf = self.S, self.faces[t], self.faces, self.vf
-        around = set(f)                       # f's corners and their neighbours
-        for v in f:
-            for u in vf[v]:
-                around.update(faces[u])
-        around = list(around)
-        ids = set()
-        for v, inner in zip(around, self.inner[around].tolist()):
-            if inner:
-                ids.update(vf[v])
-        verts = set(f)
-        for u in ids:
-            verts.update(faces[u])
-        verts = sorted(verts)
+        around = list(set(f).union(*[faces[u] for v in f for u in vf[v]]))
+        ids = set().union(*[vf[v] for v, inner in zip(around, self.inner[around].tolist())
+                            if inner])
+        verts = sorted(set(f).union(*[faces[u] for u in ids]))
         label = {v: i for i, v in enumerate(verts)}
-        tris = sorted(_smallest_first(label[a], label[b], label[c])
-                      for a, b, c in (faces[u] for u in ids))
+        # each face with its corners rotated so that the smallest label comes first
+        tris = sorted([(a, b, c) if a < b and a < c else ((b, c, a) if b < c else (c, a, b))
+                       for a, b, c in (map(label.__getitem__, faces[u]) for u in ids)])
         V = np.asarray(verts, np.int64)
-        values = np.column_stack([S.X[V], S.uv[V], S.bary[V], S.face[V], S.locked[V],
-                                  S.is_rim[V], self.inner[V]]).astype(np.float64, copy=False)
+        # the vertices' values as floats, column block by column block: equal bytes exactly
+        # where their rows would be equal (the number of vertices is in the key)
+        values = b"".join(a[V].astype(np.float64, copy=False).tobytes()
+                          for a in (S.X, S.uv, S.bary, S.face, S.locked, S.is_rim, self.inner))
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
-        return (values.tobytes(), tuple(tris), tuple(label[v] for v in f),
+        return (values, tuple(tris), tuple(label[v] for v in f),
                 joined, self.threshold, self.tol, self.count_below, self.first_enough)
 
     def options(self, t) -> list:
@@ -564,7 +570,7 @@ class _Patch:
         """Flip the edge ``a–b`` (both faces in the patch, all four corners inner; not a kept
         edge, ``S.joined``)."""
         tf = self.edge_faces(a, b)
-        if len(tf) != 2 or not all(self.inner[[a, b]]) or self.is_joined(a, b):
+        if len(tf) != 2 or not (self.inner[a] and self.inner[b]) or self.is_joined(a, b):
             return None
         f, g = (self.faces[t] for t in tf)
         p = next(v for v in f if v not in (a, b))
@@ -663,11 +669,8 @@ class _Patch:
         if cut is None:
             return False
         x, P = cut
-        X = self.S.X
-        new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (k, x)))
-        old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
-                                                  for w in pair)) for pair in ((k, r), (r, x))))
-        return bool(new.max(initial=0.0) <= max(self.chord_tol(), old.max(initial=0.0)))
+        new, old = self.boundary.chord_gaps(P, self.S.X[[k, r, x]])
+        return bool(new <= max(self.chord_tol(), old))
 
     def move(self, v, floor: float = -np.inf):
         """Move the free inner vertex ``v`` to the candidate position (module docstring) that
@@ -685,17 +688,18 @@ class _Patch:
         self.no_move[v] = self.version[v]
         # v first, in the order of the next corners (the set's order would change the sums
         # below in the last bit, and the outcome with it, from one patch to the next)
-        ids = sorted(self.vf[v], key=lambda t: _rotate_to(self.faces[t], v)[1])
-        star = np.asarray([_rotate_to(self.faces[t], v) for t in ids], np.int64)
+        rotated = {t: _rotate_to(self.faces[t], v) for t in self.vf[v]}
+        ids = sorted(rotated, key=lambda t: rotated[t][1])
+        star = np.asarray([rotated[t] for t in ids], np.int64)
         angles = self.face_min_angles(star)
-        before = float(angles.min())
+        before = min(angles.tolist())          # (no nan: face_min_angles gives 0 there)
         x, d = S.X[v].copy(), len(star)
         # the star's corners and normals, the normals' sum and the relocation targets (the
         # mean of the faces' ideal points, that of the worst face, the ring's centroid)
         B, C, N, normal, targets = star_targets(np.ascontiguousarray(S.X, dtype=np.float64),
-                                                star, int(np.argmin(angles)))
-        normal /= max(np.linalg.norm(normal), 1e-300)
-        D = (np.asarray(MOVE_FRACTIONS)[None, :, None] * (targets - x)[:, None, :]).reshape(-1, 3)
+                                                star, int(angles.argmin()))
+        normal /= max(math.sqrt(normal.dot(normal)), 1e-300)   # np.linalg.norm's sum, bit for bit
+        D = (_MOVE_FRACTIONS * (targets - x)[:, None, :]).reshape(-1, 3)
         D -= (D @ normal)[:, None] * normal
         J = S.pullback()[S.face[v]]
         # only the candidates that keep the star's shape on the domain are located and lifted
@@ -816,7 +820,7 @@ class _Patch:
         keep = np.ones(len(S.F), bool)
         keep[self.rows] = False
         F = np.vstack([S.F[keep], np.asarray(list(self.faces.values()), np.int64).reshape(-1, 3)])
-        S.set_faces(F.astype(S.F.dtype))
+        S.set_faces(F.astype(S.F.dtype, copy=False))
         if self.removed.any():
             S.keep_vertices(~self.removed)
 
@@ -832,6 +836,8 @@ class _BoundaryCorners:
         self.s = self.polygon.arc_position(S.polygon)
         self.length = float(norms(np.roll(S.polygon, -1, axis=0) - S.polygon).sum())
         self.arcs = {}                        # arc_parameters of the rim points asked
+        self.cut = {}                         # between() of the rim point triples asked
+        self.gaps = {}                        # chord_gaps() of the chords asked
 
     def arc(self, uv: np.ndarray) -> list:
         """:func:`.sampling.arc_parameters` of the rim points ``uv`` (k×2), each computed
@@ -844,14 +850,33 @@ class _BoundaryCorners:
         return [self.arcs[key] for key in keys]
 
     def between(self, uv: np.ndarray) -> np.ndarray:
-        """The lifted corners (k×3) strictly inside the arc from ``uv[0]`` to ``uv[2]`` (rim
-        points, 3×2) that passes through ``uv[1]``."""
-        sa, sv, sb = self.arc(uv)
-        span = (sb - sa) % self.length
-        if (sv - sa) % self.length > span:
-            sa, span = sb, (sa - sb) % self.length
-        d = (self.s - sa) % self.length
-        return self.X[(d > 0) & (d < span)]
+        """The lifted corners (k×3, read-only) strictly inside the arc from ``uv[0]`` to
+        ``uv[2]`` (rim points, 3×2) that passes through ``uv[1]``, each triple computed once
+        (rim vertices do not move: the collapses ask the same ones again and again)."""
+        key = uv.tobytes()
+        if key not in self.cut:
+            sa, sv, sb = self.arc(uv)
+            span = (sb - sa) % self.length
+            if (sv - sa) % self.length > span:
+                sa, span = sb, (sa - sb) % self.length
+            d = (self.s - sa) % self.length
+            self.cut[key] = self.X[(d > 0) & (d < span)]
+            self.cut[key].flags.writeable = False
+        return self.cut[key]
+
+    def chord_gaps(self, P: np.ndarray, X: np.ndarray) -> tuple[float, float]:
+        """How far the points ``P`` (j×3: the corners :meth:`between` the rim vertices at
+        ``X``, 3×3, ``k, r, x``) lie from the chord ``k–x`` and from the nearer of ``k–r`` and
+        ``r–x`` (:func:`.rim.segment_distances`; the largest of each, 0 where ``P`` is empty),
+        each computed once."""
+        key = (X.tobytes(), P.tobytes())
+        if key not in self.gaps:
+            new = segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0) for w in (0, 2)))
+            old = np.minimum(*(segment_distances(P, *(np.repeat(X[[w]], len(P), axis=0)
+                                                      for w in pair))
+                               for pair in ((0, 1), (1, 2))))
+            self.gaps[key] = (new.max(initial=0.0), old.max(initial=0.0))
+        return self.gaps[key]
 
 
 def inner_groups(T: np.ndarray, inner: np.ndarray) -> np.ndarray:
@@ -891,7 +916,7 @@ def move_candidates(uv: np.ndarray, v: int, star: np.ndarray, aimed: np.ndarray
     if uv.shape[1] == 2:
         return disk_move_candidates(np.ascontiguousarray(uv, dtype=np.float64), int(v), BC,
                                     np.ascontiguousarray(aimed, dtype=np.float64),
-                                    np.asarray(PATTERN_STEPS, dtype=np.float64), _CIRCLE_DIRS,
+                                    _PATTERN_STEPS, _CIRCLE_DIRS,
                                     DISK_SHAPE_MIN)
     h = norms(uv[BC].reshape(-1, uv.shape[1]) - uv[v]).min()
     M = project(np.vstack([aimed, pattern_points(uv[v], h)]))
@@ -914,20 +939,13 @@ def _rotate_to(f, v) -> list:
     return [f[i], f[(i + 1) % 3], f[(i + 2) % 3]]
 
 
-def _smallest_first(a: int, b: int, c: int) -> tuple:
-    """The face ``(a, b, c)`` (3 distinct vertices) with its corners rotated so that the
-    smallest comes first."""
-    if a < b and a < c:
-        return a, b, c
-    return (b, c, a) if b < c else (c, a, b)
-
-
 def _same_side(X: np.ndarray, old, new) -> bool:
     """Whether each new face's 3D normal agrees (positive dot product) with the summed normal
-    of the old faces: no face of the operation turns over on the surface."""
-    To, Tn = np.asarray(old, np.int64), np.asarray(new, np.int64)
-    n_old = cross(X[To[:, 1]] - X[To[:, 0]], X[To[:, 2]] - X[To[:, 0]]).sum(axis=0)
-    n_new = cross(X[Tn[:, 1]] - X[Tn[:, 0]], X[Tn[:, 2]] - X[Tn[:, 0]])
+    of the old faces: no face of the operation turns over on the surface (the normals
+    compiled: :func:`.._kernels.replacement_normals`)."""
+    n_new, n_old = replacement_normals(np.ascontiguousarray(X, dtype=np.float64),
+                                       np.asarray(old, np.int64).reshape(-1, 3),
+                                       np.asarray(new, np.int64).reshape(-1, 3))
     return bool((n_new @ n_old > 0).all())
 
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..locate import lift
-from ..metrics import min_corner_angles
+from ..metrics import min_corner_angles_below
 from ..rows import norms
 from .angles import corner_angles_deg, forced_corners
 from .corners import locate_near
@@ -204,10 +204,12 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
     """The faces (k indices) below ``min_angle_deg`` that no input corner forces
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first."""
-    smallest = np.degrees(min_corner_angles(S.X, S.F))
-    bad = np.flatnonzero(smallest < min_angle_deg)
-    bad = bad[~forced_corners(S, min_angle_deg, bad).any(axis=1)]
-    worst = smallest[bad]
+    bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
+    smallest = np.degrees(smallest)
+    below = smallest < min_angle_deg
+    bad, smallest = bad[below], smallest[below]
+    unforced = ~forced_corners(S, min_angle_deg, bad).any(axis=1)
+    bad, worst = bad[unforced], smallest[unforced]
     order = np.argsort(worst, kind="stable")
     return bad[order], worst[order]
 

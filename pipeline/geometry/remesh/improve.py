@@ -178,7 +178,7 @@ from functools import partial
 import numpy as np
 
 from ..laplacian import face_double_areas
-from ..metrics import min_corner_angles
+from ..metrics import min_corner_angles, min_corner_angles_below
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
@@ -1384,8 +1384,11 @@ def raise_judge(S: RemeshState, min_angle_deg: float, sharp: np.ndarray, mean_ar
 
 def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarray:
     """The faces (indices) with a 3D angle below ``min_angle_deg`` (the angles of
-    :func:`..metrics.corner_angles`)."""
-    return np.flatnonzero(min_corner_angles(X, F) < np.radians(min_angle_deg))
+    :func:`..metrics.corner_angles`; of the faces near it alone,
+    :func:`..metrics.min_corner_angles_below`)."""
+    limit = np.radians(min_angle_deg)
+    faces, smallest = min_corner_angles_below(X, F, limit)
+    return faces[smallest < limit]
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
