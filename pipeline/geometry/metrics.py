@@ -207,25 +207,28 @@ def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
     the disk lifts to an ellipse with axes ``r/σ₂`` and ``r/σ₁``: uniform disk samples have the
     right density on the surface but are ``K`` times farther apart along one direction than the
     other. Computed from the metric ``G = D⁻ᵀ EᵀE D⁻¹`` (``E``: the face's 3D edge vectors,
-    ``D``: its image's), ``K = √(λmax/λmin)``. Faces with zero image area get ``inf``.
-    ``surface_double_area``: :func:`.laplacian.face_double_areas` of ``(V, F)`` when known."""
-    E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)     # m×3×2
-    D = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)  # m×2×2
-    det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
-    ok = np.abs(det) > 1e-300
-    Dinv = np.zeros_like(D)
-    Dinv[ok] = np.linalg.inv(D[ok])
-    J = E @ Dinv                                               # uv → 3D, m×3×2
-    G = np.einsum("mki,mkj->mij", J, J)
-    # without cancellation: tr² − 4 det G = (G₀₀ − G₁₁)² + 4 G₀₁², and det G = (2|τ| / det D)²
-    root = np.hypot(G[:, 0, 0] - G[:, 1, 1], 2 * G[:, 0, 1])
-    lmax = (G[:, 0, 0] + G[:, 1, 1] + root) / 2
+    ``D``: its image's), ``K = √(λmax/λmin)`` with ``λmax = (tr G + √((G₀₀ − G₁₁)² + 4G₀₁²))/2``
+    (no cancellation) and ``λmin = det G / λmax``, ``det G = (2|τ| / det D)²``. Faces with
+    ``|det D| ≤ 1e-300`` (zero image area) or a non-finite ``K`` get ``inf``. One compiled
+    pass (:func:`._kernels.stretch_dilatations`): in numpy, the (m, 3, 2) stacks and the
+    batched 2×2 inverses and products cost ten times as much.
+    ``surface_double_area``: :func:`.laplacian.face_double_areas` of ``(V, F)`` when known.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    uv : (n, 2) float array
+    surface_double_area : (m,) float array, optional
+
+    Returns
+    -------
+    (m,) float array, every value ≥ 1 or inf"""
     A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
-    with np.errstate(divide="ignore", invalid="ignore"):
-        det_G = (A / det) ** 2
-        K = lmax / np.sqrt(det_G)                              # = √(λmax/λmin), λmin = det/λmax
-    K[~ok | ~np.isfinite(K)] = np.inf
-    return np.maximum(K, 1.0)
+    return _kernels.stretch_dilatations(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64),
+        np.ascontiguousarray(_as_faces(F), dtype=np.int64),
+        np.ascontiguousarray(A, dtype=np.float64))
 
 
 def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
