@@ -232,11 +232,24 @@ def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
 
 
 def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
-    """The smallest value whose cumulative weight (values ascending) reaches ``q`` of the total:
-    a float for a float ``q``, a list of floats for a sequence of them (one sort for all)."""
-    order = np.argsort(values, kind="stable")
+    """The smallest value whose cumulative weight (values ascending, equal values in index
+    order) reaches ``q`` of the total: a float for a float ``q``, a list of floats for a sequence
+    of them (one sort for all). The sort is numpy's default (several times faster than its
+    stable sort); only where it leaves equal (or nan) values next to each other does the stable
+    sort decide their order, which the cumulative sum's rounding depends on.
+
+    Parameters
+    ----------
+    values, weights : (m,) float arrays
+    q : float or sequence of floats in [0, 1]
+    """
+    order = np.argsort(values)
+    ascending = values[order]
+    if not np.all(ascending[1:] > ascending[:-1]):
+        order = np.argsort(values, kind="stable")
+        ascending = values[order]
     cum = np.cumsum(weights[order])
-    picked = values[order][np.searchsorted(cum, np.multiply(q, cum[-1]), side="left")]
+    picked = ascending[np.searchsorted(cum, np.multiply(q, cum[-1]), side="left")]
     return float(picked) if np.ndim(q) == 0 else [float(x) for x in picked]
 
 
