@@ -2688,3 +2688,66 @@ def stretch_dilatations(const double[:, ::1] V, const double[:, ::1] uv, const i
             K = INFINITY
         out[t] = K if K > 1.0 else 1.0
     return out_arr
+
+
+def laplacian_block(const int64_t[:, ::1] edges, const int64_t[::1] rows_of,
+                    const int64_t[::1] cols_of, Py_ssize_t n_rows):
+    """CSR structure ``(indptr, indices)`` (int32) of one block of a mesh Laplacian and, for
+    every stored entry, the index of its value in ``[−w (E edges), d (n vertices)]`` (int64):
+    the entries ``(i, j)`` and ``(j, i)`` of every edge ``e = (i, j)`` (source ``e``) and
+    ``(v, v)`` of every vertex (source ``E + v``), kept where ``rows_of`` and ``cols_of`` (−1:
+    not in the block) give the row and the column, columns ascending in each row (the entries
+    of a row have distinct columns, so this order is unique). Called by
+    :func:`..laplacian.laplacian_pattern`.
+
+    Parameters
+    ----------
+    edges : (E, 2) int64
+    rows_of, cols_of : (n,) int64
+        Block row and column of every vertex, −1 outside the block.
+    n_rows : int
+    """
+    cdef Py_ssize_t E = edges.shape[0], n = rows_of.shape[0], e, v, r, k, p, q
+    cdef int64_t i, j, col, s
+    indptr_arr = np.zeros(n_rows + 1, dtype=np.int32)
+    cdef int32_t[::1] indptr = indptr_arr
+    for e in range(E):
+        i, j = edges[e, 0], edges[e, 1]
+        if rows_of[i] >= 0 and cols_of[j] >= 0:
+            indptr[rows_of[i] + 1] += 1
+        if rows_of[j] >= 0 and cols_of[i] >= 0:
+            indptr[rows_of[j] + 1] += 1
+    for v in range(n):
+        if rows_of[v] >= 0 and cols_of[v] >= 0:
+            indptr[rows_of[v] + 1] += 1
+    for r in range(n_rows):
+        indptr[r + 1] += indptr[r]
+    indices_arr = np.empty(indptr[n_rows], dtype=np.int32)
+    src_arr = np.empty(indptr[n_rows], dtype=np.int64)
+    fill_arr = np.array(indptr_arr[:n_rows], dtype=np.int64)
+    cdef int32_t[::1] indices = indices_arr
+    cdef int64_t[::1] src = src_arr, fill = fill_arr
+    for e in range(E):
+        i, j = edges[e, 0], edges[e, 1]
+        if rows_of[i] >= 0 and cols_of[j] >= 0:
+            k = fill[rows_of[i]]
+            indices[k], src[k] = <int32_t>cols_of[j], e
+            fill[rows_of[i]] = k + 1
+        if rows_of[j] >= 0 and cols_of[i] >= 0:
+            k = fill[rows_of[j]]
+            indices[k], src[k] = <int32_t>cols_of[i], e
+            fill[rows_of[j]] = k + 1
+    for v in range(n):
+        if rows_of[v] >= 0 and cols_of[v] >= 0:
+            k = fill[rows_of[v]]
+            indices[k], src[k] = <int32_t>cols_of[v], E + v
+            fill[rows_of[v]] = k + 1
+    for r in range(n_rows):                   # insertion sort of each row's few entries
+        for p in range(indptr[r] + 1, indptr[r + 1]):
+            col, s = indices[p], src[p]
+            q = p - 1
+            while q >= indptr[r] and indices[q] > col:
+                indices[q + 1], src[q + 1] = indices[q], src[q]
+                q -= 1
+            indices[q + 1], src[q + 1] = <int32_t>col, s
+    return indptr_arr, indices_arr, src_arr
