@@ -132,9 +132,8 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
     (half the memory traffic of int64: the pass is bound by it), bucket ``v`` at
     ``start[v]:start[v + 1]``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
-    cdef Py_ssize_t t, c, k, p, q, lo_v
+    cdef Py_ssize_t t, c, k, p, lo_v
     cdef int64_t a, b
-    cdef int32_t key, cid
     if N >= 2 ** 31 or n >= 2 ** 31:
         raise OverflowError("more than 2**31 half-edges or vertices")
     start_arr = np.zeros(n + 2, dtype=np.int32)
@@ -156,14 +155,30 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
             hi[p] = <int32_t>(b if a < b else a)
             cid_of[p] = <int32_t>(3 * t + c)
     for lo_v in range(n):
-        for p in range(start[lo_v] + 1, start[lo_v + 1]):
-            key, cid = hi[p], cid_of[p]
-            q = p - 1
-            while q >= start[lo_v] and hi[q] > key:
-                hi[q + 1], cid_of[q + 1] = hi[q], cid_of[q]
-                q -= 1
-            hi[q + 1], cid_of[q + 1] = key, cid
+        _sort_run(&hi[0], &cid_of[0], start[lo_v], start[lo_v + 1])
     return start_arr[:n + 1], hi_arr, id_arr
+
+
+ctypedef fused payload_t:
+    int32_t
+    int64_t
+    double
+
+
+cdef inline void _sort_run(int32_t* key, payload_t* payload, Py_ssize_t lo, Py_ssize_t hi
+                           ) noexcept nogil:
+    """Insertion sort of ``key[lo:hi]`` (a run of a few entries), ``payload`` moved along;
+    equal keys keep their order."""
+    cdef Py_ssize_t p, q
+    cdef int32_t k
+    cdef payload_t v
+    for p in range(lo + 1, hi):
+        k, v = key[p], payload[p]
+        q = p - 1
+        while q >= lo and key[q] > k:
+            key[q + 1], payload[q + 1] = key[q], payload[q]
+            q -= 1
+        key[q + 1], payload[q + 1] = k, v
 
 
 def unique_edges(const int64_t[:, ::1] F, int64_t n):
@@ -201,10 +216,9 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     conversion gives). Rows are filled, sorted and compacted in place in the output arrays (no
     temporaries: at 1M faces their first-touch page faults cost more than the arithmetic)."""
     cdef Py_ssize_t m = corner_edge.shape[0]
-    cdef Py_ssize_t t, c, k, p, q, r, out, row_start
+    cdef Py_ssize_t t, c, k, p, r, out, row_start
     cdef int64_t eo
-    cdef int col
-    cdef double s, val
+    cdef double s
     fill_arr = np.zeros(E + 1, dtype=np.int64)
     cdef int64_t[::1] fill = fill_arr
     for t in range(m):
@@ -215,7 +229,8 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     indptr_arr = np.empty(E + 1, dtype=np.int32)
     indices_arr = np.empty(9 * m, dtype=np.int32)
     data_arr = np.empty(9 * m, dtype=np.float64)
-    cdef int[::1] indptr = indptr_arr, cols = indices_arr
+    cdef int[::1] indptr = indptr_arr
+    cdef int32_t[::1] cols = indices_arr
     cdef double[::1] vals = data_arr
     for t in range(m):
         s = 0.25 / double_area[t]
@@ -231,13 +246,7 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     row_start = 0
     indptr[0] = 0
     for r in range(E):
-        for p in range(row_start + 1, fill[r]):          # insertion sort by column
-            col, val = cols[p], vals[p]
-            q = p - 1
-            while q >= row_start and cols[q] > col:
-                cols[q + 1], vals[q + 1] = cols[q], vals[q]
-                q -= 1
-            cols[q + 1], vals[q + 1] = col, val
+        _sort_run(&cols[0], &vals[0], row_start, fill[r])   # by column
         for p in range(row_start, fill[r]):               # compact: out <= p always
             if p > row_start and cols[p] == cols[p - 1]:
                 vals[out - 1] += vals[p]
@@ -2707,8 +2716,8 @@ def laplacian_block(const int64_t[:, ::1] edges, const int64_t[::1] rows_of,
         Block row and column of every vertex, −1 outside the block.
     n_rows : int
     """
-    cdef Py_ssize_t E = edges.shape[0], n = rows_of.shape[0], e, v, r, k, p, q
-    cdef int64_t i, j, col, s
+    cdef Py_ssize_t E = edges.shape[0], n = rows_of.shape[0], e, v, r, k
+    cdef int64_t i, j
     indptr_arr = np.zeros(n_rows + 1, dtype=np.int32)
     cdef int32_t[::1] indptr = indptr_arr
     for e in range(E):
@@ -2742,12 +2751,6 @@ def laplacian_block(const int64_t[:, ::1] edges, const int64_t[::1] rows_of,
             k = fill[rows_of[v]]
             indices[k], src[k] = <int32_t>cols_of[v], E + v
             fill[rows_of[v]] = k + 1
-    for r in range(n_rows):                   # insertion sort of each row's few entries
-        for p in range(indptr[r] + 1, indptr[r + 1]):
-            col, s = indices[p], src[p]
-            q = p - 1
-            while q >= indptr[r] and indices[q] > col:
-                indices[q + 1], src[q + 1] = indices[q], src[q]
-                q -= 1
-            indices[q + 1], src[q + 1] = <int32_t>col, s
+    for r in range(n_rows):
+        _sort_run(&indices[0], &src[0], indptr[r], indptr[r + 1])
     return indptr_arr, indices_arr, src_arr
