@@ -269,15 +269,17 @@ def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
 
 
 def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
-                       boundary: np.ndarray | None = None) -> dict:
+                       boundary: np.ndarray | None = None,
+                       surface_double_area: np.ndarray | None = None) -> dict:
     """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``
     (the surface and image areas and their vertex sums computed once for all of them), and the
     two fold counts: flipped faces and :func:`boundary_self_crossings` of the loop
-    ``boundary`` (by default the longest boundary loop of ``F``)."""
+    ``boundary`` (by default the longest boundary loop of ``F``). ``surface_double_area``:
+    :func:`.laplacian.face_double_areas` of ``(V, F)`` (m,) when known (SEM's result has it)."""
     if boundary is None:
         boundary = max(boundary_loops(F), key=len)
     n = len(V)
-    A = face_double_areas(V, F)
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
     a = signed_double_areas(uv, F)
     surface = vertex_area_fractions(F, n, A)
     R = _ratios(surface, vertex_area_fractions(F, n, np.abs(a)))
