@@ -2754,3 +2754,28 @@ def laplacian_block(const int64_t[:, ::1] edges, const int64_t[::1] rows_of,
     for r in range(n_rows):
         _sort_run(&indices[0], &src[0], indptr[r], indptr[r + 1])
     return indptr_arr, indices_arr, src_arr
+
+
+@cython.cdivision(True)
+def corner_dots_over_area(const double[:, ::1] P, const int64_t[:, ::1] F,
+                          const double[::1] double_area):
+    """``(p_j − p_i)·(p_k − p_i) / (2|τ|)`` at every corner of every face (m×3) for points of
+    any dimension, as :func:`..laplacian.corner_dot_over_area` defines it: with the edge
+    vectors ``d_c = p_{c+1} − p_c``, ``−d_c · d_{c−1}`` accumulated coordinate by coordinate
+    from 0, then divided by the face's ``double_area``."""
+    cdef Py_ssize_t t, k
+    cdef double x0, x1, x2, d0, d1, d2, o0, o1, o2
+    out_arr = np.empty((F.shape[0], 3), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    for t in range(F.shape[0]):
+        o0 = o1 = o2 = 0.0
+        for k in range(P.shape[1]):
+            x0, x1, x2 = P[F[t, 0], k], P[F[t, 1], k], P[F[t, 2], k]
+            d0, d1, d2 = x1 - x0, x2 - x1, x0 - x2
+            o0 = o0 - d0 * d2
+            o1 = o1 - d1 * d0
+            o2 = o2 - d2 * d1
+        out[t, 0] = o0 / double_area[t]
+        out[t, 1] = o1 / double_area[t]
+        out[t, 2] = o2 / double_area[t]
+    return out_arr

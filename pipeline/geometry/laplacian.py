@@ -109,18 +109,23 @@ def corner_dot_over_area(P: np.ndarray, F: np.ndarray, double_area: np.ndarray) 
     With ``P = V`` and ``2|τ|`` the face's own doubled area this is ``cot`` of the corner angle
     (eq. 5); with ``P = f`` (the disk map) and the *surface* area it is the stretch weight term of
     eq. (12), ``cot α(f) / σ(τ)``. With the edge vectors ``d_c = p_{c+1} − p_c`` of each face, the
-    dot product at corner c is ``−d_c · d_{c−1}``: one gather per coordinate, no cross products.
+    dot product at corner c is ``−d_c · d_{c−1}``, accumulated coordinate by coordinate from 0:
+    one compiled pass over the faces (:func:`._kernels.corner_dots_over_area`), no cross
+    products.
+
+    Parameters
+    ----------
+    P : (n, d) float array
+    F : (m, 3) int array
+    double_area : (m,) float array
+
+    Returns
+    -------
+    (m, 3) float array
     """
-    out = np.zeros((len(F), 3))
-    for d in range(P.shape[1]):
-        x = P[:, d]
-        x0, x1, x2 = x[F[:, 0]], x[F[:, 1]], x[F[:, 2]]
-        d0, d1, d2 = x1 - x0, x2 - x1, x0 - x2            # d_c = p_{c+1} − p_c
-        out[:, 0] -= d0 * d2                              # −d_c · d_{c−1}
-        out[:, 1] -= d1 * d0
-        out[:, 2] -= d2 * d1
-    out /= double_area[:, None]
-    return out
+    return _kernels.corner_dots_over_area(np.ascontiguousarray(P, dtype=np.float64),
+                                          np.ascontiguousarray(F, dtype=np.int64),
+                                          np.ascontiguousarray(double_area, dtype=np.float64))
 
 
 def edge_weights(pattern: LaplacianPattern, corner_values: np.ndarray) -> np.ndarray:
