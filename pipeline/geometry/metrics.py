@@ -235,8 +235,9 @@ def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
     """The smallest value whose cumulative weight (values ascending, equal values in index
     order) reaches ``q`` of the total: a float for a float ``q``, a list of floats for a sequence
     of them (one sort for all). The sort is numpy's default (several times faster than its
-    stable sort); only where it leaves equal (or nan) values next to each other does the stable
-    sort decide their order, which the cumulative sum's rounding depends on.
+    stable sort, and the same permutation when the values are distinct); when the sorted values
+    are not strictly ascending (equal or nan values) the stable sort is taken instead, as the
+    order of equal values decides the cumulative sum's rounding.
 
     Parameters
     ----------
