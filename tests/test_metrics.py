@@ -258,6 +258,28 @@ def test_stretch_anisotropy_hand_values():
     assert np.isinf(metrics.stretch_anisotropy(SQUARE_V, SQUARE_F, collapsed)[0])
 
 
+def test_stretch_anisotropy_is_the_singular_value_ratio():
+    # a curved surface over a jittered grid, a noisy map with flipped and mirrored faces
+    # (both pivot orders of the 2×2 inverse) and the two faces of one edge collapsed (the edge's
+    # ends on one point)
+    rng = np.random.default_rng(7)
+    x, y = np.meshgrid(np.linspace(-1, 1, 12), np.linspace(-1, 1, 12))
+    P = np.column_stack([x.ravel(), y.ravel()]) + 0.01 * rng.standard_normal((144, 2))
+    q = np.arange(144).reshape(12, 12)[:-1, :-1].ravel()
+    F = np.vstack([np.column_stack([q, q + 1, q + 13]), np.column_stack([q, q + 13, q + 12])])
+    V = height_field(P)
+    uv = P @ np.array([[0.3, 1.2], [-0.9, 0.4]]) + 0.08 * rng.standard_normal(P.shape)
+    uv[F[5, 2]] = uv[F[5, 1]]
+    K = metrics.stretch_anisotropy(V, F, uv)
+    E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)
+    D = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)
+    ok = np.abs(np.linalg.det(D)) > 1e-12
+    s = np.linalg.svd(E[ok] @ np.linalg.inv(D[ok]), compute_uv=False)
+    assert (metrics.signed_double_areas(uv, F) < 0).sum() > 10 and not ok[5] and ok.sum() == 240
+    np.testing.assert_allclose(K[ok], s[:, 0] / s[:, 1], rtol=1e-9)
+    assert np.isinf(K[~ok]).all()
+
+
 def test_area_weighted_quantile():
     v = np.array([3.0, 1.0, 2.0])
     w = np.array([1.0, 1.0, 2.0])       # ascending: 1 (w 1), 2 (w 2), 3 (w 1); total 4

@@ -11,7 +11,7 @@ import pytest
 from conftest import (as_complex, boundary_loop, height_field, load_mesh, loop_from_angle_zero,
                       polar_disk, random_flip_free_maps, stretch_L)
 from pipeline.geometry import metrics
-from pipeline.geometry.laplacian import laplacian_blocks, laplacian_pattern
+from pipeline.geometry.laplacian import face_double_areas, laplacian_blocks, laplacian_pattern
 from pipeline.geometry.repair import disk_blockers
 from pipeline.geometry.sem import (AREA_FLOOR, CROWDED, SEMOptions, _Problem,
                                    continuation_areas, crowded, hold_flipping_vertices, sem_step,
@@ -186,6 +186,13 @@ def lion_converged():
     # the default schedule (SEM steps, then Gauss–Newton steps) ends within the cap
     return V, F, b, stretch_energy_minimization(V, F, b, SEMOptions(mode="converged",
                                                                     max_iter=200))
+
+
+def test_sem_result_carries_the_surface_areas_the_summary_reuses(face_paper):
+    V, F, b, r = face_paper
+    assert np.array_equal(r.surface_double_area, face_double_areas(V, F))
+    assert (metrics.distortion_summary(V, F, r.uv, b, r.surface_double_area)
+            == metrics.distortion_summary(V, F, r.uv, b))
 
 
 def test_sem_converged_mode_lion(lion_converged):

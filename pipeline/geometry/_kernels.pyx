@@ -132,9 +132,8 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
     (half the memory traffic of int64: the pass is bound by it), bucket ``v`` at
     ``start[v]:start[v + 1]``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
-    cdef Py_ssize_t t, c, k, p, q, lo_v
+    cdef Py_ssize_t t, c, k, p, lo_v
     cdef int64_t a, b
-    cdef int32_t key, cid
     if N >= 2 ** 31 or n >= 2 ** 31:
         raise OverflowError("more than 2**31 half-edges or vertices")
     start_arr = np.zeros(n + 2, dtype=np.int32)
@@ -156,14 +155,30 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
             hi[p] = <int32_t>(b if a < b else a)
             cid_of[p] = <int32_t>(3 * t + c)
     for lo_v in range(n):
-        for p in range(start[lo_v] + 1, start[lo_v + 1]):
-            key, cid = hi[p], cid_of[p]
-            q = p - 1
-            while q >= start[lo_v] and hi[q] > key:
-                hi[q + 1], cid_of[q + 1] = hi[q], cid_of[q]
-                q -= 1
-            hi[q + 1], cid_of[q + 1] = key, cid
+        _sort_run(&hi[0], &cid_of[0], start[lo_v], start[lo_v + 1])
     return start_arr[:n + 1], hi_arr, id_arr
+
+
+ctypedef fused payload_t:
+    int32_t
+    int64_t
+    double
+
+
+cdef inline void _sort_run(int32_t* key, payload_t* payload, Py_ssize_t lo, Py_ssize_t hi
+                           ) noexcept nogil:
+    """Insertion sort of ``key[lo:hi]`` (a run of a few entries), ``payload`` moved along;
+    equal keys keep their order."""
+    cdef Py_ssize_t p, q
+    cdef int32_t k
+    cdef payload_t v
+    for p in range(lo + 1, hi):
+        k, v = key[p], payload[p]
+        q = p - 1
+        while q >= lo and key[q] > k:
+            key[q + 1], payload[q + 1] = key[q], payload[q]
+            q -= 1
+        key[q + 1], payload[q + 1] = k, v
 
 
 def unique_edges(const int64_t[:, ::1] F, int64_t n):
@@ -201,10 +216,9 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     conversion gives). Rows are filled, sorted and compacted in place in the output arrays (no
     temporaries: at 1M faces their first-touch page faults cost more than the arithmetic)."""
     cdef Py_ssize_t m = corner_edge.shape[0]
-    cdef Py_ssize_t t, c, k, p, q, r, out, row_start
+    cdef Py_ssize_t t, c, k, p, r, out, row_start
     cdef int64_t eo
-    cdef int col
-    cdef double s, val
+    cdef double s
     fill_arr = np.zeros(E + 1, dtype=np.int64)
     cdef int64_t[::1] fill = fill_arr
     for t in range(m):
@@ -215,7 +229,8 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     indptr_arr = np.empty(E + 1, dtype=np.int32)
     indices_arr = np.empty(9 * m, dtype=np.int32)
     data_arr = np.empty(9 * m, dtype=np.float64)
-    cdef int[::1] indptr = indptr_arr, cols = indices_arr
+    cdef int[::1] indptr = indptr_arr
+    cdef int32_t[::1] cols = indices_arr
     cdef double[::1] vals = data_arr
     for t in range(m):
         s = 0.25 / double_area[t]
@@ -231,13 +246,7 @@ def stretch_weight_map(const int64_t[:, ::1] corner_edge, const double[::1] doub
     row_start = 0
     indptr[0] = 0
     for r in range(E):
-        for p in range(row_start + 1, fill[r]):          # insertion sort by column
-            col, val = cols[p], vals[p]
-            q = p - 1
-            while q >= row_start and cols[q] > col:
-                cols[q + 1], vals[q + 1] = cols[q], vals[q]
-                q -= 1
-            cols[q + 1], vals[q + 1] = col, val
+        _sort_run(&cols[0], &vals[0], row_start, fill[r])   # by column
         for p in range(row_start, fill[r]):               # compact: out <= p always
             if p > row_start and cols[p] == cols[p - 1]:
                 vals[out - 1] += vals[p]
@@ -2752,3 +2761,161 @@ def pulled_back_steps(const double[:, :, ::1] J, const int64_t[::1] face,
         f = face[v]
         for r in range(J.shape[1]):
             du[v, r] = step * _dot3(&J[f, r, 0], &D[i, 0])
+
+
+cdef extern from "math.h" nogil:
+    double fma(double x, double y, double z)
+    double hypot(double x, double y)
+
+
+@cython.cdivision(True)
+def stretch_dilatations(const double[:, ::1] V, const double[:, ::1] uv, const int64_t[:, ::1] F,
+                        const double[::1] double_area):
+    """Per face the dilatation ``K`` of :func:`..metrics.stretch_anisotropy` (m,), operation
+    for operation as numpy computes it on these machines with ``np.linalg.inv``, ``@`` and
+    ``einsum``: ``D⁻¹`` of the image edge matrix ``D`` as LAPACK's LU with partial pivoting
+    gives it (the multiplier and the back substitution by reciprocals), each entry of
+    ``J = E D⁻¹`` as OpenBLAS's product forms it (``fma(e₁, d₁, e₀ d₀)``, an explicit fused
+    multiply-add: the module's other arithmetic is unfused), ``G = JᵀJ`` summed over the rows
+    in order (checked bit for bit on the shared meshes' maps and on noisy ones with flipped
+    faces); ``inf`` where ``|det D| ≤ 1e-300`` or ``K`` is not finite, at least 1 elsewhere.
+
+    Parameters
+    ----------
+    V : (n, 3) float64, uv : (n, 2) float64, F : (m, 3) int64, double_area : (m,) float64
+        Surface points, map, faces and the faces' ``2|τ|``.
+    """
+    cdef Py_ssize_t t, k, i
+    cdef int64_t v0, v1, v2
+    cdef bint swap
+    cdef double a, b, c, d, det, P, Q, R, S, rp, l, ru, x0, x1, y0, y1, K
+    cdef double Di[2][2]
+    cdef double J[3][2]
+    cdef double g00, g01, g11, root, lmax, ratio
+    out_arr = np.empty(F.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(F.shape[0]):
+        v0, v1, v2 = F[t, 0], F[t, 1], F[t, 2]
+        a = uv[v1, 0] - uv[v0, 0]
+        b = uv[v2, 0] - uv[v0, 0]
+        c = uv[v1, 1] - uv[v0, 1]
+        d = uv[v2, 1] - uv[v0, 1]
+        det = a * d - b * c
+        if not fabs(det) > 1e-300:
+            out[t] = INFINITY
+            continue
+        swap = fabs(c) > fabs(a)          # the pivot row: the first of the largest |column 0|
+        if swap:
+            P, Q, R, S = c, d, a, b
+        else:
+            P, Q, R, S = a, b, c, d
+        rp = 1.0 / P
+        l = R * rp
+        ru = 1.0 / (S - l * Q)
+        # columns of the permuted identity: e₀ → (1, −l), e₁ → (0, 1) after L⁻¹
+        x1 = -l * ru
+        x0 = (1.0 - Q * x1) * rp
+        y1 = 1.0 * ru
+        y0 = (0.0 - Q * y1) * rp
+        if swap:
+            Di[0][0], Di[1][0], Di[0][1], Di[1][1] = y0, y1, x0, x1
+        else:
+            Di[0][0], Di[1][0], Di[0][1], Di[1][1] = x0, x1, y0, y1
+        for k in range(3):
+            a = V[v1, k] - V[v0, k]
+            b = V[v2, k] - V[v0, k]
+            for i in range(2):
+                J[k][i] = fma(b, Di[1][i], a * Di[0][i])
+        g00 = (J[0][0] * J[0][0] + J[1][0] * J[1][0]) + J[2][0] * J[2][0]
+        g01 = (J[0][0] * J[0][1] + J[1][0] * J[1][1]) + J[2][0] * J[2][1]
+        g11 = (J[0][1] * J[0][1] + J[1][1] * J[1][1]) + J[2][1] * J[2][1]
+        root = hypot(g00 - g11, 2 * g01)
+        lmax = (g00 + g11 + root) / 2
+        ratio = double_area[t] / det
+        K = lmax / sqrt(ratio * ratio)
+        if not isfinite(K):
+            K = INFINITY
+        out[t] = K if K > 1.0 else 1.0
+    return out_arr
+
+
+def laplacian_block(const int64_t[:, ::1] edges, const int64_t[::1] rows_of,
+                    const int64_t[::1] cols_of, Py_ssize_t n_rows):
+    """CSR structure ``(indptr, indices)`` (int32) of one block of a mesh Laplacian and, for
+    every stored entry, the index of its value in ``[−w (E edges), d (n vertices)]`` (int64):
+    the entries ``(i, j)`` and ``(j, i)`` of every edge ``e = (i, j)`` (source ``e``) and
+    ``(v, v)`` of every vertex (source ``E + v``), kept where ``rows_of`` and ``cols_of`` (−1:
+    not in the block) give the row and the column, columns ascending in each row (the entries
+    of a row have distinct columns, so this order is unique). Called by
+    :func:`..laplacian.laplacian_pattern`.
+
+    Parameters
+    ----------
+    edges : (E, 2) int64
+    rows_of, cols_of : (n,) int64
+        Block row and column of every vertex, −1 outside the block.
+    n_rows : int
+    """
+    cdef Py_ssize_t E = edges.shape[0], n = rows_of.shape[0], e, v, r, k
+    cdef int64_t i, j
+    indptr_arr = np.zeros(n_rows + 1, dtype=np.int32)
+    cdef int32_t[::1] indptr = indptr_arr
+    for e in range(E):
+        i, j = edges[e, 0], edges[e, 1]
+        if rows_of[i] >= 0 and cols_of[j] >= 0:
+            indptr[rows_of[i] + 1] += 1
+        if rows_of[j] >= 0 and cols_of[i] >= 0:
+            indptr[rows_of[j] + 1] += 1
+    for v in range(n):
+        if rows_of[v] >= 0 and cols_of[v] >= 0:
+            indptr[rows_of[v] + 1] += 1
+    for r in range(n_rows):
+        indptr[r + 1] += indptr[r]
+    indices_arr = np.empty(indptr[n_rows], dtype=np.int32)
+    src_arr = np.empty(indptr[n_rows], dtype=np.int64)
+    fill_arr = np.array(indptr_arr[:n_rows], dtype=np.int64)
+    cdef int32_t[::1] indices = indices_arr
+    cdef int64_t[::1] src = src_arr, fill = fill_arr
+    for e in range(E):
+        i, j = edges[e, 0], edges[e, 1]
+        if rows_of[i] >= 0 and cols_of[j] >= 0:
+            k = fill[rows_of[i]]
+            indices[k], src[k] = <int32_t>cols_of[j], e
+            fill[rows_of[i]] = k + 1
+        if rows_of[j] >= 0 and cols_of[i] >= 0:
+            k = fill[rows_of[j]]
+            indices[k], src[k] = <int32_t>cols_of[i], e
+            fill[rows_of[j]] = k + 1
+    for v in range(n):
+        if rows_of[v] >= 0 and cols_of[v] >= 0:
+            k = fill[rows_of[v]]
+            indices[k], src[k] = <int32_t>cols_of[v], E + v
+            fill[rows_of[v]] = k + 1
+    for r in range(n_rows):
+        _sort_run(&indices[0], &src[0], indptr[r], indptr[r + 1])
+    return indptr_arr, indices_arr, src_arr
+
+
+@cython.cdivision(True)
+def corner_dots_over_area(const double[:, ::1] P, const int64_t[:, ::1] F,
+                          const double[::1] double_area):
+    """``(p_j − p_i)·(p_k − p_i) / (2|τ|)`` at every corner of every face (m×3) for points of
+    any dimension, as :func:`..laplacian.corner_dot_over_area` defines it: with the edge
+    vectors ``d_c = p_{c+1} − p_c``, ``−d_c · d_{c−1}`` accumulated coordinate by coordinate
+    from 0, then divided by the face's ``double_area``."""
+    cdef Py_ssize_t t, k
+    cdef double x0, x1, x2, d0, d1, d2, o0, o1, o2
+    out_arr = np.empty((F.shape[0], 3), dtype=np.float64)
+    cdef double[:, ::1] out = out_arr
+    for t in range(F.shape[0]):
+        o0 = o1 = o2 = 0.0
+        for k in range(P.shape[1]):
+            x0, x1, x2 = P[F[t, 0], k], P[F[t, 1], k], P[F[t, 2], k]
+            d0, d1, d2 = x1 - x0, x2 - x1, x0 - x2
+            o0 = o0 - d0 * d2
+            o1 = o1 - d1 * d0
+            o2 = o2 - d2 * d1
+        out[t, 0] = o0 / double_area[t]
+        out[t, 1] = o1 / double_area[t]
+        out[t, 2] = o2 / double_area[t]
+    return out_arr

@@ -58,17 +58,16 @@ def unique_edges(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _kernels.unique_edges(F.reshape(-1, 3), n)
 
 
-def _block(rows_of: np.ndarray, cols_of: np.ndarray, n_rows: int, n_cols: int,
-           r: np.ndarray, c: np.ndarray, src: np.ndarray) -> tuple[sp.csr_matrix, np.ndarray]:
-    """CSR structure of the entries (r, c) (global vertex ids) of one block, and for each stored
-    entry the index of its value in the source vector. Built once per mesh: the source ids ride
-    through SciPy's COO→CSR conversion as data (exact in float64, entries are distinct)."""
-    rr, cc = rows_of[r], cols_of[c]
-    keep = (rr >= 0) & (cc >= 0)
-    M = sp.coo_matrix((src[keep] + 1.0, (rr[keep], cc[keep])), shape=(n_rows, n_cols)).tocsr()
-    M.sort_indices()
-    ids = M.data.astype(np.int64) - 1
-    M.data = np.zeros(len(ids))
+def _block(edges: np.ndarray, rows_of: np.ndarray, cols_of: np.ndarray, n_rows: int,
+           n_cols: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """CSR structure (int32 indices, sorted rows, zero ``data``) of one block of ``L`` —
+    both directions of every edge and the diagonal, at the rows ``rows_of`` and columns
+    ``cols_of`` of the vertices in it (−1 outside) — and for each stored entry the index of
+    its value in ``[−w (E entries), d (n entries)]`` (:func:`._kernels.laplacian_block`, one
+    counting pass; built once per mesh)."""
+    indptr, indices, ids = _kernels.laplacian_block(edges, rows_of, cols_of, n_rows)
+    M = sp.csr_matrix((np.zeros(len(ids)), indices, indptr), shape=(n_rows, n_cols))
+    M.has_sorted_indices = True
     return M, ids
 
 
@@ -85,16 +84,9 @@ def laplacian_pattern(F: np.ndarray, n: int, boundary: np.ndarray) -> LaplacianP
     pos_B = np.full(n, -1, dtype=np.int64)
     pos_B[boundary] = np.arange(len(boundary))
 
-    E = len(edges)
-    i, j = edges[:, 0], edges[:, 1]
-    diag = np.arange(n, dtype=np.int64)
-    # All stored entries of L: both directions of every edge, then the diagonal.
-    r = np.concatenate([i, j, diag])
-    c = np.concatenate([j, i, diag])
-    src = np.concatenate([np.arange(E), np.arange(E), E + diag])
-    II, II_src = _block(pos_I, pos_I, len(interior), len(interior), r, c, src)
-    IB, IB_src = _block(pos_I, pos_B, len(interior), len(boundary), r, c, src)
-    BB, BB_src = _block(pos_B, pos_B, len(boundary), len(boundary), r, c, src)
+    II, II_src = _block(edges, pos_I, pos_I, len(interior), len(interior))
+    IB, IB_src = _block(edges, pos_I, pos_B, len(interior), len(boundary))
+    BB, BB_src = _block(edges, pos_B, pos_B, len(boundary), len(boundary))
     return LaplacianPattern(n, edges, corner_edge, interior, boundary,
                             II, IB, BB, II_src, IB_src, BB_src)
 
@@ -119,18 +111,23 @@ def corner_dot_over_area(P: np.ndarray, F: np.ndarray, double_area: np.ndarray) 
     With ``P = V`` and ``2|τ|`` the face's own doubled area this is ``cot`` of the corner angle
     (eq. 5); with ``P = f`` (the disk map) and the *surface* area it is the stretch weight term of
     eq. (12), ``cot α(f) / σ(τ)``. With the edge vectors ``d_c = p_{c+1} − p_c`` of each face, the
-    dot product at corner c is ``−d_c · d_{c−1}``: one gather per coordinate, no cross products.
+    dot product at corner c is ``−d_c · d_{c−1}``, accumulated coordinate by coordinate from 0:
+    one compiled pass over the faces (:func:`._kernels.corner_dots_over_area`), no cross
+    products.
+
+    Parameters
+    ----------
+    P : (n, d) float array
+    F : (m, 3) int array
+    double_area : (m,) float array
+
+    Returns
+    -------
+    (m, 3) float array
     """
-    out = np.zeros((len(F), 3))
-    for d in range(P.shape[1]):
-        x = P[:, d]
-        x0, x1, x2 = x[F[:, 0]], x[F[:, 1]], x[F[:, 2]]
-        d0, d1, d2 = x1 - x0, x2 - x1, x0 - x2            # d_c = p_{c+1} − p_c
-        out[:, 0] -= d0 * d2                              # −d_c · d_{c−1}
-        out[:, 1] -= d1 * d0
-        out[:, 2] -= d2 * d1
-    out /= double_area[:, None]
-    return out
+    return _kernels.corner_dots_over_area(np.ascontiguousarray(P, dtype=np.float64),
+                                          np.ascontiguousarray(F, dtype=np.int64),
+                                          np.ascontiguousarray(double_area, dtype=np.float64))
 
 
 def edge_weights(pattern: LaplacianPattern, corner_values: np.ndarray) -> np.ndarray:

@@ -226,33 +226,50 @@ def stretch_anisotropy(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
     the disk lifts to an ellipse with axes ``r/σ₂`` and ``r/σ₁``: uniform disk samples have the
     right density on the surface but are ``K`` times farther apart along one direction than the
     other. Computed from the metric ``G = D⁻ᵀ EᵀE D⁻¹`` (``E``: the face's 3D edge vectors,
-    ``D``: its image's), ``K = √(λmax/λmin)``. Faces with zero image area get ``inf``.
-    ``surface_double_area``: :func:`.laplacian.face_double_areas` of ``(V, F)`` when known."""
-    E = np.stack([V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]], axis=2)     # m×3×2
-    D = np.stack([uv[F[:, 1]] - uv[F[:, 0]], uv[F[:, 2]] - uv[F[:, 0]]], axis=2)  # m×2×2
-    det = D[:, 0, 0] * D[:, 1, 1] - D[:, 0, 1] * D[:, 1, 0]
-    ok = np.abs(det) > 1e-300
-    Dinv = np.zeros_like(D)
-    Dinv[ok] = np.linalg.inv(D[ok])
-    J = E @ Dinv                                               # uv → 3D, m×3×2
-    G = np.einsum("mki,mkj->mij", J, J)
-    # without cancellation: tr² − 4 det G = (G₀₀ − G₁₁)² + 4 G₀₁², and det G = (2|τ| / det D)²
-    root = np.hypot(G[:, 0, 0] - G[:, 1, 1], 2 * G[:, 0, 1])
-    lmax = (G[:, 0, 0] + G[:, 1, 1] + root) / 2
+    ``D``: its image's), ``K = √(λmax/λmin)`` with ``λmax = (tr G + √((G₀₀ − G₁₁)² + 4G₀₁²))/2``
+    (no cancellation) and ``λmin = det G / λmax``, ``det G = (2|τ| / det D)²``. Faces with
+    ``|det D| ≤ 1e-300`` (zero image area) or a non-finite ``K`` get ``inf``. One compiled
+    pass (:func:`._kernels.stretch_dilatations`): in numpy, the (m, 3, 2) stacks and the
+    batched 2×2 inverses and products cost ten times as much.
+    ``surface_double_area``: :func:`.laplacian.face_double_areas` of ``(V, F)`` when known.
+
+    Parameters
+    ----------
+    V : (n, 3) float array
+    F : (m, 3) int array
+    uv : (n, 2) float array
+    surface_double_area : (m,) float array, optional
+
+    Returns
+    -------
+    (m,) float array, every value ≥ 1 or inf"""
     A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
-    with np.errstate(divide="ignore", invalid="ignore"):
-        det_G = (A / det) ** 2
-        K = lmax / np.sqrt(det_G)                              # = √(λmax/λmin), λmin = det/λmax
-    K[~ok | ~np.isfinite(K)] = np.inf
-    return np.maximum(K, 1.0)
+    return _kernels.stretch_dilatations(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(uv, dtype=np.float64),
+        np.ascontiguousarray(_as_faces(F), dtype=np.int64),
+        np.ascontiguousarray(A, dtype=np.float64))
 
 
 def area_weighted_quantile(values: np.ndarray, weights: np.ndarray, q):
-    """The smallest value whose cumulative weight (values ascending) reaches ``q`` of the total:
-    a float for a float ``q``, a list of floats for a sequence of them (one sort for all)."""
-    order = np.argsort(values, kind="stable")
+    """The smallest value whose cumulative weight (values ascending, equal values in index
+    order) reaches ``q`` of the total: a float for a float ``q``, a list of floats for a sequence
+    of them (one sort for all). The sort is numpy's default (several times faster than its
+    stable sort, and the same permutation when the values are distinct); when the sorted values
+    are not strictly ascending (equal or nan values) the stable sort is taken instead, as the
+    order of equal values decides the cumulative sum's rounding.
+
+    Parameters
+    ----------
+    values, weights : (m,) float arrays
+    q : float or sequence of floats in [0, 1]
+    """
+    order = np.argsort(values)
+    ascending = values[order]
+    if not np.all(ascending[1:] > ascending[:-1]):
+        order = np.argsort(values, kind="stable")
+        ascending = values[order]
     cum = np.cumsum(weights[order])
-    picked = values[order][np.searchsorted(cum, np.multiply(q, cum[-1]), side="left")]
+    picked = ascending[np.searchsorted(cum, np.multiply(q, cum[-1]), side="left")]
     return float(picked) if np.ndim(q) == 0 else [float(x) for x in picked]
 
 
@@ -272,15 +289,17 @@ def anisotropy_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
 
 
 def distortion_summary(V: np.ndarray, F: np.ndarray, uv: np.ndarray,
-                       boundary: np.ndarray | None = None) -> dict:
+                       boundary: np.ndarray | None = None,
+                       surface_double_area: np.ndarray | None = None) -> dict:
     """Every measure of §7.1 as plain floats, the content of ``metrics.json``'s ``distortion``
     (the surface and image areas and their vertex sums computed once for all of them), and the
     two fold counts: flipped faces and :func:`boundary_self_crossings` of the loop
-    ``boundary`` (by default the longest boundary loop of ``F``)."""
+    ``boundary`` (by default the longest boundary loop of ``F``). ``surface_double_area``:
+    :func:`.laplacian.face_double_areas` of ``(V, F)`` (m,) when known (SEM's result has it)."""
     if boundary is None:
         boundary = max(boundary_loops(F), key=len)
     n = len(V)
-    A = face_double_areas(V, F)
+    A = face_double_areas(V, F) if surface_double_area is None else surface_double_area
     a = signed_double_areas(uv, F)
     surface = vertex_area_fractions(F, n, A)
     R = _ratios(surface, vertex_area_fractions(F, n, np.abs(a)))

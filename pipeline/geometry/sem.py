@@ -149,6 +149,7 @@ class SEMResult:
     solver_stats: dict = field(default_factory=dict)   # factorizations / PCG solves per system
     stop_reason: str = ""                # why the iteration ended, in words
     steps: dict = field(default_factory=dict)   # accepted steps by kind (see step_counts)
+    surface_double_area: np.ndarray | None = None  # 2|τ| of every face of the surface (m,)
 
 
 def step_counts(history: list) -> dict:
@@ -458,7 +459,8 @@ def stretch_energy_minimization(V: np.ndarray, F: np.ndarray, boundary: np.ndarr
                      harmonic={"weights": h.weights, "negative_weights": h.negative_weights,
                                "flipped_faces": h.flipped_faces},
                      history=history, timings=timings, solver=problem.solver_I.name,
-                     solver_stats=solver_stats, stop_reason=reason, steps=step_counts(history))
+                     solver_stats=solver_stats, stop_reason=reason, steps=step_counts(history),
+                     surface_double_area=problem.surface_A2)
 
 
 #: Paper mode: a relative decrease of ``E_S`` below this counts as none (rounding, not progress).

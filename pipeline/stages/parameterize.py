@@ -158,7 +158,8 @@ def parameterize_stage(mesh: RepairedMesh, options: SEMOptions | None = None,
                         f"{interior} interior; {exc}): a mesh this small or degenerate has no "
                         f"SEM map; pass a finer mesh") from None
     t0 = time.perf_counter()
-    distortion = distortion_summary(mesh.V, mesh.F, result.uv, mesh.boundary)
+    distortion = distortion_summary(mesh.V, mesh.F, result.uv, mesh.boundary,
+                                    result.surface_double_area)
     timings = dict(result.timings, metrics=time.perf_counter() - t0)
     metrics = {
         "status": "ok" if result.flipped_faces == distortion["boundary_self_crossings"] == 0
