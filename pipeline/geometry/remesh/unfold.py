@@ -129,17 +129,17 @@ def turned_over(S: RemeshState, P: np.ndarray, U: np.ndarray, under: np.ndarray,
         least = least_dots(S, np.repeat(normal, 3, axis=0), under.reshape(-1),
                            bary.reshape(-1, 3)).reshape(k, 3)
     else:
-        least = np.einsum("ij,ikj->ik", normal, S.normals_in()[under])
+        least = np.einsum("ij,ikj->ik", normal, S.normals_in().take(under, axis=0))
     out = np.all(least < 0, axis=1)
     suspect = np.flatnonzero(out)
     if len(suspect):
         at, _, _ = S.locator.relocate(project(U[suspect].mean(axis=1)), under[suspect, 0],
                                       walk=CENTROID_WALK)
-        out[suspect] = dots(normal[suspect], S.normals_in()[at]) < 0
+        out[suspect] = dots(normal[suspect], S.normals_in().take(at, axis=0)) < 0
         across = suspect[~out[suspect]]
         if len(across):
             _, nearest = S.of_input(input_distance)(P[across].mean(axis=1))
-            out[across] = dots(normal[across], S.normals_in()[nearest]) < 0
+            out[across] = dots(normal[across], S.normals_in().take(nearest, axis=0)) < 0
     return out
 
 
@@ -162,7 +162,7 @@ def least_dots(S: RemeshState, normal: np.ndarray, under: np.ndarray, bary: np.n
     (k,) float
     """
     N = S.normals_in()
-    out = dots(normal, N[under])
+    out = dots(normal, N.take(under, axis=0))
     zero = bary <= ON_EDGE
     count = zero.sum(axis=1)
     twin, indptr, indices = S.of_input(input_incidence)
@@ -190,7 +190,8 @@ def input_incidence(S: RemeshState) -> tuple:
 def turned_over_rows(S: RemeshState, T: np.ndarray, ties: bool = False) -> np.ndarray:
     """:func:`turned_over` for faces ``T`` (k×3 vertex indices) of ``S``; k bool."""
     T = np.asarray(T, np.int64).reshape(-1, 3)
-    return turned_over(S, S.X[T], S.uv[T], S.face[T], S.bary[T], ties)
+    return turned_over(S, S.X.take(T, axis=0), S.uv.take(T, axis=0), S.face[T],
+                       S.bary.take(T, axis=0), ties)
 
 
 def star_grid(uv: np.ndarray, star: np.ndarray, steps: int = GRID) -> np.ndarray:
