@@ -126,9 +126,10 @@ class Segments:
 
     def _exact(self, P, S):                            # S: (b, j) candidate segments per point
         A, D, L2 = self.A, self.D, self.L2
-        rel = P[:, None, :] - A[S]
-        tt = np.clip(np.einsum("bsj,bsj->bs", rel, D[S]) / L2[S], 0.0, 1.0)
-        d2 = ((rel - tt[..., None] * D[S]) ** 2).sum(axis=2)
+        DS = D.take(S, axis=0)
+        rel = P[:, None, :] - A.take(S, axis=0)
+        tt = np.clip(np.einsum("bsj,bsj->bs", rel, DS) / L2[S], 0.0, 1.0)
+        d2 = ((rel - tt[..., None] * DS) ** 2).sum(axis=2)
         j = np.argmin(d2, axis=1)
         r = np.arange(len(P))
         return S[r, j], tt[r, j], d2[r, j]
@@ -174,7 +175,7 @@ class Segments:
             for lo in range(0, len(redo), block):
                 r = redo[lo:lo + block]
                 seg[r], t[r], _ = exact(P[r], np.broadcast_to(allseg, (len(r), len(A))))
-        return seg, t, A[seg] + t[:, None] * D[seg]
+        return seg, t, A.take(seg, axis=0) + t[:, None] * D.take(seg, axis=0)
 
 
 def project_to_boundary_polygon(uv: np.ndarray, boundary: np.ndarray, points: np.ndarray

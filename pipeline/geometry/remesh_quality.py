@@ -287,7 +287,7 @@ class MeshDistance:
         if len(P) == 0:
             return np.zeros(0), np.zeros(0, np.int64)
         order = z_order(P)
-        Q = np.ascontiguousarray(P[order])
+        Q = P.take(order, axis=0)
         dq, fq = np.empty(len(P)), np.empty(len(P), np.int64)
         runs = self.THREADS if len(P) >= self.THREAD_POINTS else 1
         cuts = np.linspace(0, len(P), runs + 1).astype(int)
