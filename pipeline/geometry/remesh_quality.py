@@ -416,8 +416,9 @@ def middle_offsets(V: np.ndarray, F: np.ndarray, E: np.ndarray) -> MiddleOffsets
     where the bounds are asked for many distance fields of one mesh. (Corner by corner: the
     values of the norms of an m×3×3 array's rows, faster.)"""
     centroids = face_centroids(V, F)
-    to_corners = np.column_stack([norms(centroids - V[F[:, c]]) for c in range(3)])
-    return MiddleOffsets(0.5 * norms(V[E[:, 1]] - V[E[:, 0]]), centroids, to_corners)
+    to_corners = np.column_stack([norms(centroids - V.take(F[:, c], axis=0)) for c in range(3)])
+    return MiddleOffsets(0.5 * norms(V.take(E[:, 1], axis=0) - V.take(E[:, 0], axis=0)),
+                         centroids, to_corners)
 
 
 def middle_bounds(V: np.ndarray, F: np.ndarray, E: np.ndarray, d_vertex: np.ndarray,
@@ -636,7 +637,7 @@ def turned_over_faces(V: np.ndarray, F: np.ndarray, reference: SampledSurface,
     crease's other side; its corners lie on both sides)."""
     if len(F) == 0:
         return 0
-    P = V[F]
+    P = V.take(F, axis=0)
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     below = reference.normals
     if centroid_face is None:

@@ -85,7 +85,7 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
     inner = twin >= 0
     h, a, b, twin = h[inner], a[inner], b[inner], twin[inner]
     N = face_normals(V, F)
-    cos = np.clip(dots(N[h // 3], N[twin // 3]), -1.0, 1.0)
+    cos = np.clip(dots(N.take(h // 3, axis=0), N.take(twin // 3, axis=0)), -1.0, 1.0)
     on_b = topo.boundary_vertices_mask(F, len(V))
     keep = (cos < np.cos(np.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
     if faces is not None:

@@ -132,7 +132,7 @@ def searched_bounds(S: RemeshState, pts: InputPoints, tol: float, measure: MeshD
     face : (n,) int
         Per input vertex, a remesh face at its distance (any face on the rim).
     """
-    keys = S.X[S.F].reshape(-1, 9)
+    keys = S.X.take(S.F, axis=0).reshape(-1, 9)
     carried = None if memo is None or memo.keys is None else carried_faces(memo.keys, keys)
     if carried is None or np.count_nonzero(carried >= 0) < MEMO_MIN_CARRIED * len(keys):
         bounds = input_point_bounds(S, pts, tol, measure)

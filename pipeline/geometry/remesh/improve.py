@@ -1351,7 +1351,7 @@ def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
     N = face_normals(S.X, S.F)
     h, a, b, twin = edge_table(S.F, twin=S.twins())
     inner = twin >= 0
-    cos = np.einsum("ij,ij->i", N[h[inner] // 3], N[twin[inner] // 3])
+    cos = np.einsum("ij,ij->i", N.take(h[inner] // 3, axis=0), N.take(twin[inner] // 3, axis=0))
     fold = cos < np.cos(np.radians(max_dihedral_deg))
     out = np.zeros(S.n, bool)
     out[a[inner][fold]] = out[b[inner][fold]] = True

@@ -331,7 +331,7 @@ def _relax_band(points: np.ndarray, n_rim: int, poly: _Polygon, h: float, sweeps
     n = len(P)
     for _ in range(sweeps):
         F = _delaunay(P, n_rim, h)
-        A, B, C = P[F[:, 0]], P[F[:, 1]], P[F[:, 2]]
+        A, B, C = P.take(F[:, 0], axis=0), P.take(F[:, 1], axis=0), P.take(F[:, 2], axis=0)
         b, c = B - A, C - A
         d2 = 2.0 * (b[:, 0] * c[:, 1] - b[:, 1] * c[:, 0])
         ok = d2 > 1e-12 * h * h

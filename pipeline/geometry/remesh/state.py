@@ -43,7 +43,8 @@ def at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
 
 def face_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Unit normals (m×3) of the faces ``F`` (m×3) of ``V`` (n×3); zero for a degenerate face."""
-    N = cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    A = V.take(F[:, 0], axis=0)
+    N = cross(V.take(F[:, 1], axis=0) - A, V.take(F[:, 2], axis=0) - A)
     return N / np.maximum(norms(N)[:, None], 1e-300)
 
 
@@ -62,7 +63,7 @@ def turned_against(X: np.ndarray, faces: np.ndarray, corner_normals: np.ndarray)
     -------
     (k,) bool
     """
-    P = X[faces]
+    P = X.take(faces, axis=0)
     normal = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     return np.all(np.einsum("ij,ikj->ik", normal, corner_normals) < 0, axis=1)
 
@@ -89,8 +90,10 @@ def pullback_matrices(V_in: np.ndarray, F_in: np.ndarray, uv_in: np.ndarray) -> 
     (m, 2, 3) or (m, 3, 3) float
         Zero for a degenerate face.
     """
-    E3a, E3b = V_in[F_in[:, 1]] - V_in[F_in[:, 0]], V_in[F_in[:, 2]] - V_in[F_in[:, 0]]
-    E2a, E2b = uv_in[F_in[:, 1]] - uv_in[F_in[:, 0]], uv_in[F_in[:, 2]] - uv_in[F_in[:, 0]]
+    a, b, c = F_in[:, 0], F_in[:, 1], F_in[:, 2]
+    V0, U0 = V_in.take(a, axis=0), uv_in.take(a, axis=0)
+    E3a, E3b = V_in.take(b, axis=0) - V0, V_in.take(c, axis=0) - V0
+    E2a, E2b = uv_in.take(b, axis=0) - U0, uv_in.take(c, axis=0) - U0
     g11, g12, g22 = dots(E3a, E3a), dots(E3a, E3b), dots(E3b, E3b)
     det = g11 * g22 - g12 * g12
     det = np.where(det > 0, det, np.inf)
