@@ -335,10 +335,11 @@ def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
     if len(bad) == 0:
         return 0
     T = S.F[bad]
-    W = off_centre_weights(S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]], OFF_CENTRE_DEG)
-    C3 = np.einsum("ij,ijk->ik", W, S.X[T])
-    R = norms(C3 - S.X[T[:, 0]])
-    c, mf, mb = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv[T]), C3,
+    X = S.X.take(T, axis=0)
+    W = off_centre_weights(X[:, 0], X[:, 1], X[:, 2], OFF_CENTRE_DEG)
+    C3 = np.einsum("ij,ijk->ik", W, X)
+    R = norms(C3 - X[:, 0])
+    c, mf, mb = domain_points_for(S, np.einsum("ij,ijk->ik", W, S.uv.take(T, axis=0)), C3,
                                   near=S.face[T[:, 0]])
     drift = norms(lift(S.V_in, S.F_in, mf, mb) - C3)
     f, bary, inside = locate_near(S, c)

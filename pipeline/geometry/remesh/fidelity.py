@@ -661,7 +661,7 @@ def _shape_kept(S: RemeshState, v: int, faces: np.ndarray, floor_before: np.ndar
     ring = S.F[faces]
     if not (np.all(disk_shape(S.uv, ring) >= DISK_SHAPE_MIN)
             and np.all(row_min(corner_angles(S.X, ring)) >= floor_before)
-            and not turned_against(S.X, ring, S.normals_in()[S.face[ring]]).any()):
+            and not turned_against(S.X, ring, S.normals_in().take(S.face[ring], axis=0)).any()):
         return False
     a, c = ring.ravel(), np.roll(ring, -1, axis=1).ravel()
     at = (a == v) | (c == v)
@@ -703,7 +703,7 @@ def near_input_kept(S: RemeshState, v: int, ring_faces: np.ndarray, was: np.ndar
     k, m = len(idx), len(faces)
     Q = np.repeat(P[idx], m, axis=0)
     T = np.tile(faces, (k, 1))
-    C = closest_points_on_triangles(Q, S.X[T[:, 0]], S.X[T[:, 1]], S.X[T[:, 2]])
+    C = closest_points_on_triangles(Q, *(S.X.take(T[:, c], axis=0) for c in range(3)))
     return bool(norms(Q - C).reshape(k, m).min(axis=1).max() < limit)
 
 

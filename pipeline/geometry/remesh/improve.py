@@ -1215,7 +1215,7 @@ def turned_from_input(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     """Whether each of the ``faces`` (k×3) faces away from the input's normal under all three
     of its corners (k bool; :func:`.state.turned_against`, the first test of
     :func:`turned_over_faces`)."""
-    return turned_against(S.X, faces, S.normals_in()[S.face[faces]])
+    return turned_against(S.X, faces, S.normals_in().take(S.face[faces], axis=0))
 
 
 def distances_near(S: RemeshState, P: np.ndarray, centre: np.ndarray, radius: float
@@ -1224,7 +1224,7 @@ def distances_near(S: RemeshState, P: np.ndarray, centre: np.ndarray, radius: fl
     ``radius`` of ``centre`` (3,): their distances to the remesh where those faces hold their
     nearest points."""
     near = norms(S.X - centre) < radius
-    T = S.X[S.F[touching(S.F, near)]]
+    T = S.X.take(S.F[touching(S.F, near)], axis=0)
     k, m = len(P), len(T)
     if k == 0 or m == 0:
         return np.full(k, np.inf)
@@ -1239,11 +1239,12 @@ def turned_from_nearest(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     (:func:`..remesh_quality.turned_over_faces`), which at a crease narrower than the remesh
     can pick the input face across it where the map's face under a corner
     (:func:`turned_over_faces`) does not."""
-    P = np.vstack([S.X[faces].mean(axis=1), S.X[faces.ravel()]])
+    T = S.X.take(faces, axis=0)
+    P = np.vstack([T.mean(axis=1), T.reshape(-1, 3)])
     _, nearest = S.of_input(input_distance)(P)
     k = len(faces)
-    N_in = S.normals_in()[nearest]
-    normal = np.cross(S.X[faces[:, 1]] - S.X[faces[:, 0]], S.X[faces[:, 2]] - S.X[faces[:, 0]])
+    N_in = S.normals_in().take(nearest, axis=0)
+    normal = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
     centroid_side = dots(normal, N_in[:k]) < 0
     corner_side = np.einsum("ij,ikj->ik", normal, N_in[k:].reshape(k, 3, 3)) < 0
     return centroid_side & corner_side.all(axis=1)

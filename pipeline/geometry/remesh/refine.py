@@ -357,7 +357,8 @@ def refine_by_sag(S: RemeshState, threshold: float, budget: int, max_rounds: int
         h, a, b, twin = h[probe], a[probe], b[probe], twin[probe]
         N_in = S.normals_in()
         sag, t_split = edge_sag_along(S, a, b, SAG_TS,
-                                      end_normals=(N_in[S.face[a]], N_in[S.face[b]]))
+                                      end_normals=(N_in.take(S.face[a], axis=0),
+                                                   N_in.take(S.face[b], axis=0)))
         cand = np.flatnonzero(sag > threshold)
         if S.surface_middles and len(cand):
             cand = cand[split_balance(S, a[cand], b[cand], t_split[cand]) >= MIN_BALANCE]
