@@ -167,9 +167,10 @@ def keeps_min_angle(S: RemeshState, min_angle_deg: float, h: np.ndarray, t: np.n
     g = np.maximum(tw, 0)
     q = np.where(rim, p, F[g // 3, (g % 3 + 2) % 3])
     W, _ = lift_samples(S, a, b, np.asarray(t, dtype=np.float64)[:, None])
+    Xa, Xb, Xp, Xq = (X.take(v, axis=0) for v in (a, b, p, q))
     new = np.min([triangle_min_angles(*corners) for corners in
-                  ((X[a], W, X[p]), (W, X[b], X[p]), (X[b], W, X[q]), (W, X[a], X[q]))], axis=0)
-    old = np.minimum(triangle_min_angles(X[a], X[b], X[p]), triangle_min_angles(X[b], X[a], X[q]))
+                  ((Xa, W, Xp), (W, Xb, Xp), (Xb, W, Xq), (W, Xa, Xq))], axis=0)
+    old = np.minimum(triangle_min_angles(Xa, Xb, Xp), triangle_min_angles(Xb, Xa, Xq))
     return (new >= np.minimum(old, min_angle_deg)) & ~(rim & S.is_rim[p])
 
 

@@ -284,8 +284,9 @@ def _collapse_guards(S: RemeshState, r, k, cand, A: CSR, VF: CSR, F, max_gap, ma
         rc = r[cand]
         fr, _, Tr = faces_kept_by_collapses(VF.indptr, VF.indices, F, rc, k[cand])
         X = S.X
-        Pr = X[rc[fr]]
-        gap = norms(Pr - closest_points_on_triangles(Pr, X[Tr[:, 0]], X[Tr[:, 1]], X[Tr[:, 2]]))
+        Pr = X.take(rc[fr], axis=0)
+        gap = norms(Pr - closest_points_on_triangles(Pr, *(X.take(Tr[:, c], axis=0)
+                                                           for c in range(3))))
         near = np.full(len(cand), np.inf)
         np.minimum.at(near, fr, gap)
         good &= near <= max_gap

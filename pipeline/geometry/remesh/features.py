@@ -391,7 +391,8 @@ def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
 
     flipped = False
     for _ in range(passes):
-        E = X[F.take([2, 0, 1], axis=1)] - X[F.take([1, 2, 0], axis=1)]   # opposite each corner
+        # the edge vectors opposite each corner
+        E = X.take(F.take([2, 0, 1], axis=1), axis=0) - X.take(F.take([1, 2, 0], axis=1), axis=0)
         l2 = (E ** 2).sum(axis=2)
         thin = (disk_shape(uv, F) < DISK_SHAPE_MIN) | (face_double_areas(X, F)
                                                       <= FLAT * l2.max(axis=1))

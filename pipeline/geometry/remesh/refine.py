@@ -100,8 +100,8 @@ def _split_points(S: RemeshState, a: np.ndarray, b: np.ndarray, on_b: np.ndarray
     """The domain points where :func:`split_edges` puts the new vertices of edges ``a–b``: at
     ``t`` along the edge (default the midpoint; on the sphere then normalised,
     :func:`.domain.project`), on the image polygon for a boundary edge."""
-    M = project(0.5 * (S.uv[a] + S.uv[b]) if t is None
-                else (1.0 - t)[:, None] * S.uv[a] + t[:, None] * S.uv[b])
+    A, B = S.uv.take(a, axis=0), S.uv.take(b, axis=0)
+    M = project(0.5 * (A + B) if t is None else (1.0 - t)[:, None] * A + t[:, None] * B)
     if on_b.any():                               # a boundary edge's vertex goes on the polygon
         _, _, M[on_b] = S.of_input(polygon_segments).closest(M[on_b])
     return M

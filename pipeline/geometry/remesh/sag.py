@@ -47,11 +47,11 @@ def surface_middles(S: RemeshState, a: np.ndarray, b: np.ndarray, ts=(0.5,)
     T = np.repeat(ts, k)[:, None]
     ea, eb = np.tile(a, s), np.tile(b, s)
     P, _ = lift_samples(S, ea, eb, T)
-    da = np.linalg.norm(P - S.X[ea], axis=1).reshape(s, k)
-    db = np.linalg.norm(P - S.X[eb], axis=1).reshape(s, k)
+    da = np.linalg.norm(P - S.X.take(ea, axis=0), axis=1).reshape(s, k)
+    db = np.linalg.norm(P - S.X.take(eb, axis=0), axis=1).reshape(s, k)
     j = np.argmin(np.abs(da - db), axis=0)
     r = np.arange(k)
-    length = np.maximum(np.linalg.norm(S.X[a] - S.X[b], axis=1), 1e-300)
+    length = np.maximum(np.linalg.norm(S.X.take(a, axis=0) - S.X.take(b, axis=0), axis=1), 1e-300)
     return ts[j], np.minimum(da[j, r], db[j, r]) / length
 
 
