@@ -546,7 +546,7 @@ class _Patch:
         V = np.asarray(verts, np.int64)
         # the vertices' values as floats, column block by column block: equal bytes exactly
         # where their rows would be equal (the number of vertices is in the key)
-        values = b"".join(a[V].astype(np.float64, copy=False).tobytes()
+        values = b"".join(a.take(V, axis=0).astype(np.float64, copy=False).tobytes()
                           for a in (S.X, S.uv, S.bary, S.face, S.locked, S.is_rim, self.inner))
         joined = tuple(self.is_joined(f[i], f[(i + 1) % 3]) for i in range(3))
         return (values, tuple(tris), tuple(label[v] for v in f),

@@ -75,7 +75,8 @@ def input_points(S: RemeshState) -> InputPoints:
     offsets = middle_offsets(S.V_in, S.F_in, edges)
 
     def points(Y, centroids):
-        return np.concatenate([Y[v], (Y[a] + Y[b]) / 2, centroids])
+        return np.concatenate([Y.take(v, axis=0), (Y.take(a, axis=0) + Y.take(b, axis=0)) / 2,
+                               centroids])
 
     return InputPoints(points(S.V_in, offsets.centroids),
                        project(points(S.uv_in, face_centroids(S.uv_in, S.F_in))), v, edges,
@@ -322,9 +323,11 @@ def middle_face_bounds(pts: InputPoints, ask: np.ndarray, f_vertex: np.ndarray,
     nv, ne = len(pts.vertices), len(pts.edges)
     mid = ask < nv + ne
     out = np.empty(len(ask))
-    out[mid] = face_bounds(pts.P[ask[mid]], pts.edges[ask[mid] - nv], f_vertex, measure)
-    out[~mid] = face_bounds(pts.P[ask[~mid]], pts.faces[ask[~mid] - nv - ne], f_vertex,
-                            measure)
+    at_mid, at_face = ask[mid], ask[~mid]
+    out[mid] = face_bounds(pts.P.take(at_mid, axis=0), pts.edges.take(at_mid - nv, axis=0),
+                           f_vertex, measure)
+    out[~mid] = face_bounds(pts.P.take(at_face, axis=0),
+                            pts.faces.take(at_face - nv - ne, axis=0), f_vertex, measure)
     return out
 
 
