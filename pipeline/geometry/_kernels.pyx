@@ -823,6 +823,7 @@ cdef inline double _squared(const double[:, ::1] uv, int64_t a, int64_t b) noexc
 
 cdef inline void _normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c, double* out
                          ) noexcept nogil:
+    """``cross(X[b] − X[a], X[c] − X[a])`` into ``out`` (3), as :func:`..rows.cross`."""
     cdef double e1x = X[b, 0] - X[a, 0], e1y = X[b, 1] - X[a, 1], e1z = X[b, 2] - X[a, 2]
     cdef double e2x = X[c, 0] - X[a, 0], e2y = X[c, 1] - X[a, 1], e2z = X[c, 2] - X[a, 2]
     out[0] = e1y * e2z - e1z * e2y
@@ -2652,19 +2653,12 @@ def replacement_normals(const double[:, ::1] X, const int64_t[:, ::1] old,
     cdef double[::1] total = total_arr
     cdef double[:, ::1] normals = normals_arr
     for m in range(old.shape[0]):
-        _face_normal(X, old[m, 0], old[m, 1], old[m, 2], n)
+        _normal(X, old[m, 0], old[m, 1], old[m, 2], n)
         for x in range(3):
             total[x] = total[x] + n[x]
     for m in range(new.shape[0]):
-        _face_normal(X, new[m, 0], new[m, 1], new[m, 2], &normals[m, 0])
+        _normal(X, new[m, 0], new[m, 1], new[m, 2], &normals[m, 0])
     return normals_arr, total_arr
-
-
-cdef inline void _face_normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c,
-                              double* out) noexcept nogil:
-    """``cross(X[b] − X[a], X[c] − X[a])`` into ``out`` (3)."""
-    _cross(X[b, 0] - X[a, 0], X[b, 1] - X[a, 1], X[b, 2] - X[a, 2],
-           X[c, 0] - X[a, 0], X[c, 1] - X[a, 1], X[c, 2] - X[a, 2], out)
 
 
 def faces_keep_side(const double[:, ::1] n0, const double[::1] a1, const double[:, ::1] B,
