@@ -269,3 +269,76 @@ def test_walked_sags_of_a_few_edges_are_the_numpy_formula_bit_for_bit():
     assert not walked(0)[0]
     sag, t = edge_sag_along(S, a, b, ts)
     assert np.array_equal(sag, want_sag) and np.array_equal(t, want_t)
+
+
+def _independent_passes_numpy(n, pr, pv, prank, passes, keep):
+    """The numpy formula of :func:`_independent_collapses`' passes: each pass's winners, the
+    ``keep`` of them taken; returns the winners of every pass and the last open and taken
+    masks."""
+    c = int(pr.max()) + 1
+    open_, taken, out = np.ones(c, bool), np.zeros(n, bool), []
+    for _ in range(passes):
+        live = open_[pr]
+        best = np.full(n, c, np.int64)
+        np.minimum.at(best, pv[live], prank[live])
+        lost = np.bincount(pr[live & (best[pv] != prank)], minlength=c)
+        w = np.flatnonzero(open_ & (lost == 0))
+        open_[w] = False
+        out.append(w)
+        mark = np.zeros(c, bool)
+        mark[keep(w)] = True
+        taken[pv[mark[pr]]] = True
+        open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
+    return out, open_, taken
+
+
+def _independent_passes_compiled(n, pr, pv, prank, passes, keep):
+    """The passes of :func:`_independent_passes_numpy` by the compiled kernels."""
+    from pipeline.geometry._kernels import close_rings_of, ring_minima
+
+    c = int(pr.max()) + 1
+    open_, taken, best, out = np.ones(c, np.uint8), np.zeros(n, np.uint8), np.full(n, c), []
+    for _ in range(passes):
+        w = ring_minima(pr, pv, prank, open_, best)
+        assert (best == c).all()
+        out.append(w)
+        close_rings_of(pr, pv, keep(w), taken, open_)
+    return out, open_.astype(bool), taken.astype(bool)
+
+
+def _closed_rings(A, r):
+    """Candidate ``i``'s closed ring (``r[i]`` and its neighbours in ``A``) as pairs."""
+    pr, pv = topo.csr_rows(A.indptr, A.indices, r)
+    return np.concatenate([pr, np.arange(len(r))]), np.concatenate([pv, r])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ring_minima_and_close_rings_of_are_the_numpy_passes(face_map, seed):
+    """On the face's mesh (a third of its vertices as candidates, random ranks, every other
+    winner or all of them taken) and on a path 0–1–2–3 whose middle candidates tie for a
+    vertex: the compiled passes give the winners, open and taken masks of the numpy formula
+    (winners in increasing order)."""
+    from pipeline.geometry.remesh.halfedge import adjacency
+
+    _, mesh, _ = face_map
+    n = len(mesh.V)
+    A = adjacency(np.ascontiguousarray(mesh.F, dtype=np.int64), n)
+    rng = np.random.default_rng(seed)
+    r = np.sort(rng.choice(n, n // 3, replace=False)).astype(np.int64)
+    pr, pv = _closed_rings(A, r)
+    prank = rng.permutation(len(r))[pr]
+    for keep in (lambda w: w[::2], lambda w: w):
+        a = _independent_passes_numpy(n, pr, pv, prank, 4, keep)
+        b = _independent_passes_compiled(n, pr, pv, prank, 4, keep)
+        assert len(a[0][0]) > 10
+        for wa, wb in zip(a[0], b[0]):
+            np.testing.assert_array_equal(wa, wb)
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(a[2], b[2])
+    # a path: candidates 1 (rank 0) and 2 (rank 1) share 1 and 2; 1 wins, then 2 is closed
+    pr = np.array([0, 0, 1, 1, 0, 1], np.int64)
+    pv = np.array([0, 2, 1, 3, 1, 2], np.int64)
+    prank = np.array([0, 0, 1, 1, 0, 1], np.int64)
+    b = _independent_passes_compiled(4, pr, pv, prank, 2, lambda w: w)
+    assert [w.tolist() for w in b[0]] == [[0], []]
+    assert b[1].tolist() == [False, False] and b[2].tolist() == [True, True, True, False]

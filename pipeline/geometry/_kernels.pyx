@@ -975,6 +975,79 @@ def faces_kept_by_collapses(const int64_t[::1] vf_ptr, const int64_t[::1] vf_idx
     return fr_arr[:out], T_arr[:out], Tn_arr[:out]
 
 
+def ring_minima(const int64_t[::1] pr, const int64_t[::1] pv, const int64_t[::1] prank,
+                unsigned char[::1] open_, int64_t[::1] best):
+    """One pass of a greedy independent set over closed rings: the open candidates whose rank
+    is the smallest at every vertex of their ring among the open candidates', which it closes.
+
+    Parameters
+    ----------
+    pr, pv, prank : (p,) int64
+        The rings as pairs: entry ``j`` puts vertex ``pv[j]`` in the ring of candidate
+        ``pr[j]``, whose rank (distinct per candidate, ``0 <= rank < c``) is ``prank[j]``.
+    open_ : (c,) uint8
+        The candidates still open; the winners are set to 0.
+    best : (n,) int64
+        Scratch, ``c`` at every vertex on entry, and so again on return.
+
+    Returns
+    -------
+    (w,) int64
+        The winners, increasing: what ``flatnonzero(open_ & (lost == 0))`` gives with
+        ``best = minimum.at`` over the open entries and ``lost`` the count of their entries
+        where ``best[pv] != prank``.
+    """
+    cdef Py_ssize_t j, i, w = 0, p = pr.shape[0], c = open_.shape[0]
+    lost_arr = np.zeros(c, dtype=np.uint8)
+    cdef unsigned char[::1] lost = lost_arr
+    for j in range(p):
+        if open_[pr[j]] and prank[j] < best[pv[j]]:
+            best[pv[j]] = prank[j]
+    for j in range(p):
+        if open_[pr[j]] and best[pv[j]] != prank[j]:
+            lost[pr[j]] = 1
+    for j in range(p):
+        best[pv[j]] = c
+    win_arr = np.empty(c, dtype=np.int64)
+    cdef int64_t[::1] win = win_arr
+    for i in range(c):
+        if open_[i] and not lost[i]:
+            win[w] = i
+            w += 1
+            open_[i] = 0
+    return win_arr[:w]
+
+
+def close_rings_of(const int64_t[::1] pr, const int64_t[::1] pv, const int64_t[:] w,
+                   unsigned char[::1] taken, unsigned char[::1] open_):
+    """Mark the closed rings of the candidates ``w`` taken and close every candidate whose
+    ring has a taken vertex: ``taken[pv[isin(pr, w)]] = 1``, then ``open_[pr[j]] = 0``
+    wherever ``taken[pv[j]]``.
+
+    Parameters
+    ----------
+    pr, pv : (p,) int64
+        The rings as pairs (see :func:`ring_minima`).
+    w : (k,) int64
+        Candidates, ``0 <= w < c``.
+    taken : (n,) uint8
+        The vertices of taken rings; updated.
+    open_ : (c,) uint8
+        The candidates still open; updated.
+    """
+    cdef Py_ssize_t j, p = pr.shape[0]
+    mark_arr = np.zeros(open_.shape[0], dtype=np.uint8)
+    cdef unsigned char[::1] mark = mark_arr
+    for j in range(w.shape[0]):
+        mark[w[j]] = 1
+    for j in range(p):
+        if mark[pr[j]]:
+            taken[pv[j]] = 1
+    for j in range(p):
+        if taken[pv[j]]:
+            open_[pr[j]] = 0
+
+
 def lift_rows(const double[:, ::1] values, const int64_t[:, ::1] F, const int64_t[::1] face,
               const double[:, ::1] bary):
     """Eq. (1) row by row: ``Σ_c bary[i, c] · values[F[face[i], c]]``, summed over the corners

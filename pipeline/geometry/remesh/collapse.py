@@ -25,8 +25,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import topology as topo
-from .._kernels import (collapses_valid, faces_kept_by_collapses, half_edge_lengths,
-                        pairs_in_rows, renumbered_faces, short_edge_ends, short_edges)
+from .._kernels import (close_rings_of, collapses_valid, faces_kept_by_collapses,
+                        half_edge_lengths, pairs_in_rows, renumbered_faces, ring_minima,
+                        short_edge_ends, short_edges)
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import norms
 from .halfedge import DISK_SHAPE_MIN, CSR, adjacency, faces_at, group, vertex_faces
@@ -225,9 +226,11 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, VF: CSR, F, max
     those not yet decided is checked against the guards (``max_gap``: the removed vertex within
     that of its new faces, from the faces ``F`` and their incidence ``VF``; ``max_sag``: no
     new edge ``k–x`` farther than that from the surface) and taken if it passes; the
-    candidates touching a taken ring drop out. Disjoint closed rings make the collapses independent: one changes only the faces at
-    its ``r``, whose corners are all in ``r``'s closed ring, and no other collapse reads them.
-    The guards (the costly part) run only on the pass winners. Passes stop when one takes
+    candidates touching a taken ring drop out (compiled: :func:`.._kernels.ring_minima`,
+    :func:`.._kernels.close_rings_of`). Disjoint closed rings make the collapses independent:
+    one changes only the faces at its ``r``, whose corners are all in ``r``'s closed ring, and
+    no other collapse reads them. The guards (the costly part) run only on the pass winners.
+    Passes stop when one takes
     under ``MIS_TAIL`` of the first's. With a ``budget`` (at most that many, shortest first)
     the passes after the first consider only the shortest ``budget`` candidates, so that the
     budget goes to the shortest edges and not to longer ones taken while shorter ones wait for
@@ -242,24 +245,17 @@ def _independent_collapses(S: RemeshState, r, k, ln, ok, A: CSR, VF: CSR, F, max
     pr = np.concatenate([pr, np.arange(c)])                # candidate → its closed ring
     pv = np.concatenate([pv, r[sel]])
     prank = rank[pr]
-    open_ = np.ones(c, bool)                               # not yet taken, refused or blocked
-    taken = np.zeros(n, bool)                              # vertices of taken closed rings
+    open_ = np.ones(c, np.uint8)                           # not yet taken, refused or blocked
+    taken = np.zeros(n, np.uint8)                          # vertices of taken closed rings
+    best = np.full(n, c, np.int64)                         # ring_minima's scratch
     won = []
     n_won = 0
     while open_.any() and (budget is None or n_won < budget):
-        live = open_[pr]
-        best = np.full(n, c, np.int64)
-        np.minimum.at(best, pv[live], prank[live])
-        lost = np.bincount(pr[live & (best[pv] != prank)], minlength=c)
-        w = np.flatnonzero(open_ & (lost == 0))            # shortest in its whole ring
-        open_[w] = False
+        w = ring_minima(pr, pv, prank, open_, best)        # shortest in its whole ring
         w = w[_collapse_guards(S, r, k, sel[w], A, VF, F, max_gap, max_sag)]
         if budget is not None:
             w = w[np.argsort(rank[w], kind="stable")][:budget - n_won]
-        mark = np.zeros(c, bool)
-        mark[w] = True
-        taken[pv[mark[pr]]] = True
-        open_ &= np.bincount(pr[taken[pv]], minlength=c) == 0
+        close_rings_of(pr, pv, w, taken, open_)
         won.append(w)
         n_won += len(w)
         if budget is not None and len(won) == 1:
