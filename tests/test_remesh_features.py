@@ -292,7 +292,9 @@ def test_remesh_command_follows_a_fold_that_turns_back():
 def test_face_sets_are_the_loops_sets_and_iterate_alike():
     """:func:`face_sets` gives every vertex of the faces the set of its faces, laid out as a
     loop adding the faces in order lays them out: the sets, their unions and intersections
-    iterate in the same order (a Delaunay disk; an unused vertex is no key)."""
+    iterate in the same order, also after the faces of a flip are moved between sets asked
+    for before or made at the move (a Delaunay disk; an unused vertex, or one out of range,
+    is no key)."""
     from pipeline.geometry.remesh.features import face_sets
 
     from remesh_helpers import ccw_delaunay, disk_points
@@ -305,10 +307,25 @@ def test_face_sets_are_the_loops_sets_and_iterate_alike():
         for v in f:
             loop.setdefault(v, set()).add(t)
     got = face_sets(F, n + 1)
-    assert got.keys() == loop.keys() and n not in got
-    assert all(list(got[v]) == list(loop[v]) for v in loop)
+    for v in (n, n + 1, -1):
+        with pytest.raises(KeyError):
+            got[v]
     rng = np.random.default_rng(3)
     for p, q in rng.integers(0, n, (200, 2)).tolist():
         assert list(got[p] | got[q]) == list(loop[p] | loop[q])
         assert list(got[p] & got[q]) == list(loop[p] & loop[q])
+    # a flip's two faces moved between the sets as features._flip moves them, in sets asked
+    # for before (got) and in sets made at the move (fresh): still laid out as the loop's
+    fresh = face_sets(F, n + 1)
+    for sets in (got, fresh, loop):
+        t = 0
+        g = min((sets[F[t, 1]] & sets[F[t, 2]]) - {t})
+        for v in sorted(set(F[t].tolist()) | set(F[g].tolist())):
+            sets[v].discard(t)
+            sets[v].discard(g)
+        for v in range(n):
+            sets[v].add(t if v % 2 else g)
+    for sets in (got, fresh):
+        assert sets.keys() == loop.keys() and n not in sets
+        assert all(list(sets[v]) == list(loop[v]) for v in loop)
     assert max(len(s) for s in got.values()) >= 6

@@ -376,10 +376,30 @@ def face_sets(F: np.ndarray, n: int) -> dict:
     """Each vertex of ``F`` (m×3 over ``n`` vertices) → the set of its faces (indices), every
     set filled in increasing face order (:func:`.halfedge.vertex_faces`), the order a loop over
     the faces adds them in: the sets are laid out, and so iterate, as that loop's would. Only
-    vertices at some face are keys."""
+    vertices at some face are keys (another raises ``KeyError``). A vertex's set is made when
+    it is first asked for (:class:`_FaceSets`): the callers read the sets of a few vertices,
+    and rewrite a vertex's set only after reading it."""
     VF = vertex_faces(F, n)
-    ptr, faces = VF.indptr.tolist(), VF.indices.tolist()
-    return {v: set(faces[ptr[v]:ptr[v + 1]]) for v in range(n) if ptr[v] < ptr[v + 1]}
+    return _FaceSets(VF.indptr, VF.indices)
+
+
+class _FaceSets(dict):
+    """The vertex → faces sets of :func:`face_sets`, each made from the incidence CSR
+    ``(indptr, indices)`` (n + 1 and 3m int) when its vertex is first looked up, and kept (so
+    changes to it stay). Only lookups by ``[]`` make sets: ``in``, ``keys`` and iteration see
+    those made so far."""
+
+    def __init__(self, indptr: np.ndarray, indices: np.ndarray):
+        super().__init__()
+        self.indptr, self.indices = indptr, indices
+
+    def __missing__(self, v):
+        """The set of ``v``'s faces, made and kept; ``KeyError`` if ``v`` is at no face."""
+        if not 0 <= v < len(self.indptr) - 1 or not self.indptr[v] < self.indptr[v + 1]:
+            raise KeyError(v)
+        lo, hi = self.indptr[v], self.indptr[v + 1]
+        faces = self[v] = set(self.indices[lo:hi].tolist())
+        return faces
 
 
 def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
