@@ -714,23 +714,34 @@ def test_real_mesh_decimation():
     assert np.all(r.source_index >= 0)
 
 
-def test_interior_edge_twins_on_any_triangle_list():
-    """Exact against a dictionary of half-edges by undirected edge, on a triangle soup with
-    boundary, interior, non-manifold (3+ faces) and repeated edges, int32 and int64 faces."""
-    rng = np.random.default_rng(8)
-    F = rng.integers(0, 25, (300, 3))
-    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]
+def _twins_by_dictionary(F: np.ndarray) -> np.ndarray:
+    """:func:`topo.interior_edge_twins` from a dictionary of half-edges by undirected edge."""
     by_edge = {}
-    for h, (a, b) in enumerate(zip(F.ravel(), F[:, [1, 2, 0]].ravel())):
+    for h, (a, b) in enumerate(zip(F.ravel().tolist(), F[:, [1, 2, 0]].ravel().tolist())):
         by_edge.setdefault((min(a, b), max(a, b)), []).append(h)
     expected = np.full(3 * len(F), -1)
     for hs in by_edge.values():
         if len(hs) == 2:
             expected[hs[0]], expected[hs[1]] = hs[1], hs[0]
-    sizes = {len(hs) for hs in by_edge.values()}
-    assert {1, 2, 3} <= sizes                      # the soup has all three kinds
+    return expected, {len(hs) for hs in by_edge.values()}
+
+
+def test_interior_edge_twins_on_any_triangle_list():
+    """Exact against a dictionary of half-edges by undirected edge, on a triangle soup with
+    boundary, interior, non-manifold (3, 4 and more faces) and repeated edges, int32 and int64
+    faces, and on a real mesh (its faces in file order and shuffled)."""
+    rng = np.random.default_rng(8)
+    F = rng.integers(0, 25, (300, 3))
+    F = F[(F[:, 0] != F[:, 1]) & (F[:, 1] != F[:, 2]) & (F[:, 2] != F[:, 0])]
+    expected, sizes = _twins_by_dictionary(F)
+    assert {1, 2, 3, 4, 5} <= sizes                # the soup has all kinds
     for dtype in (np.int32, np.int64):
         assert np.array_equal(topo.interior_edge_twins(F.astype(dtype)), expected)
+    F = read_mesh(require_data("meshes", "igl_lion.obj")).faces
+    for faces in (F, F[rng.permutation(len(F))]):
+        expected, sizes = _twins_by_dictionary(faces)
+        assert sizes == {1, 2}
+        assert np.array_equal(topo.interior_edge_twins(faces), expected)
 
 
 def test_interior_neighbours_are_those_of_the_vertex_adjacency():

@@ -125,12 +125,12 @@ def hold_rounds(const int64_t[:, ::1] F, const int[::1] vf_ptr, const int[::1] v
 
 
 @cython.cdivision(True)
-cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
+cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift, bint by_larger):
     """The edges ``(F[t, c+shift], F[t, c+shift+1])`` of every corner ``3 t + c`` bucketed by
-    their smaller end (a counting sort), each bucket sorted by the larger end (insertion sort:
-    a bucket holds a vertex's few edges). Returns ``(start, larger end, corner)``, int32
-    (half the memory traffic of int64: the pass is bound by it), bucket ``v`` at
-    ``start[v]:start[v + 1]``."""
+    their smaller end (a counting sort: in corner order within a bucket), with ``by_larger``
+    each bucket sorted by the larger end (insertion sort: a bucket holds a vertex's few
+    edges). Returns ``(start, larger end, corner)``, int32 (half the memory traffic of int64:
+    the pass is bound by it), bucket ``v`` at ``start[v]:start[v + 1]``."""
     cdef Py_ssize_t m = F.shape[0], N = 3 * m
     cdef Py_ssize_t t, c, k, p, lo_v
     cdef int64_t a, b
@@ -154,7 +154,7 @@ cdef _buckets_by_smaller_end(const int64_t[:, ::1] F, int64_t n, int shift):
             start[lo_v + 1] += 1
             hi[p] = <int32_t>(b if a < b else a)
             cid_of[p] = <int32_t>(3 * t + c)
-    for lo_v in range(n):
+    for lo_v in range(n if by_larger else 0):
         _sort_run(&hi[0], &cid_of[0], start[lo_v], start[lo_v + 1])
     return start_arr[:n + 1], hi_arr, id_arr
 
@@ -187,7 +187,7 @@ def unique_edges(const int64_t[:, ::1] F, int64_t n):
     ``i·n + j`` gives, by a counting sort on ``i`` and a sort of each vertex's few ``j``
     (O(m) instead of a sort of all 3m keys)."""
     cdef Py_ssize_t m = F.shape[0], p, lo_v, e, E
-    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 1)
+    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 1, True)
     ce_arr = np.empty(3 * m, dtype=np.int64)
     cdef int32_t[::1] start = start_arr, hi = hi_arr, cid_of = id_arr
     cdef int64_t[::1] ce = ce_arr
@@ -514,23 +514,34 @@ cdef inline Py_ssize_t _sphere_exit(const double[:, ::1] S, const int64_t[:, ::1
 def interior_edge_twins(const int64_t[:, ::1] F, int64_t n):
     """For every half-edge ``3 t + c`` (``F[t, c] → F[t, c+1]``), the other half-edge of its
     undirected edge when exactly two half-edges share it, else −1: half-edges bucketed by their
-    smaller end, each bucket's runs of one larger end matched."""
-    cdef Py_ssize_t p, q, lo_v, end
-    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 0)
+    smaller end; in each bucket, the half-edges of every larger end counted (the first two
+    kept) in one pass and the ends met exactly twice paired in a second, which clears the
+    counts."""
+    cdef Py_ssize_t p, lo_v
+    cdef int32_t v, seen
+    start_arr, hi_arr, id_arr = _buckets_by_smaller_end(F, n, 0, False)
     twin_arr = np.full(3 * F.shape[0], -1, dtype=np.int64)
+    count_arr = np.zeros(n, dtype=np.int32)
+    first_arr = np.empty(n, dtype=np.int32)
+    second_arr = np.empty(n, dtype=np.int32)
     cdef int64_t[::1] twin = twin_arr
     cdef int32_t[::1] start = start_arr, hi = hi_arr, hid_of = id_arr
+    cdef int32_t[::1] count = count_arr, first = first_arr, second = second_arr
     for lo_v in range(n):
-        end = start[lo_v + 1]
-        p = start[lo_v]
-        while p < end:
-            q = p + 1
-            while q < end and hi[q] == hi[p]:
-                q += 1
-            if q - p == 2:
-                twin[hid_of[p]] = hid_of[p + 1]
-                twin[hid_of[p + 1]] = hid_of[p]
-            p = q
+        for p in range(start[lo_v], start[lo_v + 1]):
+            v = hi[p]
+            seen = count[v]
+            if seen == 0:
+                first[v] = hid_of[p]
+            elif seen == 1:
+                second[v] = hid_of[p]
+            count[v] = seen + 1
+        for p in range(start[lo_v], start[lo_v + 1]):
+            v = hi[p]
+            if count[v] == 2:
+                twin[first[v]] = second[v]
+                twin[second[v]] = first[v]
+            count[v] = 0
     return twin_arr
 
 
