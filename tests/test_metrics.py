@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import height_field, independent_areas, random_flip_free_maps
+from conftest import height_field, independent_areas, random_flip_free_maps, require_data
 from pipeline.geometry import metrics
 
 # Unit square, two counter-clockwise triangles along the diagonal 0–2.
@@ -348,6 +348,43 @@ def test_boundary_self_crossings_of_constructed_polygons():
     # long edges' side (the arc's edges look only as far as their own length)
     P = np.vstack([_circle(200)[:101], [[0.0, 2.0]]])
     assert metrics.boundary_self_crossings(P, np.arange(len(P))) == 2
+
+
+def _corner_cosines_numpy(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The corner cosines (m×3) by the numpy formula of :func:`metrics.corner_angles`: ``u·v``
+    summed x, z, then y (einsum's order), over ``|u| |v|``, the norms summed x, y, then z
+    (``np.linalg.norm``'s)."""
+    o, p, q = (P[np.roll(F, -s, axis=1)] for s in range(3))
+    u, v = p - o, q - o
+    dot = (u[..., 0] * v[..., 0] + u[..., 2] * v[..., 2]) + u[..., 1] * v[..., 1]
+    norm = [np.sqrt((w[..., 0] * w[..., 0] + w[..., 1] * w[..., 1]) + w[..., 2] * w[..., 2])
+            for w in (u, v)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return dot / (norm[0] * norm[1])
+
+
+def test_corner_cosines_and_face_maxima_are_the_numpy_formula_bit_for_bit():
+    """The compiled corner cosines (the edge lengths shared by a face's corners) and each
+    face's largest (``np.maximum`` folded over the columns) are the numpy formula's to the bit,
+    nan bits too: random faces with right, near-zero and straight angles and coincident
+    corners (nan), and the faces of a real mesh."""
+    from pipeline.geometry._kernels import corner_cosines, face_max_cosines
+    from pipeline.io.meshio import read_mesh
+
+    rng = np.random.default_rng(5)
+    V = np.vstack([rng.normal(size=(300, 3)), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0],
+                                               [1, 1e-13, 0]]])
+    F = np.vstack([rng.integers(0, 300, (2000, 3)),
+                   [[300, 301, 302], [300, 301, 303], [300, 304, 301], [300, 300, 301]]])
+    lion = read_mesh(require_data("meshes", "igl_lion.obj"))
+    for P, T in ((V, F), (lion.V, lion.faces)):
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        T = np.ascontiguousarray(T, dtype=np.int64)
+        want = _corner_cosines_numpy(P, T)
+        assert corner_cosines(P, T).tobytes() == want.tobytes()
+        folded = np.maximum(np.maximum(want[:, 0], want[:, 1]), want[:, 2])   # (row_max's)
+        assert face_max_cosines(P, T).tobytes() == folded.tobytes()
+    assert not np.isnan(want).any() and np.isnan(_corner_cosines_numpy(V, F)[-1]).any()
 
 
 def test_min_corner_angles_are_the_row_minima_of_the_corner_angles_bit_for_bit():

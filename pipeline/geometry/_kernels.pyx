@@ -1575,14 +1575,51 @@ def corner_cosines(const double[:, ::1] X, const int64_t[:, ::1] F):
     :func:`..metrics.corner_angles`' ``u·v / (|u| |v|)`` before its ``arccos``: the dot
     summed as numpy's einsum does (x, z, then y), the norms as ``np.linalg.norm`` (x, y,
     then z; a zero norm gives nan or ±inf, as numpy does)."""
-    cdef Py_ssize_t t, c
+    cdef Py_ssize_t t
     out_arr = np.empty((F.shape[0], 3), dtype=np.float64)
     cdef double[:, ::1] out = out_arr
     for t in range(F.shape[0]):
-        for c in range(3):
-            out[t, c] = _corner_cosine(&X[F[t, c], 0], &X[F[t, (c + 1) % 3], 0],
-                                       &X[F[t, (c + 2) % 3], 0])
+        _face_cosines(&X[F[t, 0], 0], &X[F[t, 1], 0], &X[F[t, 2], 0], &out[t, 0])
     return out_arr
+
+
+def face_max_cosines(const double[:, ::1] X, const int64_t[:, ::1] F):
+    """The largest of every face's :func:`corner_cosines` (m): ``np.maximum`` folded over the
+    face's three (nan where one is nan), without the m×3 cosines."""
+    cdef Py_ssize_t t
+    cdef double cos[3]
+    out_arr = np.empty(F.shape[0], dtype=np.float64)
+    cdef double[::1] out = out_arr
+    for t in range(F.shape[0]):
+        _face_cosines(&X[F[t, 0], 0], &X[F[t, 1], 0], &X[F[t, 2], 0], cos)
+        out[t] = _max_nan(_max_nan(cos[0], cos[1]), cos[2])
+    return out_arr
+
+
+@cython.cdivision(True)
+cdef inline void _face_cosines(const double* a, const double* b, const double* c, double* out
+                               ) noexcept nogil:
+    """The cosines at the corners ``a``, ``b``, ``c`` of a triangle (3-vectors) into ``out``
+    (3), each :func:`_corner_cosine`'s to the bit with the three edge lengths computed once:
+    an edge's squared components are the same whichever way it is run."""
+    cdef double ab = _edge_norm(a, b), bc = _edge_norm(b, c), ca = _edge_norm(c, a)
+    out[0] = _corner_dot(a, b, c) / (ab * ca)
+    out[1] = _corner_dot(b, c, a) / (bc * ab)
+    out[2] = _corner_dot(c, a, b) / (ca * bc)
+
+
+cdef inline double _edge_norm(const double* o, const double* p) noexcept nogil:
+    """``|p − o|`` summed as :func:`_corner_cosine` sums its norms (x, y, then z)."""
+    cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
+    return sqrt((ux * ux + uy * uy) + uz * uz)
+
+
+cdef inline double _corner_dot(const double* o, const double* p, const double* q
+                               ) noexcept nogil:
+    """``(p − o) · (q − o)`` summed as :func:`_corner_cosine` sums it (x, z, then y)."""
+    cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
+    cdef double vx = q[0] - o[0], vy = q[1] - o[1], vz = q[2] - o[2]
+    return (ux * vx + uz * vz) + uy * vy
 
 
 @cython.cdivision(True)

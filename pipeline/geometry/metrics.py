@@ -11,7 +11,6 @@ import numpy as np
 
 from . import _kernels
 from .laplacian import face_double_areas
-from .rows import row_max
 from .topology import _as_faces, boundary_loops
 
 
@@ -180,7 +179,7 @@ def min_corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     ``row_min(corner_angles(P, F))`` bit for bit, taken as the angle of the face's largest
     cosine (``arccos`` and the clip are monotone: one ``arccos`` a face instead of three; a
     nan cosine gives nan, as the row minimum of the angles does)."""
-    return np.arccos(np.clip(row_max(_corner_cosines(P, F)), -1.0, 1.0))
+    return np.arccos(np.clip(_face_max_cosines(P, F), -1.0, 1.0))
 
 
 def min_corner_angles_below(P: np.ndarray, F: np.ndarray, angle: float
@@ -197,18 +196,29 @@ def min_corner_angles_below(P: np.ndarray, F: np.ndarray, angle: float
         Increasing.
     angles : (k,) float
     """
-    cos = row_max(_corner_cosines(P, F))
+    cos = _face_max_cosines(P, F)
     faces = np.flatnonzero(cos > np.cos(angle) - 1e-6)
     return faces, np.arccos(np.clip(cos[faces], -1.0, 1.0))
 
 
 def _corner_cosines(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     """The cosines (m×3) of :func:`corner_angles`."""
+    return _kernels.corner_cosines(*_points_and_faces(P, F))
+
+
+def _face_max_cosines(P: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """The largest of each face's cosines (m): ``row_max(_corner_cosines(P, F))`` bit for bit
+    (:func:`._kernels.face_max_cosines`)."""
+    return _kernels.face_max_cosines(*_points_and_faces(P, F))
+
+
+def _points_and_faces(P: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``P`` (n×2 or n×3) as contiguous 3D points (2D ones with z = 0) and ``F`` as
+    contiguous int64 faces (m×3), for the compiled corner cosines."""
     P = np.asarray(P, dtype=np.float64)
     if P.shape[1] == 2:
         P = np.column_stack([P, np.zeros(len(P))])
-    return _kernels.corner_cosines(np.ascontiguousarray(P),
-                                   np.ascontiguousarray(_as_faces(F), dtype=np.int64))
+    return np.ascontiguousarray(P), np.ascontiguousarray(_as_faces(F), dtype=np.int64)
 
 
 def angular_distortion(V: np.ndarray, F: np.ndarray, uv: np.ndarray) -> np.ndarray:
