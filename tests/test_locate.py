@@ -421,3 +421,67 @@ def test_grid_candidates_are_the_first_best_face_of_the_cell_bit_for_bit():
         assert face[i] == cand[j]
         assert bary[i].tobytes() == lam[j].tobytes()
         assert score[i] == sc[j]
+
+
+def _grid_table_numpy(L: PointLocator) -> tuple[np.ndarray, np.ndarray]:
+    """The locator's ``(cell_faces, cell_start)`` by the numpy formula: every face's bounding
+    box cells (x fastest), a pair of a face of more than two cells dropped when the cell lies
+    beyond one edge's line by more than 1e-9 cell sizes, a stable sort by cell."""
+    uv, F, cell = L.uv, L.F, L.cell
+    m, (ox, oy) = len(F), L.origin
+    T = uv[F]
+    lo = np.minimum(np.minimum(T[:, 0], T[:, 1]), T[:, 2])
+    hi = np.maximum(np.maximum(T[:, 0], T[:, 1]), T[:, 2])
+    i0, i1 = L._cell_xy(lo), L._cell_xy(hi)
+    wx = i1[:, 0] - i0[:, 0] + 1
+    count = wx * (i1[:, 1] - i0[:, 1] + 1)
+    face = np.repeat(np.arange(m), count)
+    k = np.arange(len(face)) - np.repeat(np.cumsum(count) - count, count)
+    cx, cy = i0[face, 0] + k % wx[face], i0[face, 1] + k // wx[face]
+    tx, ty = uv[F[face], 0], uv[F[face], 1]
+    x0, y0 = ox + cx.astype(np.float64) * cell, oy + cy.astype(np.float64) * cell
+    a2 = ((tx[:, 1] - tx[:, 0]) * (ty[:, 2] - ty[:, 0])
+          - (ty[:, 1] - ty[:, 0]) * (tx[:, 2] - tx[:, 0]))
+    s = np.where(a2 < 0, -1.0, 1.0)
+    touch = np.ones(len(face), bool)
+    for c in range(3):
+        px, py, qx, qy = tx[:, c], ty[:, c], tx[:, (c + 1) % 3], ty[:, (c + 1) % 3]
+        nx, ny = s * (qy - py), (-s) * (qx - px)
+        mx, my = np.where(nx > 0, x0, x0 + cell), np.where(ny > 0, y0, y0 + cell)
+        touch &= nx * (mx - px) + ny * (my - py) <= 1e-9 * cell * (np.abs(nx) + np.abs(ny))
+    keep = (count[face] <= 2) | touch
+    cells = (cy * L.shape[0] + cx)[keep]
+    order = np.argsort(cells, kind="stable")
+    start = np.r_[0, np.cumsum(np.bincount(cells, minlength=int(np.prod(L.shape))))]
+    return face[keep][order], start
+
+
+@pytest.mark.parametrize("mesh", ["grid", "disk", "thin", "sem"])
+def test_grid_table_is_the_numpy_formula(mesh):
+    """The compiled grid table (:func:`.._kernels.grid_cells`) is the numpy formula's, face
+    for face: a jittered grid (vertices on cell borders), a Delaunay disk, long thin
+    triangles across many cells, and a SEM map of a real mesh."""
+    if mesh == "grid":
+        uv, F, _ = grid_mesh(12, 0.3)
+    elif mesh == "disk":
+        uv, F, _ = disk_mesh(96, 8)
+    elif mesh == "thin":
+        rng = np.random.default_rng(2)
+        uv = rng.uniform(-1, 1, (400, 2))
+        F = rng.integers(0, 400, (600, 3))
+        uv[F[:, 2]] = 0.5 * (uv[F[:, 0]] + uv[F[:, 1]]) + rng.normal(0, 1e-3, (600, 2))
+    else:
+        from pipeline.geometry.sem import SEMOptions
+        from pipeline.stages.load import load_stage
+        from pipeline.stages.parameterize import parameterize_stage
+
+        intake = load_stage(require_data("meshes", "gpp_bunny.obj"))
+        uv = parameterize_stage(intake.mesh, SEMOptions(mode="paper")).uv
+        F = intake.mesh.F
+    for factor in (0.5, 4.0):
+        L = PointLocator(uv, F, cell_factor=factor)
+        faces, start = _grid_table_numpy(L)
+        assert L.cell_faces.dtype == L.cell_start.dtype == np.int64
+        np.testing.assert_array_equal(L.cell_start, start)
+        np.testing.assert_array_equal(L.cell_faces, faces)
+        assert len(faces) > len(F)

@@ -842,39 +842,86 @@ cdef inline void _normal(const double[:, ::1] X, int64_t a, int64_t b, int64_t c
     out[2] = e1x * e2y - e1y * e2x
 
 
-def cells_touch_faces(const double[:, ::1] uv, const int64_t[:, ::1] F, const int64_t[::1] face,
-                      const int64_t[::1] cx, const int64_t[::1] cy, double ox, double oy,
-                      double cell):
-    """Whether the closed grid cell ``(cx[i], cy[i])`` (origin ``(ox, oy)``, side ``cell``) can
-    meet the image face ``face[i]`` (either orientation): False only when the whole cell lies
+@cython.cdivision(True)
+def grid_cells(const double[:, ::1] uv, const int64_t[:, ::1] F, const double[:, ::1] lo,
+               const double[:, ::1] hi, double ox, double oy, double cell, int64_t nx,
+               int64_t ny):
+    """The grid table of :class:`pipeline.geometry.locate.PointLocator`: every face
+    registered in the cells of its bounding box ``lo``–``hi`` (m×2 each; cell
+    ``clip(floor((p − origin) / cell), 0, n − 1)`` per axis, origin ``(ox, oy)``, ``nx × ny``
+    cells, numbered ``cy · nx + cx``), a face of more than two such cells only in those
+    :func:`_cell_touches_face` admits.
+
+    Returns
+    -------
+    cell_faces : (p,) int64
+        The faces, cell by cell, in face order within a cell.
+    cell_start : (nx · ny + 1,) int64
+        Cell ``c``'s faces at ``cell_faces[cell_start[c]:cell_start[c + 1]]``.
+    """
+    cdef Py_ssize_t t, j, m = F.shape[0], total = 0, p = 0
+    cdef int64_t k, w, count, cx, cy, c, n_cells = nx * ny
+    box_arr = np.empty((m, 4), dtype=np.int64)
+    cdef int64_t[:, ::1] box = box_arr
+    for t in range(m):
+        box[t, 0] = _cell_index((lo[t, 0] - ox) / cell, nx)
+        box[t, 1] = _cell_index((lo[t, 1] - oy) / cell, ny)
+        box[t, 2] = _cell_index((hi[t, 0] - ox) / cell, nx)
+        box[t, 3] = _cell_index((hi[t, 1] - oy) / cell, ny)
+        total += (box[t, 2] - box[t, 0] + 1) * (box[t, 3] - box[t, 1] + 1)
+    pair_cell_arr = np.empty(total, dtype=np.int64)
+    pair_face_arr = np.empty(total, dtype=np.int64)
+    start_arr = np.zeros(n_cells + 2, dtype=np.int64)
+    cdef int64_t[::1] pair_cell = pair_cell_arr, pair_face = pair_face_arr, start = start_arr
+    for t in range(m):
+        w = box[t, 2] - box[t, 0] + 1
+        count = w * (box[t, 3] - box[t, 1] + 1)
+        for k in range(count):
+            cx, cy = box[t, 0] + k % w, box[t, 1] + k // w
+            if count > 2 and not _cell_touches_face(uv, F, t, cx, cy, ox, oy, cell):
+                continue
+            c = cy * nx + cx
+            pair_cell[p], pair_face[p] = c, t
+            p += 1
+            start[c + 2] += 1
+    for c in range(n_cells):
+        start[c + 2] += start[c + 1]
+    faces_arr = np.empty(p, dtype=np.int64)
+    cdef int64_t[::1] faces = faces_arr
+    for j in range(p):                       # start[c + 1]: the next free slot of cell c
+        c = pair_cell[j]
+        faces[start[c + 1]] = pair_face[j]
+        start[c + 1] += 1
+    return faces_arr, start_arr[:n_cells + 1]
+
+
+cdef inline bint _cell_touches_face(const double[:, ::1] uv, const int64_t[:, ::1] F,
+                                    int64_t f, int64_t cx, int64_t cy, double ox, double oy,
+                                    double cell) noexcept nogil:
+    """Whether the closed grid cell ``(cx, cy)`` (origin ``(ox, oy)``, side ``cell``) can
+    meet the image face ``f`` (either orientation): False only when the whole cell lies
     strictly outside the line of one edge — the cell corner that minimises ``n·x`` for the
     edge's outward normal ``n`` is farther out than a margin of 1e-9 cell sizes, so points on
     cell borders are never missed."""
-    cdef Py_ssize_t i, c
-    cdef int64_t f
+    cdef Py_ssize_t c
     cdef double x0, y0, A2, s, px, py, qx, qy, nx, ny, mx, my, dist
     cdef double tx[3]
     cdef double ty[3]
-    ok_arr = np.ones(face.shape[0], dtype=np.bool_)
-    cdef unsigned char[::1] ok = ok_arr.view(np.uint8)
-    for i in range(face.shape[0]):
-        f = face[i]
-        for c in range(3):
-            tx[c], ty[c] = uv[F[f, c], 0], uv[F[f, c], 1]
-        x0 = ox + <double>cx[i] * cell
-        y0 = oy + <double>cy[i] * cell
-        A2 = (tx[1] - tx[0]) * (ty[2] - ty[0]) - (ty[1] - ty[0]) * (tx[2] - tx[0])
-        s = -1.0 if A2 < 0 else 1.0
-        for c in range(3):
-            px, py, qx, qy = tx[c], ty[c], tx[(c + 1) % 3], ty[(c + 1) % 3]
-            nx, ny = s * (qy - py), (-s) * (qx - px)
-            mx = x0 if nx > 0 else x0 + cell
-            my = y0 if ny > 0 else y0 + cell
-            dist = nx * (mx - px) + ny * (my - py)
-            if not dist <= 1e-9 * cell * (fabs(nx) + fabs(ny)):
-                ok[i] = 0
-                break
-    return ok_arr
+    for c in range(3):
+        tx[c], ty[c] = uv[F[f, c], 0], uv[F[f, c], 1]
+    x0 = ox + <double>cx * cell
+    y0 = oy + <double>cy * cell
+    A2 = (tx[1] - tx[0]) * (ty[2] - ty[0]) - (ty[1] - ty[0]) * (tx[2] - tx[0])
+    s = -1.0 if A2 < 0 else 1.0
+    for c in range(3):
+        px, py, qx, qy = tx[c], ty[c], tx[(c + 1) % 3], ty[(c + 1) % 3]
+        nx, ny = s * (qy - py), (-s) * (qx - px)
+        mx = x0 if nx > 0 else x0 + cell
+        my = y0 if ny > 0 else y0 + cell
+        dist = nx * (mx - px) + ny * (my - py)
+        if not dist <= 1e-9 * cell * (fabs(nx) + fabs(ny)):
+            return False
+    return True
 
 
 @cython.cdivision(True)

@@ -47,7 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import topology as topo
-from ._kernels import cells_touch_faces, grid_candidates, lift_rows, walk_rows, walk_to_faces
+from ._kernels import grid_candidates, grid_cells, lift_rows, walk_rows, walk_to_faces
 
 __all__ = ["PointLocator", "locate_points", "project_to_boundary_polygon", "lift",
            "barycentric_coordinates"]
@@ -215,28 +215,12 @@ class PointLocator:
         cell = max(cell, float(extent.max()) / 4096.0)               # at most 4096² cells
         self.cell = cell
         self.shape = np.maximum(np.ceil(extent / cell).astype(np.int64), 1)   # (nx, ny)
-        i0 = self._cell_xy(lo)
-        i1 = self._cell_xy(hi)
-        wx = i1[:, 0] - i0[:, 0] + 1
-        count = wx * (i1[:, 1] - i0[:, 1] + 1)
-        face = np.repeat(np.arange(m, dtype=np.int64), count)
-        first = np.repeat(np.cumsum(count) - count, count)
-        k = np.arange(len(face), dtype=np.int64) - first              # index within the face
-        w = wx[face]
-        cx, cy = i0[face, 0] + k % w, i0[face, 1] + k // w
-        # Thin faces (large bounding box, small area) are registered only in the cells they
-        # really touch: drop a (face, cell) pair when the cell lies outside one edge's line.
-        big = np.flatnonzero(count[face] > 2)
-        if len(big):
-            keep = np.ones(len(face), bool)
-            keep[big] = cells_touch_faces(self.uv, self.F, face[big], cx[big], cy[big],
-                                          float(self.origin[0]), float(self.origin[1]), cell)
-            face, cx, cy = face[keep], cx[keep], cy[keep]
-        cells = cy * self.shape[0] + cx
-        order = topo.sort_with_index(cells)[1]                          # stable
-        self.cell_faces = face[order]
-        self.cell_start = np.r_[0, np.cumsum(np.bincount(cells, minlength=int(np.prod(
-            self.shape))))].astype(np.int64)
+        # every face in the cells of its bounding box; thin faces (large bounding box, small
+        # area) only in the cells they really touch (compiled, a counting sort by cell)
+        self.cell_faces, self.cell_start = grid_cells(
+            self.uv, self.F, np.ascontiguousarray(lo), np.ascontiguousarray(hi),
+            float(self.origin[0]), float(self.origin[1]), float(cell), int(self.shape[0]),
+            int(self.shape[1]))
         sa, sb, sf, sca, scb = _boundary_segments(self.F, n, boundary)
         self.seg_a, self.seg_b, self.seg_face = sa, sb, sf
         self.seg_ca, self.seg_cb = sca, scb
