@@ -120,6 +120,9 @@ class Face:
 
 @dataclass
 class Pair:
+    """The two faces a registration maps between, with their landmarks paired, the dense
+    ground truth when there is one, and the pairing's messages."""
+
     source: Face
     target: Face
     names: list[str] | None              # landmark names in pairing order (None: by order)
@@ -216,6 +219,10 @@ def display_faces(mesh) -> np.ndarray:
 
 @dataclass
 class Registration:
+    """The ``registration`` artifact: the pair, both maps, the alignment and the deformation,
+    the source's vertices mapped onto the target (``mapped`` (n, 3), with their target
+    ``face`` (n,) and ``bary`` (n, 3)), their ``error`` (n,), the baseline and the metrics."""
+
     pair: Pair
     energy: str                               # the deformation's smoothness
     uv_source: np.ndarray                     # source map: disk n×2, or sphere n×3
