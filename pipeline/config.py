@@ -12,7 +12,6 @@ documented in ``configs/<stage>.yaml``.
 
 from __future__ import annotations
 
-import difflib
 import warnings
 from pathlib import Path
 from typing import Optional
@@ -111,6 +110,8 @@ def format_validation_error(exc: ValidationError, source: str,
     where = names.get(loc[:3]) or names.get(loc[:2]) or ".".join(str(p) for p in loc) \
         or "(top level)"
     if err["type"] == "extra_forbidden":
+        import difflib
+
         valid = _model_fields(model or Config, loc)
         close = difflib.get_close_matches(str(loc[-1]), valid, n=1)
         hint = f"did you mean '{close[0]}'?" if close else f"valid keys: {', '.join(valid)}"

@@ -265,6 +265,50 @@ def test_components_are_the_vertex_sharing_classes_numbered_by_first_face():
         topo.connected_components(np.array([[0, 1, 5]]), 5)
 
 
+def _scipy_components(r, c, n):
+    """SciPy's undirected graph components of the edges ``(r, c)`` on ``n`` vertices: the
+    reference :func:`topo.graph_components` stands for."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components as scipy_components
+
+    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(n, n)).tocsr()
+    return scipy_components(G, directed=False)
+
+
+def test_graph_components_are_scipys_components_label_for_label():
+    """Count and every label as SciPy's ``connected_components(G, directed=False)`` gives
+    them: random graphs with repeated edges, loops, isolated vertices and no edges at all,
+    and the graphs the intake builds on a real mesh (its vertex-edge graph, its boundary
+    edges, the face graph of the orientation check, the corner graph of the fan count); an
+    end outside ``[0, n)`` is an error."""
+    rng = np.random.default_rng(11)
+    graphs = [(np.zeros(0, np.int64), np.zeros(0, np.int64), 0),
+              (np.zeros(0, np.int64), np.zeros(0, np.int64), 4),
+              (np.array([2, 2]), np.array([2, 0]), 5)]
+    for trial in range(40):
+        n = int(rng.integers(1, 300))
+        k = int(rng.integers(0, 2 * n))
+        r, c = rng.integers(0, n, size=k), rng.integers(0, n, size=k)
+        graphs.append((np.r_[r, r[:k // 3]], np.r_[c, c[:k // 3]], n))   # repeated edges
+    raw = read_mesh(require_data("meshes", "igl_camel_b.obj"))
+    n, F = len(raw.V), raw.faces
+    m = len(F)
+    a, b = topo.half_edges(F)
+    be = topo.boundary_edges(F)
+    graphs += [(a, b, n), (be[:, 0], be[:, 1], n),
+               (np.r_[np.arange(m), np.arange(m) + m], rng.permutation(2 * m), 2 * m),
+               (np.arange(3 * m - 1), np.arange(1, 3 * m), 3 * m)]
+    for r, c, n in graphs:
+        count, labels = topo.graph_components(r, c, n)
+        want_count, want_labels = _scipy_components(r, c, n)
+        assert count == want_count
+        assert labels.dtype == np.int64 and labels.tolist() == want_labels.tolist()
+    with pytest.raises(ValueError):
+        topo.graph_components(np.array([0, 1]), np.array([1, 3]), 3)
+    with pytest.raises(ValueError):
+        topo.graph_components(np.array([-1]), np.array([0]), 3)
+
+
 def test_weld_map_joins_the_points_within_tol_transitively():
     """The representative of every point is the lowest index among the points linked to it
     by steps of at most ``tol`` (brute force over all pairs), whether the tree is asked or the

@@ -553,13 +553,23 @@ cdef inline int64_t _root(int64_t* parent, int64_t v) noexcept nogil:
     return v
 
 
+cdef inline void _join(int64_t* parent, int64_t u, int64_t w) noexcept nogil:
+    """Join the sets of ``u`` and ``w``: the larger root is hung under the smaller."""
+    u = _root(parent, u)
+    w = _root(parent, w)
+    if u < w:
+        parent[w] = u
+    elif w < u:
+        parent[u] = w
+
+
 def face_components(const int64_t[:, ::1] F, int64_t n):
     """``(count, labels)``: the faces of ``F`` (m, 3) over ``n`` vertices linked when they share
     a vertex, each face's component numbered by first face (component 0 holds face 0, the next
     new one in face order is 1, ...). A union-find over the vertices joined along each face's
     corners, then one pass in face order. Raises ValueError for an index outside ``[0, n)``."""
     cdef Py_ssize_t t, c, m = F.shape[0]
-    cdef int64_t u, w, count = 0
+    cdef int64_t u, count = 0
     for t in range(m):
         for c in range(3):
             if F[t, c] < 0 or F[t, c] >= n:
@@ -572,12 +582,7 @@ def face_components(const int64_t[:, ::1] F, int64_t n):
     with nogil:
         for t in range(m):
             for c in range(2):
-                u = _root(parent, F[t, c])
-                w = _root(parent, F[t, c + 1])
-                if u < w:
-                    parent[w] = u
-                elif w < u:
-                    parent[u] = w
+                _join(parent, F[t, c], F[t, c + 1])
         for t in range(m):
             u = _root(parent, F[t, 0])
             if label[u] < 0:
@@ -585,6 +590,36 @@ def face_components(const int64_t[:, ::1] F, int64_t n):
                 count += 1
             out[t] = label[u]
     return int(count), out_arr
+
+
+def graph_components(const int64_t[::1] r, const int64_t[::1] c, int64_t n):
+    """``(count, labels)``: the ``n`` vertices of the undirected graph with the edges
+    ``(r[k], c[k])`` (k,) (repeated edges and loops allowed) in connected components, numbered
+    by first vertex (component 0 holds vertex 0, the next new one in vertex order is 1, ...):
+    the labels (n,) of SciPy's ``connected_components(G, directed=False)`` of the graph. A
+    union-find joined along each edge, then one pass in vertex order. Raises ValueError for
+    an index outside ``[0, n)``."""
+    cdef Py_ssize_t k, e = r.shape[0]
+    cdef int64_t v, u, count = 0
+    if c.shape[0] != e:
+        raise ValueError(f"{e} edge starts and {c.shape[0]} edge ends")
+    for k in range(e):
+        if r[k] < 0 or r[k] >= n or c[k] < 0 or c[k] >= n:
+            raise ValueError(f"edge ({r[k]}, {c[k]}) has an end outside [0, {n})")
+    parent_arr = np.arange(n, dtype=np.int64)
+    label_arr = np.full(n, -1, dtype=np.int64)
+    cdef int64_t[::1] parent_view = parent_arr, label = label_arr
+    cdef int64_t* parent = &parent_view[0] if n else NULL
+    with nogil:
+        for k in range(e):
+            _join(parent, r[k], c[k])
+        for v in range(n):
+            u = _root(parent, v)
+            if label[u] < 0:
+                label[u] = count
+                count += 1
+            label[v] = label[u]
+    return int(count), label_arr
 
 
 def fans_per_vertex(const int64_t[::1] a, const int64_t[::1] twin, int64_t n):

@@ -23,6 +23,9 @@ def arc_length_circle(V: np.ndarray, boundary: np.ndarray) -> np.ndarray:
 
 @dataclass
 class HarmonicMap:
+    """The result of :func:`harmonic_map`: the map ``f`` (n,) complex, the ``weights`` it was
+    solved with, the cotangent weights ≤ 0 on the input mesh and its flipped faces."""
+
     f: np.ndarray               # complex, n
     weights: str                # "cotangent", "cotangent, clamped positive" or "uniform (Tutte)"
     negative_weights: int       # cotangent weights ≤ 0 on the input mesh

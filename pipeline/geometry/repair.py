@@ -100,9 +100,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
-import scipy.sparse as sp
 from pydantic import BaseModel, ConfigDict, Field
-from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
@@ -278,8 +276,7 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
         rep[idx] = idx[local_rep]
         return rep
     r, c = np.concatenate(rows), np.concatenate(cols)
-    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(k, k)).tocsr()
-    _, lab = _cc(G, directed=False)
+    _, lab = topo.graph_components(r, c, k)
     lowest = np.full(lab.max() + 1, k, dtype=np.int64)
     np.minimum.at(lowest, lab, np.arange(k))   # idx is sorted: lowest local = lowest input
     rep[idx] = idx[lowest[lab]]
@@ -323,8 +320,7 @@ def count_boundary_loops(F: np.ndarray) -> int:
         return 0
     n = int(F.max()) + 1
     nb = int(np.count_nonzero(np.bincount(be.ravel(), minlength=n)))
-    G = sp.coo_matrix((np.ones(len(be), np.int8), (be[:, 0], be[:, 1])), shape=(n, n)).tocsr()
-    return int(_cc(G, directed=False)[0] - (n - nb))
+    return topo.graph_components(be[:, 0], be[:, 1], n)[0] - (n - nb)
 
 
 def disk_blockers(F: np.ndarray, n: int | None = None) -> list[str]:

@@ -138,6 +138,11 @@ class SEMOptions(BaseModel):
 
 @dataclass
 class SEMResult:
+    """The result of :func:`stretch_energy_minimization`: the map ``uv`` (n, 2), why and
+    after how many iterations it ended, its flipped faces, the harmonic start's facts, the
+    accepted maps' ``history``, the times, the solver and its statistics, the accepted steps
+    by kind and the surface's doubled face areas (m,)."""
+
     uv: np.ndarray                       # n×2
     status: str                          # converged | max_iter | energy_rose | stalled
     iterations: int

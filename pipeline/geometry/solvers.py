@@ -37,7 +37,6 @@ import weakref
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import UserError
 
@@ -501,10 +500,12 @@ class ScipySolver:
         self._lu = None
 
     def factorize(self, A: sp.spmatrix, upper: bool = False) -> None:
+        from scipy.sparse.linalg import splu      # (SciPy's solvers: only this fallback's)
+
         if upper:
             A = (A + sp.triu(A, 1).T).tocsr()
         try:
-            self._lu = spla.splu(_as_csc_symmetric(A), permc_spec="COLAMD", diag_pivot_thresh=0.0,
+            self._lu = splu(_as_csc_symmetric(A), permc_spec="COLAMD", diag_pivot_thresh=0.0,
                                  options=dict(SymmetricMode=True))
         except RuntimeError as exc:  # exactly singular
             raise NotPositiveDefinite(str(exc)) from exc

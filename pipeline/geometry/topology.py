@@ -22,7 +22,6 @@ from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components as _cc
 
 from pipeline.errors import UserError
 
@@ -36,6 +35,7 @@ __all__ = [
     "boundary_loops",
     "interior_edge_twins",
     "connected_components",
+    "graph_components",
     "nonmanifold_edges",
     "nonmanifold_vertices",
     "leaf_faces",
@@ -283,6 +283,18 @@ def connected_components(F, n: int | None = None) -> tuple[int, np.ndarray]:
     return _kernels.face_components(np.ascontiguousarray(F, dtype=np.int64), _n_of(F, n))
 
 
+def graph_components(r: np.ndarray, c: np.ndarray, n: int) -> tuple[int, np.ndarray]:
+    """Connected components of the undirected graph on ``n`` vertices with the edges
+    ``(r[k], c[k])`` (k,) each.
+
+    Returns ``(count, labels)`` with ``labels`` (n,) in ``0..count-1``, numbered by first
+    vertex, as SciPy's ``connected_components(G, directed=False)`` numbers them (compiled
+    union-find: :func:`._kernels.graph_components`).
+    """
+    return _kernels.graph_components(np.ascontiguousarray(r, dtype=np.int64),
+                                     np.ascontiguousarray(c, dtype=np.int64), int(n))
+
+
 def nonmanifold_edges(F) -> np.ndarray:
     """Undirected edges (k×2, i < j) contained in more than two faces."""
     E, counts = edges_with_faces(F)
@@ -341,8 +353,7 @@ def _nonmanifold_vertices_general(F, n, a, order, start, size) -> np.ndarray:
     # corners at the same vertex: tail-tail/head-head (same direction) or tail-head (opposite)
     r = np.r_[h1, nx1]
     c = np.r_[np.where(opposite, nx2, h2), np.where(opposite, h2, nx2)]
-    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(m3, m3)).tocsr()
-    _, lab = _cc(G, directed=False)
+    _, lab = graph_components(r, c, m3)
     pairs = _distinct_sorted(lab.astype(np.int64) * n + a)   # distinct (fan, vertex) pairs
     fans = np.bincount(pairs % n, minlength=n)
     return np.flatnonzero(fans > 1)
@@ -431,8 +442,7 @@ def orient_faces_consistently(F) -> tuple[np.ndarray, int]:
         return F, 0
     r = np.r_[t1, t1 + m]
     c = np.r_[np.where(inconsistent, t2 + m, t2), np.where(inconsistent, t2, t2 + m)]
-    G = sp.coo_matrix((np.ones(len(r), np.int8), (r, c)), shape=(2 * m, 2 * m)).tocsr()
-    _, lab = _cc(G, directed=False)
+    _, lab = graph_components(r, c, 2 * m)
     l0, l1 = lab[:m], lab[m:]
     if np.any(l0 == l1):
         bad = int(np.flatnonzero(l0 == l1)[0])

@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 
-from . import html as h
 from .remesh_methods import LABELS, Method
 
 __all__ = ["Method", "LABELS", "comparison_table", "verdicts", "remesh_warnings",
@@ -196,6 +195,8 @@ def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np
 
 
 def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
+    from . import html as h
+
     e = h.esc
     keys = [k for k in ("input", "sem_lifted", "sem", "pymeshlab_isotropic",
                         "fast_simplification") if k in methods]

@@ -43,6 +43,8 @@ class InputConfig(Section):
 
 @dataclass
 class Intake:
+    """The ``intake`` artifact: the repaired ``mesh`` and ``info`` on where it came from."""
+
     mesh: RepairedMesh
     info: dict = field(default_factory=dict)     # source, input counts, repair report, timings
 

@@ -51,6 +51,9 @@ class MorphConfig(Section):
 
 @dataclass
 class Morph:
+    """The ``morph`` artifact: the ``faces`` (m, 3) shared by every frame, the frame
+    ``times`` (k,), the ``frames`` (k vertex arrays (n, 3)), the options and the metrics."""
+
     faces: np.ndarray
     times: np.ndarray
     frames: list

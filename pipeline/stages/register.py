@@ -43,23 +43,22 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, Optional
+from typing import TYPE_CHECKING, Literal, Optional
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from ..errors import UserError
-from ..geometry.register import (DeformOptions, align, as_complex, as_uv, compose_with_inverse,
-                                 deform_to_landmarks, error_summary)
 from ..geometry.repair import RepairOptions
 from ..geometry.sem import SEMOptions
 from ..io.artifacts import save_npz, staged_output, write_json
-from ..io.landmarks import (LandmarkSet, landmarks_from_dict, pair_landmarks, read_landmarks,
-                            resolve_landmarks)
 from ..io.meshio import read_mesh, write_obj
 from .load import Intake, load_stage, sample_stage
 from .parameterize import ParameterizationFailed, parameterize_stage
 from .stage import Context, Section, Stage
+
+if TYPE_CHECKING:
+    from ..io.landmarks import LandmarkSet
 
 
 class RegistrationFailed(RuntimeError):
@@ -121,6 +120,9 @@ class Face:
 
 @dataclass
 class Pair:
+    """The two faces a registration maps between, with their landmarks paired, the dense
+    ground truth when there is one, and the pairing's messages."""
+
     source: Face
     target: Face
     names: list[str] | None              # landmark names in pairing order (None: by order)
@@ -133,6 +135,8 @@ class Pair:
 
 
 def _side(intake: Intake, lms: LandmarkSet, label: str, messages: list) -> Face:
+    from ..io.landmarks import resolve_landmarks
+
     idx, msgs = resolve_landmarks(lms, intake.mesh, intake.info["input_vertices"],
                                   f"{label} landmarks")
     messages.extend(msgs)
@@ -155,6 +159,8 @@ def load_pair(source, target, source_landmarks, target_landmarks=None,
               truth=None) -> Pair:
     """Read, repair and pair two faces and their landmark files (``target_landmarks``
     defaults to ``source_landmarks``: one file that holds the landmarks of both, as ICT's)."""
+    from ..io.landmarks import pair_landmarks, read_landmarks
+
     messages: list[str] = []
     src = load_stage(source, repair)
     tgt = load_stage(target, repair)
@@ -177,6 +183,8 @@ def sample_pair(n_vertices: int = 3000, expression: str = "smile",
                 repair: RepairOptions | None = None) -> Pair:
     """The embedded synthetic face: neutral → ``expression`` (same connectivity, same
     landmarks), so the target is also the dense ground truth."""
+    from ..io.landmarks import landmarks_from_dict
+
     src = sample_stage(n_vertices, "neutral", options=repair)
     tgt = sample_stage(n_vertices, expression, options=repair)
     lms = landmarks_from_dict({"landmarks": src.info["landmarks"]}, "sample landmarks")
@@ -211,6 +219,10 @@ def display_faces(mesh) -> np.ndarray:
 
 @dataclass
 class Registration:
+    """The ``registration`` artifact: the pair, both maps, the alignment and the deformation,
+    the source's vertices mapped onto the target (``mapped`` (n, 3), with their target
+    ``face`` (n,) and ``bary`` (n, 3)), their ``error`` (n,), the baseline and the metrics."""
+
     pair: Pair
     energy: str                               # the deformation's smoothness
     uv_source: np.ndarray                     # source map: disk n×2, or sphere n×3
@@ -271,6 +283,8 @@ def _dense_error(points: np.ndarray, pair: Pair, diag: float) -> np.ndarray | No
 def _finite_summary(err: np.ndarray | None) -> dict | None:
     if err is None:
         return None
+    from ..geometry.register import error_summary
+
     return error_summary(err[np.isfinite(err)], 1.0)
 
 
@@ -306,6 +320,9 @@ def register_maps(pair: Pair, ps, pt, *, mobius: bool = False, energy: str = "bi
     names: the alignment (disk Möbius map or rotation), the deformation's smoothness, and
     whether trimesh's ``nricp_amberg`` runs on the same pair for comparison.
     """
+    from ..geometry.register import (DeformOptions, align, as_complex, compose_with_inverse,
+                                     deform_to_landmarks)
+
     say = log or (lambda s: None)
     S, T = pair.source, pair.target
     if ps.domain != pt.domain:
@@ -597,6 +614,8 @@ def map_arrays(reg: Registration) -> dict[str, np.ndarray]:
     """The domain arrays of ``registration.npz``: ``source_uv``, ``target_uv``, ``aligned_uv``,
     ``deformed_uv`` (disk, n×2), or ``source_sphere``, ``target_sphere``, ``aligned_sphere``,
     ``deformed_sphere`` (n×3 unit vectors) and ``rotation`` (3×3) on the sphere."""
+    from ..geometry.register import as_uv
+
     if reg.domain == "sphere":
         return {"source_sphere": reg.uv_source, "target_sphere": reg.uv_target,
                 "aligned_sphere": reg.alignment.S, "deformed_sphere": reg.deform.S,
@@ -632,6 +651,8 @@ def report_view(reg: Registration):
 def _domain_views(reg: Registration) -> dict:
     """The report's planar views of the maps: the disks themselves, or the spheres by the
     equal-area view about the target landmarks (far cap left out)."""
+    from ..geometry.register import as_uv
+
     S, T = reg.pair.source.mesh, reg.pair.target.mesh
     if reg.domain == "disk":
         return {"source_faces": S.F, "target_faces": T.F, "aligned_uv": as_uv(reg.alignment.z),

@@ -300,7 +300,6 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
     from ..geometry.remesh_quality import SampledSurface, remesh_quality
     from ..geometry.topology import kept_edge_groups
     from ..report.remesh import Method
-    from . import baselines
 
     def say(msg):
         if progress:
@@ -330,6 +329,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
                         quality(remesh.V, remesh.F, remesh.facts or None))
     if not compare:
         return out
+    from . import baselines
 
     def baseline(key: str, make) -> Method:
         """The column of a baseline, or an empty one saying why it failed: a third-party

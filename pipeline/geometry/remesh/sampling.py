@@ -69,6 +69,11 @@ MIN_RIM = 8
 
 @dataclass
 class DiskSamples:
+    """The sample points of a remesh on its disk (or sphere) domain: ``points`` (k, 2) (k, 3
+    on the sphere), the ``n_rim`` on the rim polygon first; ``spacing`` their lattice
+    spacing ``h`` in domain units, ``pattern`` the lattice, ``iterations`` the evaluations
+    that solved for the count, ``polygon`` (p, 2) the rim polygon they were made for."""
+
     points: np.ndarray          # k×2; rim first (on the polygon), then interior
     n_rim: int
     spacing: float              # h, in disk units
