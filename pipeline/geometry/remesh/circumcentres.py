@@ -206,11 +206,14 @@ def unforced_below(S: RemeshState, min_angle_deg: float, only: np.ndarray | None
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first; given ``only`` (j×3 points), those of them whose corners are all at these points
     (:func:`.state.at_points`)."""
-    bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
+    if only is None:
+        bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
+    else:                                # the angles of those faces alone (row by row)
+        among = np.flatnonzero(at_points(S.X, only)[S.F].all(axis=1))
+        bad, smallest = min_corner_angles_below(S.X, S.F[among], np.radians(min_angle_deg))
+        bad = among[bad]
     smallest = np.degrees(smallest)
     below = smallest < min_angle_deg
-    if only is not None:
-        below &= at_points(S.X, only)[S.F[bad]].all(axis=1)
     bad, smallest = bad[below], smallest[below]
     unforced = ~forced_corners(S, min_angle_deg, bad).any(axis=1)
     bad, worst = bad[unforced], smallest[unforced]
