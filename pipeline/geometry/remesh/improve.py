@@ -184,9 +184,9 @@ from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import (corner_angles_deg, forced_corners, raise_min_angles, sharp_vertices,
                      split_for_count)
-from .circumcentres import (corner_split_round, refine_at_circumcentres, restore_state,
-                            saved_state, shortfall_of, shortfall_order, unforced_below,
-                            unforced_shortfall)
+from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
+                            restore_state, saved_state, shortfall_of, shortfall_order,
+                            unforced_below, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -855,7 +855,8 @@ class _Operations:
     def refine_each(self, target: int, min_angle_deg: float) -> None:
         """Face after face, worst first, each once (known by its corners' positions): a face
         still below ``min_angle_deg`` that no input corner forces refined alone (:meth:`grade`
-        with its corner splits, ``only`` its corners), at most ``EACH_FACES`` of them. Kept as
+        with its corner splits, ``only`` its corners, the caps' splits only for a cap:
+        :func:`.circumcentres.cap_split`), at most ``EACH_FACES`` of them. Kept as
         :meth:`refine_unforced` keeps it, judged on the whole remesh: a refinement of all of
         them at once is kept or undone as a whole, and where a ragged rim's teeth leave many
         such faces the insertions that make some of them worse undo those that mend others
@@ -865,12 +866,12 @@ class _Operations:
         tried = set()
         for _ in range(EACH_FACES):
             bad, _ = unforced_below(S, min_angle_deg)
-            corners = (S.X[S.F[f]] for f in bad)
-            face = next((P for P in corners if corner_key(P) not in tried), None)
-            if face is None:
+            f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
+            if f is None:
                 return
-            tried.add(corner_key(face))
-            self.grade(target, min_angle_deg, corners=True, only=face)
+            tried.add(corner_key(S.X[S.F[f]]))
+            caps = (False, True) if cap_split(S, f) is not None else (False,)
+            self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps)
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -963,7 +964,7 @@ class _Operations:
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
     def grade(self, target: int, min_angle_deg: float, corners: bool = False,
-              only: np.ndarray | None = None) -> bool:
+              only: np.ndarray | None = None, caps: tuple = (False, True)) -> bool:
         """The faces still below ``min_angle_deg`` that no input corner forces refined
         (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
         operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
@@ -971,13 +972,14 @@ class _Operations:
         earlier state, or, with ``corners``, where neither is kept with the interior edges at
         their smallest corners split (:func:`.circumcentres.corner_split_round`), then flips;
         kept as :meth:`refine_unforced` keeps it. Given ``only`` (j×3 points), the insertions
-        are for the faces with their corners all at these points alone. Returns whether it
-        was kept."""
+        are for the faces with their corners all at these points alone; ``caps``: the first two
+        kinds, as the refinement's ``caps`` (on a face that is no cap, the second makes the
+        first again). Returns whether it was kept."""
         S = self.S
         raise_after = partial(self.flip_and_raise, min_angle_deg)
-        for caps in (False, True):
+        for cap in caps:
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
-                             lambda: np.flatnonzero(self.folds(S)), caps=caps,
+                             lambda: np.flatnonzero(self.folds(S)), caps=cap,
                              patience=GRADE_PATIENCE, only=only)
             if self.refine_unforced(target, min_angle_deg, insert):
                 return True
