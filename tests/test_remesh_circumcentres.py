@@ -276,3 +276,21 @@ def test_a_short_edge_between_kept_vertices_is_graded_on_the_sphere():
     assert np.allclose(np.linalg.norm(S.uv, axis=1), 1.0, atol=1e-12)
     assert np.all(triple_products(S.uv, S.F) > 0)
     assert np.array_equal(S.uv[S.locked], kept)
+
+
+def test_unforced_below_only_at_points_is_the_full_answer_filtered():
+    """``unforced_below`` with ``only`` (points) gives exactly the faces of the full answer
+    whose corners are all at these points, with the same angles, worst first: for every face
+    of the short rim edge's state alone, for the corners of all faces below (the full answer
+    itself), and for points at no vertex (nothing)."""
+    S = _short_rim_edge_state()
+    bad, worst = unforced_below(S, 20.0)
+    assert len(bad) >= 1
+    for f in range(len(S.F)):
+        got, angles = unforced_below(S, 20.0, only=S.X[S.F[f]])
+        hit = bad == f
+        assert np.array_equal(got, bad[hit]) and np.array_equal(angles, worst[hit])
+    got, angles = unforced_below(S, 20.0, only=S.X[S.F[bad].ravel()])
+    assert np.array_equal(got, bad) and np.array_equal(angles, worst)
+    got, angles = unforced_below(S, 20.0, only=S.X[S.F[bad[0]]] + 1.0)
+    assert len(got) == 0 and len(angles) == 0

@@ -200,11 +200,18 @@ def shortfall_of(worst: np.ndarray) -> tuple[int, float]:
     return len(worst), float(worst.min(initial=180.0))
 
 
-def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np.ndarray]:
+def unforced_below(S: RemeshState, min_angle_deg: float, only: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """The faces (k indices) below ``min_angle_deg`` that no input corner forces
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
-    first."""
-    bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
+    first; given ``only`` (j×3 points), those of them whose corners are all at these points
+    (:func:`.state.at_points`)."""
+    if only is None:
+        bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
+    else:                                # the angles of those faces alone (row by row)
+        among = np.flatnonzero(at_points(S.X, only)[S.F].all(axis=1))
+        bad, smallest = min_corner_angles_below(S.X, S.F[among], np.radians(min_angle_deg))
+        bad = among[bad]
     smallest = np.degrees(smallest)
     below = smallest < min_angle_deg
     bad, smallest = bad[below], smallest[below]
@@ -216,7 +223,8 @@ def unforced_below(S: RemeshState, min_angle_deg: float) -> tuple[np.ndarray, np
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
                             rounds: int = ROUNDS, caps: bool = False,
-                            patience: int | None = None) -> int:
+                            patience: int | None = None, only: np.ndarray | None = None
+                            ) -> int:
     """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
     forces (module docstring); returns the number of vertices inserted (tallied as
     ``circumcentre_insertions``).
@@ -238,6 +246,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
         Stop after this many rounds in a row that beat no earlier state (for a ``flip`` that
         settles each round's vertices, so that a round no better than those before is no
         step on the way to a better one); default: no limit but ``rounds``.
+    only : (j, 3) float, optional
+        Insert only for the faces whose corners are all at these points (the rounds are
+        judged on the whole remesh all the same).
 
     Returns
     -------
@@ -252,7 +263,8 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     for _ in range(rounds):
         if best[0][0] == 0 or (patience is not None and stale >= patience):
             break
-        k, near_folds = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds, avoid)
+        k, near_folds = fold_free_round(S, min_angle_deg, caps, flip, folds, n_folds, avoid,
+                                        only)
         if k == 0:
             break
         avoid = np.vstack([avoid, near_folds])
@@ -275,9 +287,11 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
 
 
 def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, folds,
-                    n_folds: int, avoid: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+                    n_folds: int, avoid: np.ndarray | None = None,
+                    only: np.ndarray | None = None) -> tuple[int, np.ndarray]:
     """A round of insertions (:func:`insert_round`, none for the faces with a corner at the
-    points ``avoid``, k×3, if given) and the caller's ``flip(F_before)``; where that leaves
+    points ``avoid``, k×3, if given, and given ``only``, j×3 points, only for the faces with
+    their corners all at them) and the caller's ``flip(F_before)``; where that leaves
     more than ``n_folds`` faces turned over (``folds()``, indices), the round made again from
     the start without the faces with a corner on a fold before or after it (their vertices
     found by position, :func:`.state.at_points`): the fold repair's to mend, and one
@@ -287,7 +301,7 @@ def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, fold
     F0, start = S.F.copy(), saved_state(S)
     skip = None if avoid is None or len(avoid) == 0 else at_points(S.X, avoid)
     none = np.zeros((0, 3))
-    k = insert_round(S, min_angle_deg, caps, skip=skip)
+    k = insert_round(S, min_angle_deg, caps, skip=skip, only=only)
     if k == 0:
         return 0, none
     flip(F0)
@@ -299,7 +313,8 @@ def fold_free_round(S: RemeshState, min_angle_deg: float, caps: bool, flip, fold
     redo = at_points(S.X, P)
     redo[S.F[folds()].ravel()] = True
     at_folds = S.X[redo]                # before the round: its flips may collapse vertices
-    k = insert_round(S, min_angle_deg, caps, skip=redo if skip is None else redo | skip)
+    k = insert_round(S, min_angle_deg, caps, skip=redo if skip is None else redo | skip,
+                     only=only)
     if k:
         flip(F0)
     return k, at_folds if k else none
@@ -324,12 +339,13 @@ def restore_state(S: RemeshState, saved: dict) -> None:
 
 
 def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,
-                 skip: np.ndarray | None = None) -> int:
+                 skip: np.ndarray | None = None, only: np.ndarray | None = None) -> int:
     """One round of :func:`refine_at_circumcentres`: a vertex at the off-centre of each
     face below ``min_angle_deg`` no input corner forces (or on the rim edge it lies beyond or
-    encroaches), worst face first, none in a face another one of the round touches nor for a
-    face with a corner among the vertices ``skip`` (n bool); returns how many."""
-    bad, _ = unforced_below(S, min_angle_deg)
+    encroaches; given ``only``, j×3 points, of those with their corners all at them), worst
+    face first, none in a face another one of the round touches nor for a face with a corner
+    among the vertices ``skip`` (n bool); returns how many."""
+    bad, _ = unforced_below(S, min_angle_deg, only)
     if skip is not None:
         bad = bad[~skip[S.F[bad]].any(axis=1)]
     if len(bad) == 0:
@@ -412,19 +428,21 @@ def _action(S: RemeshState, bad: int, f: int, bary: np.ndarray, inside: bool, c:
     return "face", f, None
 
 
-def corner_split_round(S: RemeshState, min_angle_deg: float) -> int:
+def corner_split_round(S: RemeshState, min_angle_deg: float, only: np.ndarray | None = None
+                       ) -> int:
     """A vertex in the middle (on the disk) of each interior edge at the smallest corner of a
-    face below ``min_angle_deg`` that no input corner forces (:func:`unforced_below`), worst
-    face first, none in a face another split of the round touches, no kept edge
-    (``S.joined``), none between two rim vertices and none that makes a face thinner on the
-    disk than ``DISK_SHAPE_MIN`` (:func:`.refine.split_keeps_shape`); returns how many.
+    face below ``min_angle_deg`` that no input corner forces (:func:`unforced_below`; given
+    ``only``, j×3 points, of those with their corners all at them), worst face first, none
+    in a face another split of the round touches, no kept edge (``S.joined``), none between
+    two rim vertices and none that makes a face thinner on the disk than ``DISK_SHAPE_MIN``
+    (:func:`.refine.split_keeps_shape`); returns how many.
 
     Where the rim is sampled closer than the remesh's spacing (the teeth of a ragged rim), an
     interior vertex next to it can have rim vertices all round: the one vertex balances the
     angles of a fan over several short rim edges, and no move or flip of it raises the
     smallest; the split gives the small corner one more face, which the local operations
     after it (the caller's) shape."""
-    bad, _ = unforced_below(S, min_angle_deg)
+    bad, _ = unforced_below(S, min_angle_deg, only)
     if len(bad) == 0:
         return 0
     twin = S.twins()

@@ -184,9 +184,9 @@ from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import (corner_angles_deg, forced_corners, raise_min_angles, sharp_vertices,
                      split_for_count)
-from .circumcentres import (corner_split_round, refine_at_circumcentres, restore_state,
-                            saved_state, shortfall_of, shortfall_order, unforced_below,
-                            unforced_shortfall)
+from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
+                            restore_state, saved_state, shortfall_of, shortfall_order,
+                            unforced_below, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -234,6 +234,7 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
                              # them trades a little RMS for mean smallest angle and area CV)
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
+EACH_FACES = 100      # then at most this many of the faces it leaves refined one at a time
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them);
 # the last round takes the points the snaps of the one before uncovered
@@ -804,7 +805,8 @@ class _Operations:
         (:meth:`last_resort`); last the faces still below that no input corner forces refined
         (:meth:`refine_left`: the fold repair's operations and the looser ones leave faces the
         refinement before them did not see), the corner splits among its kinds, and the looser
-        operations again. Given ``kept``
+        operations again; then those faces refined one at a time (:meth:`refine_each`). Given
+        ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -839,6 +841,7 @@ class _Operations:
         self.last_resort(min_angle_deg)
         self.refine_left(target, min_angle_deg, corners=True)
         self.last_resort(min_angle_deg)
+        self.refine_each(target, min_angle_deg)
         self.raise_forced(min_angle_deg)
 
     def refine_left(self, target: int, min_angle_deg: float, corners: bool = False) -> None:
@@ -848,6 +851,27 @@ class _Operations:
         for _ in range(GRADE_PASSES):
             if not self.grade(target, min_angle_deg, corners):
                 break
+
+    def refine_each(self, target: int, min_angle_deg: float) -> None:
+        """Face after face, worst first, each once (known by its corners' positions): a face
+        still below ``min_angle_deg`` that no input corner forces refined alone (:meth:`grade`
+        with its corner splits, ``only`` its corners, the caps' splits only for a cap:
+        :func:`.circumcentres.cap_split`), at most ``EACH_FACES`` of them. Kept as
+        :meth:`refine_unforced` keeps it, judged on the whole remesh: a refinement of all of
+        them at once is kept or undone as a whole, and where a ragged rim's teeth leave many
+        such faces the insertions that make some of them worse undo those that mend others
+        (an interior vertex with rim vertices all round it, squeezed against a short rim
+        edge, whose collapse would make a face with three rim corners)."""
+        S = self.S
+        tried = set()
+        for _ in range(EACH_FACES):
+            bad, _ = unforced_below(S, min_angle_deg)
+            f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
+            if f is None:
+                return
+            tried.add(corner_key(S.X[S.F[f]]))
+            caps = (False, True) if cap_split(S, f) is not None else (False,)
+            self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps)
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -939,27 +963,31 @@ class _Operations:
             collapse_short_edges(S, np.inf, 2.0 * self.L, budget=S.n - target,
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
-    def grade(self, target: int, min_angle_deg: float, corners: bool = False) -> bool:
+    def grade(self, target: int, min_angle_deg: float, corners: bool = False,
+              only: np.ndarray | None = None, caps: tuple = (False, True)) -> bool:
         """The faces still below ``min_angle_deg`` that no input corner forces refined
         (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
         operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
         with their caps' long edges split, each until ``GRADE_PATIENCE`` rounds in a row beat no
         earlier state, or, with ``corners``, where neither is kept with the interior edges at
         their smallest corners split (:func:`.circumcentres.corner_split_round`), then flips;
-        kept as :meth:`refine_unforced` keeps it. Returns whether it was kept."""
+        kept as :meth:`refine_unforced` keeps it. Given ``only`` (j×3 points), the insertions
+        are for the faces with their corners all at these points alone; ``caps``: the first two
+        kinds, as the refinement's ``caps`` (on a face that is no cap, the second makes the
+        first again). Returns whether it was kept."""
         S = self.S
         raise_after = partial(self.flip_and_raise, min_angle_deg)
-        for caps in (False, True):
+        for cap in caps:
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
-                             lambda: np.flatnonzero(self.folds(S)), caps=caps,
-                             patience=GRADE_PATIENCE)
+                             lambda: np.flatnonzero(self.folds(S)), caps=cap,
+                             patience=GRADE_PATIENCE, only=only)
             if self.refine_unforced(target, min_angle_deg, insert):
                 return True
         if not corners:
             return False
 
         def split_corners() -> int:
-            k = corner_split_round(S, min_angle_deg)
+            k = corner_split_round(S, min_angle_deg, only)
             if k:
                 self.flip()
             return k
@@ -1390,6 +1418,12 @@ def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarr
     limit = np.radians(min_angle_deg)
     faces, smallest = min_corner_angles_below(X, F, limit)
     return faces[smallest < limit]
+
+
+def corner_key(P: np.ndarray) -> bytes:
+    """A face's key by its corners' positions ``P`` (3×3), whatever their order: their rows'
+    bytes, sorted and joined."""
+    return b"".join(sorted(p.tobytes() for p in P))
 
 
 def _corners_changed_since(S: RemeshState, F_before: np.ndarray) -> np.ndarray:
