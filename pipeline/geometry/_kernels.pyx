@@ -16,7 +16,7 @@ here too, as Python's ``%`` formats them.
 
 import numpy as np
 cimport cython
-from libc.math cimport INFINITY, M_PI, NAN, acos, fabs, floor, isfinite, sqrt
+from libc.math cimport INFINITY, M_PI, NAN, acos, cos, fabs, floor, isfinite, sin, sqrt
 from libc.stdint cimport int32_t, int64_t, uint64_t
 from libc.stdlib cimport free, malloc, realloc
 from libc.string cimport memcpy, strlen
@@ -1938,6 +1938,23 @@ def area_spread(const double[:, ::1] X, const int64_t[:, ::1] T, double mean_are
     for t in range(k):
         dev[t] = _area_deviation(X, T, t, mean_area)
     return 0.0 + _pairwise_sum(&dev[0], k)
+
+
+def c_library(const double[::1] x, int fn):
+    """``acos`` (``fn`` 0), ``cos`` (1) or ``sin`` (2) of each value of ``x`` (n float) as the
+    C library computes it, into a new (n,) array (see :mod:`..libm`)."""
+    cdef Py_ssize_t i, n = x.shape[0]
+    out_arr = np.empty(n)
+    cdef double[::1] out = out_arr
+    with nogil:
+        for i in range(n):
+            if fn == 0:
+                out[i] = acos(x[i])
+            elif fn == 1:
+                out[i] = cos(x[i])
+            else:
+                out[i] = sin(x[i])
+    return out_arr
 
 
 cdef inline double _degrees_of_cosine(double cos) noexcept nogil:

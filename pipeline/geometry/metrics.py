@@ -7,10 +7,13 @@ and are pure. Areas: ``|τ|`` on the surface, ``|f(τ)|`` in the plane, ``|M| = 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import _kernels
 from .laplacian import face_double_areas
+from .libm import arccos
 from .topology import _as_faces, boundary_loops
 
 
@@ -171,7 +174,7 @@ def corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     ``arccos(u·v / (|u| |v|))`` with ``u``, ``v`` the corner's two edge vectors, the cosines
     from the compiled :func:`._kernels.corner_cosines` (2D points as 3D points with z = 0,
     which adds exact zeros). A degenerate corner (a zero-length edge) gives nan."""
-    return np.arccos(np.clip(_corner_cosines(P, F), -1.0, 1.0))
+    return arccos(np.clip(_corner_cosines(P, F), -1.0, 1.0))
 
 
 def min_corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -179,7 +182,7 @@ def min_corner_angles(P: np.ndarray, F: np.ndarray) -> np.ndarray:
     ``row_min(corner_angles(P, F))`` bit for bit, taken as the angle of the face's largest
     cosine (``arccos`` and the clip are monotone: one ``arccos`` a face instead of three; a
     nan cosine gives nan, as the row minimum of the angles does)."""
-    return np.arccos(np.clip(_face_max_cosines(P, F), -1.0, 1.0))
+    return arccos(np.clip(_face_max_cosines(P, F), -1.0, 1.0))
 
 
 def min_corner_angles_below(P: np.ndarray, F: np.ndarray, angle: float
@@ -197,8 +200,8 @@ def min_corner_angles_below(P: np.ndarray, F: np.ndarray, angle: float
     angles : (k,) float
     """
     cos = _face_max_cosines(P, F)
-    faces = np.flatnonzero(cos > np.cos(angle) - 1e-6)
-    return faces, np.arccos(np.clip(cos[faces], -1.0, 1.0))
+    faces = np.flatnonzero(cos > math.cos(angle) - 1e-6)
+    return faces, arccos(np.clip(cos[faces], -1.0, 1.0))
 
 
 def _corner_cosines(P: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -57,6 +57,7 @@ from .._kernels import (area_spread, corners_min_degrees, disk_move_candidates,
                         point_faces_distance, replacement_angle, replacement_normals,
                         star_targets)
 from ..locate import lift
+from ..libm import arccos, cos, sin
 from ..metrics import corner_angles
 from ..rows import norms, row_max
 from ..topology import connected_components
@@ -106,7 +107,7 @@ def face_min_angles(X: np.ndarray, T: np.ndarray) -> np.ndarray:
 def angles_of_cosines(cos: np.ndarray) -> np.ndarray:
     """The angles (degrees) of the cosines ``cos`` (any shape), 0 where one is nan (a face
     with coincident corners)."""
-    return np.degrees(np.arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
+    return np.degrees(arccos(np.clip(np.where(np.isnan(cos), 1.0, cos), -1.0, 1.0)))
 
 
 def pattern_points(u: np.ndarray, h: float) -> np.ndarray:
@@ -139,8 +140,8 @@ _MOVE_FRACTIONS = np.asarray(MOVE_FRACTIONS)[None, :, None]
 _PATTERN_STEPS = np.asarray(PATTERN_STEPS, dtype=np.float64)
 
 #: :func:`pattern_points`' directions on the disk (unit vectors, PATTERN_DIRS×2)
-_CIRCLE_DIRS = np.column_stack([np.cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
-                                np.sin(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS)])
+_CIRCLE_DIRS = np.column_stack([cos(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS),
+                                sin(2 * np.pi * np.arange(PATTERN_DIRS) / PATTERN_DIRS)])
 
 
 def split_for_count(S: RemeshState, k: int, min_angle_deg: float) -> int:

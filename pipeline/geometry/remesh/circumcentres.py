@@ -49,6 +49,8 @@ faces turned over than at the start (the start itself if no round beat it).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..locate import lift
@@ -113,7 +115,7 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
     M[k, j] = M[k, (j + 1) % 3] = 0.5                    # the middle of the shortest edge
     C = np.einsum("ij,ijk->ik", W, P)
     Mx = np.einsum("ij,ijk->ik", M, P)
-    far = ln[k, j] / (2.0 * np.tan(np.radians(angle_deg) / 2.0))
+    far = ln[k, j] / (2.0 * math.tan(math.radians(angle_deg) / 2.0))
     lam = np.minimum(1.0, far / np.maximum(norms(C - Mx), 1e-300))
     return M + lam[:, None] * (W - M)
 

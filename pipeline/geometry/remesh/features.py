@@ -32,12 +32,14 @@ corners, those vertices are freed (:func:`release_features`).
 
 from __future__ import annotations
 
+import math
 from collections import defaultdict
 from functools import partial
 
 import numpy as np
 
 from .. import topology as topo
+from ..libm import arccos
 from ..metrics import stretch_anisotropy
 from ..rows import dots, norms
 from .corners import snap_vertices
@@ -87,10 +89,10 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
     N = face_normals(V, F)
     cos = np.clip(dots(N.take(h // 3, axis=0), N.take(twin // 3, axis=0)), -1.0, 1.0)
     on_b = topo.boundary_vertices_mask(F, len(V))
-    keep = (cos < np.cos(np.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
+    keep = (cos < math.cos(math.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
     if faces is not None:
         keep &= faces[h // 3] & faces[twin // 3]
-    return np.column_stack([a[keep], b[keep]]), np.arccos(cos[keep])
+    return np.column_stack([a[keep], b[keep]]), arccos(cos[keep])
 
 
 def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> list:
@@ -113,7 +115,7 @@ def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> 
     for i, (a, b) in enumerate(E.tolist()):
         nbr[a].append((b, i))
         nbr[b].append((a, i))
-    cos_turn = np.cos(np.radians(turn_deg))
+    cos_turn = math.cos(math.radians(turn_deg))
 
     def passes(v) -> bool:
         if len(nbr[v]) != 2:

@@ -22,6 +22,8 @@ the same checks, the same angle rule and a test of the new faces against the inp
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .. import topology as topo
@@ -90,7 +92,7 @@ def flip_edges(X: np.ndarray, F: np.ndarray, uv: np.ndarray, max_dihedral_deg: f
     n, m = len(X), len(F)
     is_b = topo.boundary_vertices_mask(F, n) if boundary is None else boundary
     is_b = np.ascontiguousarray(is_b, dtype=bool).view(np.uint8)
-    cos_max = np.cos(np.radians(max_dihedral_deg))
+    cos_max = math.cos(math.radians(max_dihedral_deg))
     twin = topo.interior_edge_twins(F) if twin is None else twin
     slot = np.arange(3 * m)                                             # old slot → new slot
     if active is None:
@@ -184,7 +186,7 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
     n, m = len(X), len(F)
     is_b = np.ascontiguousarray(boundary, dtype=bool).view(np.uint8)
     target = np.where(boundary, 4, 6)
-    cos_max, floor = np.cos(np.radians(max_dihedral_deg)), np.radians(min_angle_deg)
+    cos_max, floor = math.cos(math.radians(max_dihedral_deg)), math.radians(min_angle_deg)
     total = 0
     twin = topo.interior_edge_twins(F) if twin is None else twin
     slot = np.arange(3 * m)

@@ -171,6 +171,7 @@ The schedule (:func:`improve_remesh`):
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from functools import partial
@@ -1381,7 +1382,7 @@ def folded_vertices(S: RemeshState, max_dihedral_deg: float) -> np.ndarray:
     h, a, b, twin = edge_table(S.F, twin=S.twins())
     inner = twin >= 0
     cos = np.einsum("ij,ij->i", N.take(h[inner] // 3, axis=0), N.take(twin[inner] // 3, axis=0))
-    fold = cos < np.cos(np.radians(max_dihedral_deg))
+    fold = cos < math.cos(math.radians(max_dihedral_deg))
     out = np.zeros(S.n, bool)
     out[a[inner][fold]] = out[b[inner][fold]] = True
     return out

@@ -9,6 +9,8 @@ guards of the collapses (:mod:`.collapse`). Distances are in the mesh's units.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._kernels import points_along, sag_along_block, walked_sags
@@ -131,7 +133,7 @@ def may_sag(S: RemeshState, a: np.ndarray, b: np.ndarray, threshold: float) -> n
     N_in = S.normals_in()
     na, nb = N_in.take(S.face.take(a), axis=0), N_in.take(S.face.take(b), axis=0)
     e = S.X.take(b, axis=0) - S.X.take(a, axis=0)         # (take: faster than fancy rows)
-    return ((dots(na, nb) < np.cos(np.radians(10.0)))
+    return ((dots(na, nb) < math.cos(math.radians(10.0)))
             | (np.abs(dots(e, na)) > 0.5 * threshold)
             | (np.abs(dots(e, nb)) > 0.5 * threshold))
 

@@ -49,11 +49,13 @@ and raises.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import Delaunay
 
+from ..libm import cos, sin
 from ..locate import Segments
 from .halfedge import double_areas
 
@@ -90,7 +92,7 @@ def rim_polygon(polygon: np.ndarray | None, resolution: int = 4096) -> np.ndarra
     """The closed rim polygon (k×2, CCW). ``None`` means the unit circle (as a fine polygon)."""
     if polygon is None:
         t = 2 * np.pi * np.arange(resolution) / resolution
-        return np.column_stack([np.cos(t), np.sin(t)])
+        return np.column_stack([cos(t), sin(t)])
     P = np.asarray(polygon, dtype=np.float64)[:, :2]
     x, y = P[:, 0], P[:, 1]
     if (x * np.roll(y, -1) - np.roll(x, -1) * y).sum() < 0:        # make it CCW
@@ -189,7 +191,7 @@ def concentric_points(poly: _Polygon, h: float, margin: float = MARGIN) -> np.nd
         rho = inner_r - j * dy
         k = max(3, int(round(2 * np.pi * rho / h)))
         t = 2 * np.pi * (np.arange(k) + 0.5 * (j % 2)) / k
-        out.append(rho * np.column_stack([np.cos(t), np.sin(t)]))
+        out.append(rho * np.column_stack([cos(t), sin(t)]))
         j += 1
     return _inner_points(poly, np.vstack(out), h, margin)
 
@@ -301,13 +303,13 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
                 best = (count, inner, n_rim, h)
             if abs(count - N) <= max(0.002 * N, 0.1 * n_rim) and abs(count - N) < 0.15 * n_rim:
                 break
-            logs.append((np.log(h), np.log(count)))
+            logs.append((math.log(h), math.log(count)))
             if len(logs) >= 2 and logs[-1][1] != logs[-2][1]:
                 slope = (logs[-1][1] - logs[-2][1]) / (logs[-1][0] - logs[-2][0])
                 slope = float(np.clip(slope, -3.0, -1.0))
             else:
                 slope = -2.0
-            h = float(np.exp(np.log(h) + (np.log(N) - np.log(count)) / slope))
+            h = math.exp(math.log(h) + (math.log(N) - math.log(count)) / slope)
         count, inner, n_rim, h = best
         diff = N - count                                   # let the rim absorb the rest
         if abs(diff) < 0.15 * n_rim and n_rim + diff >= MIN_RIM:

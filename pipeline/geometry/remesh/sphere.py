@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..laplacian import face_double_areas
+from ..libm import cos, sin
 from ..locate import lift
 from ..locate_sphere import SphereLocator
 from ..sphere_newton import tangent_basis
@@ -69,7 +70,7 @@ def fibonacci_sphere(n: int) -> np.ndarray:
     z = 1.0 - (2.0 * i + 1.0) / n
     r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
     phi = GOLDEN_ANGLE * i
-    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+    return np.column_stack([r * cos(phi), r * sin(phi), z])
 
 
 def sphere_spacing(n: int) -> float:
