@@ -401,3 +401,47 @@ def test_a_two_step_that_would_push_a_face_below_the_minimum_is_not_made():
     below = r.info["improve"]["below_min_angle"]
     assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (22, 22, 0)
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] <= 2
+
+
+@pytest.mark.timeout(120)
+def test_the_shortfall_handed_to_each_kind_of_refinement_is_the_one_measured(monkeypatch):
+    """The toothed paraboloid of the memo test (50×50 grid, seed 3: 1,742 vertices) remeshed
+    at 800 vertices: wherever :meth:`.improve._Operations.refine_each` hands the faces'
+    shortfall on (to :meth:`~.improve._Operations.grade`, its kinds' judge
+    :meth:`~.improve._Operations.refine_unforced` and
+    :func:`.circumcentres.refine_at_circumcentres`), it is the
+    :func:`.circumcentres.unforced_shortfall` of the remesh at that point (each kind starts
+    from the remesh the one before left, undone or not made), and the remesh is the same bit
+    for bit as with every one of them measured there."""
+    from pipeline.geometry.remesh import circumcentres, improve
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=50, seed=3, passes=3, drop=0.25)
+    mesh = repair_mesh(V, F)
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    judge, refine = improve._Operations.refine_unforced, improve.refine_at_circumcentres
+    handed = []
+
+    def checked_judge(ops, target, min_angle_deg, insert, pareto=False, before=None):
+        if before is not None:
+            handed.append(before == circumcentres.unforced_shortfall(ops.S, min_angle_deg))
+        return judge(ops, target, min_angle_deg, insert, pareto, before)
+
+    def checked_refine(S, min_angle_deg, *args, shortfall=None, **kw):
+        if shortfall is not None:
+            handed.append(shortfall == circumcentres.unforced_shortfall(S, min_angle_deg))
+        return refine(S, min_angle_deg, *args, shortfall=shortfall, **kw)
+
+    monkeypatch.setattr(improve._Operations, "refine_unforced", checked_judge)
+    monkeypatch.setattr(improve, "refine_at_circumcentres", checked_refine)
+    handed_on = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    assert len(handed) > 10 and all(handed)
+    monkeypatch.setattr(improve._Operations, "refine_unforced",
+                        lambda ops, *args, before=None, **kw: judge(ops, *args, **kw))
+    monkeypatch.setattr(improve, "refine_at_circumcentres",
+                        lambda *args, shortfall=None, **kw: refine(*args, **kw))
+    measured = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    assert np.array_equal(handed_on.V, measured.V) and np.array_equal(handed_on.F, measured.F)

@@ -225,8 +225,8 @@ def unforced_below(S: RemeshState, min_angle_deg: float, only: np.ndarray | None
 
 def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
                             rounds: int = ROUNDS, caps: bool = False,
-                            patience: int | None = None, only: np.ndarray | None = None
-                            ) -> int:
+                            patience: int | None = None, only: np.ndarray | None = None,
+                            shortfall: tuple[int, float] | None = None) -> int:
     """Delaunay refinement at off-centres of the faces below ``min_angle_deg`` no input corner
     forces (module docstring); returns the number of vertices inserted (tallied as
     ``circumcentre_insertions``).
@@ -251,6 +251,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     only : (j, 3) float, optional
         Insert only for the faces whose corners are all at these points (the rounds are
         judged on the whole remesh all the same).
+    shortfall : (int, float), optional
+        :func:`unforced_shortfall` of ``S`` as it is, when the caller knows it (not measured
+        again).
 
     Returns
     -------
@@ -258,7 +261,9 @@ def refine_at_circumcentres(S: RemeshState, min_angle_deg: float, flip, folds,
     """
     done = 0
     n_folds = len(folds())
-    best = (unforced_shortfall(S, min_angle_deg), saved_state(S), 0)
+    if shortfall is None:
+        shortfall = unforced_shortfall(S, min_angle_deg)
+    best = (shortfall, saved_state(S), 0)
     stale = 0                              # rounds in a row that beat no earlier state
     start = (best[0], S.n, n_folds)        # what a round started from, as measured
     avoid = np.zeros((0, 3))               # where an earlier round's insertions made folds

@@ -866,13 +866,14 @@ class _Operations:
         S = self.S
         tried = set()
         for _ in range(EACH_FACES):
-            bad, _ = unforced_below(S, min_angle_deg)
+            bad, worst = unforced_below(S, min_angle_deg)
             f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
             if f is None:
                 return
             tried.add(corner_key(S.X[S.F[f]]))
             caps = (False, True) if cap_split(S, f) is not None else (False,)
-            self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps)
+            self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps,
+                       shortfall=shortfall_of(worst))
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -965,7 +966,8 @@ class _Operations:
                                  max_gap=self.tol, max_sag=self.tol, at=at)
 
     def grade(self, target: int, min_angle_deg: float, corners: bool = False,
-              only: np.ndarray | None = None, caps: tuple = (False, True)) -> bool:
+              only: np.ndarray | None = None, caps: tuple = (False, True),
+              shortfall: tuple[int, float] | None = None) -> bool:
         """The faces still below ``min_angle_deg`` that no input corner forces refined
         (:func:`.circumcentres.refine_at_circumcentres`, after each round flips and the local
         operations, :meth:`flip_and_raise`): at their off-centres, or where that is not kept,
@@ -975,14 +977,18 @@ class _Operations:
         kept as :meth:`refine_unforced` keeps it. Given ``only`` (j×3 points), the insertions
         are for the faces with their corners all at these points alone; ``caps``: the first two
         kinds, as the refinement's ``caps`` (on a face that is no cap, the second makes the
-        first again). Returns whether it was kept."""
+        first again). ``shortfall``: :func:`.circumcentres.unforced_shortfall` of the remesh
+        as it is, when the caller knows it; measured once, as every kind starts from the same
+        remesh (one not kept is undone). Returns whether it was kept."""
         S = self.S
+        if shortfall is None:
+            shortfall = unforced_shortfall(S, min_angle_deg)
         raise_after = partial(self.flip_and_raise, min_angle_deg)
         for cap in caps:
             insert = partial(refine_at_circumcentres, S, min_angle_deg, raise_after,
                              lambda: np.flatnonzero(self.folds(S)), caps=cap,
-                             patience=GRADE_PATIENCE, only=only)
-            if self.refine_unforced(target, min_angle_deg, insert):
+                             patience=GRADE_PATIENCE, only=only, shortfall=shortfall)
+            if self.refine_unforced(target, min_angle_deg, insert, before=shortfall):
                 return True
         if not corners:
             return False
@@ -993,7 +999,7 @@ class _Operations:
                 self.flip()
             return k
 
-        return self.refine_unforced(target, min_angle_deg, split_corners)
+        return self.refine_unforced(target, min_angle_deg, split_corners, before=shortfall)
 
     def flip_and_raise(self, min_angle_deg: float, F_before: np.ndarray) -> None:
         """Flips around the faces changed since ``F_before`` (m₀×3), then the local
@@ -1027,16 +1033,19 @@ class _Operations:
         return self.refine_unforced(target, min_angle_deg, insert, pareto=True)
 
     def refine_unforced(self, target: int, min_angle_deg: float, insert,
-                        pareto: bool = False) -> bool:
+                        pareto: bool = False, before: tuple[int, float] | None = None
+                        ) -> bool:
         """Where faces below ``min_angle_deg`` that no input corner forces are left:
         ``insert()`` (adds vertices, returns how many), the count restored away from the new
         vertices (:meth:`restore_angle_count`) and the local operations again around the faces
         then below; all of it undone if it leaves more such faces, or as many with a smaller
         smallest angle (with ``pareto``: or a smaller smallest angle at all), or more faces
         turned over (counted with :attr:`folds`, again only where the remesh changed).
-        Returns whether it was kept."""
+        ``before``: :func:`.circumcentres.unforced_shortfall` of the remesh as it is, when the
+        caller knows it. Returns whether it was kept."""
         S = self.S
-        before = unforced_shortfall(S, min_angle_deg)
+        if before is None:
+            before = unforced_shortfall(S, min_angle_deg)
         if before[0] == 0:
             return False
         saved, n_folds, n0 = self.saved(), int(self.folds(S).sum()), S.n
