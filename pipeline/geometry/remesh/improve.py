@@ -161,7 +161,11 @@ The schedule (:func:`improve_remesh`):
     angle below ``SAG_FLIP_MIN_DEG`` (or ``min_angle_deg`` if higher) and the old faces' and no
     new face turned from the input (:meth:`_Operations.flip_sagging`, :func:`.flips.sag_flips`: an
     edge across an input crease, which the Delaunay flips keep, decides the remesh-to-input
-    side there and, at the crossing, the input-to-remesh side);
+    side there and, at the crossing, the input-to-remesh side); last, the free corners of the
+    faces still below ``min_angle_deg`` that no input corner forces each moved to the best
+    point of its star where that leaves fewer such faces or a larger smallest angle among them
+    (:meth:`_Operations.move_each`: on a ragged rim, an interior vertex in a notch that no
+    collapse may remove);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -202,7 +206,7 @@ from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
-from .unfold import turned_over_rows, unfold_locally
+from .unfold import star_positions, turned_over_rows, unfold_locally
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -420,6 +424,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                                follow).reach
             ops.flip_sagging(reach, max(min_angle_deg, SAG_FLIP_MIN_DEG))
             lap("settle")
+    if min_angle_deg > 0:
+        ops.move_each(min_angle_deg)
+        lap("star_moves")
     ops.repair_degenerate(target)
     lap("repair")
     return S
@@ -864,16 +871,58 @@ class _Operations:
         (an interior vertex with rim vertices all round it, squeezed against a short rim
         edge, whose collapse would make a face with three rim corners)."""
         S = self.S
-        tried = set()
-        for _ in range(EACH_FACES):
-            bad, worst = unforced_below(S, min_angle_deg)
-            f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
-            if f is None:
-                return
-            tried.add(corner_key(S.X[S.F[f]]))
+        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
             caps = (False, True) if cap_split(S, f) is not None else (False,)
             self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps,
-                       shortfall=shortfall_of(worst))
+                       shortfall=shortfall)
+
+    def move_each(self, min_angle_deg: float) -> None:
+        """Face after face, worst first, each once (:func:`each_unforced_face`): the free
+        corners (interior, not locked) of a face still below ``min_angle_deg`` that no input
+        corner forces, one after the other, each moved to the point of its star
+        (:func:`.unfold.star_positions`) with no face of the star turned over and none at a
+        sharp input corner (:func:`.angles.sharp_vertices`: the faces the judge below does not
+        count) with a smallest angle below what it was and ``min_angle_deg``, first in
+        :func:`star_order`
+        (fewest faces of the star below the minimum, then the largest smallest angle), where
+        that comes before the star as it is;
+        undone if it leaves more such faces, or as many with no larger smallest angle, or more
+        faces turned over (:attr:`folds`); the first move kept ends the face's turn. Where the
+        rim is sampled closer than the remesh's spacing, such a corner is an interior vertex
+        with rim vertices all round (a notch), which no collapse may remove (it would make a
+        face with three rim corners) and whose moves among the minimum-angle operations' few
+        candidates (:func:`.angles.move_candidates`) do not reach the star's best point."""
+        S = self.S
+        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
+            for v in S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]].tolist():
+                if self.move_in_star(v, min_angle_deg, shortfall):
+                    break
+
+    def move_in_star(self, v: int, min_angle_deg: float, before: tuple[int, float]) -> bool:
+        """Vertex ``v`` moved as :meth:`move_each` moves it, kept as it keeps it, ``before``
+        the remesh's :func:`.circumcentres.unforced_shortfall`. Returns whether it was kept."""
+        S = self.S
+        star = vertex_star(S.F, v)
+        found = star_positions(S, v, star)
+        if found is None:
+            return False
+        where, n_turned, angles = found
+        now = np.degrees(min_corner_angles(S.X, star))
+        at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
+        ok = (n_turned == 0) & \
+            (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
+        best = star_best(angles[ok], min_angle_deg)
+        if best is None or star_order(angles[ok][best], min_angle_deg) >= \
+                star_order(now, min_angle_deg):
+            return False
+        saved, n_folds = self.saved(), int(self.folds(S).sum())
+        S.uv[v], S.face[v], S.bary[v], S.X[v] = (w[ok][best] for w in where)
+        if shortfall_order(unforced_shortfall(S, min_angle_deg)) >= shortfall_order(before) \
+                or self.folds(S).sum() > n_folds:
+            self.restore(saved)
+            return False
+        S.tally("star_moves", 1)
+        return True
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -1428,6 +1477,53 @@ def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarr
     limit = np.radians(min_angle_deg)
     faces, smallest = min_corner_angles_below(X, F, limit)
     return faces[smallest < limit]
+
+
+def each_unforced_face(S: RemeshState, min_angle_deg: float, limit: int):
+    """Yield the faces below ``min_angle_deg`` that no input corner forces
+    (:func:`.circumcentres.unforced_below`), measured again after each: the worst one not
+    yielded before (known by its corners' positions, :func:`corner_key`), with the shortfall
+    measured (:func:`.circumcentres.shortfall_of`), at most ``limit`` of them; the caller may
+    change ``S`` in between.
+
+    Yields
+    ------
+    f : int
+    shortfall : (int, float)
+    """
+    tried = set()
+    for _ in range(limit):
+        bad, worst = unforced_below(S, min_angle_deg)
+        f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
+        if f is None:
+            return
+        tried.add(corner_key(S.X[S.F[f]]))
+        yield int(f), shortfall_of(worst)
+
+
+def star_order(angles: np.ndarray, min_angle_deg: float) -> tuple[int, float]:
+    """The order of a star's faces with smallest angles ``angles`` (d, degrees) in
+    :meth:`_Operations.move_each`: fewer of them below ``min_angle_deg`` first, then the larger
+    smallest angle (as :func:`.circumcentres.shortfall_order` orders a remesh)."""
+    return shortfall_order((int(np.count_nonzero(angles < min_angle_deg)),
+                            float(angles.min())))
+
+
+def star_best(angles: np.ndarray, min_angle_deg: float) -> int | None:
+    """The row of ``angles`` (j×d, degrees: a star's faces' smallest angles with its vertex at
+    each of j points) first in :func:`star_order`; None when j is 0."""
+    if len(angles) == 0:
+        return None
+    return int(np.lexsort((-angles.min(axis=1),
+                           np.count_nonzero(angles < min_angle_deg, axis=1)))[0])
+
+
+def vertex_star(F: np.ndarray, v: int) -> np.ndarray:
+    """The faces of ``F`` (m×3) at vertex ``v``, each rotated so that ``v`` comes first
+    (d×3, in the order of ``F``)."""
+    T = F[np.flatnonzero((F == v).any(axis=1))]
+    first = np.argmax(T == v, axis=1)
+    return np.stack([T[np.arange(len(T)), (first + i) % 3] for i in range(3)], axis=1)
 
 
 def corner_key(P: np.ndarray) -> bytes:

@@ -691,10 +691,34 @@ def points_in_polygon(P: np.ndarray, polygon: np.ndarray) -> np.ndarray:
 
 def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
     """For vertex ``v`` of ``S`` and its ``star`` (d×3, ``v`` first): among the points of
-    :func:`star_grid` and the input vertices of the input faces under the star's corners that
-    keep the star counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain, the
-    one with the fewest faces of the star turned over, then the largest smallest 3D angle:
-    ``((uv, face, bary, X), folds, angle)``, or None if there is none."""
+    :func:`star_positions`, the one with the fewest faces of the star turned over, then the
+    largest smallest 3D angle: ``((uv, face, bary, X), folds, angle)``, or None if there is
+    none."""
+    found = star_positions(S, v, star)
+    if found is None:
+        return None
+    where, n_folds, angles = found
+    angle = angles.min(axis=1)
+    c = np.lexsort((-angle, n_folds))[0]
+    return tuple(w[c] for w in where), int(n_folds[c]), float(angle[c])
+
+
+def star_positions(S: RemeshState, v: int, star: np.ndarray):
+    """The points of :func:`star_grid` and the input vertices of the input faces under the
+    corners of the ``star`` (d×3, ``v`` first) of vertex ``v`` of ``S`` that keep the star
+    counter-clockwise and not thinner than ``DISK_SHAPE_MIN`` on the domain and lie in the
+    input map, as positions of ``v``; None if there is none.
+
+    Returns
+    -------
+    where : tuple
+        ``(uv, face, bary, X)``: (j, 2 or 3), (j,), (j, 3), (j, 3), each point's domain
+        position, input face and barycentrics there, and its lift.
+    folds : (j,) int
+        The faces of the star turned over with ``v`` there (:func:`turned_over`).
+    angles : (j, d) float
+        The smallest 3D angle (degrees) of each face of the star with ``v`` there.
+    """
     M = np.vstack([star_grid(S.uv, star), S.uv_in[np.unique(S.F_in[S.face[star]])]])
     M = M[star_shapes_ok(S.uv, M, star[:, 1:])]
     if len(M) == 0:
@@ -717,6 +741,5 @@ def unfolding_position(S: RemeshState, v: int, star: np.ndarray):
     Pc = corners(P, S.X)
     n_folds = turned_over(S, Pc, corners(M, S.uv), corners(mf, S.face),
                           corners(mb, S.bary)).reshape(j, d).sum(axis=1)
-    angle = triangle_min_angles(Pc[:, 0], Pc[:, 1], Pc[:, 2]).reshape(j, d).min(axis=1)
-    c = np.lexsort((-angle, n_folds))[0]
-    return (M[c], mf[c], mb[c], P[c]), int(n_folds[c]), float(angle[c])
+    angles = triangle_min_angles(Pc[:, 0], Pc[:, 1], Pc[:, 2]).reshape(j, d)
+    return (M, mf, mb, P), n_folds, angles
