@@ -167,19 +167,53 @@ def test_pardiso_single_precision_factor_is_refined_to_rtol(upper):
     s.release()
 
 
-def test_pardiso_single_precision_on_threads_asks_for_reproducible_results():
-    """On more than one thread the single-precision factor runs in MKL's conditional numerical
-    reproducibility mode (``iparm[33]`` = the thread count; without it the 1M-face
-    Gauss–Newton system's solution differed from process to process); double precision and
-    one thread leave it off (MKL then writes −1 there)."""
+def test_pardiso_on_threads_asks_for_reproducible_results():
+    """On more than one thread both precisions run in MKL's conditional numerical
+    reproducibility mode (``iparm[33]`` = the thread count) with the sequential METIS ordering
+    (``iparm[1] = 2``; the parallel one rules the mode out); one thread leaves the mode off
+    (MKL then writes −1 there)."""
     _need("pardiso")
     A = _grid_laplacian(30)
-    for single, threads, cnr in [(True, 2, 2), (True, 1, 0), (False, 2, 0)]:
+    for single, threads, cnr in [(True, 2, 2), (True, 1, 0), (False, 2, 2), (False, 1, 0)]:
         s = solvers.PardisoSolver(single=single, threads=threads)
         s.factorize(A)
         assert (s.iparm[33] == cnr) if cnr else (s.iparm[33] <= 0), (single, threads)
+        assert s.iparm[1] == 2
         np.testing.assert_allclose(A @ s.solve(np.ones(900)), np.ones(900), atol=1e-3)
         s.release()
+
+
+def _weighted_triangle_grid_laplacian(k: int, seed: int) -> sp.csr_matrix:
+    """A Laplacian of a k×k grid split into triangles (each square's diagonal an edge) with
+    random edge weights in [0.5, 2], plus 1e-3 on the diagonal (SPD, k² unknowns)."""
+    index = np.arange(k * k).reshape(k, k)
+    rows = np.concatenate([index[:, :-1].ravel(), index[:-1, :].ravel(),
+                           index[:-1, :-1].ravel()])
+    cols = np.concatenate([index[:, 1:].ravel(), index[1:, :].ravel(), index[1:, 1:].ravel()])
+    weights = np.random.default_rng(seed).uniform(0.5, 2.0, len(rows))
+    W = sp.coo_matrix((weights, (rows, cols)), shape=(k * k, k * k))
+    W = (W + W.T).tocsr()
+    A = (sp.diags(np.asarray(W.sum(axis=1)).ravel() + 1e-3) - W).tocsr()
+    A.sort_indices()
+    return A
+
+
+def test_pardiso_solves_on_threads_are_the_same_bit_for_bit():
+    """Two-thread factorizations and solves of one system give the same solution bit for bit
+    every time (without the reproducibility mode, solves of a single right-hand side of this
+    system differ in their last bits from call to call)."""
+    _need("pardiso")
+    A = _weighted_triangle_grid_laplacian(230, seed=1)
+    b = np.random.default_rng(7).standard_normal(A.shape[0])
+    solutions = []
+    for _ in range(3):
+        s = solvers.PardisoSolver(refactored=True, threads=2)
+        for _ in range(2):
+            s.factorize(A)
+            solutions += [s.solve(b) for _ in range(4)]
+        s.release()
+    np.testing.assert_allclose(A @ solutions[0], b, atol=1e-8)
+    assert all(np.array_equal(x, solutions[0]) for x in solutions[1:])
 
 
 def test_pardiso_single_precision_falls_back_to_double_where_refinement_stalls():

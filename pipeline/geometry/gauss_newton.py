@@ -198,7 +198,7 @@ class GaussNewton:
             self.solver.single, self.solver.rtol = True, STEP_RTOL
         if interior_order is not None and len(interior_order) == nI \
                 and hasattr(self.solver, "ordering") and self.solver.threads_for(N) == 1:
-            # (on more threads PARDISO's own parallel ordering keeps the ~20 solves parallel)
+            # (on more threads PARDISO's own METIS ordering keeps the ~20 solves parallel)
             self.solver.ordering = block_ordering(interior_order, self.cols, nI, N)
         self.factorizations = 0
         self.hold_boundary = False

@@ -9,8 +9,13 @@ positive). Three solvers, each analysing a pattern once where it can:
   pypardiso's loader) called directly: SPD type (mtype 2) on the upper triangle, analysis
   (phase 11) once per pattern, numeric refactorization (phase 22) and solve (phase 33) after
   that, no iterative refinement; or, for large Gauss–Newton systems, a single-precision factor
-  whose solves are refined in double precision to a given residual (``single=True``). pypardiso's own ``spsolve`` is not used: it re-analyses
-  whenever the values change and treats the matrix as unsymmetric.
+  whose solves are refined in double precision to a given residual (``single=True``). On more
+  than one thread (systems from ``PARALLEL_ABOVE`` unknowns) it runs in MKL's conditional
+  numerical reproducibility mode (``iparm[33]``) with the sequential METIS ordering
+  (``iparm[1] = 2``; the parallel one rules the mode out), so that a map is the same bit for
+  bit from run to run, as it is on one thread (without the mode the last bits of the factor and
+  the solves follow the threads' scheduling). pypardiso's own ``spsolve`` is not used: it
+  re-analyses whenever the values change and treats the matrix as unsymmetric.
 * ``cholmod`` — CHOLMOD through scikit-sparse (the optional ``fast`` extra; needs SuiteSparse
   headers to build): ordering and symbolic factorization on the first call, ``cholesky_inplace``
   after that.
@@ -136,6 +141,29 @@ def mkl_max_threads() -> int:
 #: but 1.7–3.5× slower when a second process did the same (MKL's threads wait for each other
 #: spinning); below this size a step takes a few hundredths of a second either way.
 PARALLEL_ABOVE = 50_000
+
+
+def reproducible_threading(threads: int) -> tuple[int, int]:
+    """PARDISO's ordering (``iparm[1]``) and conditional numerical reproducibility
+    (``iparm[33]``) settings for a factor computed on ``threads`` threads.
+
+    On more than one thread a factor, and so every solve with it, differs in its last bits from
+    run to run unless MKL's conditional numerical reproducibility mode is on (``iparm[33]``:
+    the thread count); MKL's parallel nested dissection (``iparm[1] = 3``) rules that mode out,
+    so the sequential METIS ordering (``iparm[1] = 2``) is taken with it. One thread needs
+    neither: its results are the same from run to run as they are.
+
+    Parameters
+    ----------
+    threads : int
+        The threads MKL runs the analysis, factorization and solves on (≥ 1).
+
+    Returns
+    -------
+    (ordering, cnr) : (int, int)
+        ``iparm[1]`` and ``iparm[33]``.
+    """
+    return 2, (threads if threads > 1 else 0)
 
 
 def pardiso_available() -> bool:
@@ -269,16 +297,16 @@ class PardisoSolver:
     The first ``factorize`` of a pattern stores its upper triangle's CSR index arrays (zero-based,
     ``iparm[34]``) and where each of their entries sits in the full matrix's ``data`` (with
     ``upper=True`` the matrix given is that triangle, taken as it is), and runs the analysis
-    (phase 11, METIS nested dissection, in parallel on more than one thread, whose elimination
-    order it keeps in ``permutation``; or the order given in ``ordering``, which saves METIS's
-    time where the caller knows a good one, see :func:`.gauss_newton.block_ordering`; but with
-    a given order MKL solves on one thread: at 2M unknowns 0.175 s a solve instead of 0.096 s on
-    two, so it pays only for systems solved a few times per analysis, or on one thread,
-    :meth:`threads_for`). Every call then gathers the upper
-    triangle's values and refactors numerically (phase 22); ``solve`` is phase 33 with iterative
-    refinement off (``iparm[7] = 0``: the Cholesky factor of an SPD Laplacian is exact to
-    rounding). A non-positive pivot makes phase 22 fail (error −4), reported as
-    ``NotPositiveDefinite``; a missing diagonal entry (``A_ii = 0``) is caught before the call.
+    (phase 11, METIS nested dissection, whose elimination order it keeps in ``permutation``;
+    or the order given in ``ordering``, which saves METIS's time where the caller knows a good
+    one, see :func:`.gauss_newton.block_ordering`; but with a given order MKL solves on one
+    thread: at 2M unknowns 0.175 s a solve instead of 0.096 s on two, so it pays only for
+    systems solved a few times per analysis, or on one thread, :meth:`threads_for`). Every
+    call then gathers the upper triangle's values and refactors numerically (phase 22);
+    ``solve`` is phase 33 with iterative refinement off (``iparm[7] = 0``: the Cholesky factor
+    of an SPD Laplacian is exact to rounding). A non-positive pivot makes phase 22 fail (error
+    −4), reported as ``NotPositiveDefinite``; a missing diagonal entry (``A_ii = 0``) is caught
+    before the call.
 
     With ``single=True`` the factor is computed and applied in single precision (``iparm[27] =
     1``: at 2M unknowns a Gauss–Newton refactorization takes 0.74–0.82 s instead of 1.14–1.18 s
@@ -288,15 +316,18 @@ class PardisoSolver:
     corrections short of that (a badly conditioned matrix) it factors the matrix in double
     precision once and solves with that (``refinement_stats["double_fallbacks"]``). This serves systems
     whose solution only has to be good to ``rtol`` (an inexact Newton step: see
-    :class:`.gauss_newton.GaussNewton`). On more than one thread it runs in MKL's conditional
-    numerical reproducibility mode (``iparm[33]``), so that it too is the same from run to run.
+    :class:`.gauss_newton.GaussNewton`).
 
     MKL runs on ``threads`` threads during these calls (``MKL_Set_Num_Threads_Local``, restored
     after each call). By default that is one thread below ``PARALLEL_ABOVE`` unknowns and MKL's
     own maximum above it (:func:`mkl_max_threads`: the usable cores, or fewer where
     ``MKL_NUM_THREADS``/``OMP_NUM_THREADS`` say so, as the experiment runner's pool workers
-    do). The factor then differs from the one-thread factor by rounding only (about 1e-9 of a
-    Gauss–Newton step on choi_hand), and is the same from run to run.
+    do). On more than one thread every call runs in MKL's conditional numerical
+    reproducibility mode with the sequential METIS ordering (:func:`reproducible_threading`),
+    so that the factor and every solve are the same bit for bit from run to run (without it
+    their last bits follow the threads' scheduling); the factor differs
+    from the one-thread factor by rounding only (about 1e-9 of a Gauss–Newton step on
+    choi_hand).
     """
 
     name = "pardiso"
@@ -385,16 +416,8 @@ class PardisoSolver:
         self._has_diagonal = bool(np.all(np.diff(ia) > 0) and np.all(ja[ia[:-1]] == np.arange(n)))
         self._key = (A.indptr, A.indices)
         self._threads = self.threads_for(n)
-        # a single-precision factor on several threads differs from process to process
-        # without MKL's conditional numerical reproducibility (iparm[33]: the thread count;
-        # the 1M-face Gauss–Newton system: three different solutions in six runs without it,
-        # one in six with it; the refactorization as fast, a solve 0.06 → 0.21 s); the
-        # double-precision factor is reproducible as it is
-        self.iparm[33] = self._threads if self.single and self._threads > 1 else 0
+        self.iparm[1], self.iparm[33] = reproducible_threading(self._threads)
         given = self.ordering is not None and len(self.ordering) == n
-        # on more than one thread the nested dissection runs in parallel (iparm[1] = 3: the
-        # same order, 0.7 s less at 2M unknowns)
-        self.iparm[1] = 3 if self._threads > 1 else 2
         # iparm[4]: 1 analyses with the order in perm, 2 returns METIS's order in it
         self.iparm[4] = 1 if given else 2
         self._perm = (np.array(self.ordering, dtype=np.int32) if given
