@@ -1,0 +1,144 @@
+"""The remesh command on face-scan proxies made here: how often a scan leaves faces below the
+minimum angle that no input corner forces, and the folds and time.
+
+    python benchmarks/bench_scans.py [--vertices 5000 20000] [--scans noisy jagged mild]
+
+Real face scans are noisy and their rims ragged (the scanner loses the faces at grazing
+angles), which the shared meshes are not. The proxies, written to a temporary folder from the
+ICT faces of ``../shared/data/faces/ict`` (seeded, so every run makes the same files):
+
+* ``noisy``: :func:`bench_intake.scan_proxy` (ict_A_neutral Loop-subdivided twice, about 106k
+  vertices, each moved along its normal by N(0, 0.05 % of the diagonal));
+* ``jagged``: ``noisy`` with a ragged rim: 6 passes that each drop, with probability 0.4, the
+  faces with a corner on the boundary; the largest connected part kept (about 104k vertices);
+* ``mild``: ict_B_smile_jawopen Loop-subdivided once (about 26k vertices), noise 0.01 % of the
+  diagonal, 3 such passes.
+
+Per proxy and vertex count, ``sem-pipeline remesh PROXY --vertices N --no-compare --no-report``
+end to end (wall and CPU seconds) and, from its ``remesh_metrics.json``: the mean and the
+smallest of the faces' smallest angles, the share of faces with an angle under 30°, the faces
+below 20° (``improve.below_min_angle``: all, and those no input corner forces), the faces turned
+over against the input and the Hausdorff distance (% of the bounding-box diagonal).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from bench_intake import REPO, data_dir, scan_proxy  # noqa: E402
+
+SCANS = ("noisy", "jagged", "mild")
+
+
+def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng) -> tuple:
+    """``(V, F)`` (n×3 float, m×3 int) after ``passes`` rounds that each drop, with probability
+    ``p``, every face with a corner on the boundary: the largest part connected through edges
+    (trimesh's ``split``), its vertices renumbered in order, and the faces at a vertex where
+    fans meet at that vertex alone (a bowtie, which the intake refuses) dropped until none is
+    left, as a scanner's mesher leaves none."""
+    import trimesh
+
+    from pipeline.geometry import topology as topo
+
+    for _ in range(passes):
+        on_rim = topo.boundary_vertices_mask(F, len(V))[F].any(axis=1)
+        F = F[~(on_rim & (rng.random(len(F)) < p))]
+    while True:
+        parts = trimesh.Trimesh(V, F, process=False).split(only_watertight=False)
+        largest = max(parts, key=lambda part: len(part.faces))
+        V, F = np.asarray(largest.vertices), np.asarray(largest.faces)
+        bowtie = topo.nonmanifold_vertices(F, len(V))
+        if len(bowtie) == 0:
+            return V, F
+        F = F[~np.isin(F, bowtie).any(axis=1)]
+
+
+def make_scans(folder: Path, names) -> dict:
+    """The proxies ``names`` (of :data:`SCANS`) written to ``folder``: name → path."""
+    import trimesh
+
+    from pipeline.io.meshio import read_mesh, write_obj
+
+    out = {}
+    if "noisy" in names or "jagged" in names:
+        out["noisy"] = scan_proxy(folder)
+    if "jagged" in names:
+        m = read_mesh(out["noisy"])
+        V, F = ragged_rim(m.V, np.asarray(m.faces), 6, 0.4, np.random.default_rng(2))
+        out["jagged"] = write_obj(folder / "scan_jagged.obj", V, F)
+    if "mild" in names:
+        m = trimesh.load(data_dir() / "faces" / "ict" / "ict_B_smile_jawopen_disk.obj",
+                         process=False)
+        V, F = trimesh.remesh.subdivide_loop(m.vertices, m.faces, iterations=1)
+        t = trimesh.Trimesh(V, F, process=False)
+        rng = np.random.default_rng(3)
+        diag = np.linalg.norm(t.bounds[1] - t.bounds[0])
+        V = V + t.vertex_normals * rng.normal(0, 0.0001 * diag, (len(V), 1))
+        V, F = ragged_rim(np.asarray(V), np.asarray(F), 3, 0.4, rng)
+        out["mild"] = write_obj(folder / "scan_mild.obj", V, F)
+    return {k: v for k, v in out.items() if k in names}
+
+
+def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
+    """One table row, ``name``'s: the command on ``path`` at ``n`` vertices (see the module
+    docstring)."""
+    out = folder / f"{path.stem}_{n}"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(                # this tree's package
+        [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    t = time.perf_counter()
+    run = subprocess.run([sys.executable, "-m", "pipeline", "remesh", str(path), "--vertices",
+                          str(n), "--no-compare", "--no-report", "-o", str(out)],
+                         capture_output=True, text=True, cwd=folder, env=env)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    if run.returncode:
+        return f"{name:12s} {n:6d}  failed: {run.stderr.strip().splitlines()[-1]}"
+    metrics = json.loads((out / "remesh_metrics.json").read_text())
+    ours = metrics["methods"]["sem"]
+    tri, below = ours["triangles"], metrics["remesh"]["improve"]["below_min_angle"]
+    return (f"{name:12s} {n:6d} {metrics['remesh']['vertices']:6d} "
+            f"{tri['mean_min_angle_deg']:8.2f} {100 * tri['fraction_min_angle_below_30']:7.3f} "
+            f"{tri['min_angle_deg']:7.2f} {below['faces']:6d} {below['unforced_faces']:8d} "
+            f"{ours['distance']['turned_over_faces']:6d} "
+            f"{100 * ours['distance']['hausdorff_rel']:7.3f} {wall:7.2f} {cpu:7.2f}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000])
+    ap.add_argument("--scans", nargs="+", choices=SCANS, default=list(SCANS))
+    args = ap.parse_args()
+    sys.path.insert(0, str(REPO))
+    from pipeline.io.meshio import read_mesh
+
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        scans = make_scans(folder, args.scans)
+        for name in args.scans:
+            mesh = read_mesh(scans[name])
+            print(f"{name}: {len(mesh.V)} vertices, {len(mesh.faces)} faces")
+        print("scan              N  verts mean min°  <30° %    min°  <20°  unforced  folds"
+              "  Haus %   wall s   CPU s", flush=True)
+        for name in args.scans:
+            for n in args.vertices:
+                print(remesh_row(name, scans[name], n, folder), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
