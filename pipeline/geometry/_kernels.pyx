@@ -1691,14 +1691,14 @@ cdef inline void _face_cosines(const double* a, const double* b, const double* c
 
 
 cdef inline double _edge_norm(const double* o, const double* p) noexcept nogil:
-    """``|p − o|`` summed as :func:`_corner_cosine` sums its norms (x, y, then z)."""
+    """``|p − o|``, the squares summed x, y, then z."""
     cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
     return sqrt((ux * ux + uy * uy) + uz * uz)
 
 
 cdef inline double _corner_dot(const double* o, const double* p, const double* q
                                ) noexcept nogil:
-    """``(p − o) · (q − o)`` summed as :func:`_corner_cosine` sums it (x, z, then y)."""
+    """``(p − o) · (q − o)``, summed x, z, then y (as numpy's einsum sums it)."""
     cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
     cdef double vx = q[0] - o[0], vy = q[1] - o[1], vz = q[2] - o[2]
     return (ux * vx + uz * vz) + uy * vy
@@ -1708,11 +1708,9 @@ cdef inline double _corner_dot(const double* o, const double* p, const double* q
 cdef inline double _corner_cosine(const double* o, const double* p, const double* q
                                   ) noexcept nogil:
     """The cosine of the angle at ``o`` of the triangle ``(o, p, q)`` (3-vectors), as
-    :func:`corner_cosines` computes it: the dot summed x, z, then y, the norms x, y, then z."""
-    cdef double ux = p[0] - o[0], uy = p[1] - o[1], uz = p[2] - o[2]
-    cdef double vx = q[0] - o[0], vy = q[1] - o[1], vz = q[2] - o[2]
-    return ((ux * vx + uz * vz) + uy * vy) / (
-        sqrt((ux * ux + uy * uy) + uz * uz) * sqrt((vx * vx + vy * vy) + vz * vz))
+    :func:`corner_cosines` computes it: the dot summed x, z, then y (:func:`_corner_dot`),
+    the norms x, y, then z (:func:`_edge_norm`)."""
+    return _corner_dot(o, p, q) / (_edge_norm(o, p) * _edge_norm(o, q))
 
 
 cdef inline void _cross(double ax, double ay, double az, double bx, double by, double bz,
