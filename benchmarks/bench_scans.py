@@ -38,7 +38,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from bench_intake import REPO, data_dir, scan_proxy  # noqa: E402
+from bench_intake import REPO, data_dir, scan_proxy  # noqa: E402  (puts REPO on the path)
+
+from pipeline.io.meshio import read_mesh, write_obj  # noqa: E402
 
 SCANS = ("noisy", "jagged", "mild")
 
@@ -69,8 +71,6 @@ def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng) -> tupl
 def make_scans(folder: Path, names) -> dict:
     """The proxies ``names`` (of :data:`SCANS`) written to ``folder``: name → path."""
     import trimesh
-
-    from pipeline.io.meshio import read_mesh, write_obj
 
     out = {}
     if "noisy" in names or "jagged" in names:
@@ -123,9 +123,6 @@ def main() -> int:
     ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000])
     ap.add_argument("--scans", nargs="+", choices=SCANS, default=list(SCANS))
     args = ap.parse_args()
-    sys.path.insert(0, str(REPO))
-    from pipeline.io.meshio import read_mesh
-
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         scans = make_scans(folder, args.scans)
