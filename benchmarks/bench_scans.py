@@ -49,7 +49,7 @@ def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng) -> tupl
     """``(V, F)`` (n×3 float, m×3 int) after ``passes`` rounds that each drop, with probability
     ``p``, every face with a corner on the boundary: the largest part connected through edges
     (trimesh's ``split``), its vertices renumbered in order, and the faces at a vertex where
-    fans meet at that vertex alone (a bowtie, which the intake refuses) dropped until none is
+    fans meet at that vertex alone (a bowtie, which the intake would split) dropped until none is
     left, as a scanner's mesher leaves none."""
     import trimesh
 

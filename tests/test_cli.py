@@ -138,7 +138,6 @@ def _nan(path):
 @pytest.mark.parametrize("make, words", [
     (_closed_torus, ["closed", "genus 1"]),
     (_holed_grid, ["boundary loops", "close"]),
-    (_nonmanifold, ["non-manifold"]),
     (_nan, ["nan"]),
 ])
 def test_bad_meshes_exit_2_with_one_line(tmp_path, make, words):
@@ -146,6 +145,19 @@ def test_bad_meshes_exit_2_with_one_line(tmp_path, make, words):
     code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out")
     assert_one_line_error(code, err, *words)
     assert not (tmp_path / "out" / "parameterization.npz").exists()
+
+
+def test_a_fin_on_an_edge_is_removed_and_reported_or_refused_on_request(tmp_path):
+    path = _nonmanifold(tmp_path / "fin.obj")
+    code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out", "--no-figures")
+    assert code == 0, err
+    assert "removed 1 face at 1 non-manifold edge" in err
+    with np.load(tmp_path / "out" / "parameterization.npz") as z:
+        assert 9 not in z["source_index"] and len(z["faces"]) >= 8
+    code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out2",
+                             "--no-remove-nonmanifold-edge-faces")
+    assert_one_line_error(code, err, "non-manifold edge", "remove_nonmanifold_edge_faces")
+    assert not (tmp_path / "out2" / "parameterization.npz").exists()
 
 
 def test_a_decimation_request_on_a_torus_names_its_genus(tmp_path):

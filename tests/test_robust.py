@@ -134,7 +134,7 @@ def _meshes():
         ("all points equal", obj_text(np.zeros_like(V), F)),
         ("collinear", obj_text(np.column_stack([V[:, 0], V[:, 0], V[:, 0]]), F)),
         ("non-manifold edge", obj_text(np.vstack([V, [[1, 0.5, 1.0]]]),
-                                       np.vstack([F, [[0, 8, 49]]]))),
+                                       np.vstack([F, [[0, 8, 49]]])), ".obj", False, (0,)),
         ("two components", obj_text(np.vstack([V, V + [20, 0, 0]]),
                                     np.vstack([F, F + len(V)]))),
         ("holed", obj_text(V, F[np.all(F != 24, axis=1)])),

@@ -9,7 +9,7 @@ from pydantic import ValidationError
 from conftest import require_data
 
 from pipeline.errors import UserError
-from pipeline.geometry import topology as topo
+from pipeline.geometry import repair, topology as topo
 from pipeline.geometry.repair import (RepairOptions, has_interior_neighbour, repair_mesh,
                                      zero_area_mask)
 from pipeline.io.meshio import read_mesh
@@ -515,18 +515,113 @@ def test_hole_needs_close_holes_and_gets_one_centre_vertex():
     assert face_areas(r.V, r.F).sum() == pytest.approx(36.0)
 
 
-def test_bowtie_is_rejected():
+def pinched_annulus(rings: int = 3, sectors: int = 12):
+    """A planar polar grid closing on itself at one vertex: ``rings`` circles of radii 1, 1.5,
+    ... and ``sectors`` + 1 spokes over nearly a full turn (the last a tenth of a sector short
+    of it), the last spoke's inner vertex the first one's (vertex 0). A disk whose boundary
+    touches itself at vertex 0, where two fans meet."""
+    r = 1.0 + 0.5 * np.arange(rings)
+    t = 2 * np.pi * np.minimum(np.arange(sectors + 1), sectors - 0.1) / sectors
+    V = np.column_stack([np.outer(np.cos(t), r).ravel(), np.outer(np.sin(t), r).ravel(),
+                         np.zeros(rings * (sectors + 1))])
+    idx = np.arange(rings * (sectors + 1)).reshape(sectors + 1, rings)
+    idx[sectors, 0] = 0
+    F = []
+    for j in range(sectors):
+        for i in range(rings - 1):
+            a, b, c, d = idx[j, i], idx[j, i + 1], idx[j + 1, i + 1], idx[j + 1, i]
+            F += [[a, d, c], [a, c, b]] if (i + j) % 2 else [[a, d, b], [d, c, b]]
+    used, F = np.unique(np.array(F), return_inverse=True)
+    return V[used], F.reshape(-1, 3)
+
+
+def test_split_vertex_fans_gives_each_fan_its_own_vertex():
+    ring = lambda c, r: [[c, r[i], r[(i + 1) % len(r)]] for i in range(len(r))]  # noqa: E731
+    F = np.array(ring(0, [1, 2, 3]) + ring(0, [4, 5, 6, 7]) + [[0, 8, 9]] + ring(10, [1, 2, 3]))
+    S, parent = topo.split_vertex_fans(F)
+    assert parent.tolist() == [0, 0]                           # three fans at 0: two copies
+    assert S[3:7, 0].tolist() == [0] * 4                       # the largest fan keeps vertex 0
+    assert S[:3, 0].tolist() == [11] * 3 and S[7, 0] == 12     # then by size: 3 faces, 1 face
+    assert np.array_equal(np.delete(S, 0, axis=1), np.delete(F, 0, axis=1))
+    assert topo.nonmanifold_vertices(S).size == 0
+    assert topo.split_vertex_fans(np.array(ring(0, [1, 2, 3])))[1].size == 0
+
+
+def test_corner_fans_link_corners_across_shared_edges():
+    F = np.array([[0, 1, 2], [0, 2, 3], [0, 4, 5]])            # two fans at vertex 0
+    fans = topo.corner_fans(F).reshape(-1, 3)
+    assert fans[0, 0] == fans[1, 0] != fans[2, 0]
+    assert fans[0, 2] == fans[1, 1]                            # vertex 2, across edge 0-2
+    assert topo.nonmanifold_vertices(F).tolist() == [0]
+
+
+def test_a_rim_touching_itself_is_split_into_a_disk():
+    V, F = pinched_annulus()
+    assert topo.nonmanifold_vertices(F, len(V)).tolist() == [0]
+    C = np.column_stack([V[:, :2], np.ones(len(V))])
+    r = repair_mesh(V, F, colors=C)
+    n = len(V)
+    assert r.report["nonmanifold_vertices_split"] == 1
+    assert is_disk(r) and len(r.V) == n + 1 + len(r.added_vertices)   # + leaf-split midpoints
+    assert np.array_equal(r.V[n], V[0]) and np.array_equal(r.colors[n], C[0])
+    assert r.source_index[:n + 1].tolist() == list(range(n)) + [0]
+    assert n not in r.added_vertices                           # a copy, not an added vertex
+    assert any("split 1 non-manifold vertex" in m for m in r.messages)
+    assert face_areas(r.V, r.F).sum() == pytest.approx(face_areas(V, F).sum())
+
+
+def test_bowtie_is_rejected_when_splitting_is_off():
+    V, F = pinched_annulus()
+    with pytest.raises(UserError, match="non-manifold vertex.*split_nonmanifold_vertices"):
+        repair_mesh(V, F, options=RepairOptions(split_nonmanifold_vertices=False))
+
+
+def test_pieces_meeting_at_a_vertex_become_components():
     V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [-1, 0, 0], [-1, -1, 0]], float)
     F = np.array([[0, 1, 2], [0, 3, 4]])
-    with pytest.raises(UserError, match="non-manifold vertex"):
+    with pytest.raises(UserError, match="2 connected components once its 1 non-manifold vertex "
+                                        "were split.*keep_largest_component"):
         repair_mesh(V, F)
 
 
-def test_three_faces_sharing_an_edge_are_rejected():
+def test_fin_on_an_edge_is_removed_and_the_flat_pair_kept():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
+    F = np.array([[0, 1, 4], [0, 1, 2], [1, 0, 3]])            # fin first: not kept for its index
+    assert repair.nonmanifold_edge_extras(V, F).tolist() == [True, False, False]
+    V2 = V.copy()
+    V2[2, 2], V2[4] = 0.5, [0.5, 1, -0.05]                   # face 1 tilted, the fin flatter
+    assert repair.nonmanifold_edge_extras(V2, F).tolist() == [False, True, False]
+    r = repair_mesh(V, F)
+    assert r.report["nonmanifold_edge_faces_removed"] == 1
+    assert 4 not in r.source_index and len(r.V) >= 4
+    assert any("removed 1 face at 1 non-manifold edge" in m for m in r.messages)
+
+
+def test_three_faces_sharing_an_edge_are_rejected_when_removal_is_off():
     V = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
     F = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
-    with pytest.raises(UserError, match="non-manifold edge"):
-        repair_mesh(V, F)
+    with pytest.raises(UserError, match="non-manifold edge.*remove_nonmanifold_edge_faces"):
+        repair_mesh(V, F, options=RepairOptions(remove_nonmanifold_edge_faces=False))
+
+
+def test_two_sheets_crossing_at_an_edge_keep_one_sheet():
+    """Four faces on an edge, two flat sheets crossing (the grid's plane and one across it):
+    both pairs open 180°, the grid's faces (the lower indices) are kept, the others removed,
+    and the repair gives the grid back."""
+    V, F = grid(4)
+    n = len(V)
+    a, b = 12, 13                                              # an interior edge of the grid
+    V = np.vstack([V, V[[a, b]].mean(axis=0) + [0, 0, 1], V[[a, b]].mean(axis=0) - [0, 0, 1]])
+    F = np.vstack([F, [[a, b, n], [b, a, n + 1]]])
+    drop = repair.nonmanifold_edge_extras(V, F)
+    assert np.flatnonzero(drop).tolist() == [len(F) - 2, len(F) - 1]   # a tie: lower faces kept
+    r = repair_mesh(V, F)
+    assert is_disk(r) and np.array_equal(r.V, V[:n]) and np.array_equal(r.F, F[:-2])
+
+
+def test_landmark_on_a_split_vertex_maps_to_the_vertex_of_its_largest_fan():
+    src = np.array([0, 1, 2, 3, 0, 1, -1])
+    assert repair.repaired_vertex_of(src, 5).tolist() == [0, 1, 2, 3, -1]
 
 
 def test_leaf_faces_are_split_at_edge_midpoints():

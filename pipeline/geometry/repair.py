@@ -24,13 +24,20 @@ only on request, are a :class:`~pipeline.errors.UserError` naming the option or 
     (``duplicate_faces_removed``).
 6.  **unreferenced vertices** are removed; the remaining vertices keep their relative order
     (``unreferenced_vertices_removed``, not counting welded vertices).
-7.  **components** (faces sharing a vertex are connected): more than one is an error unless
+7.  **non-manifold edges and vertices**: at an edge in more than two faces, the two faces that
+    continue each other most nearly flat (the widest opening between their half-planes) are
+    kept and the others removed (``nonmanifold_edge_faces_removed``; a fin, a stray sheet);
+    then a vertex whose faces form several fans (a bowtie: a ragged rim touching itself,
+    pieces meeting at a point) gets one vertex per fan, the largest fan keeping it and each
+    other one a copy with the same position, colour and ``source_index``
+    (``nonmanifold_vertices_split``: vertices split). With ``remove_nonmanifold_edge_faces``
+    or ``split_nonmanifold_vertices`` false, each is an error instead. Vertices left without a
+    face are removed.
+8.  **components** (faces sharing a vertex are connected): more than one is an error unless
     ``keep_largest_component`` (largest by face count; ``components_dropped``,
     ``component_faces_dropped``; the dropped components' vertices are removed too).
-8.  **manifold edges**: an edge in more than two faces → error.
 9.  **orientation** made consistent, keeping the majority orientation of the faces
-    (``faces_reoriented``); non-orientable → error. Then **manifold vertices**: a vertex whose
-    faces form several fans (bowtie) → error.
+    (``faces_reoriented``); non-orientable → error.
 10. **zero-area faces** (three distinct vertices but twice the area ≤ 1e-12 × longest edge², i.e.
     collinear "caps"): a cap whose longest edge is interior is fixed by flipping that edge — the
     cap's middle vertex then splits the neighbouring triangle, so the geometry is unchanged and
@@ -82,7 +89,8 @@ centroid (true for eye/mouth openings).
 ``non_triangle_faces_triangulated``, ``invalid_faces_removed``, ``degenerate_faces_removed``,
 ``vertices_welded``, ``weld_skipped_vertices``, ``duplicate_faces_removed``,
 ``unreferenced_vertices_removed``, ``components_found``, ``components_dropped``,
-``component_faces_dropped``, ``faces_reoriented``, ``zero_area_faces_flipped``,
+``component_faces_dropped``, ``nonmanifold_edge_faces_removed``, ``nonmanifold_vertices_split``,
+``faces_reoriented``, ``zero_area_faces_flipped``,
 ``zero_area_faces_removed``, ``decimated_from_faces`` / ``decimated_to_faces`` (``None`` when not
 decimated), ``boundary_loops_found``, ``closed`` (bool: no boundary, the sphere is the
 domain), ``genus``, ``faces_flipped_outward``, ``holes_closed``, ``flap_necks_split``,
@@ -106,10 +114,12 @@ from pipeline.errors import UserError
 from pipeline.geometry import topology as topo
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.remesh_quality import longest_edge_squared
+from pipeline.geometry.rows import dots, norms
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
            "weld_map", "zero_area_mask", "has_interior_neighbour", "disk_blockers",
-           "count_boundary_loops", "genus_of"]
+           "count_boundary_loops", "genus_of", "nonmanifold_edge_extras",
+           "repaired_vertex_of"]
 
 ZERO_AREA_RTOL = 1e-12   # 2·area ≤ ZERO_AREA_RTOL · (longest edge)² counts as zero area
 
@@ -125,6 +135,8 @@ class RepairOptions(BaseModel):
     keep_largest_component: bool = False
     close_holes: bool = False          # close every boundary loop but the longest
     split_leaf_faces: bool = True      # paper Def. 4; if False and leaves exist -> UserError
+    remove_nonmanifold_edge_faces: bool = True   # if False, an edge in > 2 faces -> UserError
+    split_nonmanifold_vertices: bool = True      # if False, a bowtie vertex -> UserError
     decimate_to_faces: Optional[int] = Field(   # fast_simplification target face count
         None, ge=4, json_schema_extra={"flag": "--decimate"})
 
@@ -288,6 +300,49 @@ def weld_map(V: np.ndarray, tol: float, active: np.ndarray | None = None) -> np.
 NEAR_MARGIN = 1e-6
 
 
+def nonmanifold_edge_extras(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Which faces (m bool) to drop so that no edge is in more than two faces: at every such
+    edge the two faces that continue each other most nearly flat are kept — the pair whose
+    half-planes from the edge open widest (towards their third corners, any orientation) —
+    and the others dropped (a fin, a stray sheet through the edge). Ties: the lower face
+    indices. ``V`` (n×3), ``F`` (m×3)."""
+    a, b = topo.half_edges(F)
+    n = len(V)
+    keys = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    _, edge_of, count = np.unique(keys, return_inverse=True, return_counts=True)
+    h = np.flatnonzero(count[edge_of] > 2)
+    drop = np.zeros(len(F), dtype=bool)
+    if len(h) == 0:
+        return drop
+    h = h[np.argsort(edge_of[h], kind="stable")]              # grouped by edge, faces in order
+    P, Q = V[a[h]], V[b[h]]
+    O = V[F[h // 3, (h % 3 + 2) % 3]]                          # the corner opposite the edge
+    e = Q - P
+    e = e / np.maximum(norms(e), np.finfo(float).tiny)[:, None]
+    w = O - P
+    u = w - dots(w, e)[:, None] * e                            # towards it, across the edge
+    u = u / np.maximum(norms(u), np.finfo(float).tiny)[:, None]
+    starts = np.flatnonzero(np.r_[True, edge_of[h][1:] != edge_of[h][:-1]])
+    for lo, hi in zip(starts.tolist(), np.r_[starts[1:], len(h)].tolist()):
+        cosines = u[lo:hi] @ u[lo:hi].T                        # −1: the two continue flat
+        np.fill_diagonal(cosines, np.inf)
+        i, j = np.unravel_index(int(np.argmin(cosines)), cosines.shape)
+        faces = h[lo:hi] // 3
+        drop[np.delete(faces, [i, j])] = True
+    return drop
+
+
+def repaired_vertex_of(source_index: np.ndarray, n_input: int) -> np.ndarray:
+    """For every input vertex (n_input int64), the repaired vertex on it — the first, where a
+    split bowtie gave it several (the one that kept its largest fan) — or −1 where the repair
+    removed it; ``source_index`` (n) as in :class:`RepairedMesh`."""
+    src = np.asarray(source_index, dtype=np.int64)
+    ok = np.flatnonzero((src >= 0) & (src < n_input))
+    first = np.full(max(n_input, 0), len(src), dtype=np.int64)
+    np.minimum.at(first, src[ok], ok)
+    return np.where(first < len(src), first, -1)
+
+
 def may_be_near(P: np.ndarray, tol: float) -> bool:
     """Whether two of the distinct points ``P`` (k, 3), sorted by their first coordinate, may
     lie within ``tol`` of each other: whether two differ by at most ``tol·(1 + NEAR_MARGIN)``
@@ -391,6 +446,13 @@ class _Mesh:
         if self.C is not None:
             self.C = self.C[keep]
 
+    def copy_vertices(self, parent: np.ndarray) -> None:
+        """Append a copy of each vertex ``parent`` (k): position, colour and input vertex."""
+        self.V = np.vstack([self.V, self.V[parent]])
+        self.src = np.r_[self.src, self.src[parent]]
+        if self.C is not None:
+            self.C = np.vstack([self.C, self.C[parent]])
+
     def append_vertices(self, P: np.ndarray, C: np.ndarray | None) -> np.ndarray:
         start = self.n
         self.V = np.vstack([self.V, P])
@@ -466,25 +528,52 @@ def _compact(M: _Mesh) -> int:
     return k
 
 
-def _check_manifold_edges(M: _Mesh, name: str, hint: str) -> None:
+def _nonmanifold_edges(M: _Mesh, opts: RepairOptions, report: dict, messages: list, name: str,
+                       hint: str) -> None:
+    """An edge in more than two faces: its extra faces removed
+    (:func:`nonmanifold_edge_extras`) or, with ``remove_nonmanifold_edge_faces`` off, an
+    error."""
     bad_e = topo.nonmanifold_edges(M.F)
-    if len(bad_e):
-        i, j = (int(x) for x in bad_e[0])
+    if len(bad_e) == 0:
+        return
+    i, j = (int(x) for x in bad_e[0])
+    what = (f"{_plural(len(bad_e), 'non-manifold edge')} (in more than two faces, e.g. "
+            f"vertices {i}-{j}){hint}")
+    if not opts.remove_nonmanifold_edge_faces:
         raise UserError(
-            f"mesh '{name}' has {_plural(len(bad_e), 'non-manifold edge')} (in more than two "
-            f"faces, e.g. vertices {i}-{j}){hint}; remove the extra faces (e.g. in MeshLab) and "
-            f"pass a manifold surface"
+            f"mesh '{name}' has {what}; set repair.remove_nonmanifold_edge_faces: true or "
+            f"remove the extra faces (e.g. in MeshLab) and pass a manifold surface"
         )
+    drop = nonmanifold_edge_extras(M.V, M.F)
+    M.F = M.F[~drop]
+    k = int(drop.sum())
+    _bump(report, "nonmanifold_edge_faces_removed", k)
+    messages.append(f"removed {_plural(k, 'face')} at {what}, keeping at each edge the two "
+                    f"faces that continue each other most nearly flat")
 
 
-def _check_manifold_vertices(M: _Mesh, name: str, hint: str) -> None:
+def _nonmanifold_vertices(M: _Mesh, opts: RepairOptions, report: dict, messages: list,
+                          name: str, hint: str) -> int:
+    """A vertex whose faces form several fans (bowtie): one vertex per fan
+    (:func:`.topology.split_vertex_fans`; the copies keep the position, colour and input
+    vertex) or, with ``split_nonmanifold_vertices`` off, an error. Returns how many were
+    split."""
     bad_v = topo.nonmanifold_vertices(M.F, M.n)
-    if len(bad_v):
+    if len(bad_v) == 0:
+        return 0
+    what = (f"{_plural(len(bad_v), 'non-manifold vertex')} (bowtie: faces meet only at the "
+            f"vertex, e.g. vertex {int(bad_v[0])}){hint}")
+    if not opts.split_nonmanifold_vertices:
         raise UserError(
-            f"mesh '{name}' has {_plural(len(bad_v), 'non-manifold vertex')} (bowtie: faces "
-            f"meet only at the vertex, e.g. vertex {int(bad_v[0])}){hint}; split or remove the "
-            f"touching faces and pass a manifold surface"
+            f"mesh '{name}' has {what}; set repair.split_nonmanifold_vertices: true or split "
+            f"or remove the touching faces and pass a manifold surface"
         )
+    M.F, parent = topo.split_vertex_fans(M.F, M.n)
+    M.copy_vertices(parent)
+    _bump(report, "nonmanifold_vertices_split", len(bad_v))
+    messages.append(f"split {what} into one vertex per fan ({len(parent)} added, each where "
+                    f"its original is)")
+    return len(bad_v)
 
 
 def _orient(M: _Mesh, report: dict, messages: list, when: str, name: str) -> None:
@@ -576,13 +665,15 @@ def _clean(M: _Mesh, opts: RepairOptions, report: dict, messages: list, name: st
     _bump(report, "unreferenced_vertices_removed", max(unref - welded, 0))
     if unref - welded > 0:
         messages.append(f"removed {_plural(unref - welded, 'unreferenced vertex')}{when}")
-    _components(M, opts, report, messages, name, when)
+    hint = (f" after welding {_plural(welded, 'vertex')} (repair.weld: false keeps them "
+            f"apart)" if welded else when)
+    _nonmanifold_edges(M, opts, report, messages, name, hint)
+    split = _nonmanifold_vertices(M, opts, report, messages, name, hint)   # manifold edges
     _compact(M)
-    hint = (f" after welding {_plural(welded, 'vertex')} (try repair.weld: false)"
-            if welded else when)
-    _check_manifold_edges(M, name, hint)
+    _components(M, opts, report, messages, name, when + (
+        f" once its {_plural(split, 'non-manifold vertex')} were split" if split else ""))
+    _compact(M)
     _orient(M, report, messages, when, name)          # needs manifold edges only
-    _check_manifold_vertices(M, name, hint)           # fast path needs consistent orientation
     _fix_zero_area(M, report, messages, name, when)
 
 
@@ -826,8 +917,8 @@ def _final_checks(M: _Mesh, changed_topology: bool, closed: bool) -> np.ndarray:
     """Check the invariants of a disk, or of a closed genus-0 surface (a failure is a bug
     here); returns the boundary loop (empty for a closed surface).
 
-    Bowtie vertices were ruled out by the cleaning step and neither hole fans nor edge splits can
-    create one, so that (costlier) test is repeated only when vertices were added.
+    Bowtie vertices were split by the cleaning step and neither hole fans nor edge splits can
+    create one, so that (costlier) test is repeated only when vertices were added or split.
     """
     F, n = M.F, M.n
     _ensure(topo.connected_components(F, n)[0] == 1, "several components left")
@@ -882,7 +973,8 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
         "degenerate_faces_removed": 0, "vertices_welded": 0, "weld_skipped_vertices": 0,
         "duplicate_faces_removed": 0,
         "unreferenced_vertices_removed": 0, "components_found": 0, "components_dropped": 0,
-        "component_faces_dropped": 0, "faces_reoriented": 0, "zero_area_faces_flipped": 0,
+        "component_faces_dropped": 0, "nonmanifold_edge_faces_removed": 0,
+        "nonmanifold_vertices_split": 0, "faces_reoriented": 0, "zero_area_faces_flipped": 0,
         "zero_area_faces_removed": 0, "decimated_from_faces": None, "decimated_to_faces": None,
         "boundary_loops_found": 0, "closed": False, "genus": 0, "faces_flipped_outward": 0,
         "holes_closed": 0, "flap_necks_split": 0, "leaf_faces_split": 0,
@@ -1023,7 +1115,8 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             )
 
     # 14. final invariants --------------------------------------------------------------------
-    edited = bool(np.any(M.src < 0)) or bool(report["zero_area_faces_flipped"]) \
+    edited = bool(np.any(M.src < 0)) or bool(report["nonmanifold_vertices_split"]) \
+        or bool(report["zero_area_faces_flipped"]) \
         or bool(report["zero_area_faces_removed"])
     boundary = _final_checks(M, changed_topology=edited, closed=not loops)
     report["output_vertices"] = M.n

@@ -38,6 +38,8 @@ __all__ = [
     "graph_components",
     "nonmanifold_edges",
     "nonmanifold_vertices",
+    "corner_fans",
+    "split_vertex_fans",
     "leaf_faces",
     "euler_characteristic",
     "csr_rows",
@@ -340,7 +342,32 @@ def _fans_per_vertex_oriented(a: np.ndarray, twin: np.ndarray, n: int) -> np.nda
 
 
 def _nonmanifold_vertices_general(F, n, a, order, start, size) -> np.ndarray:
-    """Connected components of the corner graph (any orientation, any edge multiplicity)."""
+    """The vertices of more than one fan by :func:`_corner_fans` (any orientation, any edge
+    multiplicity)."""
+    lab = _corner_fans(F, a, order, start, size)
+    pairs = _distinct_sorted(lab * n + a)                     # distinct (fan, vertex) pairs
+    fans = np.bincount(pairs % n, minlength=n)
+    return np.flatnonzero(fans > 1)
+
+
+def corner_fans(F, n: int | None = None) -> np.ndarray:
+    """The fan of every corner (3m int64; corner ``3 t + c`` is vertex ``F[t, c]`` in face
+    ``t``): two corners at one vertex are in one fan when a chain of faces around the vertex,
+    each sharing an edge through the vertex with the next, joins them. A manifold vertex has
+    one fan (closed inside, open on the boundary); a bowtie vertex, where fans meet at the
+    vertex alone, has several. Labels are numbered by first corner; corners at different
+    vertices may share a label. Any face orientation; an edge in more than two faces links
+    all its faces' corners."""
+    F = _as_faces(F)
+    if F.size == 0:
+        return np.zeros(0, np.int64)
+    order, start, size, _ = _halfedge_groups(F, n)
+    return _corner_fans(F, half_edges(F)[0], order, start, size)
+
+
+def _corner_fans(F, a, order, start, size) -> np.ndarray:
+    """:func:`corner_fans` from the half-edge tails ``a`` and groups
+    (:func:`_halfedge_groups`): connected components of the corner graph."""
     m3 = 3 * len(F)
     # link every half-edge with the next one of the same edge (chains edges in > 2 faces)
     grp_next = np.ones(m3, dtype=bool)
@@ -353,10 +380,34 @@ def _nonmanifold_vertices_general(F, n, a, order, start, size) -> np.ndarray:
     # corners at the same vertex: tail-tail/head-head (same direction) or tail-head (opposite)
     r = np.r_[h1, nx1]
     c = np.r_[np.where(opposite, nx2, h2), np.where(opposite, h2, nx2)]
-    _, lab = graph_components(r, c, m3)
-    pairs = _distinct_sorted(lab.astype(np.int64) * n + a)   # distinct (fan, vertex) pairs
-    fans = np.bincount(pairs % n, minlength=n)
-    return np.flatnonzero(fans > 1)
+    return graph_components(r, c, m3)[1].astype(np.int64)
+
+
+def split_vertex_fans(F, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Give every fan of a vertex its own vertex (:func:`corner_fans`): the fan with the most
+    corners keeps the vertex (ties: the fan of its first corner), each other fan gets a new
+    vertex ``n, n + 1, ...`` (in vertex order, larger fans first). Afterwards no vertex is a
+    bowtie (with no edge in more than two faces); faces, their order and their orientation are
+    kept.
+
+    Returns ``(F_split, parent)``: the faces (m×3) and the vertex each new one copies (k)."""
+    F = _as_faces(F)
+    n = _n_of(F, n)
+    if F.size == 0:
+        return F.copy(), np.zeros(0, np.int64)
+    v = F.ravel()
+    pairs, pair_of = np.unique(corner_fans(F, n) * n + v, return_inverse=True)
+    pair_v = pairs % n
+    corners = np.bincount(pair_of, minlength=len(pairs))
+    first = np.full(len(pairs), len(v), dtype=np.int64)
+    np.minimum.at(first, pair_of, np.arange(len(v)))
+    order = np.lexsort((first, -corners, pair_v))             # by vertex, larger fans first
+    keeps = np.r_[True, pair_v[order][1:] != pair_v[order][:-1]]
+    new_vertex = np.empty(len(pairs), dtype=np.int64)
+    new_vertex[order[keeps]] = pair_v[order[keeps]]
+    extra = order[~keeps]
+    new_vertex[extra] = n + np.arange(len(extra))
+    return new_vertex[pair_of].reshape(F.shape), pair_v[extra]
 
 
 def leaf_faces(F, is_boundary_vertex) -> np.ndarray:

@@ -261,11 +261,11 @@ def resolve_landmarks(lms: LandmarkSet, mesh, n_input: int, label: str = "landma
     vertex the repair removed, a vertex the repair added (hole centres, split midpoints), a vertex
     on the disk's boundary or on the rim of a closed hole, and two landmarks on one vertex.
     """
+    from ..geometry.repair import repaired_vertex_of
+
     n = len(mesh.V)
-    inverse = np.full(max(n_input, 1), -1, dtype=np.int64)
     src = np.asarray(mesh.source_index, dtype=np.int64)
-    ok = (src >= 0) & (src < n_input)
-    inverse[src[ok]] = np.flatnonzero(ok)
+    inverse = repaired_vertex_of(src, n_input)
     out = np.empty(len(lms), dtype=np.int64)
     messages = []
     snapped = []

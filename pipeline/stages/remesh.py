@@ -35,7 +35,7 @@ from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.remesh.features import FOLD_BACK_DEG
 from ..geometry.remesh_quality import DISTANCE_SAMPLES
-from ..geometry.repair import RepairedMesh
+from ..geometry.repair import RepairedMesh, repaired_vertex_of
 from .stage import Context, Section, Stage
 
 __all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks",
@@ -240,9 +240,7 @@ def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
 def map_landmarks(landmarks: dict, mesh: RepairedMesh, where: str = "landmarks") -> dict:
     """Input-file vertex indices → repaired-mesh vertex indices (via ``source_index``)."""
     src = mesh.source_index
-    lookup = np.full(int(src.max()) + 1 if len(src) else 0, -1, np.int64)
-    ok = src >= 0
-    lookup[src[ok]] = np.flatnonzero(ok)
+    lookup = repaired_vertex_of(src, int(src.max()) + 1 if len(src) else 0)
     out = {}
     for name, i in landmarks.items():
         i = int(i)
