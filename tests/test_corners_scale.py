@@ -80,3 +80,18 @@ def test_on_an_input_coarser_than_the_remesh_the_rule_is_vertex_by_vertex():
     assert len(inner) > 50 and len(rim) > 20
     assert np.array_equal(interior_corners(V, F, 30.0, 1.5 * h), inner)
     assert np.array_equal(boundary_corners(V, F, loop, 30.0, 1.5 * h), rim)
+
+
+def test_a_notch_closed_at_its_mouth_is_not_a_corner_a_seam_is_unaffected():
+    """A loop touching itself at one point (positions 2 and 6: a notch of four edges closed at
+    its mouth) marks both ends when the loop between them is shorter than the reach;
+    a cut seam (points coinciding with their neighbours too) is never marked."""
+    from pipeline.geometry.remesh.corners import closed_notches
+
+    notch = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [2, 1, 0], [2.5, 1.5, 0], [1.5, 1, 0],
+                      [2, 0, 0], [3, 0, 0], [3, -2, 0], [0, -2, 0]], float)
+    assert np.flatnonzero(closed_notches(notch, 4.0)).tolist() == [2, 6]
+    assert not closed_notches(notch, 3.9).any()              # the notch's loop: 3.94
+    seam = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 0, 0], [0, 0, 0], [0, -1, 0],
+                     [2, -1, 0]], float)                      # a slit from (0,0) to its tip
+    assert not closed_notches(seam, 100.0).any()

@@ -85,12 +85,13 @@ def test_refine_rim_splits_no_chord_at_a_ragged_vertex():
     assert refine_rim(S, tol=0.01, min_gap=0.02, budget=100) > 6
 
 
-def ragged_paraboloid(n: int = 160, seed: int = 3, passes: int = 4, drop: float = 0.4):
+def ragged_paraboloid(n: int = 160, seed: int = 3, passes: int = 4, drop: float = 0.4,
+                      bowties: bool = False):
     """A paraboloid cap z = 0.4 (x² + y²) over the unit disk, Delaunay on an n×n grid jittered
     by 0.15 / n (seeded), with ``passes`` rounds each dropping the fraction ``drop`` of the
     faces with a corner on the boundary: spurs, single-face teeth and notches along the rim;
-    then the faces at pinched (bowtie) vertices dropped until there are none, the largest
-    piece kept."""
+    then (unless ``bowties``) the faces at pinched (bowtie) vertices dropped until there are
+    none, the largest piece (faces sharing a vertex) kept."""
     rng = np.random.default_rng(seed)
     g = np.linspace(-1.0, 1.0, n)
     P = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
@@ -102,7 +103,7 @@ def ragged_paraboloid(n: int = 160, seed: int = 3, passes: int = 4, drop: float 
         u, c = np.unique(E, axis=0, return_counts=True)
         rim = np.isin(F, u[c == 1]).any(axis=1)
         F = F[~(rim & (rng.random(len(F)) < drop))]
-    while len(pinched := topo.nonmanifold_vertices(F, len(P))):
+    while not bowties and len(pinched := topo.nonmanifold_vertices(F, len(P))):
         F = F[~np.isin(F, pinched).any(axis=1)]
     _, label = topo.connected_components(F, len(P))
     F = F[label == np.bincount(label).argmax()]
@@ -135,6 +136,30 @@ def test_a_ragged_rim_remesh_keeps_no_fold_and_at_most_one_face_below_the_minimu
     assert is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] <= 1
+
+
+@pytest.mark.timeout(120)
+def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
+    """The ragged paraboloid on an 80×80 grid (seed 1) with its bowtie vertices kept: teeth
+    hanging on the rim by a vertex, notches closing on a vertex. The intake splits them (one
+    vertex per fan, reported), keeps the largest piece on request, and the remesh of 1,000
+    vertices is one disk with no face turned over."""
+    from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
+    from pipeline.geometry.repair import RepairOptions, repair_mesh
+    from pipeline.geometry.sem import SEMOptions
+    from pipeline.stages.parameterize import parameterize_stage
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    V, F = ragged_paraboloid(n=80, seed=1, bowties=True)
+    pinched = topo.nonmanifold_vertices(F, len(V))
+    assert len(pinched) > 20
+    mesh = repair_mesh(V, F, options=RepairOptions(keep_largest_component=True))
+    assert mesh.report["nonmanifold_vertices_split"] == len(pinched)
+    assert mesh.report["components_dropped"] > 0
+    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1000))
+    assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
+    assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
 
 
 @pytest.mark.timeout(120)

@@ -29,6 +29,7 @@ NEAR_VERTICES = 24     # a target is located among the faces at its 24 nearest r
 NEAR_DIRECT = 32       # up to this many query points, nearest rows from all distances (no tree)
 CORNER_REACH = 1.0     # × L: the scale at which an interior corner is judged
 RIM_REACH = 0.5        # × L: the same for a boundary corner
+NOTCH_REACH = 2.0      # × L: a notch closed at its mouth within this much of the rim
 NOISE_NEIGHBOURS = 64  # the nearest input vertices that give the noise level around a vertex
 MIN_NEIGHBOURS = 16    # fewer of them within the reach: the vertex-by-vertex rule
 NOISE_SHARE = 0.25     # a noise level above this × corner_angle_deg: a noisy input
@@ -73,7 +74,34 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
     dense = _dense(nearest, sharp, length)
     keep[dense] &= _turns_along_loop(V[boundary], value[boundary], at[dense],
                                      length, angle_deg)
+    keep &= ~closed_notches(V[boundary], NOTCH_REACH * length)[at]
     return sharp[keep]
+
+
+def closed_notches(P: np.ndarray, reach: float) -> np.ndarray:
+    """Which points of a boundary loop (b bool; ``P`` b×3, in loop order) stand exactly where
+    another one does, with less than ``reach`` of the loop between them either way round, and
+    the loop touches itself there alone (their neighbours along the loop stand apart): the
+    two sides of a notch closed at its mouth (a split bowtie vertex, where a ragged rim touched
+    itself), no deeper than half of ``reach``. Not corners: two rim vertices there would be
+    one point, joined by a rim edge of length 0; the rim crosses the notch's mouth instead.
+    (The two sides of a cut seam coincide along it, neighbours with neighbours.)"""
+    out = np.zeros(len(P), bool)
+    order = np.lexsort(P.T[::-1])
+    same = np.flatnonzero(np.all(P[order[1:]] == P[order[:-1]], axis=1))
+    if len(same) == 0:
+        return out
+    s = np.r_[0.0, np.cumsum(norms(np.roll(P, -1, axis=0) - P))]
+    total = s[-1]
+    i, j = order[same], order[same + 1]              # neighbours in the sort, at one point
+    b = len(P)
+    seam = (np.all(P[(i + 1) % b] == P[(j - 1) % b], axis=1)
+            | np.all(P[(i - 1) % b] == P[(j + 1) % b], axis=1))
+    apart = np.abs(s[i] - s[j])
+    close = ~seam & (np.minimum(apart, total - apart) < reach)
+    out[i[close]] = True
+    out[j[close]] = True
+    return out
 
 
 def _nearest(V: np.ndarray, at: np.ndarray, reach: float):
