@@ -74,6 +74,21 @@ def test_page_without_baselines_says_so(tmp_path):
     assert "Decimation: ." not in text
 
 
+def test_page_lists_the_intake_repairs_only_when_there_are_some(tmp_path):
+    methods = {k: m for k, m in _methods().items() if k in ("input", "sem")}
+    uv = np.zeros((len(methods["sem"].V), 2))
+    repairs = ["split 1 non-manifold vertex (bowtie) into one vertex per fan",
+               "split 2 leaf faces <all corners on the boundary>"]
+    meta = {"name": "face", "target": 400, "repairs": repairs}
+    text = write_report(tmp_path, methods, uv, methods["sem"].F, meta,
+                        figures=False)[0].read_text(encoding="utf-8")
+    assert ("<p>The intake repaired the input: split 1 non-manifold vertex (bowtie) into one "
+            "vertex per fan; split 2 leaf faces &lt;all corners on the boundary&gt;.</p>") in text
+    text = write_report(tmp_path, methods, uv, methods["sem"].F, dict(meta, repairs=[]),
+                        figures=False)[0].read_text(encoding="utf-8")
+    assert "The intake repaired" not in text
+
+
 def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
     calm = {"anisotropy_median": 2.0, "anisotropy_p90": 4.0, "anisotropy_area_above_10": 0.25}
     close = {"sem": {"distance": {"hausdorff_rel": 0.005}},

@@ -571,8 +571,8 @@ def _nonmanifold_vertices(M: _Mesh, opts: RepairOptions, report: dict, messages:
     M.F, parent = topo.split_vertex_fans(M.F, M.n)
     M.copy_vertices(parent)
     _bump(report, "nonmanifold_vertices_split", len(bad_v))
-    messages.append(f"split {what} into one vertex per fan ({len(parent)} added, each where "
-                    f"its original is)")
+    copies = "1 copy" if len(parent) == 1 else f"{len(parent)} copies"
+    messages.append(f"split {what} into one vertex per fan ({copies} added at the same place)")
     return len(bad_v)
 
 

@@ -173,8 +173,8 @@ def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np
 
     ``methods``: every measured mesh by key (``input``, ``sem_lifted``, ``sem``, baselines);
     ``uv`` (n×2), ``F`` (m×3): our remesh on the disk, or with ``uv`` n×3 (unit vectors) on
-    the sphere; ``meta``: what the page says about the input, the request, the map and the
-    warnings."""
+    the sphere; ``meta``: what the page says about the input (its repairs among it), the
+    request, the map and the warnings."""
     folder = Path(folder)
     V_in, F_in = methods["input"].V, methods["input"].F
     paths = []
@@ -277,6 +277,9 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
              if "anisotropy_median" in dd else "")
     warn = "".join(f'<p class="warn"><b>Warning:</b> {e(w)}.</p>\n'
                    for w in meta.get("warnings", []))
+    repairs = meta.get("repairs") or []
+    repaired = (f"<p>The intake repaired the input: {'; '.join(e(r) for r in repairs)}.</p>\n"
+                if repairs else "")
     n_in = len(methods["input"].V)
     sphere = meta.get("domain") == "sphere"
     domain = "sphere" if sphere else "disk"
@@ -293,7 +296,7 @@ def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
 {e(str(meta.get('target')))} vertices, pattern <code>{e(str(info.get('pattern')))}</code>.
 SEM map: {e(str(pm.get('mode')))} mode, {e(str(pm.get('iterations')))} iterations, mean angular
 distortion {meta.get('angular_distortion_deg', float('nan')):.1f}°{aniso}.</p>
-{warn}
+{repaired}{warn}
 <h2>Side by side, at the same vertex count</h2>
 <div class="cmp"><table><thead><tr><th>measure</th><th>unit</th>{head}</tr></thead>
 <tbody>{''.join(body)}</tbody></table></div>

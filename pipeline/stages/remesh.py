@@ -411,6 +411,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
             "source": (input_info or {}).get("source", ""), "target": target,
+            "repairs": (input_info or {}).get("repair_messages", []),
             "parameterization": metrics["parameterization"],
             "parameterization_seconds": metrics["parameterization"]["seconds"],
             "angular_distortion_deg": pm.get("distortion", {}).get(
