@@ -1,7 +1,7 @@
 """The remesh command on face-scan proxies made here: how often a scan leaves faces below the
 minimum angle that no input corner forces, and the folds and time.
 
-    python benchmarks/bench_scans.py [--vertices 5000 20000] [--scans noisy jagged mild]
+    python benchmarks/bench_scans.py [--vertices 5000 20000] [--scans noisy jagged bowtie mild]
 
 Real face scans are noisy and their rims ragged (the scanner loses the faces at grazing
 angles), which the shared meshes are not. The proxies, written to a temporary folder from the
@@ -11,6 +11,10 @@ ICT faces of ``../shared/data/faces/ict`` (seeded, so every run makes the same f
   vertices, each moved along its normal by N(0, 0.05 % of the diagonal));
 * ``jagged``: ``noisy`` with a ragged rim: 6 passes that each drop, with probability 0.4, the
   faces with a corner on the boundary; the largest connected part kept (about 104k vertices);
+* ``bowtie``: the same passes on ``noisy``, the largest part connected through vertices kept
+  with its bowtie vertices (fans meeting at a vertex alone: teeth hanging on the rim by a
+  vertex, notches closed at their mouths), which the intake splits; run with
+  ``--keep-largest-component`` (the teeth become pieces of their own);
 * ``mild``: ict_B_smile_jawopen Loop-subdivided once (about 26k vertices), noise 0.01 % of the
   diagonal, 3 such passes.
 
@@ -42,15 +46,18 @@ from bench_intake import REPO, data_dir, scan_proxy  # noqa: E402  (puts REPO on
 
 from pipeline.io.meshio import read_mesh, write_obj  # noqa: E402
 
-SCANS = ("noisy", "jagged", "mild")
+SCANS = ("noisy", "jagged", "bowtie", "mild")
+FLAGS = {"bowtie": ["--keep-largest-component"]}   # the pieces its bowties hold on
 
 
-def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng) -> tuple:
+def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng,
+               bowties: bool = False) -> tuple:
     """``(V, F)`` (n×3 float, m×3 int) after ``passes`` rounds that each drop, with probability
     ``p``, every face with a corner on the boundary: the largest part connected through edges
     (trimesh's ``split``), its vertices renumbered in order, and the faces at a vertex where
-    fans meet at that vertex alone (a bowtie, which the intake would split) dropped until none is
-    left, as a scanner's mesher leaves none."""
+    fans meet at that vertex alone (a bowtie) dropped until none is left, as a scanner's mesher
+    leaves none. With ``bowties``, the largest part connected through vertices instead, its
+    bowties kept: teeth hanging on the rim by a vertex, notches closed at their mouths."""
     import trimesh
 
     from pipeline.geometry import topology as topo
@@ -58,6 +65,11 @@ def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng) -> tupl
     for _ in range(passes):
         on_rim = topo.boundary_vertices_mask(F, len(V))[F].any(axis=1)
         F = F[~(on_rim & (rng.random(len(F)) < p))]
+    if bowties:
+        _, label = topo.connected_components(F, len(V))
+        F = F[label == np.bincount(label).argmax()]
+        used, F = np.unique(F, return_inverse=True)
+        return V[used], F.reshape(-1, 3)
     while True:
         parts = trimesh.Trimesh(V, F, process=False).split(only_watertight=False)
         largest = max(parts, key=lambda part: len(part.faces))
@@ -73,12 +85,14 @@ def make_scans(folder: Path, names) -> dict:
     import trimesh
 
     out = {}
-    if "noisy" in names or "jagged" in names:
+    if {"noisy", "jagged", "bowtie"} & set(names):
         out["noisy"] = scan_proxy(folder)
-    if "jagged" in names:
-        m = read_mesh(out["noisy"])
-        V, F = ragged_rim(m.V, np.asarray(m.faces), 6, 0.4, np.random.default_rng(2))
-        out["jagged"] = write_obj(folder / "scan_jagged.obj", V, F)
+    for name, bowties in (("jagged", False), ("bowtie", True)):
+        if name in names:
+            m = read_mesh(out["noisy"])
+            V, F = ragged_rim(m.V, np.asarray(m.faces), 6, 0.4, np.random.default_rng(2),
+                              bowties)
+            out[name] = write_obj(folder / f"scan_{name}.obj", V, F)
     if "mild" in names:
         m = trimesh.load(data_dir() / "faces" / "ict" / "ict_B_smile_jawopen_disk.obj",
                          process=False)
@@ -101,7 +115,8 @@ def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
     t = time.perf_counter()
     run = subprocess.run([sys.executable, "-m", "pipeline", "remesh", str(path), "--vertices",
-                          str(n), "--no-compare", "--no-report", "-o", str(out)],
+                          str(n), "--no-compare", "--no-report", "-o", str(out),
+                          *FLAGS.get(name, [])],
                          capture_output=True, text=True, cwd=folder, env=env)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
