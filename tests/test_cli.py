@@ -154,6 +154,8 @@ def test_a_fin_on_an_edge_is_removed_and_reported_or_refused_on_request(tmp_path
     assert "removed 1 face at 1 non-manifold edge" in err
     with np.load(tmp_path / "out" / "parameterization.npz") as z:
         assert 9 not in z["source_index"] and len(z["faces"]) >= 8
+    page = (tmp_path / "out" / "report.html").read_text(encoding="utf-8")
+    assert "repairs by the intake" in page and "removed 1 face at 1 non-manifold edge" in page
     code, out, err = run_cli("parameterize", path, "-o", tmp_path / "out2",
                              "--no-remove-nonmanifold-edge-faces")
     assert_one_line_error(code, err, "non-manifold edge", "remove_nonmanifold_edge_faces")

@@ -692,6 +692,8 @@ def write_report(folder: Path, metrics: dict, figure_names: list[str]) -> Path:
         ("iterations", par.get("iterations")),
         ("linear solver", par.get("solver")),
     ]
+    repairs = metrics.get("input", {}).get("repair_messages") or []
+    rows += [("repairs by the intake", "; ".join(repairs))] if repairs else []
     rows += [(k.replace("_", " "), v) for k, v in dist.items()]
     if sphere:
         kernel = par.get("sphere_measures", {})
