@@ -122,7 +122,10 @@ The schedule (:func:`improve_remesh`):
     the local operations judged on their smallest angle alone, so that the corner's angle is
     shared out among its faces, then the usual ones at the faces they left below within
     ``FORCED_REACH × L``, undone unless the corner's smallest angle rises with no more folds
-    and no more or worse faces below that no corner forces).
+    and no more or worse faces below that no corner forces), and where a rim corner's two
+    faces stay below ``AIM_SHARE`` × the even split of its angle, a new middle vertex on its
+    middle edge or the middle vertex moved onto its wedge (:meth:`_Operations.aim_corner`,
+    :mod:`.wedge`), judged the same way.
     A face none of this raises stays: the report counts the faces below the minimum and,
     among them, those an input corner forces, naming the corners (with the even split of each
     corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
@@ -187,8 +190,8 @@ from ..metrics import min_corner_angles, min_corner_angles_below
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
-from .angles import (corner_angles_deg, forced_corners, raise_min_angles, sharp_vertices,
-                     split_for_count)
+from .angles import (SAG_TS, corner_angles_deg, forced_corners, input_vertex_under,
+                     raise_min_angles, sharp_vertices, split_for_count)
 from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
                             restore_state, saved_state, shortfall_of, shortfall_order,
                             unforced_below, unforced_shortfall)
@@ -201,12 +204,13 @@ from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, sag_flips, valence_flips
 from .halfedge import edge_table, touching
-from .refine import SAG_SAMPLES, refine_by_sag, split_long_edges
+from .refine import SAG_SAMPLES, refine_by_sag, split_edges, split_long_edges
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 from .unfold import star_positions, turned_over_rows, unfold_locally
+from .wedge import even_split_moves, even_split_points, half_edge, put_vertex, two_face_fan
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -278,6 +282,10 @@ SAG_SCREEN_MARGIN = 0.5
 # the forced faces' share-out (_Operations.raise_forced) changes the faces within two rings of
 # the corner: the faces below the minimum it leaves within this × L of it are raised after it
 FORCED_REACH = 3.0
+# a rim corner whose faces' smallest angle stays below this × the even split of its input angle
+# between two faces has the middle vertex of its two faces moved onto its wedge after that
+# (_Operations.aim_corner)
+AIM_SHARE = 0.95
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
 # vertices that close make a face no later pass may change (on ICT faces: 0.3 L apart, 13°)
 CORNER_GAP = 0.4
@@ -966,26 +974,104 @@ class _Operations:
         (:func:`.angles.split_for_count`); undone unless the smallest angle of the faces at
         the corner rises (:meth:`smallest_at`), with no more folds and no more faces below
         the minimum that no input corner forces, nor as many with a smaller smallest angle
-        (:func:`.circumcentres.unforced_shortfall`)."""
+        (:func:`.circumcentres.unforced_shortfall`; :meth:`share_corner`); then, where a rim
+        corner's two faces stay short of their even split, a new or moved middle vertex on the
+        corner's wedge (:meth:`aim_corner`)."""
         S = self.S
         bad = skinny_faces(S.X, S.F, min_angle_deg)
         at = forced_corners(S, min_angle_deg, bad)
         for point in S.X[np.unique(S.F[bad][at])]:
-            before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
-            n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
-            if not raise_min_angles(S, min_angle_deg, self.tol, self.faces_at(point), self.judged,
-                                    count_below=False):
-                continue
-            low, _ = unforced_below(S, min_angle_deg)
-            near = norms(S.X - point) < FORCED_REACH * self.L
-            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
-                             self.judged)
-            if S.n < n0:
-                split_for_count(S, n0 - S.n, min_angle_deg)
-            if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
-                    shortfall_order(unforced_shortfall(S, min_angle_deg)) > \
-                    shortfall_order(before):
-                self.restore(saved)
+            self.share_corner(point, min_angle_deg, partial(
+                raise_min_angles, S, min_angle_deg, self.tol, self.faces_at(point), self.judged,
+                count_below=False))
+            self.aim_corner(point, min_angle_deg)
+
+    def aim_corner(self, point: np.ndarray, min_angle_deg: float) -> None:
+        """At a rim corner (the vertex at ``point``, 3,) with two faces whose smallest angle is
+        below ``AIM_SHARE`` × the even split of its input angle sum between them: the corner's
+        middle edge split at the points of :func:`.wedge.even_split_points` (a new middle
+        vertex, :meth:`split_middle_edge`) and the middle vertex moved to those of
+        :func:`.wedge.even_split_moves`, each tried from the remesh as it was and judged as
+        :meth:`share_corner` judges a change (the new or moved vertex held meanwhile); the
+        one kept that leaves the corner's faces the largest smallest angle stays."""
+        S = self.S
+        c = np.flatnonzero(at_points(S.X, point[None]))
+        if len(c) == 0 or not S.is_rim[c[0]]:
+            return
+        c = int(c[0])
+        even = float(S.angle_sums_in()[input_vertex_under(S, np.array([c]))[0]]) / 2
+        if self.smallest_at(point) >= AIM_SHARE * even:
+            return
+        star = vertex_star(S.F, c)
+        fan = two_face_fan(star)
+        if fan is None:
+            return
+        b, w, a = fan
+        attempts = [(partial(self.split_middle_edge, c, w, M), S.n)
+                    for M in even_split_points(S, c, b, w, a)]
+        attempts += [(partial(put_vertex, S, w, where), w) for where in
+                     even_split_moves(S, c, vertex_star(S.F, w), self.tol, min_angle_deg)]
+        start, best = self.saved(), None
+        for change, hold in attempts:
+            if self.share_corner(point, min_angle_deg, change, hold=hold):
+                if best is None or self.smallest_at(point) > best[0]:
+                    best = (self.smallest_at(point), self.saved())
+                self.restore(start)
+                start = self.saved()             # (restore puts the saved arrays themselves)
+        if best is not None:
+            self.restore(best[1])
+
+    def split_middle_edge(self, c: int, w: int, M: np.ndarray) -> bool:
+        """Split the edge ``c–w`` with a new vertex at the domain point ``M`` (2,)
+        (:func:`.refine.split_edges`); undone, returning False, where an edge of the new
+        vertex is farther from the surface than the sag tolerance (:func:`.sag.edge_sag_along`
+        at :data:`.angles.SAG_TS`)."""
+        S = self.S
+        saved = saved_state(S)
+        h = half_edge(S.F, c, w)
+        split_edges(S, np.array([h]), S.twins()[[h]], points=M[None])
+        p = S.n - 1
+        if self.tol is not None:
+            ends = np.unique(vertex_star(S.F, p)[:, 1:])
+            ends = ends[ends != p]
+            if (edge_sag_along(S, np.full(len(ends), p), ends, SAG_TS)[0] > self.tol).any():
+                restore_state(S, saved)
+                return False
+        return True
+
+    def share_corner(self, point: np.ndarray, min_angle_deg: float, change,
+                     hold: int | None = None) -> bool:
+        """``change()`` at the corner at ``point`` (3,) (returns whether it changed anything),
+        then the usual operations at the faces below ``min_angle_deg`` that no input corner
+        forces within ``FORCED_REACH × L`` of the corner, the vertices their collapses removed
+        given back (:func:`.angles.split_for_count`); undone unless the smallest angle of the
+        faces at the corner rises (:meth:`smallest_at`), with no more folds and no more faces
+        below the minimum that no input corner forces, nor as many with a smaller smallest
+        angle (:func:`.circumcentres.unforced_shortfall`); the vertex ``hold`` (once ``change``
+        made it), where given, locked meanwhile (the operations at the faces around it would
+        move it back). Returns whether it was kept."""
+        S = self.S
+        before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
+        n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
+        if not change():
+            return False
+        held = None if hold is None else (S.X[hold].copy(), bool(S.locked[hold]))
+        if held is not None:
+            S.locked[hold] = True
+        low, _ = unforced_below(S, min_angle_deg)
+        near = norms(S.X - point) < FORCED_REACH * self.L
+        raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
+                         self.judged)
+        if S.n < n0:
+            split_for_count(S, n0 - S.n, min_angle_deg)
+        if held is not None:
+            S.locked[at_points(S.X, held[0][None])] = held[1]
+        if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
+                shortfall_order(unforced_shortfall(S, min_angle_deg)) > \
+                shortfall_order(before):
+            self.restore(saved)
+            return False
+        return True
 
     def faces_at(self, point: np.ndarray) -> np.ndarray:
         """The faces (indices) at the vertex at ``point`` (3,); none where no vertex is there
