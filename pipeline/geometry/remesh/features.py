@@ -364,27 +364,30 @@ def chain_weights(V: np.ndarray, E: np.ndarray, angle: np.ndarray, chains: list
     weight = norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2
     if not chains:
         return np.array([])
-    n = int(max(E.max(), max(vs.max() for vs in chains))) + 1
+    a, b = chain_edges(chains)
+    n = int(max(E.max(), a.max(), b.max())) + 1
     keys = np.minimum(E[:, 0], E[:, 1]).astype(np.int64) * n + np.maximum(E[:, 0], E[:, 1])
     by_key = np.argsort(keys, kind="stable")
-    flat = np.concatenate(chains).astype(np.int64)
-    a, b = flat[:-1], flat[1:]
-    step = np.ones(len(a), bool)
-    step[np.cumsum([len(vs) for vs in chains])[:-1] - 1] = False   # not across two chains
-    edge = by_key[np.searchsorted(keys[by_key], (np.minimum(a, b) * n + np.maximum(a, b))[step])]
+    edge = by_key[np.searchsorted(keys[by_key], np.minimum(a, b) * n + np.maximum(a, b))]
     return chain_sums(weight[edge], [len(vs) - 1 for vs in chains])
 
 
-def chain_steps(V: np.ndarray, chains: list) -> np.ndarray:
-    """The lengths of the chains' edges, chain after chain, each in order along it (s,)
-    float: ``norms(V[vs[1:]] − V[vs[:-1]])`` of every chain ``vs`` (row by row, the same
-    numbers)."""
+def chain_edges(chains: list) -> tuple[np.ndarray, np.ndarray]:
+    """The chains' edges ``a → b`` (s,) int each, chain after chain, each in order along it:
+    ``vs[:-1]``, ``vs[1:]`` of every chain ``vs``."""
     if not chains:
-        return np.zeros(0)
-    flat = np.concatenate(chains)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    flat = np.concatenate(chains).astype(np.int64)
     step = np.ones(len(flat) - 1, bool)
-    step[np.cumsum([len(vs) for vs in chains])[:-1] - 1] = False
-    return norms(V[flat[1:][step]] - V[flat[:-1][step]])
+    step[np.cumsum([len(vs) for vs in chains])[:-1] - 1] = False   # not across two chains
+    return flat[:-1][step], flat[1:][step]
+
+
+def chain_steps(V: np.ndarray, chains: list) -> np.ndarray:
+    """The lengths of the chains' edges (:func:`chain_edges`) (s,) float:
+    ``norms(V[vs[1:]] − V[vs[:-1]])`` of every chain ``vs`` (row by row, the same numbers)."""
+    a, b = chain_edges(chains)
+    return norms(V[b] - V[a])
 
 
 def chain_sums(values: np.ndarray, counts) -> np.ndarray:
