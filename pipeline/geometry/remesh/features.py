@@ -102,8 +102,10 @@ def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> 
     The chains come in the order of a walk from each vertex the runs do not pass through
     (vertices in the order they first appear in ``E``, their edges in ``E``'s order) along
     each edge not walked yet, then of the closed runs from the first end of their first edge
-    in ``E``'s order: each run's edges are followed edge to next edge (:func:`_next_halves`)
-    and put in order by their distance from the run's first edge (:func:`_steps_from_start`).
+    in ``E``'s order (:func:`_walked_runs`): each edge, as a half-edge from one end, is
+    followed by the other half-edge at its far end where a chain passes through that vertex,
+    and the half-edges of a run are put in order by their distance from its first one
+    (:func:`_steps_from_start`).
 
     Parameters
     ----------
