@@ -8,8 +8,8 @@ import numpy as np
 
 from pipeline.geometry import topology as topo
 from pipeline.geometry.remesh.corners import (NOISE_NEIGHBOURS, _nan_median_rows, _nearest,
-                                              _peaks, boundary_corners, interior_corners,
-                                              vertex_turning)
+                                              _peaks, _unsorted, boundary_corners,
+                                              interior_corners, vertex_turning)
 
 
 def square_grid(k: int, height) -> tuple[np.ndarray, np.ndarray]:
@@ -107,24 +107,28 @@ def test_nan_median_rows_is_numpys_nanmedian():
     V, F = ict_face()
     value = vertex_turning(V, F)
     sharp = np.flatnonzero(np.abs(value) > 1.0)
-    dist, near = _nearest(V, sharp, 1.0)
-    around = np.where(near != sharp[:, None], value[near], np.nan)
+    dist, near, order = _nearest(V, sharp, 1.0)
+    around = np.where(near != sharp[order][:, None], value[near], np.nan)
     dev = np.abs(around - np.nanmean(around, axis=1)[:, None])
     assert len(sharp) > 1000
     assert np.array_equal(_nan_median_rows(dev), np.nanmedian(dev, axis=1))
 
 
-def test_nearest_is_the_trees_answer_in_the_queries_order():
-    """Queries in a scrambled order (and on a grid, where distances tie): the tree's answer
-    for the points in that order, row for row."""
+def test_nearest_is_the_trees_answer_row_by_row():
+    """Queries in a scrambled order (and on a grid, where distances tie): row ``i`` is the
+    tree's answer for ``at[order[i]]``, ``order`` a permutation putting ``at`` in the mesh's
+    order; per-row values put back by :func:`_unsorted` are in the queries' own order."""
     from scipy.spatial import cKDTree
 
     V, _ = square_grid(31, lambda x, y: np.zeros_like(x))
     at = np.random.default_rng(1).permutation(len(V))[:400]
     for P in (V, ict_face()[0]):
-        dist, near = _nearest(P, at, 1.0)
+        dist, near, order = _nearest(P, at, 1.0)
         want_dist, want_near = cKDTree(P).query(P[at], k=NOISE_NEIGHBOURS + 1)
-        assert np.array_equal(dist, want_dist) and np.array_equal(near, want_near)
+        assert np.array_equal(np.sort(order), np.arange(len(at)))
+        assert np.all(np.diff(at[order]) > 0)
+        assert np.array_equal(dist, want_dist[order]) and np.array_equal(near, want_near[order])
+        assert np.array_equal(_unsorted(near[:, 1], order), want_near[:, 1])
 
 
 def test_peaks_of_the_asked_points_are_those_of_all_points():

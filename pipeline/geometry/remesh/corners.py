@@ -77,22 +77,23 @@ def boundary_corners(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, angle_d
 
 
 def _nearest(V: np.ndarray, at: np.ndarray, reach: float):
-    """``(distances, indices)`` (k×K) of the ``K = NOISE_NEIGHBOURS + 1`` vertices of ``V``
-    nearest to each of ``V[at]`` (itself among them; all of ``V`` when fewer), or None where
-    nothing is judged at a scale: ``reach`` 0, no vertex asked, or at most
+    """``(distances, indices, order)``: the ``K = NOISE_NEIGHBOURS + 1`` vertices of ``V``
+    nearest to each of ``V[at]`` (k×K each; itself among them; all of ``V`` when fewer),
+    asked in the mesh's order (nearby points in turn): row ``i`` answers ``at[order[i]]``;
+    or None where nothing is judged at a scale: ``reach`` 0, no vertex asked, or at most
     ``MIN_NEIGHBOURS`` vertices in all."""
     if reach <= 0 or len(at) == 0 or len(V) <= MIN_NEIGHBOURS:
         return None
     from scipy.spatial import cKDTree
 
-    order = np.argsort(at, kind="stable")      # in the mesh's order: nearby queries in turn
+    order = np.argsort(at, kind="stable")
     dist, near = cKDTree(V).query(V[at[order]], k=min(NOISE_NEIGHBOURS + 1, len(V)))
-    return _unsorted(dist, order), _unsorted(near, order)
+    return dist, near, order
 
 
 def _unsorted(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
-    """``rows`` (k×K) answered for the queries ``order`` (k,) put back in the queries' own
-    order: row ``order[i]`` is ``rows[i]``."""
+    """Per-row values ``rows`` (k,) of :func:`_nearest`'s rows put back in the order of the
+    vertices asked: entry ``order[i]`` is ``rows[i]``."""
     out = np.empty_like(rows)
     out[order] = rows
     return out
@@ -104,8 +105,9 @@ def _dense(nearest, at: np.ndarray, reach: float) -> np.ndarray:
     where the input is finer than that scale."""
     if nearest is None:
         return np.zeros(len(at), bool)
-    dist, near = nearest
-    return ((near != at[:, None]) & (dist < reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    dist, near, order = nearest
+    rows = ((near != at[order][:, None]) & (dist < reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    return _unsorted(rows, order)
 
 
 def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach: float,
@@ -239,16 +241,18 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
         nearest = _nearest(V, sharp, reach)
     if nearest is None:
         return keep
-    dist, near = nearest
-    other = near != sharp[:, None]
+    dist, near, order = nearest                   # rows: per vertex, row by row
+    other = near != sharp[order][:, None]
     around = np.where(other, value[near], np.nan)
-    noise = _nan_median_rows(np.abs(around - np.nanmean(around, axis=1)[:, None]))
-    dense = (other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    noise = _unsorted(_nan_median_rows(np.abs(around - np.nanmean(around, axis=1)[:, None])),
+                      order)
+    dense = _unsorted((other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS, order)
     noisy = dense & (noise > NOISE_SHARE * angle_deg)
     keep[dense] = (np.abs(value[sharp]) > STANDS_OUT * noise)[dense]
     if noisy.any():
         r = np.minimum(reach, dist[:, -1])[:, None]
-        held = (_smooth(dist, r) * value[near]).sum(axis=1) * np.sign(value[sharp])
+        held = _unsorted((_smooth(dist, r) * value[near]).sum(axis=1), order)
+        held = held * np.sign(value[sharp])
         at = sharp[noisy]
         held = held[noisy]
         strong = held > np.maximum(angle_deg, STANDS_OUT * noise[noisy])
