@@ -2,6 +2,7 @@
 minimum angle that no input corner forces, and the folds and time.
 
     python benchmarks/bench_scans.py [--vertices 5000 20000] [--scans noisy jagged bowtie mild]
+                                     [--large]
 
 Real face scans are noisy and their rims ragged (the scanner loses the faces at grazing
 angles), which the shared meshes are not. The proxies, written to a temporary folder from the
@@ -18,11 +19,19 @@ ICT faces of ``../shared/data/faces/ict`` (seeded, so every run makes the same f
 * ``mild``: ict_B_smile_jawopen Loop-subdivided once (about 26k vertices), noise 0.01 % of the
   diagonal, 3 such passes.
 
+* ``large`` (only with ``--large``): ict_A_neutral Loop-subdivided three times (about 425k
+  vertices, 850k faces: a real scan's size), the noise of ``noisy``
+  (:func:`bench_intake.scan_proxy` with 3 subdivisions).
+
 Per proxy and vertex count, ``sem-pipeline remesh PROXY --vertices N --no-compare --no-report``
 end to end (wall and CPU seconds) and, from its ``remesh_metrics.json``: the mean and the
 smallest of the faces' smallest angles, the share of faces with an angle under 30°, the faces
 below 20° (``improve.below_min_angle``: all, and those no input corner forces), the faces turned
-over against the input and the Hausdorff distance (% of the bounding-box diagonal).
+over against the input and the Hausdorff distance (% of the bounding-box diagonal). With
+``--large``, the ``large`` rows too, then per vertex count our command's wall and CPU seconds
+beside one call of pymeshlab's isotropic explicit remeshing on the same proxy (10 iterations,
+the target edge length from the area, :func:`pipeline.stages.baselines.isotropic_remesh` with
+one run: the call's wall and CPU seconds and the vertices it leaves).
 """
 
 from __future__ import annotations
@@ -48,6 +57,7 @@ from pipeline.io.meshio import read_mesh, write_obj  # noqa: E402
 
 SCANS = ("noisy", "jagged", "bowtie", "mild")
 FLAGS = {"bowtie": ["--keep-largest-component"]}   # the pieces its bowties hold on
+LARGE = "large"
 
 
 def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng,
@@ -81,7 +91,8 @@ def ragged_rim(V: np.ndarray, F: np.ndarray, passes: int, p: float, rng,
 
 
 def make_scans(folder: Path, names) -> dict:
-    """The proxies ``names`` (of :data:`SCANS`) written to ``folder``: name → path."""
+    """The proxies ``names`` (of :data:`SCANS` and :data:`LARGE`) written to ``folder``: name →
+    path."""
     import trimesh
 
     out = {}
@@ -103,26 +114,35 @@ def make_scans(folder: Path, names) -> dict:
         V = V + t.vertex_normals * rng.normal(0, 0.0001 * diag, (len(V), 1))
         V, F = ragged_rim(np.asarray(V), np.asarray(F), 3, 0.4, rng)
         out["mild"] = write_obj(folder / "scan_mild.obj", V, F)
+    if LARGE in names:
+        out[LARGE] = scan_proxy(folder, iterations=3, name="scan_large.obj")
     return {k: v for k, v in out.items() if k in names}
 
 
-def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
-    """One table row, ``name``'s: the command on ``path`` at ``n`` vertices (see the module
-    docstring)."""
+def run_command(path: Path, n: int, folder: Path, flags=()) -> tuple:
+    """``sem-pipeline remesh path --vertices n --no-compare --no-report`` (and ``flags``) run
+    from ``folder`` with this tree's package: ``(completed process, output folder, wall s, CPU
+    s)``."""
     out = folder / f"{path.stem}_{n}"
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(                # this tree's package
         [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])])}
     t = time.perf_counter()
     run = subprocess.run([sys.executable, "-m", "pipeline", "remesh", str(path), "--vertices",
-                          str(n), "--no-compare", "--no-report", "-o", str(out),
-                          *FLAGS.get(name, [])],
+                          str(n), "--no-compare", "--no-report", "-o", str(out), *flags],
                          capture_output=True, text=True, cwd=folder, env=env)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    return run, out, wall, cpu
+
+
+def remesh_row(name: str, path: Path, n: int, folder: Path) -> tuple[str, float, float]:
+    """One table row, ``name``'s: the command on ``path`` at ``n`` vertices (see the module
+    docstring), and its wall and CPU seconds."""
+    run, out, wall, cpu = run_command(path, n, folder, FLAGS.get(name, []))
     if run.returncode:
-        return f"{name:12s} {n:6d}  failed: {run.stderr.strip().splitlines()[-1]}"
+        return f"{name:12s} {n:6d}  failed: {run.stderr.strip().splitlines()[-1]}", wall, cpu
     metrics = json.loads((out / "remesh_metrics.json").read_text())
     ours = metrics["methods"]["sem"]
     tri, below = ours["triangles"], metrics["remesh"]["improve"]["below_min_angle"]
@@ -130,25 +150,46 @@ def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
             f"{tri['mean_min_angle_deg']:8.2f} {100 * tri['fraction_min_angle_below_30']:7.3f} "
             f"{tri['min_angle_deg']:7.2f} {below['faces']:6d} {below['unforced_faces']:8d} "
             f"{ours['distance']['turned_over_faces']:6d} "
-            f"{100 * ours['distance']['hausdorff_rel']:7.3f} {wall:7.2f} {cpu:7.2f}")
+            f"{100 * ours['distance']['hausdorff_rel']:7.3f} {wall:7.2f} {cpu:7.2f}"), wall, cpu
+
+
+def pymeshlab_row(path: Path, n: int, ours: tuple[float, float]) -> str:
+    """Our ``(wall, CPU)`` seconds at ``n`` vertices beside one pymeshlab isotropic remeshing
+    call on ``path`` (see the module docstring)."""
+    from pipeline.stages.baselines import isotropic_remesh
+
+    mesh = read_mesh(path)
+    b = isotropic_remesh(mesh.V, np.asarray(mesh.faces), n, max_runs=1)
+    return (f"{n:6d} {ours[0]:8.2f} {ours[1]:8.2f} {b.seconds:11.2f} {b.cpu_seconds:10.2f} "
+            f"{len(b.V):9d}")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000])
     ap.add_argument("--scans", nargs="+", choices=SCANS, default=list(SCANS))
+    ap.add_argument("--large", action="store_true",
+                    help="also the 425k-vertex proxy, and pymeshlab's call time beside ours")
     args = ap.parse_args()
+    names = [*args.scans, *([LARGE] if args.large else [])]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        scans = make_scans(folder, args.scans)
-        for name in args.scans:
+        scans = make_scans(folder, names)
+        for name in names:
             mesh = read_mesh(scans[name])
             print(f"{name}: {len(mesh.V)} vertices, {len(mesh.faces)} faces")
         print("scan              N  verts mean min°  <30° %    min°  <20°  unforced  folds"
               "  Haus %   wall s   CPU s", flush=True)
-        for name in args.scans:
+        times = {}
+        for name in names:
             for n in args.vertices:
-                print(remesh_row(name, scans[name], n, folder), flush=True)
+                row, *times[name, n] = remesh_row(name, scans[name], n, folder)
+                print(row, flush=True)
+        if args.large:
+            print(f"\n{LARGE}: ours end to end beside pymeshlab's call\n"
+                  "     N   ours s  ours CPU  pymeshlab s  its CPU s  its verts", flush=True)
+            for n in args.vertices:
+                print(pymeshlab_row(scans[LARGE], n, times[LARGE, n]), flush=True)
     return 0
 
 

@@ -7,7 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.remesh.corners import vertex_turning, boundary_corners, interior_corners
+from pipeline.geometry.remesh.corners import (NOISE_NEIGHBOURS, _nan_median_rows, _nearest,
+                                              _peaks, _unsorted, boundary_corners,
+                                              interior_corners, vertex_turning)
 
 
 def square_grid(k: int, height) -> tuple[np.ndarray, np.ndarray]:
@@ -95,3 +97,73 @@ def test_a_notch_closed_at_its_mouth_is_not_a_corner_a_seam_is_unaffected():
     seam = np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0], [1, 0, 0], [0, 0, 0], [0, -1, 0],
                      [2, -1, 0]], float)                      # a slit from (0,0) to its tip
     assert not closed_notches(seam, 100.0).any()
+
+
+def ict_face() -> tuple[np.ndarray, np.ndarray]:
+    """The shared ICT face ict_A_neutral_disk (a real input)."""
+    from conftest import require_data
+
+    from pipeline.io.meshio import read_mesh
+
+    mesh = read_mesh(require_data("faces", "ict", "ict_A_neutral_disk.obj"))
+    return mesh.V, np.asarray(mesh.faces)
+
+
+def test_nan_median_rows_is_numpys_nanmedian():
+    """Rows with NaNs in random places (even and odd counts of numbers, ties among them, one
+    row with a single number) and the noise deviations of a real face's sharp vertices: the
+    same medians as ``np.nanmedian(x, axis=1)``, bit for bit."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(500, 65))
+    x[rng.random(x.shape) < 0.2] = np.nan
+    x[::7, :10] = 0.25                                       # ties
+    x[3, 1:] = np.nan                                        # one number left
+    assert np.array_equal(_nan_median_rows(x), np.nanmedian(x, axis=1))
+    V, F = ict_face()
+    value = vertex_turning(V, F)
+    sharp = np.flatnonzero(np.abs(value) > 1.0)
+    dist, near, order = _nearest(V, sharp, 1.0)
+    around = np.where(near != sharp[order][:, None], value[near], np.nan)
+    dev = np.abs(around - np.nanmean(around, axis=1)[:, None])
+    assert len(sharp) > 1000
+    assert np.array_equal(_nan_median_rows(dev), np.nanmedian(dev, axis=1))
+
+
+def test_nearest_is_the_trees_answer_row_by_row():
+    """Queries in a scrambled order (and on a grid, where distances tie): row ``i`` is the
+    tree's answer for ``at[order[i]]``, ``order`` a permutation putting ``at`` in the mesh's
+    order; per-row values put back by :func:`_unsorted` are in the queries' own order."""
+    from scipy.spatial import cKDTree
+
+    V, _ = square_grid(31, lambda x, y: np.zeros_like(x))
+    at = np.random.default_rng(1).permutation(len(V))[:400]
+    for P in (V, ict_face()[0]):
+        dist, near, order = _nearest(P, at, 1.0)
+        want_dist, want_near = cKDTree(P).query(P[at], k=NOISE_NEIGHBOURS + 1)
+        assert np.array_equal(np.sort(order), np.arange(len(at)))
+        assert np.all(np.diff(at[order]) > 0)
+        assert np.array_equal(dist, want_dist[order]) and np.array_equal(near, want_near[order])
+        assert np.array_equal(_unsorted(near[:, 1], order), want_near[:, 1])
+
+
+def test_peaks_of_the_asked_points_are_those_of_all_points():
+    """Only some points asked: their answers are those :func:`_peaks` gives when every point
+    is judged (the others still compete), on random scores with ties and on a face's held
+    defects; the points not asked come back True."""
+    rng = np.random.default_rng(2)
+    P = rng.random((3000, 3))
+    sign = rng.choice([-1.0, 1.0], len(P))
+    score = np.round(rng.random(len(P)), 2)                  # ties
+    asked = rng.random(len(P)) < 0.3
+    every = _peaks(P, sign, score, 0.1)
+    some = _peaks(P, sign, score, 0.1, asked)
+    assert np.array_equal(some[asked], every[asked]) and some[~asked].all()
+    assert 0 < every[asked].sum() < asked.sum()
+    V, F = ict_face()
+    value = vertex_turning(V, F)
+    at = np.flatnonzero(np.abs(value) > 5.0)
+    asked = np.abs(value[at]) > 15.0
+    every = _peaks(V[at], value[at], np.abs(value[at]), 0.5)
+    some = _peaks(V[at], value[at], np.abs(value[at]), 0.5, asked)
+    assert np.array_equal(some[asked], every[asked]) and some[~asked].all()
+    assert 0 < every[asked].sum() < asked.sum()

@@ -105,15 +105,26 @@ def closed_notches(P: np.ndarray, reach: float) -> np.ndarray:
 
 
 def _nearest(V: np.ndarray, at: np.ndarray, reach: float):
-    """``(distances, indices)`` (k×K) of the ``K = NOISE_NEIGHBOURS + 1`` vertices of ``V``
-    nearest to each of ``V[at]`` (itself among them; all of ``V`` when fewer), or None where
-    nothing is judged at a scale: ``reach`` 0, no vertex asked, or at most
+    """``(distances, indices, order)``: the ``K = NOISE_NEIGHBOURS + 1`` vertices of ``V``
+    nearest to each of ``V[at]`` (k×K each; itself among them; all of ``V`` when fewer),
+    asked in the mesh's order (nearby points in turn): row ``i`` answers ``at[order[i]]``;
+    or None where nothing is judged at a scale: ``reach`` 0, no vertex asked, or at most
     ``MIN_NEIGHBOURS`` vertices in all."""
     if reach <= 0 or len(at) == 0 or len(V) <= MIN_NEIGHBOURS:
         return None
     from scipy.spatial import cKDTree
 
-    return cKDTree(V).query(V[at], k=min(NOISE_NEIGHBOURS + 1, len(V)))
+    order = np.argsort(at, kind="stable")
+    dist, near = cKDTree(V).query(V[at[order]], k=min(NOISE_NEIGHBOURS + 1, len(V)))
+    return dist, near, order
+
+
+def _unsorted(rows: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """Per-row values ``rows`` (k,) of :func:`_nearest`'s rows put back in the order of the
+    vertices asked: entry ``order[i]`` is ``rows[i]``."""
+    out = np.empty_like(rows)
+    out[order] = rows
+    return out
 
 
 def _dense(nearest, at: np.ndarray, reach: float) -> np.ndarray:
@@ -122,8 +133,9 @@ def _dense(nearest, at: np.ndarray, reach: float) -> np.ndarray:
     where the input is finer than that scale."""
     if nearest is None:
         return np.zeros(len(at), bool)
-    dist, near = nearest
-    return ((near != at[:, None]) & (dist < reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    dist, near, order = nearest
+    rows = ((near != at[order][:, None]) & (dist < reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    return _unsorted(rows, order)
 
 
 def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach: float,
@@ -257,21 +269,35 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
         nearest = _nearest(V, sharp, reach)
     if nearest is None:
         return keep
-    dist, near = nearest
-    other = near != sharp[:, None]
+    dist, near, order = nearest                   # rows: per vertex, row by row
+    other = near != sharp[order][:, None]
     around = np.where(other, value[near], np.nan)
-    noise = np.nanmedian(np.abs(around - np.nanmean(around, axis=1)[:, None]), axis=1)
-    dense = (other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS
+    noise = _unsorted(_nan_median_rows(np.abs(around - np.nanmean(around, axis=1)[:, None])),
+                      order)
+    dense = _unsorted((other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS, order)
     noisy = dense & (noise > NOISE_SHARE * angle_deg)
     keep[dense] = (np.abs(value[sharp]) > STANDS_OUT * noise)[dense]
     if noisy.any():
         r = np.minimum(reach, dist[:, -1])[:, None]
-        held = (_smooth(dist, r) * value[near]).sum(axis=1) * np.sign(value[sharp])
+        held = _unsorted((_smooth(dist, r) * value[near]).sum(axis=1), order)
+        held = held * np.sign(value[sharp])
         at = sharp[noisy]
         held = held[noisy]
-        keep[noisy] = ((held > np.maximum(angle_deg, STANDS_OUT * noise[noisy]))
-                       & _peaks(V[at], value[at], held, reach))
+        strong = held > np.maximum(angle_deg, STANDS_OUT * noise[noisy])
+        keep[noisy] = strong & _peaks(V[at], value[at], held, reach, strong)
     return keep
+
+
+def _nan_median_rows(x: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(x, axis=1)`` of a (k×K) array with at least one number in every row
+    (k,): the mean of the row's two middle numbers (its middle one when it has an odd count),
+    ``(low + high) / 2`` as NumPy's masked median takes it; NaNs sort last."""
+    count = (~np.isnan(x)).sum(axis=1)
+    high = count // 2
+    low = np.where(count % 2 == 1, high, high - 1)
+    ranked = np.sort(x, axis=1)
+    rows = np.arange(len(x))
+    return (ranked[rows, low] + ranked[rows, high]) / 2.0
 
 
 def _smooth(dist: np.ndarray, reach) -> np.ndarray:
@@ -279,25 +305,28 @@ def _smooth(dist: np.ndarray, reach) -> np.ndarray:
     return (1.0 - np.minimum(dist / reach, 1.0) ** 2) ** 2
 
 
-def _peaks(P: np.ndarray, sign: np.ndarray, score: np.ndarray, reach: float) -> np.ndarray:
+def _peaks(P: np.ndarray, sign: np.ndarray, score: np.ndarray, reach: float,
+           asked: np.ndarray | None = None) -> np.ndarray:
     """Which points (k bool) have no point of the same ``sign`` within ``reach`` with a
     larger ``score`` (on a tie, a lower index), among their ``NOISE_NEIGHBOURS`` nearest of
-    that sign."""
+    that sign; only the points ``asked`` (k bool; all when None) are judged, the others
+    come back True (every point of a sign still competes)."""
     from scipy.spatial import cKDTree
 
     peak = np.ones(len(P), bool)
     for side in (sign > 0, sign < 0):
         idx = np.flatnonzero(side)
-        if len(idx) < 2:
+        ask = idx if asked is None else idx[asked[idx]]
+        if len(idx) < 2 or len(ask) == 0:
             continue
-        dist, near = cKDTree(P[idx]).query(P[idx], k=min(NOISE_NEIGHBOURS + 1, len(idx)),
+        dist, near = cKDTree(P[idx]).query(P[ask], k=min(NOISE_NEIGHBOURS + 1, len(idx)),
                                            distance_upper_bound=reach)
         found = np.isfinite(dist)
         j = idx[np.where(found, near, 0)]
-        theirs, mine = score[j], score[idx][:, None]
-        later = (theirs == mine) & (j < idx[:, None])
-        beats = found & (j != idx[:, None]) & ((theirs > mine) | later)
-        peak[idx] = ~beats.any(axis=1)
+        theirs, mine = score[j], score[ask][:, None]
+        later = (theirs == mine) & (j < ask[:, None])
+        beats = found & (j != ask[:, None]) & ((theirs > mine) | later)
+        peak[ask] = ~beats.any(axis=1)
     return peak
 
 

@@ -33,7 +33,6 @@ corners, those vertices are freed (:func:`release_features`).
 from __future__ import annotations
 
 import math
-from collections import defaultdict
 from functools import partial
 
 import numpy as np
@@ -97,8 +96,16 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
 
 def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> list:
     """The feature edges ``E`` cut into chains: maximal runs through vertices where exactly
-    two of them meet at a turn of at most ``turn_deg``; a closed run starts and ends at one
-    vertex.
+    two of them meet at a turn of at most ``turn_deg`` (:func:`_passes_through`); a closed
+    run starts and ends at one vertex.
+
+    The chains come in the order of a walk from each vertex the runs do not pass through
+    (vertices in the order they first appear in ``E``, their edges in ``E``'s order) along
+    each edge not walked yet, then of the closed runs from the first end of their first edge
+    in ``E``'s order (:func:`_walked_runs`): each edge, as a half-edge from one end, is
+    followed by the other half-edge at its far end where a chain passes through that vertex,
+    and the half-edges of a run are put in order by their distance from its first one
+    (:func:`_steps_from_start`).
 
     Parameters
     ----------
@@ -111,35 +118,139 @@ def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> 
     list of (k,) int
         Vertex sequences along each chain (k ≥ 2).
     """
-    nbr = defaultdict(list)                       # vertex → [(other end, edge), ...]
-    for i, (a, b) in enumerate(E.tolist()):
-        nbr[a].append((b, i))
-        nbr[b].append((a, i))
+    E = np.asarray(E).reshape(-1, 2)
+    if len(E) == 0:
+        return []
+    tail = E.ravel().astype(np.int64)             # half h: edge h // 2 from its end h % 2
+    halves = np.arange(len(tail))
+    verts, first, at = np.unique(tail, return_index=True, return_inverse=True)
+    appear = np.empty(len(verts), np.int64)       # vertex → order of first appearance
+    appear[np.argsort(first)] = np.arange(len(verts))
+    through, partner = _passes_through(V, tail, at, len(verts), turn_deg)
+    nxt = np.where(through[at[halves ^ 1]], partner[halves ^ 1], -1)
+    walked, start = _walked_runs(nxt, through[at], appear[at] * len(E) + halves // 2)
+    prev = np.full(len(tail), -1)
+    prev[nxt[nxt >= 0]] = halves[nxt >= 0]
+    prev[start] = -1                              # a closed run cut at its first half
+    steps, first_half = _steps_from_start(np.where(walked, prev, -1))
+    kept = np.flatnonzero(walked)
+    run_rank = np.empty(len(tail), np.int64)
+    run_rank[start] = np.arange(len(start))
+    order = kept[np.lexsort((steps[kept], run_rank[first_half[kept]]))]
+    counts = np.bincount(run_rank[first_half[order]], minlength=len(start)) + 1
+    flat = np.empty(counts.sum(), np.int64)
+    offsets = np.r_[0, np.cumsum(counts)]
+    flat[offsets[:-1]] = tail[start]
+    inner = np.ones(len(flat), bool)
+    inner[offsets[:-1]] = False
+    flat[inner] = tail[order ^ 1]                 # each half's head, in order along its run
+    return np.split(flat, offsets[1:-1])
+
+
+def _passes_through(V: np.ndarray, tail: np.ndarray, at: np.ndarray, n_verts: int,
+                    turn_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which feature vertices a chain passes through, and the other half at each.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    tail : (2e,) int
+        The vertex each half-edge leaves (half ``h``: edge ``h // 2`` from its end ``h % 2``).
+    at : (2e,) int
+        The feature vertex (``0 … n_verts − 1``) of each half's tail.
+    n_verts : int
+    turn_deg : float
+
+    Returns
+    -------
+    through : (n_verts,) bool
+        Exactly two feature edges meet there, first ``i`` then ``j`` in ``E``'s order, with
+        ``d₁ · d₂ ≥ cos(turn_deg) |d₁| |d₂|`` for ``d₁ = v − (i's other end)``,
+        ``d₂ = (j's other end) − v`` (:func:`blas_dots`, the dot products of ``d₁ @ d₂`` and
+        ``np.linalg.norm``).
+    partner : (2e,) int
+        At a vertex with two feature edges, each half's other half there; −1 elsewhere.
+    """
+    by_vertex = np.argsort(at, kind="stable")     # halves by vertex, then by edge
+    degree = np.bincount(at, minlength=n_verts)
+    two = np.flatnonzero(degree == 2)
+    first = np.r_[0, np.cumsum(degree)][two]
+    h1, h2 = by_vertex[first], by_vertex[first + 1]
+    v = tail[h1]
+    d1, d2 = V[v] - V[tail[h1 ^ 1]], V[tail[h2 ^ 1]] - V[v]
     cos_turn = math.cos(math.radians(turn_deg))
+    through = np.zeros(n_verts, bool)
+    through[two] = blas_dots(d1, d2) >= (cos_turn * np.sqrt(blas_dots(d1, d1))
+                                         * np.sqrt(blas_dots(d2, d2)))
+    partner = np.full(len(tail), -1)
+    partner[h1], partner[h2] = h2, h1
+    return through, partner
 
-    def passes(v) -> bool:
-        if len(nbr[v]) != 2:
-            return False
-        d1, d2 = V[v] - V[nbr[v][0][0]], V[nbr[v][1][0]] - V[v]
-        return float(d1 @ d2) >= cos_turn * np.linalg.norm(d1) * np.linalg.norm(d2)
 
-    through = {v: passes(v) for v in nbr}
-    used = np.zeros(len(E), bool)
+def blas_dots(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a[i] @ b[i]`` per row (k×d, k×d → k) by NumPy's own dot product of two vectors (the
+    BLAS one, which fuses multiply and add where the CPU can: not the same rounding as
+    :func:`..rows.dots`), as a stack of (1×d)·(d×1) products."""
+    return (a[:, None, :] @ b[:, :, None])[:, 0, 0]
 
-    def walk(v, i) -> np.ndarray:
-        chain = [v]
-        while i is not None:
-            used[i] = True
-            v = int(E[i, 1] if E[i, 0] == v else E[i, 0])
-            chain.append(v)
-            i = next((j for _, j in nbr[v] if not used[j]), None) if through[v] else None
-        return np.asarray(chain, np.int64)
 
-    chains = [walk(v, i) for v in nbr if not through[v] for _, i in nbr[v] if not used[i]]
-    for i in range(len(E)):                       # closed runs: every vertex passes through
-        if not used[i]:
-            chains.append(walk(int(E[i, 0]), i))
-    return chains
+def _walked_runs(nxt: np.ndarray, tail_through: np.ndarray, key: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The direction each run is walked in, and its first half-edge.
+
+    Half-edges linked by ``nxt`` form runs, each edge in two, one per direction. An open run
+    (it starts at a half whose tail the chains do not pass through) is walked from its end
+    with the smaller ``key``; a closed one (every tail passed through) from its half with the
+    smallest index, if that is an edge's first half (the other direction starts from the
+    edge's second half).
+
+    Parameters
+    ----------
+    nxt : (2e,) int
+        The half that follows each one along its run (−1 at a run's end).
+    tail_through : (2e,) bool
+        Whether a chain passes through each half's tail.
+    key : (2e,) int
+        The walk's order of the open runs' first halves.
+
+    Returns
+    -------
+    walked : (2e,) bool
+        The halves of the runs walked.
+    start : (c,) int
+        Their first halves: the open runs by ``key``, then the closed ones by index.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    h = np.flatnonzero(nxt >= 0)
+    graph = coo_matrix((np.ones(len(h)), (h, nxt[h])), shape=(len(nxt), len(nxt)))
+    _, run = connected_components(graph, directed=True, connection="weak")
+    opens = np.flatnonzero(~tail_through)                     # each open run's first half
+    first_of = np.full(run.max() + 1, -1)
+    first_of[run[opens]] = opens
+    other = first_of[run[opens ^ 1]]                          # the same run walked back
+    opens = opens[key[opens] < key[other]]
+    opens = opens[np.argsort(key[opens], kind="stable")]
+    _, lowest = np.unique(run, return_index=True)             # each run's smallest half
+    closed = np.sort(lowest[(first_of[run[lowest]] < 0) & (lowest % 2 == 0)])
+    start = np.r_[opens, closed]
+    walked = np.zeros(len(nxt), bool)
+    walked[np.isin(run, run[start])] = True
+    return walked, start
+
+
+def _steps_from_start(prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each element of linked lists given by ``prev`` (n int, −1 at a list's start, no
+    cycles): how many steps back its list's start is, and that start (pointer jumping)."""
+    reach = np.where(prev >= 0, prev, np.arange(len(prev)))
+    steps = (prev >= 0).astype(np.int64)
+    while True:
+        further = reach[reach]
+        if np.array_equal(further, reach):
+            return steps, reach
+        steps = steps + steps[reach]
+        reach = further
 
 
 def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
@@ -170,11 +281,11 @@ def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
         in which they claim a remesh vertex.
     """
     P, which, rank = [], [], []
-    for c, vs in enumerate(chains):
+    long_enough = chain_sums(chain_steps(V, chains), [len(vs) - 1 for vs in chains])
+    for c in np.flatnonzero(~(long_enough < min_length * L)).tolist():
+        vs = chains[c]
         seg = norms(V[vs[1:]] - V[vs[:-1]])
         s = np.r_[0.0, np.cumsum(seg)]
-        if s[-1] < min_length * L:
-            continue
         stops = chain_stops(V[vs], s, L)
         t, r = [], []
         for i, j in zip(stops[:-1], stops[1:]):
@@ -249,12 +360,55 @@ def chain_weights(V: np.ndarray, E: np.ndarray, angle: np.ndarray, chains: list
     E : (e, 2) int
         The feature edges, ``angle`` (e,) their dihedral angles.
     chains : list of (k,) int
+        Runs of edges of ``E``.
     """
-    key = {(min(a, b), max(a, b)): w for (a, b), w in
-           zip(E.tolist(), (norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2).tolist())}
-    return np.array([sum(key[(min(a, b), max(a, b))] for a, b in zip(c[:-1].tolist(),
-                                                                     c[1:].tolist()))
-                     for c in chains])
+    E = np.asarray(E).reshape(-1, 2)
+    weight = norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2
+    if not chains:
+        return np.array([])
+    a, b = chain_edges(chains)
+    n = int(max(E.max(), a.max(), b.max())) + 1
+    keys = np.minimum(E[:, 0], E[:, 1]).astype(np.int64) * n + np.maximum(E[:, 0], E[:, 1])
+    by_key = np.argsort(keys, kind="stable")
+    edge = by_key[np.searchsorted(keys[by_key], np.minimum(a, b) * n + np.maximum(a, b))]
+    return chain_sums(weight[edge], [len(vs) - 1 for vs in chains])
+
+
+def chain_edges(chains: list) -> tuple[np.ndarray, np.ndarray]:
+    """The chains' edges ``a → b`` (s,) int each, chain after chain, each in order along it:
+    ``vs[:-1]``, ``vs[1:]`` of every chain ``vs``."""
+    if not chains:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    flat = np.concatenate(chains).astype(np.int64)
+    step = np.ones(len(flat) - 1, bool)
+    step[np.cumsum([len(vs) for vs in chains])[:-1] - 1] = False   # not across two chains
+    return flat[:-1][step], flat[1:][step]
+
+
+def chain_steps(V: np.ndarray, chains: list) -> np.ndarray:
+    """The lengths of the chains' edges (:func:`chain_edges`) (s,) float:
+    ``norms(V[vs[1:]] − V[vs[:-1]])`` of every chain ``vs`` (row by row, the same numbers)."""
+    a, b = chain_edges(chains)
+    return norms(V[b] - V[a])
+
+
+def chain_sums(values: np.ndarray, counts) -> np.ndarray:
+    """Per chain, the sum of its ``counts`` (c,) consecutive ``values`` (s,) taken in order
+    from the left, ``((0 + x₀) + x₁) + …`` as Python's ``sum`` and ``np.cumsum`` add them
+    (c,) float: one vector step per position along the chains, longest chains first."""
+    counts = np.asarray(counts, np.int64)
+    total = np.zeros(len(counts))
+    if len(counts) == 0:
+        return total
+    longest_first = np.argsort(-counts, kind="stable")
+    offsets = np.r_[0, np.cumsum(counts)][:-1][longest_first]
+    remaining = counts[longest_first]
+    acc = np.zeros(len(counts))
+    for k in range(int(remaining.max(initial=0))):
+        m = np.searchsorted(-remaining, -k, side="left")      # the chains longer than k
+        acc[:m] += values[offsets[:m] + k]
+    total[longest_first] = acc
+    return total
 
 
 def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> np.ndarray:
