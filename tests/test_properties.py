@@ -40,13 +40,14 @@ def grid(k: int, noise: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @st.composite
 def meshes(draw):
     """A small grid disk, then some of: faces dropped, duplicated, degenerate, flipped, a
-    non-manifold fin, a second component, vertices collapsed, a global scale."""
+    non-manifold fin, a second component, vertices collapsed, two boundary vertices made one
+    (a bowtie where the rim touches itself), a global scale."""
     k = draw(st.integers(1, 5))
     noise = np.array(draw(st.lists(st.floats(-0.4, 0.4), min_size=108, max_size=108))
                      ).reshape(36, 3)
     V, F = grid(k, noise)
     ops = draw(st.lists(st.sampled_from(["drop", "dup", "degenerate", "flip", "fin", "island",
-                                         "collapse", "scale"]), max_size=3))
+                                         "collapse", "pinch", "scale"]), max_size=3))
     for op in ops:
         i = draw(st.integers(0, len(F) - 1))
         if op == "drop" and len(F) > 1:
@@ -65,6 +66,10 @@ def meshes(draw):
             V = np.vstack([V, V + [100, 0, 0]])
         elif op == "collapse":
             V[F[i, 1]] = V[F[i, 0]]
+        elif op == "pinch":
+            rim = np.flatnonzero(np.bincount(F.ravel(), minlength=len(V)) < 6)
+            a, b = (int(rim[draw(st.integers(0, len(rim) - 1))]) for _ in range(2))
+            F = np.where(F == b, a, F)
         elif op == "scale":
             V = V * draw(st.sampled_from([1e-9, 1e9, -1.0, 1e80]))
     return V, F
