@@ -220,12 +220,8 @@ def _walked_runs(nxt: np.ndarray, tail_through: np.ndarray, key: np.ndarray
     start : (c,) int
         Their first halves: the open runs by ``key``, then the closed ones by index.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     h = np.flatnonzero(nxt >= 0)
-    graph = coo_matrix((np.ones(len(h)), (h, nxt[h])), shape=(len(nxt), len(nxt)))
-    _, run = connected_components(graph, directed=True, connection="weak")
+    _, run = topo.graph_components(h, nxt[h], len(nxt))      # the runs, linked either way
     opens = np.flatnonzero(~tail_through)                     # each open run's first half
     first_of = np.full(run.max() + 1, -1)
     first_of[run[opens]] = opens
