@@ -199,6 +199,19 @@ def test_three_faces_on_one_edge_is_nonmanifold_edge():
     assert topo.nonmanifold_edges(F).tolist() == [[0, 1]]
 
 
+def test_nonmanifold_edge_halfedges_are_grouped_by_edge_in_face_order():
+    F = np.array([[0, 1, 2], [1, 0, 3], [2, 1, 4], [0, 1, 4], [1, 2, 5], [2, 1, 6]])
+    h, start = topo.nonmanifold_edge_halfedges(F)
+    a, b = topo.half_edges(F)
+    groups = {}
+    for k in range(len(a)):
+        groups.setdefault((min(a[k], b[k]), max(a[k], b[k])), []).append(k)
+    expect = [groups[e] for e in sorted(groups) if len(groups[e]) > 2]
+    assert [g.tolist() for g in np.split(h, start[1:])] == expect
+    assert topo.nonmanifold_edges(F).tolist() == [[0, 1], [1, 2]]
+    assert topo.nonmanifold_edge_halfedges(F[:3])[0].size == 0
+
+
 def test_connected_components_and_euler():
     V, F = grid(2)
     F2 = np.r_[F, F + len(V)]

@@ -306,15 +306,11 @@ def nonmanifold_edge_extras(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     half-planes from the edge open widest (towards their third corners, any orientation) —
     and the others dropped (a fin, a stray sheet through the edge). Ties: the lower face
     indices. ``V`` (n×3), ``F`` (m×3)."""
-    a, b = topo.half_edges(F)
-    n = len(V)
-    keys = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
-    _, edge_of, count = np.unique(keys, return_inverse=True, return_counts=True)
-    h = np.flatnonzero(count[edge_of] > 2)
+    h, starts = topo.nonmanifold_edge_halfedges(F)
     drop = np.zeros(len(F), dtype=bool)
     if len(h) == 0:
         return drop
-    h = h[np.argsort(edge_of[h], kind="stable")]              # grouped by edge, faces in order
+    a, b = topo.half_edges(F)
     P, Q = V[a[h]], V[b[h]]
     O = V[F[h // 3, (h % 3 + 2) % 3]]                          # the corner opposite the edge
     e = Q - P
@@ -322,7 +318,6 @@ def nonmanifold_edge_extras(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     w = O - P
     u = w - dots(w, e)[:, None] * e                            # towards it, across the edge
     u = u / np.maximum(norms(u), np.finfo(float).tiny)[:, None]
-    starts = np.flatnonzero(np.r_[True, edge_of[h][1:] != edge_of[h][:-1]])
     for lo, hi in zip(starts.tolist(), np.r_[starts[1:], len(h)].tolist()):
         cosines = u[lo:hi] @ u[lo:hi].T                        # −1: the two continue flat
         np.fill_diagonal(cosines, np.inf)

@@ -37,6 +37,7 @@ __all__ = [
     "connected_components",
     "graph_components",
     "nonmanifold_edges",
+    "nonmanifold_edge_halfedges",
     "nonmanifold_vertices",
     "corner_fans",
     "split_vertex_fans",
@@ -303,6 +304,19 @@ def nonmanifold_edges(F) -> np.ndarray:
     return E[counts > 2]
 
 
+def nonmanifold_edge_halfedges(F) -> tuple[np.ndarray, np.ndarray]:
+    """The half-edges of the edges in more than two faces, grouped by edge: ``(h, start)``,
+    ``h`` (k,) the half-edges (edge by edge in :func:`edges_with_faces`' order, each edge's
+    in half-edge order) and ``start`` (e,) where each edge's begin in ``h``."""
+    F = _as_faces(F)
+    if F.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order, start, size, _ = _halfedge_groups(F)
+    many = size > 2
+    h = order[np.repeat(many, size)]
+    return h, np.r_[0, np.cumsum(size[many])[:-1]].astype(np.int64)
+
+
 def nonmanifold_vertices(F, n: int | None = None) -> np.ndarray:
     """Vertices whose incident faces form more than one fan (bowtie / pinch vertices).
 
@@ -396,11 +410,10 @@ def split_vertex_fans(F, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     if F.size == 0:
         return F.copy(), np.zeros(0, np.int64)
     v = F.ravel()
-    pairs, pair_of = np.unique(corner_fans(F, n) * n + v, return_inverse=True)
+    pairs, first, pair_of = np.unique(corner_fans(F, n) * n + v, return_index=True,
+                                      return_inverse=True)          # first: its first corner
     pair_v = pairs % n
     corners = np.bincount(pair_of, minlength=len(pairs))
-    first = np.full(len(pairs), len(v), dtype=np.int64)
-    np.minimum.at(first, pair_of, np.arange(len(v)))
     order = np.lexsort((first, -corners, pair_v))             # by vertex, larger fans first
     keeps = np.r_[True, pair_v[order][1:] != pair_v[order][:-1]]
     new_vertex = np.empty(len(pairs), dtype=np.int64)
