@@ -91,7 +91,7 @@ def closed_notches(P: np.ndarray, reach: float) -> np.ndarray:
     same = np.flatnonzero(np.all(P[order[1:]] == P[order[:-1]], axis=1))
     if len(same) == 0:
         return out
-    s = np.r_[0.0, np.cumsum(norms(np.roll(P, -1, axis=0) - P))]
+    s = loop_arc_lengths(P)
     total = s[-1]
     i, j = order[same], order[same + 1]              # neighbours in the sort, at one point
     b = len(P)
@@ -102,6 +102,12 @@ def closed_notches(P: np.ndarray, reach: float) -> np.ndarray:
     out[i[close]] = True
     out[j[close]] = True
     return out
+
+
+def loop_arc_lengths(P: np.ndarray) -> np.ndarray:
+    """The arc length along the closed loop ``P`` (b×3, in order) from its first point to each
+    point, and last once round back to the first (b + 1,)."""
+    return np.r_[0.0, np.cumsum(norms(np.roll(P, -1, axis=0) - P))]
 
 
 def _nearest(V: np.ndarray, at: np.ndarray, reach: float):
@@ -163,7 +169,7 @@ def _turns_along_loop(P: np.ndarray, turning: np.ndarray, at: np.ndarray, reach:
     b = len(P)
     if reach <= 0 or len(at) == 0 or b < 3:
         return np.ones(len(at), bool)
-    s = np.r_[0.0, np.cumsum(norms(np.roll(P, -1, axis=0) - P))]
+    s = loop_arc_lengths(P)
     length = s[-1]
     s3 = np.r_[s[:-1] - length, s[:-1], s[:-1] + length]           # the loop three times round
     reach = min(reach, 0.5 * length)
