@@ -202,15 +202,17 @@ from .face_memo import FaceMemo
 from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
-from .flips import flip_edges, sag_flips, valence_flips
-from .halfedge import edge_table, touching
-from .refine import SAG_SAMPLES, refine_by_sag, split_edges, split_long_edges
+from .flips import flip_edges, flip_in_place, sag_flips, valence_flips
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, touching
+from .refine import (SAG_SAMPLES, polygon_segments, refine_by_sag, split_edges,
+                     split_long_edges)
 from .relax import tangential_smoothing
 from .rim import RIM_TOL, open_rim_fans, refine_rim
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 from .unfold import star_positions, turned_over_rows, unfold_locally
-from .wedge import even_split_moves, even_split_points, half_edge, put_vertex, two_face_fan
+from .wedge import (even_split_moves, even_split_points, half_edge, move_guards_ok, put_vertex,
+                    two_face_fan)
 
 SLIVER = 0.2          # edges shorter than this × L are collapsed
 SLIVER_PASSES = 3     # at most this many last sliver collapses (each with its splits, flips),
@@ -286,6 +288,9 @@ FORCED_REACH = 3.0
 # between two faces has the middle vertex of its two faces moved onto its wedge after that
 # (_Operations.aim_corner)
 AIM_SHARE = 0.95
+# the rim edges at a rim corner where an unforced face has its smallest angle are split at
+# these fractions along them from the corner (_Operations.aim_unforced)
+RIM_SPLIT_TS = (0.3, 0.5)
 # a sharp input corner this × L or closer to a sharper one keeps no vertex: three locked
 # vertices that close make a face no later pass may change (on ICT faces: 0.3 L apart, 13°)
 CORNER_GAP = 0.4
@@ -859,6 +864,7 @@ class _Operations:
         self.last_resort(min_angle_deg)
         self.refine_each(target, min_angle_deg)
         self.raise_forced(min_angle_deg)
+        self.aim_unforced(min_angle_deg)
 
     def refine_left(self, target: int, min_angle_deg: float, corners: bool = False) -> None:
         """Up to ``GRADE_PASSES`` times while it is kept: the faces below ``min_angle_deg``
@@ -902,9 +908,9 @@ class _Operations:
         candidates (:func:`.angles.move_candidates`) do not reach the star's best point."""
         S = self.S
         for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
-            for v in S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]].tolist():
-                if self.move_in_star(v, min_angle_deg, shortfall):
-                    break
+            free = S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]].tolist()
+            if not any(self.move_in_star(v, min_angle_deg, shortfall) for v in free):
+                any(self.flip_and_move(v, min_angle_deg, shortfall) for v in free)
 
     def move_in_star(self, v: int, min_angle_deg: float, before: tuple[int, float]) -> bool:
         """Vertex ``v`` moved as :meth:`move_each` moves it, kept as it keeps it, ``before``
@@ -931,6 +937,74 @@ class _Operations:
             return False
         S.tally("star_moves", 1)
         return True
+
+    def flip_and_move(self, v: int, min_angle_deg: float, before: tuple[int, float]) -> bool:
+        """Each interior edge of the link of the free vertex ``v`` flipped (``v`` gains the
+        vertex across it, :func:`link_flip`), then ``v`` moved to the best point of its new star
+        where one passes :meth:`move_to_best`'s guards, and the local operations at the faces
+        below the minimum that no input corner forces within ``FORCED_REACH × L`` of where it
+        was (among them the collapse of ``v`` the flip let through); the one
+        that leaves the fewest such faces, then the largest smallest angle, kept where that
+        beats ``before`` (the remesh's :func:`.circumcentres.unforced_shortfall`) with no
+        more folds and no smaller smallest angle of the remesh (a face an input corner
+        forces). Where a ragged rim's tooth is narrower than the remesh, ``v`` can have
+        rim vertices all round (a rim cap), or some rim-to-rim edges in its link, whose star no
+        position of ``v`` makes wide enough, which no collapse may remove (a face with three
+        rim corners) and whose link edges no flip judged on its own angles opens. Returns
+        whether one was kept."""
+        S = self.S
+        start, n_folds = self.saved(), int(self.folds(S).sum())
+        best, smallest = None, float(np.degrees(min_corner_angles(S.X, S.F)).min())
+        for h in link_edges(S, v):
+            if not link_flip(S, int(h)):
+                continue
+            point = S.X[v].copy()
+            self.move_to_best(v, min_angle_deg)
+            low, _ = unforced_below(S, min_angle_deg)
+            near = norms(S.X - point) < FORCED_REACH * self.L
+            n0 = S.n
+            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
+                             self.judged)
+            if S.n < n0:
+                split_for_count(S, n0 - S.n, min_angle_deg)
+            after = shortfall_order(unforced_shortfall(S, min_angle_deg))
+            if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
+                    (best is None or after < best[0]) and \
+                    np.degrees(min_corner_angles(S.X, S.F)).min() >= smallest:
+                best = (after, self.saved())
+            self.restore(start)
+            start = self.saved()                 # (restore puts the saved arrays themselves)
+        if best is None:
+            return False
+        self.restore(best[1])
+        S.tally("link_flips", 1)
+        return True
+
+    def move_to_best(self, v: int, min_angle_deg: float) -> bool:
+        """Vertex ``v`` moved to the point of its star first in :func:`star_order` among those
+        that turn no face of the star over, leave no face at a sharp input corner
+        (:func:`.angles.sharp_vertices`) smaller than it was and ``min_angle_deg``, and pass
+        the guards of the wedge's moves (:func:`.wedge.move_guards_ok`: the old position
+        within the sag tolerance of the new star, no edge of ``v`` farther from the surface
+        than the tolerance or than it was). Returns whether it was moved."""
+        S = self.S
+        star = vertex_star(S.F, v)
+        found = star_positions(S, v, star)
+        if found is None:
+            return False
+        where, n_turned, angles = found
+        now = np.degrees(min_corner_angles(S.X, star))
+        at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
+        ok = (n_turned == 0) & \
+            (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
+        for _ in range(int(ok.sum())):
+            row = np.flatnonzero(ok)[star_best(angles[ok], min_angle_deg)]
+            at = tuple(w[row] for w in where)
+            if move_guards_ok(S, v, star, *at, self.tol):
+                S.uv[v], S.face[v], S.bary[v], S.X[v] = at
+                return True
+            ok[row] = False
+        return False
 
     def last_resort(self, min_angle_deg: float) -> None:
         """The local operations of :func:`.angles.raise_min_angles` at the faces still below
@@ -986,14 +1060,66 @@ class _Operations:
                 count_below=False))
             self.aim_corner(point, min_angle_deg)
 
+    def aim_unforced(self, min_angle_deg: float) -> None:
+        """The rim corners at which a face below ``min_angle_deg`` that no input corner forces
+        has its smallest angle, each changed as :meth:`rim_corner_attempts` lists (the best
+        kept, :meth:`best_change`): a narrow tooth of a ragged rim (an input corner a little
+        wider than two faces of the minimum) whose middle vertex the local operations leave
+        near one rim neighbour, or whose rim edges cut across the input's rim beside it; then
+        the vertices they added given back (:meth:`give_back`)."""
+        S = self.S
+        bad, _ = unforced_below(S, min_angle_deg)
+        if len(bad) == 0:
+            return
+        T = S.F[bad]
+        smallest = T[np.arange(len(bad)), corner_angles_deg(S.X, T).argmin(axis=1)]
+        n0 = S.n
+        for point in S.X[np.unique(smallest[S.is_rim[smallest]])]:
+            c = np.flatnonzero(at_points(S.X, point[None]))
+            if len(c) and S.is_rim[c[0]]:
+                self.best_change(point, min_angle_deg,
+                                 self.rim_corner_attempts(int(c[0]), min_angle_deg))
+        if S.n > n0:
+            self.give_back(n0, min_angle_deg)
+
+    def give_back(self, target: int, min_angle_deg: float) -> None:
+        """The count brought back to ``target`` by collapses of the shortest edges under the
+        guards away from the vertices added since (:meth:`restore_angle_count`) and the local
+        operations around the faces then below ``min_angle_deg`` (:meth:`raise_angles`),
+        undone where that leaves another count, more faces below the minimum that no input
+        corner forces, as many with a smaller smallest angle, or more folds."""
+        S = self.S
+        before, saved, n_folds = unforced_shortfall(S, min_angle_deg), self.saved(), \
+            int(self.folds(S).sum())
+        added = np.zeros(S.n, bool)
+        added[target:] = True
+        self.restore_angle_count(target, min_angle_deg, keep=added)
+        self.raise_angles(min_angle_deg)
+        if S.n != target or shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before) or \
+                self.folds(S).sum() > n_folds:
+            self.restore(saved)
+
+    def rim_corner_attempts(self, c: int, min_angle_deg: float) -> list:
+        """The changes tried at the rim corner ``c``: with two faces, those of
+        :meth:`aim_corner`'s wedge (:meth:`wedge_attempts`); and the split of each of its two
+        rim edges at ``RIM_SPLIT_TS`` along it from ``c`` (:meth:`split_rim_edges`: the new
+        vertex on the input's rim, where it leaves a wider angle at ``c`` where the rim
+        bulges out beside it), and of both together. Each is ``(change, held vertex)``."""
+        S = self.S
+        star = vertex_star(S.F, c)
+        fan = two_face_fan(star)
+        attempts = [] if fan is None else self.wedge_attempts(c, fan, min_angle_deg)
+        ends = np.unique(star[:, 1:])
+        ends = [int(x) for x in ends[S.is_rim[ends]]]
+        attempts += [(partial(self.split_rim_edges, c, [x], t), None)
+                     for x in ends for t in RIM_SPLIT_TS]
+        return attempts + [(partial(self.split_rim_edges, c, ends, t), None)
+                           for t in RIM_SPLIT_TS if len(ends) == 2]
+
     def aim_corner(self, point: np.ndarray, min_angle_deg: float) -> None:
         """At a rim corner (the vertex at ``point``, 3,) with two faces whose smallest angle is
-        below ``AIM_SHARE`` × the even split of its input angle sum between them: the corner's
-        middle edge split at the points of :func:`.wedge.even_split_points` (a new middle
-        vertex, :meth:`split_middle_edge`) and the middle vertex moved to those of
-        :func:`.wedge.even_split_moves`, each tried from the remesh as it was and judged as
-        :meth:`share_corner` judges a change (the new or moved vertex held meanwhile); the
-        one kept that leaves the corner's faces the largest smallest angle stays."""
+        below ``AIM_SHARE`` × the even split of its input angle sum between them: the changes
+        of :meth:`wedge_attempts`, the best kept (:meth:`best_change`)."""
         S = self.S
         c = np.flatnonzero(at_points(S.X, point[None]))
         if len(c) == 0 or not S.is_rim[c[0]]:
@@ -1002,15 +1128,29 @@ class _Operations:
         even = float(S.angle_sums_in()[input_vertex_under(S, np.array([c]))[0]]) / 2
         if self.smallest_at(point) >= AIM_SHARE * even:
             return
-        star = vertex_star(S.F, c)
-        fan = two_face_fan(star)
+        fan = two_face_fan(vertex_star(S.F, c))
         if fan is None:
             return
+        self.best_change(point, min_angle_deg, self.wedge_attempts(c, fan, min_angle_deg))
+
+    def wedge_attempts(self, c: int, fan: tuple[int, int, int], min_angle_deg: float) -> list:
+        """The changes at the rim corner ``c`` with the two-face fan ``fan`` (``(b, w, a)``,
+        :func:`.wedge.two_face_fan`): its middle edge split at the points of
+        :func:`.wedge.even_split_points` (a new middle vertex, :meth:`split_middle_edge`) and
+        the middle vertex moved to those of :func:`.wedge.even_split_moves`. Each is
+        ``(change, held vertex)``."""
+        S = self.S
         b, w, a = fan
         attempts = [(partial(self.split_middle_edge, c, w, M), S.n)
                     for M in even_split_points(S, c, b, w, a)]
-        attempts += [(partial(put_vertex, S, w, where), w) for where in
-                     even_split_moves(S, c, vertex_star(S.F, w), self.tol, min_angle_deg)]
+        return attempts + [(partial(put_vertex, S, w, where), w) for where in
+                           even_split_moves(S, c, vertex_star(S.F, w), self.tol, min_angle_deg)]
+
+    def best_change(self, point: np.ndarray, min_angle_deg: float, attempts: list) -> None:
+        """Each of ``attempts`` (``(change, held vertex)``) tried at the corner at ``point``
+        (3,) from the remesh as it was and judged as :meth:`share_corner` judges a change (the
+        vertex held meanwhile); the one kept that leaves the corner's faces the largest
+        smallest angle stays."""
         start, best = self.saved(), None
         for change, hold in attempts:
             if self.share_corner(point, min_angle_deg, change, hold=hold):
@@ -1021,14 +1161,30 @@ class _Operations:
         if best is not None:
             self.restore(best[1])
 
+    def split_rim_edges(self, c: int, ends: list, t: float) -> bool:
+        """Split the rim edges from ``c`` to each of ``ends``, each with a new rim vertex at the
+        point of the input's rim (the image polygon) nearest to the domain point ``t`` along
+        it from ``c`` (:meth:`split_middle_edge`); all undone, returning False, where one is
+        refused."""
+        S = self.S
+        saved = saved_state(S)
+        for x in ends:
+            M = (1.0 - t) * S.uv[c] + t * S.uv[x]
+            _, _, M = S.of_input(polygon_segments).closest(M[None])
+            if not self.split_middle_edge(c, x, M[0]):
+                restore_state(S, saved)
+                return False
+        return True
+
     def split_middle_edge(self, c: int, w: int, M: np.ndarray) -> bool:
-        """Split the edge ``c–w`` with a new vertex at the domain point ``M`` (2,)
-        (:func:`.refine.split_edges`); undone, returning False, where an edge of the new
+        """Split the edge ``c–w`` (a rim edge too) with a new vertex at the domain point ``M``
+        (2,) (:func:`.refine.split_edges`); undone, returning False, where an edge of the new
         vertex is farther from the surface than the sag tolerance (:func:`.sag.edge_sag_along`
         at :data:`.angles.SAG_TS`)."""
         S = self.S
         saved = saved_state(S)
-        h = half_edge(S.F, c, w)
+        h = half_edge(S.F, c, w) if ((S.F == c) & (np.roll(S.F, -1, axis=1) == w)).any() \
+            else half_edge(S.F, w, c)
         split_edges(S, np.array([h]), S.twins()[[h]], points=M[None])
         p = S.n - 1
         if self.tol is not None:
@@ -1602,6 +1758,38 @@ def star_best(angles: np.ndarray, min_angle_deg: float) -> int | None:
         return None
     return int(np.lexsort((-angles.min(axis=1),
                            np.count_nonzero(angles < min_angle_deg, axis=1)))[0])
+
+
+def link_edges(S: RemeshState, v: int) -> np.ndarray:
+    """The interior half-edges of the link of vertex ``v`` (the edges of its star's faces
+    opposite it that another face shares), each in its face of the star."""
+    faces = np.flatnonzero((S.F == v).any(axis=1))
+    slot = np.argmax(S.F[faces] == v, axis=1)
+    h = 3 * faces + (slot + 1) % 3
+    return h[S.twins()[h] >= 0]
+
+
+def link_flip(S: RemeshState, h: int) -> bool:
+    """Flip the interior half-edge ``h`` (``a → b`` in face ``a, b, p``; ``b, a, q`` across):
+    the faces become ``p, a, q`` and ``q, b, p``, where both are counter-clockwise and not
+    thinner than ``DISK_SHAPE_MIN`` on the domain (:func:`.halfedge.disk_shape`), neither has
+    three rim corners, ``p`` and ``q`` are not joined already and the edge is no kept feature
+    edge. Returns whether it was flipped."""
+    F, twin = S.F, S.twins()
+    g = int(twin[h])
+    f, c, d = h // 3, h % 3, g % 3
+    a, b, p = int(F[f, c]), int(F[f, (c + 1) % 3]), int(F[f, (c + 2) % 3])
+    q = int(F[g // 3, (d + 2) % 3])
+    if S.is_joined(np.array([a]), np.array([b]))[0] or \
+            ((F == p) & ((np.roll(F, 1, axis=1) == q) | (np.roll(F, -1, axis=1) == q))).any():
+        return False
+    new = np.array([[p, a, q], [q, b, p]])
+    if (S.is_rim[new].all(axis=1)).any() or (disk_shape(S.uv, new) < DISK_SHAPE_MIN).any():
+        return False
+    F, twin = F.copy(), twin.copy()
+    flip_in_place(F, twin, np.array([h]), tuple(np.array([x]) for x in (a, b, p, q)))
+    S.set_faces(F, twin)
+    return True
 
 
 def vertex_star(F: np.ndarray, v: int) -> np.ndarray:
