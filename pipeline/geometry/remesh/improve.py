@@ -916,15 +916,10 @@ class _Operations:
         """Vertex ``v`` moved as :meth:`move_each` moves it, kept as it keeps it, ``before``
         the remesh's :func:`.circumcentres.unforced_shortfall`. Returns whether it was kept."""
         S = self.S
-        star = vertex_star(S.F, v)
-        found = star_positions(S, v, star)
+        found = star_candidates(S, v, min_angle_deg)
         if found is None:
             return False
-        where, n_turned, angles = found
-        now = np.degrees(min_corner_angles(S.X, star))
-        at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
-        ok = (n_turned == 0) & \
-            (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
+        star, where, angles, ok, now = found
         best = star_best(angles[ok], min_angle_deg)
         if best is None or star_order(angles[ok][best], min_angle_deg) >= \
                 star_order(now, min_angle_deg):
@@ -988,15 +983,10 @@ class _Operations:
         within the sag tolerance of the new star, no edge of ``v`` farther from the surface
         than the tolerance or than it was). Returns whether it was moved."""
         S = self.S
-        star = vertex_star(S.F, v)
-        found = star_positions(S, v, star)
+        found = star_candidates(S, v, min_angle_deg)
         if found is None:
             return False
-        where, n_turned, angles = found
-        now = np.degrees(min_corner_angles(S.X, star))
-        at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
-        ok = (n_turned == 0) & \
-            (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
+        star, where, angles, ok, now = found
         for _ in range(int(ok.sum())):
             row = np.flatnonzero(ok)[star_best(angles[ok], min_angle_deg)]
             at = tuple(w[row] for w in where)
@@ -1758,6 +1748,35 @@ def star_best(angles: np.ndarray, min_angle_deg: float) -> int | None:
         return None
     return int(np.lexsort((-angles.min(axis=1),
                            np.count_nonzero(angles < min_angle_deg, axis=1)))[0])
+
+
+def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
+    """The positions of vertex ``v`` in its star (:func:`.unfold.star_positions`) and which of
+    them turn no face of the star over and leave no face at a sharp input corner
+    (:func:`.angles.sharp_vertices`) smaller than it was and ``min_angle_deg``; None where
+    there is no position.
+
+    Returns
+    -------
+    star : (d, 3) int
+    where : tuple
+        :func:`.unfold.star_positions`' ``(uv, face, bary, X)`` of j positions.
+    angles : (j, d) float
+        The star's faces' smallest angles (degrees) at each position.
+    ok : (j,) bool
+    now : (d,) float
+        The star's faces' smallest angles as they are.
+    """
+    star = vertex_star(S.F, v)
+    found = star_positions(S, v, star)
+    if found is None:
+        return None
+    where, n_turned, angles = found
+    now = np.degrees(min_corner_angles(S.X, star))
+    at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
+    ok = (n_turned == 0) & \
+        (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
+    return star, where, angles, ok, now
 
 
 def link_edges(S: RemeshState, v: int) -> np.ndarray:
