@@ -375,8 +375,9 @@ def test_a_fold_no_single_operation_undoes_is_undone_by_a_rim_collapse_and_one_a
     at the faces it makes, does (:meth:`.unfold._FoldPatch.two_step`, made twice): one disk of
     600 vertices and 1,021 faces, no face turned over by the report's test, 5 faces below 20°
     of which 2 no input corner forces (3 of 6 without the changes at unforced rim corners,
-    :meth:`.improve._Operations.aim_unforced`; the tests below for the others). Without the two-step, 1 fold is left,
-    599 vertices, 11 faces below 20° (5 unforced; measured before the star moves)."""
+    :meth:`.improve._Operations.aim_unforced`; the tests below for the others). Without the
+    two-step, 1 fold is left, 599 vertices, 11 faces below 20° (5 unforced; measured before
+    the star moves)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
     from pipeline.geometry.sem import SEMOptions

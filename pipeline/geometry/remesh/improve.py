@@ -125,7 +125,13 @@ The schedule (:func:`improve_remesh`):
     and no more or worse faces below that no corner forces), and where a rim corner's two
     faces stay below ``AIM_SHARE`` × the even split of its angle, a new middle vertex on its
     middle edge or the middle vertex moved onto its wedge (:meth:`_Operations.aim_corner`,
-    :mod:`.wedge`), judged the same way.
+    :mod:`.wedge`), judged the same way; then at each rim corner where a face below the
+    minimum that no input corner forces has its smallest angle (a narrow tooth of a ragged
+    rim, its input corner a little wider than two faces of the minimum), the same wedge's
+    changes where it has two faces and splits of its rim edges at ``RIM_SPLIT_TS`` along them
+    on the input's rim, one and both, judged the same way, the vertices added given back by
+    guarded collapses where that leaves no more or worse such faces and no more folds
+    (:meth:`_Operations.aim_unforced`).
     A face none of this raises stays: the report counts the faces below the minimum and,
     among them, those an input corner forces, naming the corners (with the even split of each
     corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
@@ -168,7 +174,11 @@ The schedule (:func:`improve_remesh`):
     faces still below ``min_angle_deg`` that no input corner forces each moved to the best
     point of its star where that leaves fewer such faces or a larger smallest angle among them
     (:meth:`_Operations.move_each`: on a ragged rim, an interior vertex in a notch that no
-    collapse may remove);
+    collapse may remove), and where no move is kept, an interior edge of the corner's link
+    flipped first, then its move and the local operations around it, kept where that leaves
+    fewer such faces or a larger smallest angle among them, no more folds and no smaller
+    smallest angle anywhere (:meth:`_Operations.flip_and_move`: a rim cap, an interior vertex
+    with rim vertices all round, which no collapse may remove and no position widens);
 11. a safety net (:meth:`_Operations.repair_degenerate`): any face degenerate on the surface
     or not counter-clockwise on the disk has an edge collapsed. No operation makes one — each
     refuses to make a face thinner on the disk than ``DISK_SHAPE_MIN``
@@ -826,7 +836,9 @@ class _Operations:
         (:meth:`last_resort`); last the faces still below that no input corner forces refined
         (:meth:`refine_left`: the fold repair's operations and the looser ones leave faces the
         refinement before them did not see), the corner splits among its kinds, and the looser
-        operations again; then those faces refined one at a time (:meth:`refine_each`). Given
+        operations again; then those faces refined one at a time (:meth:`refine_each`); then
+        the faces forced by input corners raised (:meth:`raise_forced`) and the rim corners
+        of the unforced ones changed (:meth:`aim_unforced`). Given
         ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
@@ -1085,7 +1097,8 @@ class _Operations:
         added[target:] = True
         self.restore_angle_count(target, min_angle_deg, keep=added)
         self.raise_angles(min_angle_deg)
-        if S.n != target or shortfall_order(unforced_shortfall(S, min_angle_deg)) > shortfall_order(before) or \
+        after = unforced_shortfall(S, min_angle_deg)
+        if S.n != target or shortfall_order(after) > shortfall_order(before) or \
                 self.folds(S).sum() > n_folds:
             self.restore(saved)
 
