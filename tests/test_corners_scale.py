@@ -84,6 +84,25 @@ def test_on_an_input_coarser_than_the_remesh_the_rule_is_vertex_by_vertex():
     assert np.array_equal(boundary_corners(V, F, loop, 30.0, 1.5 * h), rim)
 
 
+def test_a_noisy_input_finer_than_the_remesh_but_sparse_at_its_reach_drops_noise_spikes():
+    """The 61×61 cone patch (slope 1.5) with noise 0.5 of the grid step, judged at a remesh
+    edge of 3 grid steps: the input's mean edge (about 1.7 steps) is the shorter, yet fewer
+    than 16 input vertices lie within the reach of the tip: vertex by vertex all 284 sharp
+    interior vertices would be corners. Judged as noisy over their 16 nearest, the tip stays
+    a corner and fewer than 60 % of them do."""
+    k = 61
+    h = 2.0 / (k - 1)
+    V, F = noisy_cone(k, 1.5, 0.5 * h, seed=0)
+    tip = (k * k) // 2
+    assert np.linalg.norm(V[F] - V[np.roll(F, 1, axis=1)], axis=2).mean() < 3 * h
+    dist = _nearest(V, np.array([tip]), 3 * h)[0]
+    assert (dist[0, 1:] < 3 * h).sum() < 16
+    every = interior_corners(V, F, 30.0)
+    assert len(every) == 284
+    kept = interior_corners(V, F, 30.0, 3 * h)
+    assert tip in kept and len(kept) < 0.6 * len(every)
+
+
 def test_a_notch_closed_at_its_mouth_is_not_a_corner_a_seam_is_unaffected():
     """A loop touching itself at one point (positions 2 and 6: a notch of four edges closed at
     its mouth) marks both ends when the loop between them is shorter than the reach;

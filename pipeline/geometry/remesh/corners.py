@@ -203,7 +203,8 @@ def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: flo
     """Interior vertices that are sharp points of the surface at the scale ``length`` of a
     remesh: the angles of their faces sum to less than ``360° − angle_deg`` (a cone tip) or
     more than ``360° + angle_deg`` (a saddle spike), and the vertex is a corner within
-    ``CORNER_REACH × length`` (:func:`_corners_at_scale`). Parameters and result as in
+    ``CORNER_REACH × length`` (:func:`_corners_at_scale`, with ``fine`` where the input's
+    mean edge is shorter than ``length``). Parameters and result as in
     :func:`boundary_corners`, without ``boundary``."""
     if angle_deg is None or angle_deg <= 0:
         return np.zeros(0, np.int64)
@@ -211,7 +212,9 @@ def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: flo
     dev = np.abs(value)
     dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
     sharp = _sharpest_first(dev, angle_deg)
-    return sharp[_corners_at_scale(V, value, sharp, CORNER_REACH * length, angle_deg)]
+    fine = bool(norms((V[F] - V[np.roll(F, 1, axis=1)]).reshape(-1, 3)).mean() < length)
+    return sharp[_corners_at_scale(V, value, sharp, CORNER_REACH * length, angle_deg,
+                                   fine=fine)]
 
 
 def vertex_turning(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -230,14 +233,17 @@ def _sharpest_first(dev: np.ndarray, angle_deg: float) -> np.ndarray:
 
 
 def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach: float,
-                      angle_deg: float, nearest=None) -> np.ndarray:
+                      angle_deg: float, nearest=None, fine: bool = False) -> np.ndarray:
     """Which of the sharp vertices (k bool) are corners at the scale ``reach``.
 
     Around each sharp vertex, its ``NOISE_NEIGHBOURS`` nearest input vertices in 3D (itself
     excluded) give the noise level: the median distance of their ``value`` from its mean.
     A sharp vertex with fewer than ``MIN_NEIGHBOURS`` of them within ``reach`` is a corner,
-    as vertex by vertex: the input is about as coarse as the remesh there. Otherwise it is a
-    corner where it stands out:
+    as vertex by vertex: the input is about as coarse as the remesh there; but where the input
+    is ``fine`` (finer than the remesh as a whole) and the vertex noisy (below), it is judged
+    as a noisy one over its ``MIN_NEIGHBOURS`` nearest instead: a scan sampled about as
+    densely as the remesh, whose noise spikes a vertex-by-vertex rule would all keep. Otherwise
+    it is a corner where it stands out:
 
     - noise level at most ``NOISE_SHARE × angle_deg`` (a clean input, finer than the
       remesh): ``|value|`` above ``STANDS_OUT`` times the noise level;
@@ -246,7 +252,9 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
       own summed with the weights :func:`_smooth` of their distance within
       ``min(reach, distance to the farthest of them)``, taken with its own sign, above both
       ``angle_deg`` and ``STANDS_OUT`` times the noise level, and the largest held value
-      among the noisy sharp vertices of its sign within ``reach`` (:func:`_peaks`). Noise
+      among the noisy sharp vertices of its sign within ``reach`` (:func:`_peaks`; ``reach``
+      and the weights' scale widened to the ``MIN_NEIGHBOURS``-th nearest for the sparse
+      vertices of a ``fine`` input). Noise
       spikes are paid back by the vertices around them and hold little; a cone tip, or a
       tight fold of the surface, holds its defect.
 
@@ -267,6 +275,8 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
         The sharpness tolerance that chose ``sharp``.
     nearest : tuple, optional
         :func:`_nearest` of ``sharp`` when already queried (made here otherwise).
+    fine : bool
+        The input is finer than the remesh (judge its sparse noisy vertices too).
     """
     keep = np.ones(len(sharp), bool)
     if reach <= 0:
@@ -281,16 +291,18 @@ def _corners_at_scale(V: np.ndarray, value: np.ndarray, sharp: np.ndarray, reach
     noise = _unsorted(_nan_median_rows(np.abs(around - np.nanmean(around, axis=1)[:, None])),
                       order)
     dense = _unsorted((other & (dist <= reach)).sum(axis=1) >= MIN_NEIGHBOURS, order)
-    noisy = dense & (noise > NOISE_SHARE * angle_deg)
+    noisy = (dense | fine) & (noise > NOISE_SHARE * angle_deg)
     keep[dense] = (np.abs(value[sharp]) > STANDS_OUT * noise)[dense]
     if noisy.any():
-        r = np.minimum(reach, dist[:, -1])[:, None]
+        scale = np.maximum(reach, dist[:, MIN_NEIGHBOURS]) if fine else np.full(len(dist), reach)
+        r = np.minimum(scale, dist[:, -1])[:, None]
         held = _unsorted((_smooth(dist, r) * value[near]).sum(axis=1), order)
         held = held * np.sign(value[sharp])
         at = sharp[noisy]
         held = held[noisy]
         strong = held > np.maximum(angle_deg, STANDS_OUT * noise[noisy])
-        keep[noisy] = strong & _peaks(V[at], value[at], held, reach, strong)
+        scale = _unsorted(scale, order)[noisy]
+        keep[noisy] = strong & _peaks(V[at], value[at], held, scale, strong)
     return keep
 
 
@@ -313,10 +325,10 @@ def _smooth(dist: np.ndarray, reach) -> np.ndarray:
 
 def _peaks(P: np.ndarray, sign: np.ndarray, score: np.ndarray, reach: float,
            asked: np.ndarray | None = None) -> np.ndarray:
-    """Which points (k bool) have no point of the same ``sign`` within ``reach`` with a
-    larger ``score`` (on a tie, a lower index), among their ``NOISE_NEIGHBOURS`` nearest of
-    that sign; only the points ``asked`` (k bool; all when None) are judged, the others
-    come back True (every point of a sign still competes)."""
+    """Which points (k bool) have no point of the same ``sign`` within ``reach`` (a number,
+    or one per point) with a larger ``score`` (on a tie, a lower index), among their
+    ``NOISE_NEIGHBOURS`` nearest of that sign; only the points ``asked`` (k bool; all when
+    None) are judged, the others come back True (every point of a sign still competes)."""
     from scipy.spatial import cKDTree
 
     peak = np.ones(len(P), bool)
@@ -325,9 +337,10 @@ def _peaks(P: np.ndarray, sign: np.ndarray, score: np.ndarray, reach: float,
         ask = idx if asked is None else idx[asked[idx]]
         if len(idx) < 2 or len(ask) == 0:
             continue
+        within = np.broadcast_to(reach, len(P))[ask]
         dist, near = cKDTree(P[idx]).query(P[ask], k=min(NOISE_NEIGHBOURS + 1, len(idx)),
-                                           distance_upper_bound=reach)
-        found = np.isfinite(dist)
+                                           distance_upper_bound=within.max())
+        found = dist < within[:, None]
         j = idx[np.where(found, near, 0)]
         theirs, mine = score[j], score[ask][:, None]
         later = (theirs == mine) & (j < ask[:, None])

@@ -197,6 +197,7 @@ import numpy as np
 
 from ..laplacian import face_double_areas
 from ..metrics import min_corner_angles, min_corner_angles_below
+from ..noise import noise_beyond, noise_level
 from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
@@ -267,6 +268,11 @@ COARSE_FOLLOW = 0.8
 # closer to another makes a rim face whose small angle no later pass raises (the rim's
 # vertices stay)
 FOLLOW_RIM_GAP = 0.5
+# where the input has more vertices than the remesh's target (noise_tolerances): the sag
+# tolerance is at least this × the input's noise level, and the follow tolerance at least the
+# noise's size that about this share of the target count of input points exceed
+NOISE_SAG = 3.0
+NOISE_FOLLOW_SHARE = 0.01
 # after the minimum-angle pass and the last smoothing, the input points farther than this × L
 # from the remesh get a vertex moved onto them, farthest first, while one can be without a new
 # angle below the minimum: the Hausdorff distance's input-to-remesh side
@@ -357,7 +363,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         own facets: its edges sag across every input crease by about their length times the
         crease angle, which no split removes and which the refinement would chase at the cost
         of the triangles' shape; the sphere remesher floors the tolerance at ``refine_sag`` ×
-        the input's own spacing (:func:`.sphere.sphere_remesh`).
+        the input's own spacing (:func:`.sphere.sphere_remesh`). Both it and the follow
+        tolerance are at least :func:`noise_tolerances` (a noisy input finer than the remesh).
     follow_input : float
         At the end of step 7, a vertex goes onto every input point (an interior vertex, the
         middle of an edge or a face away from the rim) farther than this × ``L`` from the
@@ -376,7 +383,10 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         ``smoothing`` (6), ``pinned``, ``reshape`` and ``follow`` (7), ``slivers`` (8),
         ``rim_fans`` (9), ``guarantee``, ``settle`` and ``even`` (10) and ``repair`` (11).
     """
-    ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag, sag_floor)
+    noisy_sag, noisy_follow = noise_tolerances(
+        S.V_in, S.F_in, S.n if target_vertices is None else target_vertices)
+    ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag,
+                      max(sag_floor, noisy_sag))
     lap = Stopwatch(S.log, "seconds")
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
@@ -412,7 +422,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
             ops.reshape(RESHAPE_DEG)
             lap("reshape")
     corners = S.X[S.locked].copy()
-    follow = follow_tolerance(follow_input, len(S.V_in), target, on_sphere(S.uv)) * L
+    follow = max(follow_tolerance(follow_input, len(S.V_in), target, on_sphere(S.uv)) * L,
+                 noisy_follow)
     if follow_input > 0:
         ops.follow(follow)
         lap("follow")
@@ -453,6 +464,24 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     ops.repair_degenerate(target)
     lap("repair")
     return S
+
+
+def noise_tolerances(V_in: np.ndarray, F_in: np.ndarray, target: int) -> tuple[float, float]:
+    """The least sag and follow tolerances of :func:`improve_remesh` (mesh units) for the input
+    ``(V_in, F_in)`` remeshed at ``target`` vertices: where the input has more vertices than
+    that, ``NOISE_SAG`` × its :func:`..noise.noise_level`, and the size of normal noise at that
+    level that ``NOISE_FOLLOW_SHARE`` × ``target`` of its input points exceed
+    (:func:`..noise.noise_beyond`; the follow step looks at about 6 points per input vertex:
+    the vertex, the middles of its 3 edges and of its 2 faces); else ``(0, 0)``. A scan's
+    noise along its normals is a bend of the surface at every input vertex that a remesh of
+    coarser spacing cannot follow: its splits and snaps would chase it (each input point
+    farther than the follow tolerance gets a vertex, beyond the target count) at the cost of
+    the faces' shape. On a clean input the level is near 0 and the floors with it."""
+    if len(V_in) <= target:
+        return 0.0, 0.0
+    level = noise_level(V_in, F_in)
+    share = NOISE_FOLLOW_SHARE * target / (6 * len(V_in))
+    return NOISE_SAG * level, noise_beyond(level, share)
 
 
 def follow_tolerance(follow_input: float, n_input: int, target: int,
