@@ -222,3 +222,23 @@ def test_chart_triangulation_fills_the_outline_with_every_vertex_or_refuses():
     assert len(got) == 6 and (got == 6).any(axis=1).all()
     assert topo.boundary_loops(got)[0].tolist() == list(range(6))
     assert chart_triangulation(S, outline[::-1].copy(), inside) is None
+
+
+def test_fold_repair_makes_no_face_degenerate_on_the_surface():
+    """An operation of the fold repair that removes a fold but makes a face with two corners
+    at one point of the surface (a rim chord between the two copies of an input vertex the
+    intake split at a bowtie: zero length, both ends locked) scores nothing; the same
+    operation with the corners apart scores the fold it removes."""
+    from pipeline.geometry.remesh.unfold import FOLD_WEIGHT, _FoldPatch
+
+    uv_in, F_in, V_in, loop, locator = _sheared_disk()
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, 8)
+    folds = turned_over_faces(S)
+    assert len(folds) > 0
+    patch = _FoldPatch(S, folds)
+    flat = np.flatnonzero(~np.isin(np.arange(len(S.F)), folds))
+    old, new = [S.F[folds[0]].tolist()], [S.F[flat[0]].tolist()]
+    assert patch.better(old, new) > FOLD_WEIGHT
+    a, b, c = new[0]
+    S.X[c] = S.X[b]                                   # two corners at one point
+    assert patch.better(old, new) is None

@@ -62,7 +62,7 @@ from scipy.spatial import Delaunay
 from ...errors import UserError
 from .. import topology as topo
 from ..locate import lift
-from ..remesh_quality import closest_points_on_triangles
+from ..remesh_quality import closest_points_on_triangles, degenerate_faces
 from ..rows import cross, dots, norms
 from .angles import (_Patch, face_min_angles, input_vertex_under, star_shapes_ok,
                      triangle_min_angles)
@@ -272,10 +272,14 @@ class _FoldPatch(_Patch):
     def better(self, old, new) -> float | None:
         """The score of replacing the faces ``old`` by ``new`` (``FOLD_WEIGHT`` × the folds
         removed + the smallest angle of ``new``) if ``new`` has at least ``least_removed``
-        fewer folds (1; 0 for the first step of :meth:`two_step`), else None."""
+        fewer folds (1; 0 for the first step of :meth:`two_step`) and no face degenerate on
+        the surface (:func:`..remesh_quality.degenerate_faces`: a rim chord between the two
+        copies of an input vertex the intake split at a bowtie has zero length, and no later
+        step may remove a locked end of it), else None."""
         removed = self.n_folds(old) - self.n_folds(new)
-        return FOLD_WEIGHT * removed + self.min_angle(new) if removed >= self.least_removed \
-            else None
+        if removed < self.least_removed or len(degenerate_faces(self.S.X, np.asarray(new))):
+            return None
+        return FOLD_WEIGHT * removed + self.min_angle(new)
 
     def same_side(self, old, new) -> bool:
         """No test against the old faces' summed normal: it counts a fold's own turned normal
