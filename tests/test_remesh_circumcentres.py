@@ -15,6 +15,7 @@ from pipeline.geometry.remesh.circumcentres import (EDGE_BARY, cap_split, circum
                                                     unforced_shortfall)
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
 from pipeline.geometry.remesh.state import RemeshState
+from pipeline.geometry.rows import norms
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
 from remesh_helpers import ccw_delaunay, disk_map, disk_points
 
@@ -39,6 +40,21 @@ def test_circumcentre_and_off_centre_weights_are_exact():
     C = circumcentre_weights(*P) @ np.vstack(P)
     assert np.allclose(C, [[0.0, (1.5 ** 2 - 1) / 3, 0.0]])
     assert np.allclose(off_centre_weights(*P, 35.0) @ np.vstack(P), C)
+
+
+def test_a_triangle_on_one_line_gets_the_middle_of_its_shortest_edge():
+    """Corners on one line (exactly, and at 10⁵ scale where rounding leaves a sliver of area):
+    no circumcentre, weights (½, ½, 0) on the shortest edge, none of them huge or not finite
+    (they were ±10³⁰⁵ and ±10¹⁶, which the domain's coordinates turned into NaN). A needle
+    cap 10⁻⁴ high keeps its off-centre on its shortest edge's bisector."""
+    P = _tri([0, 0, 0], [10, 0, 0], [30, 0, 0])
+    assert np.array_equal(off_centre_weights(*P, 35.0), [[0.5, 0.5, 0.0]])
+    a = np.array([0.1, 0.2, 0.3])
+    P = _tri(a, a + [1e5, 2e5, 3e5], a + 3 * np.array([1e5, 2e5, 3e5]))
+    assert np.array_equal(off_centre_weights(*P, 35.0), [[0.5, 0.5, 0.0]])
+    P = _tri([0, 0, 0], [1, 0, 0], [0.6, 1e-4, 0])
+    O = off_centre_weights(*P, 35.0) @ np.vstack(P)
+    assert np.allclose(norms(O - [[0.8, 0.5e-4, 0.0]]), 0.4 / (2 * np.tan(np.radians(17.5))))
 
 
 def test_encroached_is_the_open_ball_on_the_diameter():

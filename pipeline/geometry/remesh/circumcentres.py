@@ -68,6 +68,7 @@ RUNAWAY = 2           # more than this × (the best round's count of faces to re
 EDGE_BARY = 0.1       # a target this close (barycentric) to an edge of its face splits the edge,
                       # to a corner is not inserted
 OFF_CENTRE_DEG = 35.0  # the new vertex's angle over the bad face's shortest edge
+FLAT = 1e-12          # 16 area² at most this × (longest edge)⁴: the corners on one line
 NEWTON_STEPS = 4      # steps carrying a 3D target to the domain point that lifts to it,
 HALVINGS = 4          # each halved up to this many times until the lift comes nearer
 CAP_DEG = 120.0       # a face with an angle this wide or wider is a cap: its long edge is split
@@ -93,7 +94,9 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
     """The barycentric coordinates of each triangle's off-centre (Üngör): the point on the
     perpendicular bisector of its shortest edge, towards the circumcentre, that makes with that
     edge an isosceles triangle whose apex angle is ``angle_deg`` — or the circumcentre itself
-    when that is nearer to the edge.
+    when that is nearer to the edge. A triangle whose corners are (nearly) on one line
+    (``16 area²`` at most ``FLAT × (longest edge)⁴``: its circumcentre's weights overflow or
+    lose every digit) gets the middle of its shortest edge.
 
     Parameters
     ----------
@@ -117,7 +120,12 @@ def off_centre_weights(P0: np.ndarray, P1: np.ndarray, P2: np.ndarray, angle_deg
     Mx = np.einsum("ij,ijk->ik", M, P)
     far = ln[k, j] / (2.0 * math.tan(math.radians(angle_deg) / 2.0))
     lam = np.minimum(1.0, far / np.maximum(norms(C - Mx), 1e-300))
-    return M + lam[:, None] * (W - M)
+    out = M + lam[:, None] * (W - M)
+    a2, b2, c2 = (ln ** 2).T
+    area16 = 2.0 * (a2 * b2 + b2 * c2 + c2 * a2) - (a2 ** 2 + b2 ** 2 + c2 ** 2)
+    flat = ~(area16 > FLAT * ln.max(axis=1) ** 4) | ~np.isfinite(out).all(axis=1)
+    out[flat] = M[flat]
+    return out
 
 
 def domain_points_for(S: RemeshState, c: np.ndarray, C: np.ndarray,
