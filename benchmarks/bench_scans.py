@@ -1,8 +1,8 @@
 """The remesh command on face-scan proxies made here: how often a scan leaves faces below the
 minimum angle that no input corner forces, and the folds and time.
 
-    python benchmarks/bench_scans.py [--vertices 5000 20000] [--scans noisy jagged bowtie mild]
-                                     [--large]
+    python benchmarks/bench_scans.py [--vertices 5000 20000 100000]
+                                     [--scans noisy jagged bowtie mild] [--large]
 
 Real face scans are noisy and their rims ragged (the scanner loses the faces at grazing
 angles), which the shared meshes are not. The proxies, written to a temporary folder from the
@@ -166,7 +166,7 @@ def pymeshlab_row(path: Path, n: int, ours: tuple[float, float]) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000])
+    ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000, 100000])
     ap.add_argument("--scans", nargs="+", choices=SCANS, default=list(SCANS))
     ap.add_argument("--large", action="store_true",
                     help="also the 425k-vertex proxy, and pymeshlab's call time beside ours")
