@@ -106,6 +106,15 @@ def test_remesh_warnings_name_the_anisotropy_and_the_hausdorff_excess():
     assert len(w) == 1 and "pymeshlab" not in w[0]
 
 
+def test_remesh_warnings_count_the_folds_in_the_singular_and_the_plural():
+    one, three = ({"sem": {"distance": {"turned_over_faces": k}}} for k in (1, 3))
+    assert remesh_warnings({}, one) == [
+        "1 face of the remesh is turned over against the input (its normal points against the "
+        "input's where it lies): the remesh folds there"]
+    assert remesh_warnings({}, three)[0].startswith(
+        "3 faces of the remesh are turned over against the input (their normals point")
+
+
 def test_remesh_warnings_name_a_vertex_count_off_the_request():
     """Within 2 % of the request: nothing; beyond it, one sentence with the count, the
     deviation and its cause (the rim's share of the samples when it is over half)."""

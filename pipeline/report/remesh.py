@@ -394,8 +394,10 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
                    f"lifted triangles are skewed before the improvement step")
     folds = methods.get("sem", {}).get("distance", {}).get("turned_over_faces")
     if folds:
-        out.append(f"{folds} faces of the remesh are turned over against the input (their "
-                   f"normals point against the input's where they lie): the remesh folds there")
+        what = ("face of the remesh is", "its normal points", "it lies") if folds == 1 else \
+            ("faces of the remesh are", "their normals point", "they lie")
+        out.append(f"{folds} {what[0]} turned over against the input ({what[1]} against the "
+                   f"input's where {what[2]}): the remesh folds there")
     for key, m in methods.items():
         if str(m.get("note", "")).startswith("failed"):
             out.append(f"{m.get('label', key)} {m['note']}; its column is empty")
