@@ -728,6 +728,18 @@ def test_nan_and_empty_are_rejected():
         repair_mesh(V, F + 100)
 
 
+def test_coordinates_beyond_the_readers_limit_are_rejected_with_a_fix():
+    """The limit the reader applies to files (1e60: squared lengths and areas overflow past
+    about 1e154, where the weld's KD-tree raised ValueError) holds for arrays given directly;
+    a mesh at the limit passes."""
+    V, F = grid(2)
+    for scale in (1e61, 1e200):
+        with pytest.raises(UserError, match=r"up to .* rescale the mesh"):
+            repair_mesh(V * scale, F)
+    V1 = V / np.abs(V).max() * 1e60
+    assert len(repair_mesh(V1, F).F) == len(F)
+
+
 def test_polygons_degenerate_duplicate_and_unreferenced_faces():
     V, F = grid(2)                 # 3×3 vertices; quads below are the grid squares
     quads = [[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]]
