@@ -18,10 +18,18 @@ import numpy as np
 from . import topology as topo
 from .rows import cross, norms
 
-__all__ = ["umbrella_offsets", "noise_level", "noise_beyond"]
+__all__ = ["neighbour_means", "umbrella_offsets", "noise_level", "noise_beyond"]
 
 #: noise_level ÷ the standard deviation of normal noise it measures (a regular grid)
 LEVEL_PER_SIGMA = 0.9
+
+
+def neighbour_means(A, X: np.ndarray) -> np.ndarray:
+    """Per vertex, the mean of ``X`` (n or n×d) over its neighbours in the adjacency ``A``
+    (n×n sparse bool, :func:`.topology.vertex_neighbours`); 0 at a vertex without any."""
+    degree = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
+    means = A.astype(float) @ X
+    return means / (degree[:, None] if means.ndim == 2 else degree)
 
 
 def umbrella_offsets(V: np.ndarray, F: np.ndarray, A=None) -> np.ndarray:
@@ -36,11 +44,10 @@ def umbrella_offsets(V: np.ndarray, F: np.ndarray, A=None) -> np.ndarray:
         :func:`.topology.vertex_neighbours` of ``F`` when already made.
     """
     A = topo.vertex_neighbours(F, len(V)) if A is None else A
-    degree = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
     face_normal = cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     normal = topo.vertex_faces(F, len(V)).astype(float) @ face_normal
     normal /= np.maximum(norms(normal), 1e-300)[:, None]
-    to_mean = (A.astype(float) @ V) / degree[:, None] - V
+    to_mean = neighbour_means(A, V) - V
     return np.einsum("ij,ij->i", to_mean, normal)
 
 
@@ -61,8 +68,7 @@ def noise_level(V: np.ndarray, F: np.ndarray) -> float:
     """
     A = topo.vertex_neighbours(F, len(V))
     offset = umbrella_offsets(V, F, A)
-    degree = np.maximum(np.asarray(A.sum(axis=1)).ravel(), 1)
-    rough = np.abs(offset - (A.astype(float) @ offset) / degree)
+    rough = np.abs(offset - neighbour_means(A, offset))
     inner = ~topo.boundary_vertices_mask(F, len(V))
     return float(np.median(rough[inner])) if inner.any() else 0.0
 

@@ -115,7 +115,7 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.remesh_quality import longest_edge_squared
 from pipeline.geometry.rows import dots, norms
-from pipeline.io.meshio import MAX_COORDINATE
+from pipeline.io.meshio import refuse_huge_coordinates
 
 __all__ = ["RepairOptions", "RepairedMesh", "repair_mesh", "triangulate_polygons",
            "weld_map", "zero_area_mask", "has_interior_neighbour", "disk_blockers",
@@ -991,11 +991,7 @@ def _repair_mesh(V, faces, colors, options: RepairOptions | None, name: str) -> 
             f"mesh '{name}' has {_plural(int((~finite).sum()), 'vertex')} with NaN/inf "
             f"coordinates (e.g. vertex {int(np.argmin(finite))}); fix or remove them"
         )
-    big = float(np.abs(V).max())
-    if big > MAX_COORDINATE:
-        raise UserError(f"mesh '{name}' has coordinates up to {big:.3g}, which overflow in "
-                        f"squared lengths and areas (the limit is {MAX_COORDINATE:.0e} in "
-                        f"magnitude); rescale the mesh")
+    refuse_huge_coordinates(V, f"mesh '{name}'")
     n0 = len(V)
     C = None
     if colors is not None:

@@ -501,12 +501,19 @@ def read_mesh(path) -> RawMesh:
     if not np.all(np.isfinite(mesh.V)):
         bad = int(np.count_nonzero(~np.isfinite(mesh.V).all(axis=1)))
         raise UserError(f"{path}: {bad} vertices have NaN/inf coordinates; fix the file")
-    big = float(np.abs(mesh.V).max(initial=0.0))
+    refuse_huge_coordinates(mesh.V, str(path))
+    return mesh
+
+
+def refuse_huge_coordinates(V: np.ndarray, subject: str) -> None:
+    """Raise :class:`UserError` (naming ``subject``, a file or a mesh) where a coordinate of
+    ``V`` (n×3) exceeds :data:`MAX_COORDINATE` in magnitude: squared lengths and areas would
+    overflow."""
+    big = float(np.abs(V).max(initial=0.0))
     if big > MAX_COORDINATE:
-        raise UserError(f"{path}: coordinates up to {big:.3g} overflow in squared lengths and "
+        raise UserError(f"{subject}: coordinates up to {big:.3g} overflow in squared lengths and "
                         f"areas (the limit is {MAX_COORDINATE:.0e} in magnitude); rescale the "
                         f"mesh")
-    return mesh
 
 
 def _format_rows(fmt: str, arr: np.ndarray) -> str:

@@ -21,7 +21,8 @@ from ..locate import lift
 from ..metrics import corner_angles
 from ..rows import norms
 from .domain import locator, on_sphere
-from .halfedge import DISK_SHAPE_MIN, disk_shape, independent_by_faces, touching, vertex_faces
+from .halfedge import (DISK_SHAPE_MIN, disk_shape, edge_lengths, independent_by_faces, touching,
+                       vertex_faces)
 from .refine import split_edges, split_faces
 from .state import RemeshState
 
@@ -212,7 +213,7 @@ def interior_corners(V: np.ndarray, F: np.ndarray, angle_deg: float, length: flo
     dev = np.abs(value)
     dev[topo.boundary_vertices_mask(F, len(V))] = 0.0
     sharp = _sharpest_first(dev, angle_deg)
-    fine = bool(norms((V[F] - V[np.roll(F, 1, axis=1)]).reshape(-1, 3)).mean() < length)
+    fine = bool(edge_lengths(V, *topo.half_edges(F)).mean() < length)
     return sharp[_corners_at_scale(V, value, sharp, CORNER_REACH * length, angle_deg,
                                    fine=fine)]
 

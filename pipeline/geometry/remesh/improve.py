@@ -996,13 +996,7 @@ class _Operations:
                 continue
             point = S.X[v].copy()
             self.move_to_best(v, min_angle_deg)
-            low, _ = unforced_below(S, min_angle_deg)
-            near = norms(S.X - point) < FORCED_REACH * self.L
-            n0 = S.n
-            raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
-                             self.judged)
-            if S.n < n0:
-                split_for_count(S, n0 - S.n, min_angle_deg)
+            self.raise_near(point, min_angle_deg, S.n)
             after = shortfall_order(unforced_shortfall(S, min_angle_deg))
             if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
                     (best is None or after < best[0]) and \
@@ -1106,10 +1100,9 @@ class _Operations:
         smallest = T[np.arange(len(bad)), corner_angles_deg(S.X, T).argmin(axis=1)]
         n0 = S.n
         for point in S.X[np.unique(smallest[S.is_rim[smallest]])]:
-            c = np.flatnonzero(at_points(S.X, point[None]))
-            if len(c) and S.is_rim[c[0]]:
-                self.best_change(point, min_angle_deg,
-                                 self.rim_corner_attempts(int(c[0]), min_angle_deg))
+            c = self.rim_vertex_at(point)
+            if c is not None:
+                self.best_change(point, min_angle_deg, self.rim_corner_attempts(c, min_angle_deg))
         if S.n > n0:
             self.give_back(n0, min_angle_deg)
 
@@ -1153,10 +1146,9 @@ class _Operations:
         below ``AIM_SHARE`` × the even split of its input angle sum between them: the changes
         of :meth:`wedge_attempts`, the best kept (:meth:`best_change`)."""
         S = self.S
-        c = np.flatnonzero(at_points(S.X, point[None]))
-        if len(c) == 0 or not S.is_rim[c[0]]:
+        c = self.rim_vertex_at(point)
+        if c is None:
             return
-        c = int(c[0])
         even = float(S.angle_sums_in()[input_vertex_under(S, np.array([c]))[0]]) / 2
         if self.smallest_at(point) >= AIM_SHARE * even:
             return
@@ -1215,8 +1207,7 @@ class _Operations:
         at :data:`.angles.SAG_TS`)."""
         S = self.S
         saved = saved_state(S)
-        h = half_edge(S.F, c, w) if ((S.F == c) & (np.roll(S.F, -1, axis=1) == w)).any() \
-            else half_edge(S.F, w, c)
+        h = half_edge(S.F, c, w, either=True)
         split_edges(S, np.array([h]), S.twins()[[h]], points=M[None])
         p = S.n - 1
         if self.tol is not None:
@@ -1246,12 +1237,7 @@ class _Operations:
         held = None if hold is None else (S.X[hold].copy(), bool(S.locked[hold]))
         if held is not None:
             S.locked[hold] = True
-        low, _ = unforced_below(S, min_angle_deg)
-        near = norms(S.X - point) < FORCED_REACH * self.L
-        raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
-                         self.judged)
-        if S.n < n0:
-            split_for_count(S, n0 - S.n, min_angle_deg)
+        self.raise_near(point, min_angle_deg, n0)
         if held is not None:
             S.locked[at_points(S.X, held[0][None])] = held[1]
         if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
@@ -1260,6 +1246,26 @@ class _Operations:
             self.restore(saved)
             return False
         return True
+
+    def raise_near(self, point: np.ndarray, min_angle_deg: float, count: int) -> None:
+        """The usual operations (:func:`.angles.raise_min_angles`) at the faces below
+        ``min_angle_deg`` that no input corner forces within ``FORCED_REACH × L`` of ``point``
+        (3,), then the vertices their collapses took below ``count`` given back
+        (:func:`.angles.split_for_count`)."""
+        S = self.S
+        low, _ = unforced_below(S, min_angle_deg)
+        near = norms(S.X - point) < FORCED_REACH * self.L
+        raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
+                         self.judged)
+        if S.n < count:
+            split_for_count(S, count - S.n, min_angle_deg)
+
+    def rim_vertex_at(self, point: np.ndarray) -> int | None:
+        """The rim vertex at ``point`` (3,); None where no vertex is there (a collapse removed
+        it) or it is not on the rim."""
+        S = self.S
+        c = np.flatnonzero(at_points(S.X, point[None]))
+        return int(c[0]) if len(c) and S.is_rim[c[0]] else None
 
     def faces_at(self, point: np.ndarray) -> np.ndarray:
         """The faces (indices) at the vertex at ``point`` (3,); none where no vertex is there

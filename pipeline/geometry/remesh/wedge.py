@@ -160,10 +160,13 @@ def move_guards_ok(S: RemeshState, w: int, star_w: np.ndarray, uv: np.ndarray, f
     return bool(gap <= tol and (after <= np.maximum(before, tol)).all())
 
 
-def half_edge(F: np.ndarray, a: int, b: int) -> int:
+def half_edge(F: np.ndarray, a: int, b: int, either: bool = False) -> int:
     """The half-edge ``a → b`` of the faces ``F`` (m×3): ``3·f + i`` with ``F[f, i] = a`` and
-    ``F[f, (i + 1) % 3] = b``."""
+    ``F[f, (i + 1) % 3] = b``; with ``either``, ``b → a`` where the edge has no ``a → b`` (a
+    rim edge)."""
     hit = (F == a) & (np.roll(F, -1, axis=1) == b)
+    if either and not hit.any():
+        hit = (F == b) & (np.roll(F, -1, axis=1) == a)
     f, i = np.argwhere(hit)[0]
     return int(3 * f + i)
 
