@@ -2,7 +2,7 @@
 minimum angle that no input corner forces, and the folds and time.
 
     python benchmarks/bench_scans.py [--vertices 5000 20000 100000]
-                                     [--scans noisy jagged bowtie mild] [--large] [--compare]
+                                     [--scans noisy jagged bowtie mild large] [--compare]
 
 Real face scans are noisy and their rims ragged (the scanner loses the faces at grazing
 angles), which the shared meshes are not. The proxies, written to a temporary folder from the
@@ -19,7 +19,7 @@ ICT faces of ``../shared/data/faces/ict`` (seeded, so every run makes the same f
 * ``mild``: ict_B_smile_jawopen Loop-subdivided once (about 26k vertices), noise 0.01 % of the
   diagonal, 3 such passes.
 
-* ``large`` (only with ``--large``): ict_A_neutral Loop-subdivided three times (about 425k
+* ``large`` (only when named in ``--scans``): ict_A_neutral Loop-subdivided three times (about 425k
   vertices, 850k faces: a real scan's size), the noise of ``noisy``
   (:func:`bench_intake.scan_proxy` with 3 subdivisions).
 
@@ -189,12 +189,11 @@ def pymeshlab_row(name: str, path: Path, n: int) -> str:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000, 100000])
-    ap.add_argument("--scans", nargs="+", choices=SCANS, default=list(SCANS))
-    ap.add_argument("--large", action="store_true", help="also the 425k-vertex proxy")
+    ap.add_argument("--scans", nargs="+", choices=[*SCANS, LARGE], default=list(SCANS))
     ap.add_argument("--compare", action="store_true",
                     help="under each row, pymeshlab's isotropic remeshing of the same proxy")
     args = ap.parse_args()
-    names = [*args.scans, *([LARGE] if args.large else [])]
+    names = args.scans
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         scans = make_scans(folder, names)
