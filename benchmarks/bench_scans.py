@@ -139,7 +139,7 @@ def run_command(path: Path, n: int, folder: Path, flags=()) -> tuple:
     return run, out, wall, cpu
 
 
-HEADER = ("scan              N  verts mean min°  <30° %    min°  <20°  unforced  folds"
+HEADER = ("mesh              N  verts mean min°  <30° %    min°  <20°  unforced  folds"
           " area CV  Haus %   RMS %   wall s   CPU s")
 
 
@@ -186,6 +186,17 @@ def pymeshlab_row(name: str, path: Path, n: int) -> str:
                         "-", q["distance"], b.seconds, b.cpu_seconds)
 
 
+def print_rows(paths: dict, counts, compare: bool) -> None:
+    """The table: per mesh of ``paths`` (name → path) and vertex count of ``counts``, our row
+    and, with ``compare``, pymeshlab's under it."""
+    print(HEADER, flush=True)
+    for name, path in paths.items():
+        for n in counts:
+            print(remesh_row(name, path, n, path.parent), flush=True)
+            if compare:
+                print(pymeshlab_row(name, path, n), flush=True)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--vertices", type=int, nargs="+", default=[5000, 20000, 100000])
@@ -200,12 +211,7 @@ def main() -> int:
         for name in names:
             mesh = read_mesh(scans[name])
             print(f"{name}: {len(mesh.V)} vertices, {len(mesh.faces)} faces")
-        print(HEADER, flush=True)
-        for name in names:
-            for n in args.vertices:
-                print(remesh_row(name, scans[name], n, folder), flush=True)
-                if args.compare:
-                    print(pymeshlab_row(name, scans[name], n), flush=True)
+        print_rows(scans, args.vertices, args.compare)
     return 0
 
 
