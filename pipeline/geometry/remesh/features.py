@@ -570,6 +570,14 @@ def smooth_chain_mask(V: np.ndarray, A: np.ndarray, fold: np.ndarray, chains: li
     low = np.minimum.reduceat(fold[rows], starts)
     high = np.maximum.reduceat(fold[rows], starts)
     closed = np.array([vs[0] == vs[-1] for vs in chains])
+    crease = A[fold > math.radians(SMOOTH_CREASE_DEG)]
+    degree = np.bincount(crease.ravel(), minlength=len(V))
+    ends_free = closed | ((degree[[vs[0] for vs in chains]] == 1)
+                          & (degree[[vs[-1] for vs in chains]] == 1))
+    keep = ((closed | (length >= SMOOTH_MIN_LENGTH * L)) & (steps >= SMOOTH_MIN_EDGES)
+            & (high <= SMOOTH_SPREAD * low) & ends_free)
+    if not keep.any():
+        return keep
     beside = np.ones(len(A), bool)
     beside[rows] = False
     side = np.zeros(len(V))
@@ -583,12 +591,7 @@ def smooth_chain_mask(V: np.ndarray, A: np.ndarray, fold: np.ndarray, chains: li
     np.maximum.at(near, A[apart, 0], every[A[apart, 1]])    # off the chain
     np.maximum.at(near, A[apart, 1], every[A[apart, 0]])
     side_max = np.maximum.reduceat(near[np.concatenate(chains)], starts + np.arange(len(steps)))
-    crease = A[fold > math.radians(SMOOTH_CREASE_DEG)]
-    degree = np.bincount(crease.ravel(), minlength=len(V))
-    ends_free = closed | ((degree[[vs[0] for vs in chains]] == 1)
-                          & (degree[[vs[-1] for vs in chains]] == 1))
-    return ((closed | (length >= SMOOTH_MIN_LENGTH * L)) & (steps >= SMOOTH_MIN_EDGES)
-            & (high <= SMOOTH_SPREAD * low) & (side_max <= SMOOTH_SIDES * low) & ends_free)
+    return keep & (side_max <= SMOOTH_SIDES * low)
 
 
 def with_edges(E: np.ndarray, angle: np.ndarray, E_more: np.ndarray, angle_more: np.ndarray
