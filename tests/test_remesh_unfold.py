@@ -9,6 +9,7 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
+from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh.unfold import star_grid, unfold_locally
 from remesh_helpers import ccw_delaunay, coarse_state
 
@@ -60,6 +61,44 @@ def test_repair_folds_undoes_folds_without_giving_up_vertices():
     _Operations(S, 1 / 8, True, 20.0, 0.5, 0.2).repair_folds(n)
     assert len(turned_over_faces(S)) == 0 and S.n == n
     assert "folds_repaired" not in S.log
+
+
+def test_unfold_kept_tries_no_fold_group_once_its_budget_is_spent(monkeypatch):
+    """The 16-ring remesh of the sheared disk has two groups of folds: with the default budget
+    both are tried and undone; with one that the first trial spends, the second is left (a
+    fold), and the cut tallied."""
+    from pipeline.geometry.remesh import improve
+
+    def unfold_kept() -> RemeshState:
+        uv_in, F_in, V_in, loop, locator = _sheared_disk()
+        S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, 16)
+        S.locked = np.zeros(S.n, bool)
+        _, group = topo.connected_components(S.F[turned_over_faces(S)], S.n)
+        assert len(np.unique(group)) == 2
+        _Operations(S, 1 / 16, True, 20.0, 0.5, 0.2).unfold_kept(20.0)
+        return S
+
+    S = unfold_kept()
+    assert S.log["fold_groups_tried"] == 2 and "trials_cut" not in S.log
+    assert len(turned_over_faces(S)) == 0
+    monkeypatch.setattr(improve, "TRIAL_WORK", 1e-9)
+    S = unfold_kept()
+    assert S.log["fold_groups_tried"] == 1 and S.log["trials_cut"] == 1
+    assert len(turned_over_faces(S)) == 1
+
+
+def test_trial_budget_lets_a_trial_start_while_work_is_left():
+    """A budget of 10: trials at 3 and 5 faces below the minimum start (costs 4 and 6), the
+    third does not and is tallied; the vertex count sets the budget."""
+    from pipeline.geometry.remesh.improve import TRIAL_WORK, TrialBudget
+
+    uv_in, F_in, V_in, loop, locator = _sheared_disk()
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, 8)
+    budget = TrialBudget(10.0)
+    assert budget.spend(S, 3) and budget.left == 6.0
+    assert budget.spend(S, 5) and budget.left == 0.0
+    assert not budget.spend(S, 0) and budget.left == 0.0 and S.log["trials_cut"] == 1
+    assert TrialBudget.for_remesh(S).left == TRIAL_WORK * S.n
 
 
 def test_star_grid_covers_each_face_of_the_star_without_its_opposite_edge():
