@@ -106,8 +106,10 @@ The schedule (:func:`improve_remesh`):
     pass's operations turned faces over, the fold repair's local operations again and the
     minimum-angle ones after them (also under the looser guards below), a group of folds
     sharing vertices at a time, undone where they leave a smaller smallest angle and not every
-    fold of the group undone; then, at the faces still below that no input corner forces, the
-    local operations under sag and gap guards ``LAST_RESORT`` times looser
+    fold of the group undone, while the trials' work budget lasts (:class:`TrialBudget`; it
+    also ends the face-by-face loops of :meth:`_Operations.refine_each` and
+    :meth:`_Operations.move_each`); then, at the faces still below that no input corner
+    forces, the local operations under sag and gap guards ``LAST_RESORT`` times looser
     (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
     where only its removal or a move off it raises the angle), kept only where they leave
     fewer such faces or a larger smallest angle and no more folds, the vertices their
