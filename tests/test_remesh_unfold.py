@@ -244,6 +244,68 @@ def test_recover_edges_flips_the_edge_across_a_convex_quad_and_refuses_a_reflex_
     assert recover_edges(dart, T, np.array([[1, 3]])) is None
 
 
+def _recover_edges_rebuilding(Q, T, edges):
+    """:func:`.unfold.recover_edges` with the half-edges and their rows rebuilt from ``T``
+    before every flip (the reference its kept table must match)."""
+    from pipeline.geometry.remesh.halfedge import double_areas
+
+    def side(p, q, r):
+        return np.sign((Q[q, 0] - Q[p, 0]) * (Q[r, 1] - Q[p, 1])
+                       - (Q[q, 1] - Q[p, 1]) * (Q[r, 0] - Q[p, 0]))
+
+    def flip_across(h, a, b):
+        c, d = h[:, 0], h[:, 1]
+        crossing = np.flatnonzero((side(a, b, c) * side(a, b, d) < 0) &
+                                  (side(c, d, a) * side(c, d, b) < 0))
+        key = {(int(x), int(y)): i for i, (x, y) in enumerate(h.tolist())}
+        for i in crossing.tolist():
+            j = key.get((int(d[i]), int(c[i])))
+            if j is None:
+                continue
+            f, g = i // 3, j // 3
+            p, q = T[f, (i % 3 + 2) % 3], T[g, (j % 3 + 2) % 3]
+            new = np.array([[c[i], q, p], [q, d[i], p]])
+            if (double_areas(Q, new) > 0).all():
+                T[f], T[g] = new
+                return True
+        return False
+
+    T = T.copy()
+    for a, b in edges.tolist():
+        for _ in range(len(T) + 1):
+            h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            if {(a, b), (b, a)} & set(map(tuple, h.tolist())):
+                break
+            if not flip_across(h, a, b):
+                return None
+        else:
+            return None
+    return T
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_recover_edges_matches_the_rebuilt_half_edges(seed):
+    """Random points' Delaunay triangles (counter-clockwise) asked for a loop through every
+    point by angle about the square's centre (odd seeds: many flips, often refused) or a few
+    random segments (even): the same triangles as :func:`_recover_edges_rebuilding`, or
+    None for both."""
+    from pipeline.geometry.remesh.unfold import recover_edges
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 120))
+    Q = rng.random((n, 2))
+    T = ccw_delaunay(Q)
+    if seed % 2:
+        order = np.argsort(np.arctan2(Q[:, 1] - 0.5, Q[:, 0] - 0.5))
+        edges = np.column_stack([order, np.roll(order, -1)])
+    else:
+        edges = rng.integers(0, n, (int(rng.integers(1, 8)), 2))
+        edges = edges[edges[:, 0] != edges[:, 1]]
+    got, want = recover_edges(Q, T, edges), _recover_edges_rebuilding(Q, T, edges)
+    assert (got is None) == (want is None)
+    assert want is None or np.array_equal(got, want)
+
+
 def test_chart_triangulation_fills_the_outline_with_every_vertex_or_refuses():
     """A flat hexagon (outline counter-clockwise) around its centre on a plane state: the
     chart makes the 6 faces of the centre's fan (b − 2 + 2i = 6), its outline the hexagon;
