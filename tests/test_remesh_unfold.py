@@ -9,6 +9,7 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import PointLocator, lift
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
+from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh.unfold import star_grid, unfold_locally
 from remesh_helpers import ccw_delaunay, coarse_state
 
@@ -60,6 +61,44 @@ def test_repair_folds_undoes_folds_without_giving_up_vertices():
     _Operations(S, 1 / 8, True, 20.0, 0.5, 0.2).repair_folds(n)
     assert len(turned_over_faces(S)) == 0 and S.n == n
     assert "folds_repaired" not in S.log
+
+
+def test_unfold_kept_tries_no_fold_group_once_its_budget_is_spent(monkeypatch):
+    """The 16-ring remesh of the sheared disk has two groups of folds: with the default budget
+    both are tried and undone; with one that the first trial spends, the second is left (a
+    fold), and the cut tallied."""
+    from pipeline.geometry.remesh import improve
+
+    def unfold_kept() -> RemeshState:
+        uv_in, F_in, V_in, loop, locator = _sheared_disk()
+        S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, 16)
+        S.locked = np.zeros(S.n, bool)
+        _, group = topo.connected_components(S.F[turned_over_faces(S)], S.n)
+        assert len(np.unique(group)) == 2
+        _Operations(S, 1 / 16, True, 20.0, 0.5, 0.2).unfold_kept(20.0)
+        return S
+
+    S = unfold_kept()
+    assert S.log["fold_groups_tried"] == 2 and "trials_cut" not in S.log
+    assert len(turned_over_faces(S)) == 0
+    monkeypatch.setattr(improve, "TRIAL_WORK", 1e-9)
+    S = unfold_kept()
+    assert S.log["fold_groups_tried"] == 1 and S.log["trials_cut"] == 1
+    assert len(turned_over_faces(S)) == 1
+
+
+def test_trial_budget_lets_a_trial_start_while_work_is_left():
+    """A budget of 10: trials at 3 and 5 faces below the minimum start (costs 4 and 6), the
+    third does not and is tallied; the vertex count sets the budget."""
+    from pipeline.geometry.remesh.improve import TRIAL_WORK, TrialBudget
+
+    uv_in, F_in, V_in, loop, locator = _sheared_disk()
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, 8)
+    budget = TrialBudget(10.0)
+    assert budget.spend(S, 3) and budget.left == 6.0
+    assert budget.spend(S, 5) and budget.left == 0.0
+    assert not budget.spend(S, 0) and budget.left == 0.0 and S.log["trials_cut"] == 1
+    assert TrialBudget.for_remesh(S).left == TRIAL_WORK * S.n
 
 
 def test_star_grid_covers_each_face_of_the_star_without_its_opposite_edge():
@@ -203,6 +242,68 @@ def test_recover_edges_flips_the_edge_across_a_convex_quad_and_refuses_a_reflex_
     dart = np.array([[0.8, 0.4], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     assert (double_areas(dart, T) > 0).all()
     assert recover_edges(dart, T, np.array([[1, 3]])) is None
+
+
+def _recover_edges_rebuilding(Q, T, edges):
+    """:func:`.unfold.recover_edges` with the half-edges and their rows rebuilt from ``T``
+    before every flip (the reference its kept table must match)."""
+    from pipeline.geometry.remesh.halfedge import double_areas
+
+    def side(p, q, r):
+        return np.sign((Q[q, 0] - Q[p, 0]) * (Q[r, 1] - Q[p, 1])
+                       - (Q[q, 1] - Q[p, 1]) * (Q[r, 0] - Q[p, 0]))
+
+    def flip_across(h, a, b):
+        c, d = h[:, 0], h[:, 1]
+        crossing = np.flatnonzero((side(a, b, c) * side(a, b, d) < 0) &
+                                  (side(c, d, a) * side(c, d, b) < 0))
+        key = {(int(x), int(y)): i for i, (x, y) in enumerate(h.tolist())}
+        for i in crossing.tolist():
+            j = key.get((int(d[i]), int(c[i])))
+            if j is None:
+                continue
+            f, g = i // 3, j // 3
+            p, q = T[f, (i % 3 + 2) % 3], T[g, (j % 3 + 2) % 3]
+            new = np.array([[c[i], q, p], [q, d[i], p]])
+            if (double_areas(Q, new) > 0).all():
+                T[f], T[g] = new
+                return True
+        return False
+
+    T = T.copy()
+    for a, b in edges.tolist():
+        for _ in range(len(T) + 1):
+            h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            if {(a, b), (b, a)} & set(map(tuple, h.tolist())):
+                break
+            if not flip_across(h, a, b):
+                return None
+        else:
+            return None
+    return T
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_recover_edges_matches_the_rebuilt_half_edges(seed):
+    """Random points' Delaunay triangles (counter-clockwise) asked for a loop through every
+    point by angle about the square's centre (odd seeds: many flips, often refused) or a few
+    random segments (even): the same triangles as :func:`_recover_edges_rebuilding`, or
+    None for both."""
+    from pipeline.geometry.remesh.unfold import recover_edges
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 120))
+    Q = rng.random((n, 2))
+    T = ccw_delaunay(Q)
+    if seed % 2:
+        order = np.argsort(np.arctan2(Q[:, 1] - 0.5, Q[:, 0] - 0.5))
+        edges = np.column_stack([order, np.roll(order, -1)])
+    else:
+        edges = rng.integers(0, n, (int(rng.integers(1, 8)), 2))
+        edges = edges[edges[:, 0] != edges[:, 1]]
+    got, want = recover_edges(Q, T, edges), _recover_edges_rebuilding(Q, T, edges)
+    assert (got is None) == (want is None)
+    assert want is None or np.array_equal(got, want)
 
 
 def test_chart_triangulation_fills_the_outline_with_every_vertex_or_refuses():

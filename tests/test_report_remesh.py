@@ -115,6 +115,12 @@ def test_remesh_warnings_count_the_folds_in_the_singular_and_the_plural():
         "3 faces of the remesh are turned over against the input (their normals point")
 
 
+def test_remesh_warnings_say_when_the_work_budget_ended_the_repairs():
+    assert remesh_warnings({}, {}) == [] and remesh_warnings({}, {}, trials_cut=0) == []
+    w = remesh_warnings({}, {}, trials_cut=2)
+    assert len(w) == 1 and "work budget" in w[0] and "TRIAL_WORK" in w[0]
+
+
 def test_remesh_warnings_name_a_vertex_count_off_the_request():
     """Within 2 % of the request: nothing; beyond it, one sentence with the count, the
     deviation and its cause (the rim's share of the samples when it is over half)."""

@@ -363,14 +363,15 @@ def below_min_angle_warning(below: dict) -> str:
 
 
 def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
-                    count: dict | None = None) -> list[str]:
+                    count: dict | None = None, trials_cut: int = 0) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
     stretch anisotropy); ``methods``: ``remesh_metrics.json``'s ``methods`` block; ``below``:
     the faces the minimum-angle pass left (``remesh.improve.below_min_angle``); ``count``:
     ``{"requested", "vertices", "rim"}``, the vertex count asked for and made, and how many of
-    the samples were on the rim."""
+    the samples were on the rim; ``trials_cut``: the loops of trials the improvement's work
+    budget ended (``remesh.improve.trials_cut``)."""
     out = []
     want = (count or {}).get("requested")
     got = (count or {}).get("vertices")
@@ -398,6 +399,11 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
             ("faces of the remesh are", "their normals point", "they lie")
         out.append(f"{folds} {what[0]} turned over against the input ({what[1]} against the "
                    f"input's where {what[2]}): the remesh folds there")
+    if trials_cut:
+        out.append("the fold repair and the refinement one face at a time stopped at their work "
+                   "budget (improve.TRIAL_WORK × the vertex count) with folds or faces below "
+                   "the minimum angle left untried (so many that the map likely crowds part "
+                   "of the surface: a tube or finger narrower than the remesh)")
     for key, m in methods.items():
         if str(m.get("note", "")).startswith("failed"):
             out.append(f"{m.get('label', key)} {m['note']}; its column is empty")

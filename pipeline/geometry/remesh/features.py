@@ -10,7 +10,13 @@ feature points and the remesh around its locked vertices fold it: gpp_bunny at 2
 30°, three faces turned over without this limit, none with it) (:func:`feature_edges`), form
 **chains** (:func:`feature_chains`): runs through
 vertices where exactly two of them meet and the line turns by at most ``TURN_DEG``; chains
-shorter than ``MIN_LENGTH × L`` are dropped. Each chain gets points (:func:`chain_points`):
+shorter than ``MIN_LENGTH × L`` are dropped. Below the threshold a crease is taken where it
+is a line of the shape rather than of the tessellation (:func:`smooth_creases`): a chain of
+edges folded more than ``SMOOTH_CREASE_DEG`` that turns slowly, is closed or several ``L``
+long, folds alike all along and has the surface smooth on both sides
+(:func:`smooth_chain_mask`; a crease between a head and a neck) — with no limit on the map's
+dilatation, but none of its edges above the threshold (those are the fold-back rule's, with
+its limit). Each chain gets points (:func:`chain_points`):
 its own vertices where its chords would leave it by more than ``BEND_TOL × L``
 (:func:`chain_stops`), and evenly spaced points about ``L`` apart along its straight stretches.
 The map is affine on every input face, so a point a fraction along an input edge has its disk
@@ -59,12 +65,24 @@ FEATURE_GAP = 0.6    # feature vertices are at least this × L apart on the surf
 MAX_STEP = 1.25      # consecutive feature points at most this × L apart along a chain, …
 BEND_TOL = 0.05      # … their chord within this × L of the chain's vertices between them
 MAX_DILATATION = 8.0  # no feature edge at an input face whose map dilatation exceeds this
+# a crease folded less than the threshold is taken where it is a line of the shape, not of the
+# tessellation (:func:`smooth_chain_mask`): a chain of edges folded more than SMOOTH_CREASE_DEG
+# turning by at most SMOOTH_TURN_DEG at each vertex, closed or at least SMOOTH_MIN_LENGTH × L
+# long, its largest fold at most SMOOTH_SPREAD × its smallest, and every other edge within two
+# edges of it folded at most SMOOTH_SIDES × its smallest fold (the surface smooth beside it)
+SMOOTH_CREASE_DEG = 40.0
+SMOOTH_TURN_DEG = 15.0
+SMOOTH_MIN_LENGTH = 3.0
+SMOOTH_MIN_EDGES = 4      # … and of at least this many edges (on fewer, consistency says little)
+SMOOTH_SPREAD = 1.25
+SMOOTH_SIDES = 0.5
 FLAT = 1e-3          # a face with 2·area ≤ this × its longest edge² is flat (three collinear
                      # feature points): its longest edge is flipped
 
 
 def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
-                  faces: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  faces: np.ndarray | None = None, folds: tuple | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """The interior edges of ``(V, F)`` whose two faces' normals differ by more than
     ``angle_deg``, neither end on the boundary (and both faces among ``faces``, if given).
 
@@ -74,6 +92,8 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
     F : (m, 3) int
     angle_deg : float
     faces : (m,) bool, optional
+    folds : tuple, optional
+        :func:`edge_folds` of ``(V, F)``, when the caller has it.
 
     Returns
     -------
@@ -82,16 +102,39 @@ def feature_edges(V: np.ndarray, F: np.ndarray, angle_deg: float = FEATURE_DEG,
     angle : (e,) float
         Their dihedral angles (radians).
     """
+    h, twin, E, cos = edge_folds(V, F) if folds is None else folds
+    keep = cos < math.cos(math.radians(angle_deg))
+    if faces is not None:
+        keep &= faces[h // 3] & faces[twin // 3]
+    return E[keep], arccos(cos[keep])
+
+
+def edge_folds(V: np.ndarray, F: np.ndarray) -> tuple:
+    """The interior edges of ``(V, F)`` with neither end on the boundary and the cosines of
+    their dihedral angles.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+
+    Returns
+    -------
+    h, twin : (e,) int
+        Each edge's half-edge ``a → b`` (:func:`.halfedge.edge_table`) and its twin.
+    E : (e, 2) int
+        The vertex pairs ``a, b``.
+    cos : (e,) float
+        The dot products of the two faces' unit normals, clipped to [−1, 1].
+    """
     h, a, b, twin = edge_table(F)
     inner = twin >= 0
     h, a, b, twin = h[inner], a[inner], b[inner], twin[inner]
     N = face_normals(V, F)
     cos = np.clip(dots(N.take(h // 3, axis=0), N.take(twin // 3, axis=0)), -1.0, 1.0)
     on_b = topo.boundary_vertices_mask(F, len(V))
-    keep = (cos < math.cos(math.radians(angle_deg))) & ~on_b[a] & ~on_b[b]
-    if faces is not None:
-        keep &= faces[h // 3] & faces[twin // 3]
-    return np.column_stack([a[keep], b[keep]]), arccos(cos[keep])
+    off = ~on_b[a] & ~on_b[b]
+    return h[off], twin[off], np.column_stack([a[off], b[off]]), cos[off]
 
 
 def feature_chains(V: np.ndarray, E: np.ndarray, turn_deg: float = TURN_DEG) -> list:
@@ -362,12 +405,23 @@ def chain_weights(V: np.ndarray, E: np.ndarray, angle: np.ndarray, chains: list
     weight = norms(V[E[:, 0]] - V[E[:, 1]]) * angle ** 2
     if not chains:
         return np.array([])
+    return chain_sums(weight[chain_edge_rows(E, chains)], [len(vs) - 1 for vs in chains])
+
+
+def chain_edge_rows(E: np.ndarray, chains: list) -> np.ndarray:
+    """The row of ``E`` (e, 2) int of each of the chains' edges (:func:`chain_edges`), (s,) int:
+    every chain edge, either way round, is a row of ``E``."""
     a, b = chain_edges(chains)
     n = int(max(E.max(), a.max(), b.max())) + 1
-    keys = np.minimum(E[:, 0], E[:, 1]).astype(np.int64) * n + np.maximum(E[:, 0], E[:, 1])
+    keys = edge_keys(E[:, 0], E[:, 1], n)
     by_key = np.argsort(keys, kind="stable")
-    edge = by_key[np.searchsorted(keys[by_key], np.minimum(a, b) * n + np.maximum(a, b))]
-    return chain_sums(weight[edge], [len(vs) - 1 for vs in chains])
+    return by_key[np.searchsorted(keys[by_key], edge_keys(a, b, n))]
+
+
+def edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """One number per edge ``a — b`` (k,) int, either way round, of vertices below ``n``:
+    ``min · n + max`` (k,) int64."""
+    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
 
 
 def chain_edges(chains: list) -> tuple[np.ndarray, np.ndarray]:
@@ -410,7 +464,9 @@ def chain_sums(values: np.ndarray, counts) -> np.ndarray:
 def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> np.ndarray:
     """Lock a remesh vertex on every point of the input's feature chains (:func:`chain_points`
     at spacing ``L``; :func:`.corners.snap_vertices`, ``FEATURE_GAP × L`` apart) and join
-    consecutive ones (:func:`join_edges`); the joined pairs are added to ``S.joined``.
+    consecutive ones (:func:`join_edges`); the joined pairs are added to ``S.joined``. The
+    chains are those of the edges folded more than ``angle_deg`` at faces the map dilates at
+    most ``MAX_DILATATION``, with the smooth creases below it (:func:`smooth_creases`).
 
     Parameters
     ----------
@@ -427,7 +483,12 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
         The pairs joined.
     """
     even = stretch_anisotropy(S.V_in, S.F_in, S.uv_in) <= MAX_DILATATION
-    E, angle = feature_edges(S.V_in, S.F_in, angle_deg, faces=even)
+    folds = edge_folds(S.V_in, S.F_in)
+    E, angle = feature_edges(S.V_in, S.F_in, angle_deg, faces=even, folds=folds)
+    if angle_deg > SMOOTH_CREASE_DEG:
+        E_smooth, angle_smooth = smooth_creases(S.V_in, S.F_in, L, angle_deg, folds)
+        S.tally("feature_smooth_edges", len(E_smooth))
+        E, angle = with_edges(E, angle, E_smooth, angle_smooth)
     chains = feature_chains(S.V_in, E, TURN_DEG)
     P, chain, rank = chain_points(S.V_in, S.uv_in, chains, L, MIN_LENGTH)
     S.tally("feature_points", len(P))
@@ -444,6 +505,104 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
     S.locked[np.setdiff1d(placed, pairs)] = False       # a point on no kept edge: a start
     S.tally("features_joined", len(pairs))
     return pairs
+
+
+def smooth_creases(V: np.ndarray, F: np.ndarray, L: float, max_deg: float = 180.0,
+                   folds: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The edges of ``(V, F)`` folded more than ``SMOOTH_CREASE_DEG`` on chains turning by at
+    most ``SMOOTH_TURN_DEG`` (:func:`feature_chains`) that run as a smooth crease of the shape
+    (:func:`smooth_chain_mask`), none of their edges folded more than ``max_deg``.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    L : float
+        Target edge length.
+    max_deg : float
+    folds : tuple, optional
+        :func:`edge_folds` of ``(V, F)``, when the caller has it.
+
+    Returns
+    -------
+    E : (e, 2) int
+        Vertex pairs, chain after chain.
+    angle : (e,) float
+        Their dihedral angles (radians).
+    """
+    _, _, A, cos = edge_folds(V, F) if folds is None else folds
+    fold = arccos(cos)
+    crease = fold > math.radians(SMOOTH_CREASE_DEG)
+    chains = feature_chains(V, A[crease], SMOOTH_TURN_DEG)
+    if not chains:
+        return A[:0], fold[:0]
+    rows = chain_edge_rows(A, chains)
+    steps = np.array([len(vs) - 1 for vs in chains])
+    gentle = np.maximum.reduceat(fold[rows], np.r_[0, np.cumsum(steps)[:-1]])
+    keep = smooth_chain_mask(V, A, fold, chains, L) & (gentle <= math.radians(max_deg))
+    keep = np.repeat(keep, steps)
+    return A[rows[keep]], fold[rows[keep]]
+
+
+def smooth_chain_mask(V: np.ndarray, A: np.ndarray, fold: np.ndarray, chains: list, L: float
+                      ) -> np.ndarray:
+    """Which chains of creases run as a line of the shape, (c,) bool: closed or at least
+    ``SMOOTH_MIN_LENGTH × L`` long, of at least ``SMOOTH_MIN_EDGES`` edges, their largest
+    dihedral angle at most ``SMOOTH_SPREAD`` × their smallest, every other edge of ``A`` at
+    their vertices, and every edge at their neighbours in ``A`` off the chain (the surface two
+    edges deep on either side), folded by at most ``SMOOTH_SIDES`` × their smallest angle,
+    and an open chain's ends on no other edge folded more than ``SMOOTH_CREASE_DEG``.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    A : (a, 2) int
+        The interior edges with neither end on the boundary (:func:`edge_folds`), ``fold`` (a,)
+        their dihedral angles (radians).
+    chains : list of (k,) int
+        Runs of edges of ``A`` (:func:`feature_chains`).
+    L : float
+    """
+    rows = chain_edge_rows(A, chains)
+    steps = np.array([len(vs) - 1 for vs in chains])
+    starts = np.r_[0, np.cumsum(steps)[:-1]]
+    length = np.add.reduceat(chain_steps(V, chains), starts)
+    low = np.minimum.reduceat(fold[rows], starts)
+    high = np.maximum.reduceat(fold[rows], starts)
+    closed = np.array([vs[0] == vs[-1] for vs in chains])
+    crease = A[fold > math.radians(SMOOTH_CREASE_DEG)]
+    degree = np.bincount(crease.ravel(), minlength=len(V))
+    ends_free = closed | ((degree[[vs[0] for vs in chains]] == 1)
+                          & (degree[[vs[-1] for vs in chains]] == 1))
+    keep = ((closed | (length >= SMOOTH_MIN_LENGTH * L)) & (steps >= SMOOTH_MIN_EDGES)
+            & (high <= SMOOTH_SPREAD * low) & ends_free)
+    if not keep.any():
+        return keep
+    beside = np.ones(len(A), bool)
+    beside[rows] = False
+    side = np.zeros(len(V))
+    np.maximum.at(side, A[beside].ravel(), np.repeat(fold[beside], 2))
+    every = np.zeros(len(V))
+    np.maximum.at(every, A.ravel(), np.repeat(fold, 2))
+    chain_of = np.full(len(V), -1)
+    chain_of[np.concatenate(chains)] = np.repeat(np.arange(len(chains)), steps + 1)
+    apart = (chain_of[A[:, 0]] != chain_of[A[:, 1]]) | (chain_of[A[:, 0]] < 0)
+    near = side.copy()                              # … and every edge at their neighbours
+    np.maximum.at(near, A[apart, 0], every[A[apart, 1]])    # off the chain
+    np.maximum.at(near, A[apart, 1], every[A[apart, 0]])
+    side_max = np.maximum.reduceat(near[np.concatenate(chains)], starts + np.arange(len(steps)))
+    return keep & (side_max <= SMOOTH_SIDES * low)
+
+
+def with_edges(E: np.ndarray, angle: np.ndarray, E_more: np.ndarray, angle_more: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``E`` (e, 2) int and ``angle`` (e,) float followed by the rows of ``E_more`` (f, 2) int
+    and ``angle_more`` (f,) float whose edge (either way round) is not in ``E``."""
+    if len(E_more) == 0:
+        return E, angle
+    n = int(max(E.max(initial=0), E_more.max())) + 1
+    new = ~np.isin(edge_keys(E_more[:, 0], E_more[:, 1], n), edge_keys(E[:, 0], E[:, 1], n))
+    return np.vstack([E, E_more[new]]), np.r_[angle, angle_more[new]]
 
 
 def consecutive_pairs(v: np.ndarray, chain: np.ndarray) -> np.ndarray:

@@ -106,8 +106,10 @@ The schedule (:func:`improve_remesh`):
     pass's operations turned faces over, the fold repair's local operations again and the
     minimum-angle ones after them (also under the looser guards below), a group of folds
     sharing vertices at a time, undone where they leave a smaller smallest angle and not every
-    fold of the group undone; then, at the faces still below that no input corner forces, the
-    local operations under sag and gap guards ``LAST_RESORT`` times looser
+    fold of the group undone, while the trials' work budget lasts (:class:`TrialBudget`; it
+    also ends the face-by-face loops of :meth:`_Operations.refine_each` and
+    :meth:`_Operations.move_each`); then, at the faces still below that no input corner
+    forces, the local operations under sag and gap guards ``LAST_RESORT`` times looser
     (:meth:`_Operations.last_resort`: a vertex on a crease or bump narrower than the remesh,
     where only its removal or a move off it raises the angle), kept only where they leave
     fewer such faces or a larger smallest angle and no more folds, the vertices their
@@ -257,6 +259,13 @@ FEATURE_RELEASE_DEG = 45.0   # with feature lines, the even-out pass first frees
 GRADE_PASSES = 3      # the minimum-angle pass's refinement again while it is kept, at most
 GRADE_PATIENCE = 2    # its rounds stop after this many in a row that beat no earlier state
 EACH_FACES = 100      # then at most this many of the faces it leaves refined one at a time
+# the loops of trials made one at a time and each judged on the whole remesh (the fold groups
+# of _Operations.unfold_kept, the faces of each_unforced_face) stop once their trials have
+# cost this × the vertex count, a trial costing one plus the faces below the minimum angle
+# that no input corner forces when it starts (the local operations it runs around them): a
+# remesh with thousands of those faces and as many folds (a tube narrower than the remesh,
+# its closed end crowded by the map) gets a few trials, not one per fold group
+TRIAL_WORK = 4.0
 # the follow step's rounds: the vertices snapped onto far input points are this × L apart at
 # least (from each other and from the locked vertices, those of the rounds before among them);
 # the last round takes the points the snaps of the one before uncovered
@@ -1430,17 +1439,21 @@ class _Operations:
         among the faces below that no input corner forces
         (:func:`.circumcentres.unforced_shortfall`: where the operations cannot undo a fold,
         what they leave skinny the minimum-angle ones may not raise). A group undone is not
-        tried again."""
+        tried again; the groups tried are tallied under ``fold_groups_tried``, and none is
+        tried once the trials have spent their :class:`TrialBudget` (the folds left stay)."""
         S = self.S
-        tried = np.zeros((0, 3))
+        tried, budget, trials = np.zeros((0, 3)), TrialBudget.for_remesh(S), 0
         while True:
             bad = np.flatnonzero(self.folds(S))
             _, group = connected_components(S.F[bad], S.n)
             fresh = ~at_points(S.X[S.F[bad, 0]], tried)
             if not fresh.any():
-                return
+                break
             at = bad[group == group[fresh.argmax()]]
-            before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
+            before = unforced_shortfall(S, min_angle_deg)
+            if not budget.spend(S, before[0]):
+                break
+            trials, saved = trials + 1, self.saved()
             rim = int(S.is_rim.sum())
             corners = S.X[S.F[at].ravel()]
             self.unfold(at, floor=min_angle_deg)
@@ -1453,6 +1466,8 @@ class _Operations:
                                     unforced_shortfall(S, min_angle_deg)[1] < before[1]):
                 self.restore(saved)
                 tried = np.vstack([tried, corners])
+        if trials:
+            S.tally("fold_groups_tried", trials)
 
     def unfold(self, bad: np.ndarray | None = None, floor: float = 0.0) -> None:
         """The local operations around the folds ``bad`` (face indices; default: all of them,
@@ -1759,23 +1774,48 @@ def skinny_faces(X: np.ndarray, F: np.ndarray, min_angle_deg: float) -> np.ndarr
     return faces[smallest < limit]
 
 
+@dataclass
+class TrialBudget:
+    """The work left to a loop of trials made one at a time, each judged on the whole remesh
+    (:data:`TRIAL_WORK`): a trial started with ``k`` faces below the minimum angle costs
+    ``1 + k``; one starts while any work is left, so the last may overspend."""
+
+    left: float
+
+    @classmethod
+    def for_remesh(cls, S: RemeshState) -> "TrialBudget":
+        """``TRIAL_WORK`` × the vertex count of ``S``."""
+        return cls(TRIAL_WORK * S.n)
+
+    def spend(self, S: RemeshState, faces: int) -> bool:
+        """Whether a trial at ``faces`` faces below the minimum may start; if so its cost is
+        charged, and where none may, the refusal is tallied in ``S.log`` under
+        ``trials_cut`` (the loops it ends)."""
+        if self.left <= 0:
+            S.tally("trials_cut", 1)
+            return False
+        self.left -= 1 + int(faces)
+        return True
+
+
 def each_unforced_face(S: RemeshState, min_angle_deg: float, limit: int):
     """Yield the faces below ``min_angle_deg`` that no input corner forces
     (:func:`.circumcentres.unforced_below`), measured again after each: the worst one not
     yielded before (known by its corners' positions, :func:`corner_key`), with the shortfall
-    measured (:func:`.circumcentres.shortfall_of`), at most ``limit`` of them; the caller may
-    change ``S`` in between.
+    measured (:func:`.circumcentres.shortfall_of`), at most ``limit`` of them and none once
+    they have spent their :class:`TrialBudget` (each costing the faces below when it is
+    yielded); the caller may change ``S`` in between.
 
     Yields
     ------
     f : int
     shortfall : (int, float)
     """
-    tried = set()
+    tried, budget = set(), TrialBudget.for_remesh(S)
     for _ in range(limit):
         bad, worst = unforced_below(S, min_angle_deg)
         f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
-        if f is None:
+        if f is None or not budget.spend(S, len(bad)):
             return
         tried.add(corner_key(S.X[S.F[f]]))
         yield int(f), shortfall_of(worst)

@@ -645,30 +645,31 @@ def recover_edges(Q: np.ndarray, T: np.ndarray, edges: np.ndarray) -> np.ndarray
     (m, 3) int or None
     """
     T = T.copy()
+    h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)          # row 3f + c: T[f, c] → T[f, c + 1]
+    key = {(x, y): i for i, (x, y) in enumerate(h.tolist())}
     for a, b in edges.tolist():
         for _ in range(len(T) + 1):
-            h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)      # row 3f + c: T[f, c] → T[f, c + 1]
-            have = set(map(tuple, h.tolist()))
-            if (a, b) in have or (b, a) in have:
+            if (a, b) in key or (b, a) in key:
                 break
-            if not _flip_across(Q, T, h, a, b):
+            if not _flip_across(Q, T, h, key, a, b):
                 return None
         else:
             return None
     return T
 
 
-def _flip_across(Q: np.ndarray, T: np.ndarray, h: np.ndarray, a: int, b: int) -> bool:
+def _flip_across(Q: np.ndarray, T: np.ndarray, h: np.ndarray, key: dict, a: int, b: int
+                 ) -> bool:
     """Flip in place one edge of ``T`` (its half-edges ``h``, 3m×2, row ``3f + c`` the one
-    from corner ``c`` of face ``f``) that crosses the segment ``a–b`` strictly and whose two
-    faces make a convex quadrilateral; whether there was one."""
+    from corner ``c`` of face ``f``, and ``key``, each half-edge's row) that crosses the
+    segment ``a–b`` strictly and whose two faces make a convex quadrilateral, ``h`` and
+    ``key`` updated with it; whether there was one."""
     def side(p, q, r):
         return np.sign((Q[q, 0] - Q[p, 0]) * (Q[r, 1] - Q[p, 1])
                        - (Q[q, 1] - Q[p, 1]) * (Q[r, 0] - Q[p, 0]))
     c, d = h[:, 0], h[:, 1]
     crossing = np.flatnonzero((side(a, b, c) * side(a, b, d) < 0) &
                               (side(c, d, a) * side(c, d, b) < 0))
-    key = {(int(x), int(y)): i for i, (x, y) in enumerate(h.tolist())}
     for i in crossing.tolist():
         j = key.get((int(d[i]), int(c[i])))
         if j is None:
@@ -677,7 +678,12 @@ def _flip_across(Q: np.ndarray, T: np.ndarray, h: np.ndarray, a: int, b: int) ->
         p, q = T[f, (i % 3 + 2) % 3], T[g, (j % 3 + 2) % 3]
         new = np.array([[c[i], q, p], [q, d[i], p]])
         if (double_areas(Q, new) > 0).all():
+            rows = np.r_[3 * f:3 * f + 3, 3 * g:3 * g + 3]
+            for x, y in h[rows].tolist():
+                del key[(x, y)]
             T[f], T[g] = new
+            h[rows] = T[[f, g]][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            key.update(zip(map(tuple, h[rows].tolist()), rows.tolist()))
             return True
     return False
 
