@@ -3,27 +3,17 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
+from conftest import REPO
 
 from pipeline.geometry.remesh.features import (FOLD_BACK_DEG, SMOOTH_CREASE_DEG, edge_folds,
                                                feature_chains, feature_edges, smooth_chain_mask,
                                                smooth_creases)
 
-
-def revolution(r: np.ndarray, z: np.ndarray, n_around: int) -> tuple:
-    """``(V, F)`` of the surface of revolution of the profile ``(r, z)`` (k,) about the z
-    axis: ``r[0] = 0`` the pole, the last ring the rim, ``n_around`` vertices a ring."""
-    t = np.linspace(0, 2 * np.pi, n_around, endpoint=False)
-    rings = np.stack([np.outer(r[1:], np.cos(t)), np.outer(r[1:], np.sin(t)),
-                      np.repeat(z[1:, None], n_around, axis=1)], axis=-1).reshape(-1, 3)
-    V = np.vstack([[0.0, 0.0, z[0]], rings])
-    j = np.arange(n_around)
-    F = [np.column_stack([np.zeros(n_around, int), 1 + j, 1 + (j + 1) % n_around])]
-    for i in range(len(r) - 2):
-        a, b = 1 + i * n_around + j, 1 + i * n_around + (j + 1) % n_around
-        c, d = a + n_around, b + n_around
-        F += [np.column_stack([a, c, d]), np.column_stack([a, d, b])]
-    return V, np.vstack(F)
+sys.path.insert(0, str(REPO / "benchmarks"))
+from bench_shapes import revolution  # noqa: E402  (the made shapes' surfaces of revolution)
 
 
 def cap_on_neck(n_cap: int = 24, n_neck: int = 16, n_around: int = 64) -> tuple:
