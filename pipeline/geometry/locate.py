@@ -94,9 +94,9 @@ def _boundary_segments(F: np.ndarray, n: int, boundary: np.ndarray | None):
         return a, b, f, c, (c + 1) % 3
     loop = np.asarray(boundary, dtype=np.int64)
     la, lb = loop, np.roll(loop, -1)
-    key = np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    key = topo.pair_keys(a, b, n)
     order = np.argsort(key)
-    want = np.minimum(la, lb) * np.int64(n) + np.maximum(la, lb)
+    want = topo.pair_keys(la, lb, n)
     pos = np.searchsorted(key[order], want)
     pos = np.clip(pos, 0, len(order) - 1)
     hit = order[pos]

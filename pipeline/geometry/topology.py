@@ -74,10 +74,15 @@ def half_edges(F) -> tuple[np.ndarray, np.ndarray]:
     return F.ravel(), F.take([1, 2, 0], axis=1).ravel()
 
 
+def pair_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """One key per edge ``a — b`` (k,) of vertices below ``n``, either way round:
+    ``min·n + max`` (k,) int64."""
+    return np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+
+
 def _edge_keys(F: np.ndarray, n: int) -> np.ndarray:
     """Undirected key ``min·n + max`` for every half-edge (3m)."""
-    a, b = half_edges(F)
-    return np.minimum(a, b) * np.int64(n) + np.maximum(a, b)
+    return pair_keys(*half_edges(F), n)
 
 
 def _distinct_sorted(x: np.ndarray) -> np.ndarray:

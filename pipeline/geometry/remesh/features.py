@@ -413,15 +413,9 @@ def chain_edge_rows(E: np.ndarray, chains: list) -> np.ndarray:
     every chain edge, either way round, is a row of ``E``."""
     a, b = chain_edges(chains)
     n = int(max(E.max(), a.max(), b.max())) + 1
-    keys = edge_keys(E[:, 0], E[:, 1], n)
+    keys = topo.pair_keys(E[:, 0], E[:, 1], n)
     by_key = np.argsort(keys, kind="stable")
-    return by_key[np.searchsorted(keys[by_key], edge_keys(a, b, n))]
-
-
-def edge_keys(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
-    """One number per edge ``a — b`` (k,) int, either way round, of vertices below ``n``:
-    ``min · n + max`` (k,) int64."""
-    return np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+    return by_key[np.searchsorted(keys[by_key], topo.pair_keys(a, b, n))]
 
 
 def chain_edges(chains: list) -> tuple[np.ndarray, np.ndarray]:
@@ -601,7 +595,8 @@ def with_edges(E: np.ndarray, angle: np.ndarray, E_more: np.ndarray, angle_more:
     if len(E_more) == 0:
         return E, angle
     n = int(max(E.max(initial=0), E_more.max())) + 1
-    new = ~np.isin(edge_keys(E_more[:, 0], E_more[:, 1], n), edge_keys(E[:, 0], E[:, 1], n))
+    new = ~np.isin(topo.pair_keys(E_more[:, 0], E_more[:, 1], n),
+                   topo.pair_keys(E[:, 0], E[:, 1], n))
     return np.vstack([E, E_more[new]]), np.r_[angle, angle_more[new]]
 
 

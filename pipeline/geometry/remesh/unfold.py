@@ -645,7 +645,7 @@ def recover_edges(Q: np.ndarray, T: np.ndarray, edges: np.ndarray) -> np.ndarray
     (m, 3) int or None
     """
     T = T.copy()
-    h = T[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)          # row 3f + c: T[f, c] → T[f, c + 1]
+    h = np.column_stack(topo.half_edges(T))        # row 3f + c: T[f, c] → T[f, c + 1]
     key = {(x, y): i for i, (x, y) in enumerate(h.tolist())}
     for a, b in edges.tolist():
         for _ in range(len(T) + 1):
@@ -682,7 +682,7 @@ def _flip_across(Q: np.ndarray, T: np.ndarray, h: np.ndarray, key: dict, a: int,
             for x, y in h[rows].tolist():
                 del key[(x, y)]
             T[f], T[g] = new
-            h[rows] = T[[f, g]][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+            h[rows] = np.column_stack(topo.half_edges(T[[f, g]]))
             key.update(zip(map(tuple, h[rows].tolist()), rows.tolist()))
             return True
     return False
