@@ -45,6 +45,12 @@ def face_map():
     return face, mesh, p
 
 
+def remesh_map(mesh):
+    """The ``remesh`` command's disk map of the repaired ``mesh`` (``mode: auto``, on a disk
+    :data:`pipeline.geometry.sem.REMESH_DISK_STEPS` steps of Algorithm 1): ``(n, 2)``."""
+    return parameterize_stage(mesh, SEMOptions(mode="auto")).image
+
+
 def on_surface(X, mesh):
     """The largest distance of the points ``X`` from ``mesh``, over its bounding box diagonal."""
     d, _ = point_mesh_distance(X, mesh.V, mesh.F)

@@ -11,6 +11,7 @@ import pytest
 
 from pipeline.geometry.noise import LEVEL_PER_SIGMA, noise_beyond, noise_level, umbrella_offsets
 from pipeline.geometry.remesh.improve import NOISE_FOLLOW_SHARE, NOISE_SAG, noise_tolerances
+from remesh_helpers import remesh_map
 
 
 def grid(k: int, height) -> tuple[np.ndarray, np.ndarray]:
@@ -85,14 +86,12 @@ def test_a_noisy_scan_finer_than_the_remesh_is_remeshed_without_chasing_its_nois
     20° (47.2° and 2.8 % with the noise chased)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, triangle_quality
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = noisy_paraboloid(160, 0.3, seed=3)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=6000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=6000))
     assert is_disk(mesh_facts(r.V, r.F))
     assert abs(len(r.V) - 6000) <= 0.02 * 6000
     assert r.info["improve"]["far_input_points"] <= 60

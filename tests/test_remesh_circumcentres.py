@@ -17,7 +17,7 @@ from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.rows import norms
 from pipeline.geometry.remesh_quality import is_disk, mesh_facts
-from remesh_helpers import ccw_delaunay, disk_map, disk_points
+from remesh_helpers import ccw_delaunay, disk_map, disk_points, remesh_map
 
 
 def _tri(*P):
@@ -220,14 +220,12 @@ def test_real_mesh_faces_beside_short_rim_edges_are_graded_to_the_minimum():
     edges, none at a sharp input corner; the refinement inserts vertices there and every face
     reaches 20°, with the count within 2 % and one disk."""
     from conftest import require_data
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "choi_human_brain.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=5000))
     imp = r.info["improve"]
     assert imp["circumcentre_insertions"] > 0
     assert np.degrees(corner_angles(r.V, r.F)).min() >= 20.0

@@ -14,7 +14,7 @@ from pipeline.geometry.remesh.flips import flip_edges
 from pipeline.geometry.remesh.halfedge import edge_table
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
-from remesh_helpers import coarse_state, creased_disk
+from remesh_helpers import coarse_state, creased_disk, remesh_map
 
 X0 = 0.1          # creased_disk folds the unit disk along u = X0
 
@@ -269,17 +269,15 @@ def test_remesh_command_follows_a_fold_that_turns_back():
     from pipeline.geometry.remesh.features import FOLD_BACK_DEG
     from pipeline.geometry.remesh_quality import remesh_quality
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import ImproveConfig, RemeshConfig, remesh_stage
 
     V, F = grooved_square()
     _, angle = feature_edges(V, F, FOLD_BACK_DEG)
     assert np.degrees(angle.max()) > 170.0
     mesh = repair_mesh(V, F, name="grooved")
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    uv = remesh_map(mesh)
     assert ImproveConfig().feature_angle_deg == FOLD_BACK_DEG
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=5000))
     L = r.info["improve"]["target_edge_length"]
     q = remesh_quality(mesh.V, mesh.F, r.V, r.F)
     assert r.info["improve"]["features_joined"] > 0

@@ -16,7 +16,7 @@ from pipeline.geometry.remesh.fidelity import (FarMemo, carried_faces, far_input
 from pipeline.geometry.remesh_quality import (MeshDistance, is_disk, mesh_facts,
                                               triangle_quality)
 from pipeline.geometry.rows import row_min
-from remesh_helpers import coarse_state, count_measured, creased_disk
+from remesh_helpers import coarse_state, count_measured, creased_disk, remesh_map
 
 
 def interior_distances(V_in, F_in, X, F):
@@ -240,16 +240,14 @@ def test_the_human_face_remesh_follows_the_input_between_its_snapped_points():
     apart, snaps the points the first one (0.4 L apart) left between its snapped ones on the
     nostrils' and lips' creases; with the first alone the farthest is 0.59 L away."""
     from conftest import require_data
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "choi_human_face.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=20000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=20000))
     L = r.info["improve"]["target_edge_length"]
-    d, _ = input_point_distances(SimpleNamespace(V_in=mesh.V, F_in=mesh.F, uv_in=p.image),
+    d, _ = input_point_distances(SimpleNamespace(V_in=mesh.V, F_in=mesh.F, uv_in=uv),
                                  r.V, r.F)
     assert d.max() <= 0.35 * L
     assert abs(len(r.V) - 20000) <= 400 and is_disk(mesh_facts(r.V, r.F))
@@ -264,14 +262,12 @@ def test_the_bunny_remesh_stays_on_the_surface_on_both_sides():
     (0.24 L)."""
     from conftest import require_data
     from pipeline.geometry.remesh_quality import surface_distance
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "gpp_bunny.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=5000))
     L = r.info["improve"]["target_edge_length"]
     out = surface_distance(mesh.V, mesh.F, r.V, r.F)
     assert out["output_to_input"]["max"] <= 0.23 * L
@@ -285,14 +281,12 @@ def test_the_alligator_remesh_keeps_its_rim_on_the_input_boundary():
     0.17 L from the remesh after them, 0.13 L after the pinned refinement); the follow step
     splits the rim again and keeps the rim's vertices through its own collapses."""
     from conftest import require_data
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "c3d_alligator.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=5000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=5000))
     L = r.info["improve"]["target_edge_length"]
     rim = topo.boundary_vertices_mask(mesh.F, len(mesh.V))
     d, _ = MeshDistance(r.V, r.F)(mesh.V[rim])
@@ -438,16 +432,14 @@ def test_a_stretched_remesh_ends_where_a_far_input_point_takes_no_vertex(tmp_pat
     the remesh is one disk of about the requested count (the insertion used to index the
     vertex it had not made)."""
     from conftest import require_data
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.io.meshio import read_mesh, write_obj
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     raw = read_mesh(require_data("meshes", "igl_lion.obj"))
     path = write_obj(tmp_path / "lion_x6.obj", raw.V * np.array([6.0, 1.0, 1.0]), raw.faces)
     mesh = load_stage(path).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=2000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=2000))
     assert r.info["improve"]["settle_inserted"] >= 1
     assert is_disk(mesh_facts(r.V, r.F)) and abs(len(r.V) - 2000) <= 40

@@ -12,6 +12,7 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.remesh.corners import (vertex_turning, _turns_along_loop, boundary_corners,
                                               ragged_boundary)
 from pipeline.geometry.remesh.rim import refine_rim
+from remesh_helpers import remesh_map
 from test_corners_scale import square_grid
 from test_remesh_rim import bumped_rim_state
 
@@ -124,14 +125,12 @@ def test_a_ragged_rim_remesh_keeps_no_fold_and_at_most_one_face_below_the_minimu
     with every tooth followed.)"""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(seed=3)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1000))
     assert r.info["improve"]["rim_ragged_vertices"] > 300
     assert is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
@@ -146,8 +145,6 @@ def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     vertices is one disk with no face turned over."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import RepairOptions, repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=80, seed=1, bowties=True)
@@ -156,8 +153,8 @@ def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     mesh = repair_mesh(V, F, options=RepairOptions(keep_largest_component=True))
     assert mesh.report["nonmanifold_vertices_split"] == len(pinched)
     assert mesh.report["components_dropped"] > 0
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1000))
     assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
 
@@ -174,14 +171,12 @@ def test_the_notch_ends_of_a_ragged_rim_keep_no_face_turned_over():
     none below 20° is left unforced, the remesh one disk of 1,000 vertices."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(seed=2)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1000))
     assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] == 0
@@ -197,14 +192,12 @@ def test_a_round_made_again_around_its_folds_survives_collapses_in_the_flips_aft
     count, no fold."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=80, seed=6, passes=3, drop=0.3)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1500))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1500))
     assert len(r.V) == 1500 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
 
@@ -225,13 +218,11 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     ``RAISE_DEG`` after the evening steps, which judges faces at its own threshold, off)."""
     from pipeline.geometry.remesh import angles, improve
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=50, seed=3, passes=3, drop=0.25)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    uv = remesh_map(mesh)
     judge = angles._Patch.best_option
     seen, judged = [], []
 
@@ -243,7 +234,7 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
 
     monkeypatch.setattr(angles._Patch, "best_option", counted)
     monkeypatch.setattr(improve, "RAISE_DEG", 0.0)
-    with_memo = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    with_memo = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert with_memo.info["improve"]["rim_corners_snapped"] == 86
     assert sum(judged) == len(set(seen)) == 274 and len(seen) == 506
     raise_min_angles = improve.raise_min_angles
@@ -251,7 +242,7 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
                         lambda S, m, tol, faces, memo=None, **kw:
                         raise_min_angles(S, m, tol, faces, **kw))
     seen.clear(), judged.clear()
-    without = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    without = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert sum(judged) == len(seen) == 506 and len(set(seen)) == 274
     assert np.array_equal(without.V, with_memo.V) and np.array_equal(without.F, with_memo.F)
 
@@ -270,13 +261,11 @@ def _below_min_angle(V, F, vertices: int) -> dict:
     """The remesh's ``below_min_angle`` (:func:`.uniform.below_min_angle`) through the 2-step
     paper map, default settings."""
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=vertices))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=vertices))
     return r.info["improve"]["below_min_angle"]
 
 
@@ -352,15 +341,13 @@ def test_notch_ends_resolved_finer_than_the_input_keep_no_face_turned_over():
     corner forces (1 and 2 without it)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=60, seed=2, passes=8, drop=0.5)
     mesh = repair_mesh(V, F)
     assert len(mesh.V) == 1606
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=8030))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=8030))
     assert is_disk(mesh_facts(r.V, r.F))
     assert r.info["improve"]["fold_charts"] >= 1
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
@@ -380,15 +367,13 @@ def test_a_fold_no_single_operation_undoes_is_undone_by_a_rim_collapse_and_one_a
     the star moves)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3)
     mesh = repair_mesh(V, F)
     assert len(mesh.V) == 4660
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     assert (len(r.V), len(r.F)) == (600, 1021) and is_disk(mesh_facts(r.V, r.F))
     assert r.info["improve"]["fold_two_steps"] == 2
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
@@ -407,18 +392,16 @@ def test_faces_refined_one_at_a_time_raise_one_a_refinement_of_all_leaves(monkey
     either way)."""
     from pipeline.geometry.remesh import improve
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = repair_mesh(*ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3))
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    uv = remesh_map(mesh)
     monkeypatch.setattr(improve._Operations, "move_each", lambda ops, min_angle_deg: None)
     monkeypatch.setattr(improve._Operations, "aim_unforced", lambda ops, min_angle_deg: None)
     counts = []
     for each in (improve.EACH_FACES, 0):
         monkeypatch.setattr(improve, "EACH_FACES", each)
-        below = remesh_stage(mesh, p.image, RemeshConfig(vertices=600)).info["improve"][
+        below = remesh_stage(mesh, uv, RemeshConfig(vertices=600)).info["improve"][
             "below_min_angle"]
         counts.append((below["faces"], below["unforced_faces"]))
     assert counts == [(7, 4), (8, 5)]
@@ -435,14 +418,12 @@ def test_a_two_step_that_would_push_a_face_below_the_minimum_is_not_made():
     undone as a whole. Not made: 22 faces below 20°, every one forced by an input corner."""
     from pipeline.geometry.remesh_quality import surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=80, seed=4, passes=3, drop=0.3)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=1500))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1500))
     assert r.info["improve"].get("fold_two_steps", 0) == 0
     below = r.info["improve"]["below_min_angle"]
     assert (below["faces"], below["at_input_corners"], below["unforced_faces"]) == (22, 22, 0)
@@ -461,13 +442,11 @@ def test_the_shortfall_handed_to_each_kind_of_refinement_is_the_one_measured(mon
     for bit as with every one of them measured there."""
     from pipeline.geometry.remesh import circumcentres, improve
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = ragged_paraboloid(n=50, seed=3, passes=3, drop=0.25)
     mesh = repair_mesh(V, F)
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    uv = remesh_map(mesh)
     judge, refine = improve._Operations.refine_unforced, improve.refine_at_circumcentres
     handed = []
 
@@ -483,13 +462,13 @@ def test_the_shortfall_handed_to_each_kind_of_refinement_is_the_one_measured(mon
 
     monkeypatch.setattr(improve._Operations, "refine_unforced", checked_judge)
     monkeypatch.setattr(improve, "refine_at_circumcentres", checked_refine)
-    handed_on = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    handed_on = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert len(handed) > 10 and all(handed)
     monkeypatch.setattr(improve._Operations, "refine_unforced",
                         lambda ops, *args, before=None, **kw: judge(ops, *args, **kw))
     monkeypatch.setattr(improve, "refine_at_circumcentres",
                         lambda *args, shortfall=None, **kw: refine(*args, **kw))
-    measured = remesh_stage(mesh, p.image, RemeshConfig(vertices=800))
+    measured = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert np.array_equal(handed_on.V, measured.V) and np.array_equal(handed_on.F, measured.F)
 
 
@@ -504,16 +483,14 @@ def test_free_corners_moved_in_their_stars_leave_fewer_faces_below_the_minimum(m
     from pipeline.geometry.remesh import improve
     from pipeline.geometry.remesh_quality import surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = repair_mesh(*ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3))
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
+    uv = remesh_map(mesh)
     monkeypatch.setattr(improve._Operations, "flip_and_move", lambda ops, v, m, before: False)
-    moved = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    moved = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     monkeypatch.setattr(improve._Operations, "move_each", lambda ops, min_angle_deg: None)
-    kept = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    kept = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     counts = [(r.info["improve"]["below_min_angle"]["faces"],
                r.info["improve"]["below_min_angle"]["unforced_faces"]) for r in (moved, kept)]
     assert counts == [(5, 2), (6, 3)] and moved.info["improve"]["star_moves"] >= 1
@@ -555,15 +532,13 @@ def test_link_flips_leave_no_unforced_face_on_a_noisy_ragged_rim(monkeypatch):
     from pipeline.geometry.remesh import improve
     from pipeline.geometry.remesh_quality import surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = repair_mesh(*noisy_ragged_paraboloid(80, seed=1, passes=3, drop=0.3))
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    flipped = remesh_stage(mesh, p.image, RemeshConfig(vertices=1500))
+    uv = remesh_map(mesh)
+    flipped = remesh_stage(mesh, uv, RemeshConfig(vertices=1500))
     monkeypatch.setattr(improve._Operations, "flip_and_move", lambda ops, v, m, before: False)
-    kept = remesh_stage(mesh, p.image, RemeshConfig(vertices=1500))
+    kept = remesh_stage(mesh, uv, RemeshConfig(vertices=1500))
     below = [r.info["improve"]["below_min_angle"] for r in (flipped, kept)]
     assert [(b["faces"], b["at_input_corners"], b["unforced_faces"]) for b in below] == \
         [(28, 28, 0), (29, 28, 1)]
@@ -585,15 +560,13 @@ def test_changes_at_unforced_rim_corners_raise_a_narrow_tooth(monkeypatch):
     from pipeline.geometry.remesh import improve
     from pipeline.geometry.remesh_quality import surface_distance
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = repair_mesh(*ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3))
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    aimed = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    uv = remesh_map(mesh)
+    aimed = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     monkeypatch.setattr(improve._Operations, "aim_unforced", lambda ops, min_angle_deg: None)
-    kept = remesh_stage(mesh, p.image, RemeshConfig(vertices=600))
+    kept = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     below = [r.info["improve"]["below_min_angle"] for r in (aimed, kept)]
     assert [(b["faces"], b["unforced_faces"]) for b in below] == [(5, 2), (6, 3)]
     assert len(aimed.V) == len(kept.V) == 600
@@ -614,8 +587,6 @@ def test_a_small_bowtie_scan_proxy_keeps_few_unforced_faces(monkeypatch):
     from conftest import REPO, require_data
 
     from pipeline.geometry.repair import RepairOptions, repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
@@ -629,6 +600,6 @@ def test_a_small_bowtie_scan_proxy_keeps_few_unforced_faces(monkeypatch):
     V, F = ragged_rim(np.asarray(V), np.asarray(F), 6, 0.4, np.random.default_rng(2), True)
     assert len(V) == 25864
     mesh = repair_mesh(V, F, options=RepairOptions(keep_largest_component=True))
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=2000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=2000))
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] <= 4

@@ -11,7 +11,7 @@ from pipeline.geometry.metrics import corner_angles, signed_double_areas
 from pipeline.geometry.remesh.improve import _Operations, turned_over_faces
 from pipeline.geometry.remesh.state import RemeshState
 from pipeline.geometry.remesh.unfold import star_grid, unfold_locally
-from remesh_helpers import ccw_delaunay, coarse_state
+from remesh_helpers import ccw_delaunay, coarse_state, remesh_map
 
 
 def _sheared_disk(shift=0.3, width=0.1, taper=0.5, h=0.05):
@@ -119,14 +119,12 @@ def test_real_mesh_thin_legs_keep_no_fold_and_no_unforced_face_below_the_minimum
     from conftest import require_data
     from pipeline.geometry.remesh_quality import SampledSurface
     from pipeline.geometry.remesh_quality import turned_over_faces as turned_over_3d
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "igl_camel_b.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))    # the CLI's map
-    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=20000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=20000))
     below = r.info["improve"]["below_min_angle"]
     assert below["unforced_faces"] == 0
     assert below["faces"] == int((np.degrees(corner_angles(r.V, r.F)).min(axis=1) < 20).sum())
@@ -142,14 +140,12 @@ def test_real_mesh_folds_left_where_undoing_them_would_leave_needles():
     from conftest import require_data
     from pipeline.geometry.remesh_quality import SampledSurface
     from pipeline.geometry.remesh_quality import turned_over_faces as turned_over_3d
-    from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.load import load_stage
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     mesh = load_stage(require_data("meshes", "igl_camel_b.obj")).mesh
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))    # the CLI's map
-    r = remesh_stage(mesh, p.uv, RemeshConfig(vertices=100000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=100000))
     assert np.degrees(corner_angles(r.V, r.F)).min() > 10.0
     assert turned_over_3d(r.V, r.F, SampledSurface(mesh.V, mesh.F, 0)) < 13
 

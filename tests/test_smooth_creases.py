@@ -14,6 +14,7 @@ from pipeline.geometry.remesh.features import (FOLD_BACK_DEG, SMOOTH_CREASE_DEG,
 
 sys.path.insert(0, str(REPO / "benchmarks"))
 from bench_shapes import revolution  # noqa: E402  (the made shapes' surfaces of revolution)
+from remesh_helpers import remesh_map
 
 
 def cap_on_neck(n_cap: int = 24, n_neck: int = 16, n_around: int = 64) -> tuple:
@@ -120,14 +121,12 @@ def test_remesh_command_follows_a_smooth_crease():
     20°, no face turned over and one disk."""
     from pipeline.geometry.remesh_quality import remesh_quality
     from pipeline.geometry.repair import repair_mesh
-    from pipeline.geometry.sem import SEMOptions
-    from pipeline.stages.parameterize import parameterize_stage
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
     V, F = cap_on_neck()
     mesh = repair_mesh(V, F, name="cap_on_neck")
-    p = parameterize_stage(mesh, SEMOptions(mode="paper", max_iter=2))
-    r = remesh_stage(mesh, p.image, RemeshConfig(vertices=3000))
+    uv = remesh_map(mesh)
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=3000))
     L = r.info["improve"]["target_edge_length"]
     q = remesh_quality(mesh.V, mesh.F, r.V, r.F)
     assert r.info["improve"]["features_joined"] > 0
