@@ -377,7 +377,31 @@ def _npz_files():
     return out
 
 
-CORPUS = _meshes() + _outputs() + _flags() + _configs() + _landmarks() + _npz_files()
+def _paths():
+    """Inputs given as symbolic links that lead nowhere: a loop (``a`` → ``b`` → ``a``)."""
+    loop = {"a.obj": "<symlink:b.obj>", "b.obj": "<symlink:a.obj>",
+            "la.json": "<symlink:lb.json>", "lb.json": "<symlink:la.json>",
+            "src.obj": obj_text(GOOD_V, GOOD_F), "tgt.obj": obj_text(GOOD_V * [1, 1, 2], GOOD_F)}
+    reg = ["register", "{tmp}/src.obj", "{tmp}/tgt.obj", "-o", "{out}", "--no-figures",
+           "--mode", "paper", "--max-iter", "3"]
+    remesh = ["-o", "{out}", "--vertices", "200", "--no-compare", "--no-report"]
+    cases = [
+        ("mesh symlink loop", PARAM[:1] + ["{tmp}/a.obj"] + PARAM[2:]),
+        ("remesh mesh symlink loop", ["remesh", "{tmp}/a.obj", *remesh]),
+        ("register source symlink loop", [a.replace("src.obj", "a.obj") for a in reg]
+         + ["--source-landmarks", "{tmp}/lm.json"]),
+        ("landmarks symlink loop", reg + ["--source-landmarks", "{tmp}/la.json"]),
+        ("remesh landmarks symlink loop", ["remesh", "{good}", *remesh, "--landmarks",
+                                           "{tmp}/la.json"]),
+        ("morph mesh symlink loop", ["morph", "{tmp}/a.obj", "{tmp}/src.obj", "-o", "{out}"]),
+        ("config mesh symlink loop", ["run", "{tmp}/c.yaml", "--out", "{out}"]),
+    ]
+    files = {**loop, "lm.json": "[24, 17, 31]", "c.yaml": "input: {mesh: a.obj}\n"}
+    return [(f"path:{name}", files, argv, {2}) for name, argv in cases]
+
+
+CORPUS = _meshes() + _outputs() + _flags() + _configs() + _landmarks() + _npz_files() + \
+    _paths()
 
 
 def _materialize(tmp: Path, files: dict) -> None:
@@ -390,6 +414,8 @@ def _materialize(tmp: Path, files: dict) -> None:
             os.mkfifo(path)
         elif isinstance(content, dict):
             np.savez(path, **content)
+        elif isinstance(content, str) and content.startswith("<symlink:"):
+            os.symlink(content.removeprefix("<symlink:").removesuffix(">"), path)
         elif content == "<truncated>":
             arrays = dict(source_vertices=GOOD_V, mapped_points=GOOD_V, source_faces=GOOD_F)
             np.savez(path, **arrays)
@@ -401,7 +427,7 @@ def _materialize(tmp: Path, files: dict) -> None:
 
 def test_the_corpus_covers_every_kind():
     kinds = {case[0].split(":")[0] for case in CORPUS}
-    assert kinds == {"mesh", "out", "flag", "config", "experiment", "landmarks", "npz"}
+    assert kinds == {"mesh", "out", "flag", "config", "experiment", "landmarks", "npz", "path"}
     assert len(CORPUS) >= 150
     assert len({case[0] for case in CORPUS}) == len(CORPUS)
 
@@ -412,7 +438,8 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
     (tmp_path / "good.obj").write_text(obj_text(GOOD_V, GOOD_F))
     _materialize(tmp_path, files)
     out = tmp_path / "out"
-    before = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()}
+    before = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*")
+              if not p.is_symlink() and p.is_file()}
     args = [a.replace("{tmp}", str(tmp_path)).replace("{good}", str(tmp_path / "good.obj"))
             .replace("{out}", str(out)) for a in argv]
     code, _, err = run_main(args, capsys)
@@ -432,6 +459,36 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
                 assert np.all(triple_products(z["sphere"], z["faces"]) > 0)
             else:
                 assert np.all(signed_double_areas(z["uv"], z["faces"]) > 0)
+
+
+def test_an_experiment_item_whose_mesh_is_a_symlink_loop_fails_alone(tmp_path, capsys):
+    (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    os.symlink("b.obj", tmp_path / "a.obj")
+    os.symlink("a.obj", tmp_path / "b.obj")
+    (tmp_path / "e.yaml").write_text("dataset: {meshes: [g.obj, a.obj]}\n"
+                                     "parameterize: {mode: paper, max_iter: 3}\n"
+                                     "report: {figures: false}\n")
+    code, out, err = run_main(["experiment", tmp_path / "e.yaml", "--out", tmp_path / "out",
+                               "--workers", "1"], capsys)
+    assert_documented(code, err, {1})
+    assert "1 ran" not in out and "2 ran" in out and "failed: a:" in out, out
+
+
+def test_an_output_name_too_long_for_the_build_beside_it_is_refused_by_name(tmp_path, capsys):
+    """The run is built beside the folder as ``.NAME.partial-XXXXXXXX``: a folder name that
+    the file system takes but that build name does not is refused before any work, naming
+    the longest name that fits; that one runs."""
+    mesh = tmp_path / "g.obj"
+    mesh.write_text(obj_text(GOOD_V, GOOD_F))
+    fit = os.pathconf(tmp_path, "PC_NAME_MAX") - len(".") - len(".partial-") - 8
+    args = ["parameterize", mesh, "--no-figures", "--mode", "paper", "-o"]
+    code, _, err = run_main(args + [tmp_path / ("o" * (fit + 1))], capsys)
+    assert_documented(code, err, {2})
+    assert f"is {fit + 1} bytes, but at most {fit} fit" in err and "shorter name" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj"]
+    code, _, err = run_main(args + [tmp_path / ("o" * fit)], capsys)
+    assert code == 0, err
+    assert (tmp_path / ("o" * fit) / MARKER).is_file() and leftovers(tmp_path) == []
 
 
 # ------------------------------------------------------------------ runs replace their folder

@@ -38,6 +38,7 @@ import glob
 import hashlib
 import itertools
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -328,7 +329,7 @@ def _absolutize(data: dict, base: Path) -> None:
         section, key = dotted.split(".")
         node = data.get(section)
         if isinstance(node, dict) and isinstance(node.get(key), str):
-            node[key] = str(resolve_path(node[key], base).resolve())
+            node[key] = os.path.realpath(resolve_path(node[key], base))
 
 
 def _fmt(value) -> str:

@@ -1,7 +1,8 @@
 """Output folders: checked before any computation, written by one run at a time, replaced whole.
 
 * :func:`check_output_folder` — one-line :class:`~pipeline.errors.UserError` when a folder cannot
-  be the output: an empty path, a file (or ``/dev/null``) in the way or above it, a mount point,
+  be the output: an empty path, a name too long for the build beside it, a file (or
+  ``/dev/null``) in the way or above it, a mount point,
   no write permission, less free space than the outputs need, files in it that sem-pipeline did
   not write, or an input file inside it (the folder is replaced, so the input would be lost).
 * :func:`output_lock` — an exclusive ``flock`` on ``<parent>/.<name>.lock`` beside the folder
@@ -40,6 +41,7 @@ __all__ = ["MARKER", "check_output_folder", "output_lock", "replaced_folder", "c
            "output_folder", "format_bytes"]
 
 MARKER = ".sem-pipeline.json"
+_BUILD_SUFFIX = 8           # the characters tempfile.mkdtemp appends to a build's prefix
 _RENAME_EXCHANGE = 2
 
 
@@ -89,6 +91,31 @@ def _foreign(folder: Path) -> list[str]:
     return sorted(n for n in os.listdir(folder) if n not in owned)
 
 
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) that the file system of ``folder`` (or of its closest
+    existing ancestor) takes."""
+    p = folder
+    while not os.path.isdir(p) and p.parent != p:
+        p = p.parent
+    try:
+        return os.pathconf(p, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def _check_name_length(path: Path, given, flag: str) -> None:
+    """One-line error when the folder's name, or the build and lock names made beside it
+    (:func:`_prefixes`, :func:`output_lock`), are longer than its file system takes."""
+    name_max = _name_max(path.parent)
+    longest = len(os.fsencode(f"{_prefixes(path)[0]}{'x' * _BUILD_SUFFIX}"))
+    extra = longest - len(os.fsencode(path.name))
+    if longest > name_max:
+        raise UserError(f"{flag} '{given}': the folder name is {len(os.fsencode(path.name))} "
+                        f"bytes, but at most {name_max - extra} fit (the run is built beside "
+                        f"it as '.NAME.partial-XXXXXXXX' in names of at most {name_max} "
+                        f"bytes); choose a shorter name")
+
+
 def _inside(path: Path, folder: Path) -> bool:
     try:
         path.relative_to(folder)
@@ -117,6 +144,7 @@ def check_output_folder(dest: str | Path, need_bytes: int = 0,
         path = path.resolve()               # a symlink to a folder: the folder it names
     if path.parent == path:
         raise UserError(f"{flag} '{given}' is the file system root; choose a folder below it")
+    _check_name_length(path, given, flag)
     if os.path.lexists(path):
         if not path.is_dir():
             raise UserError(f"{flag} '{given}' is {_kind(path)}, not a folder; remove it or "
@@ -143,8 +171,7 @@ def check_output_folder(dest: str | Path, need_bytes: int = 0,
                         f"outputs need about {format_bytes(need_bytes)}; free some space or "
                         f"choose another output folder")
     for p in inputs:
-        q = Path(os.path.abspath(Path(p).expanduser()))
-        q = q.resolve() if os.path.lexists(q) else q
+        q = Path(os.path.realpath(Path(p).expanduser()))   # a symlink loop stays as given
         if q == path or _inside(q, path):
             raise UserError(f"input '{p}' is inside the {flag} '{given}', which the run "
                             f"replaces; write to another folder or move the input out of it")
