@@ -182,6 +182,9 @@ def read_yaml_mapping(path: Path) -> dict:
         raise UserError(f"{path}: malformed YAML{at}: {problem}; fix the syntax") from None
     except UnicodeDecodeError:
         raise UserError(f"{path}: not a UTF-8 text file; pass a YAML config") from None
+    except RecursionError:
+        raise UserError(f"{path}: nested too deeply to read (lists or mappings inside each "
+                        f"other thousands of levels down); fix the syntax") from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping of stage names to settings at the top level, "
                         f"got {type(data).__name__}; see configs/parameterize.yaml")

@@ -164,6 +164,8 @@ def _meshes():
     out += [_mesh_case(n, t, ".off") for n, t in off_cases]
     out += [_mesh_case("off valid", off_text(V, F), ".off", codes=(0,))]
     out += [_mesh_case("obj valid with comments", "# header\n" + obj_text(V, F) + "# end\n",
+                       codes=(0,)),
+            _mesh_case("obj with a utf-8 byte order mark", "\ufeff" + obj_text(V, F),
                        codes=(0,))]
     for ext in (".ply", ".stl", ".mat"):
         out += [_mesh_case(f"{ext} garbage", "this is not a mesh at all\n" * 3, ext),
@@ -293,6 +295,7 @@ def _configs():
         ("register partial", base + "register: {source: a.obj}\n"),
         ("register sample and files", base + "register: {sample: true, source: a.obj}\n"),
         ("binary file", "\x00\x01\x02\xff"),
+        ("nested 5000 deep", "input: " + "[" * 5000 + "]" * 5000 + "\n"),
     ]
     out = [(f"config:{n}", {"c.yaml": t}, ["run", "{tmp}/c.yaml", "--out", "{out}"], {2})
            for n, t in texts]
@@ -333,6 +336,8 @@ def _landmarks():
         ("unsupported ext", ".xml", "<x/>"),
         ("float index", ".txt", "24.5\n17\n31\n"),
         ("binary", ".json", "\x00\xff\xfe"),
+        ("nested 100000 deep", ".json", "[" * 100_000 + "]" * 100_000),
+        ("index beyond int64", ".json", "[24, 17, 1" + "0" * 30 + "]"),
     ]
     return [(f"landmarks:{n}", {f"lm{ext}": t, "src.obj": obj_text(GOOD_V, GOOD_F),
                                 "tgt.obj": obj_text(GOOD_V * [1, 1, 2], GOOD_F)},

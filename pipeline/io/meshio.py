@@ -6,7 +6,8 @@ triangulated (so the repair can count them), nothing is welded or cleaned — th
 
 * ``.obj`` — own parser: ``v x y z [w]`` or ``v x y z r g b [a]`` (per-vertex colours), ``f`` with
   ``v``, ``v/vt``, ``v/vt/vn`` or ``v//vn`` tokens, negative (relative) indices, polygons; every
-  other statement (``vt``, ``vn``, ``g``, ``o``, ``usemtl``, comments …) is ignored.
+  other statement (``vt``, ``vn``, ``g``, ``o``, ``usemtl``, comments …) is ignored; a UTF-8
+  byte order mark at the start (as Windows editors save files) is skipped.
 * ``.off`` — own parser for ASCII ``OFF``/``COFF``/``NOFF``/``CNOFF`` (colours from ``COFF``);
   the header's vertex and face counts must match the lines that follow, exactly.
 * ``.ply``, ``.stl`` — via ``trimesh.load(path, process=False, force='mesh')`` (vertex order kept;
@@ -42,6 +43,7 @@ SUPPORTED_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".mat")
 # Largest coordinate magnitude read: squared lengths and products of areas stay far from
 # float64 overflow (≈ 1.8e308).
 MAX_COORDINATE = 1e60
+UTF8_BOM = b"\xef\xbb\xbf"
 
 
 @dataclass
@@ -230,7 +232,7 @@ def _read_obj(path: Path) -> RawMesh:
 
     where = str(path)
     try:
-        raw = path.read_bytes()
+        raw = path.read_bytes().removeprefix(UTF8_BOM)
     except OSError as exc:
         raise UserError(f"cannot read '{path}': {exc.strerror}; check the path and permissions")
     numbers = obj_numbers(raw)
