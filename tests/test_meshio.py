@@ -274,7 +274,7 @@ def test_missing_file_and_unknown_extension(tmp_path):
     with pytest.raises(UserError, match=r"unsupported mesh format '\.xyz'.*\.obj, \.off"):
         read_mesh(write_text(tmp_path / "m.xyz", "1 2 3\n"))
     (tmp_path / "dir.obj").mkdir()
-    with pytest.raises(UserError, match="not a file"):
+    with pytest.raises(UserError, match="dir.obj. is a folder"):
         read_mesh(tmp_path / "dir.obj")
 
 

@@ -466,6 +466,47 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
                 assert np.all(signed_double_areas(z["uv"], z["faces"]) > 0)
 
 
+@pytest.mark.parametrize("argv, files, words", [
+    (["run", "{tmp}/d"], {"d/x.yaml": "input: {sample: {vertices: 300}}\n"},
+     "config file '{tmp}/d' is a folder"),
+    (["run", "/dev/null"], {}, "config file '/dev/null' is a device"),
+    (["run", "{tmp}/f.yaml"], {"f.yaml": "<fifo>"}, "config file '{tmp}/f.yaml' is a pipe"),
+    (["run", "{tmp}/l.yaml"], {"l.yaml": "<symlink:gone.yaml>"},
+     "config file '{tmp}/l.yaml' is a symbolic link to a missing file or a loop"),
+    (["run", "{tmp}/c.yaml"], {"c.yaml": "input: {mesh: m.obj}\n", "m.obj/x": "1"},
+     "input.mesh: file '{tmp}/m.obj' is a folder"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {"m.obj/x": "1"},
+     "mesh file '{tmp}/m.obj' is a folder"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {"m.obj": "<symlink:gone.obj>"},
+     "mesh file '{tmp}/m.obj' is a symbolic link to a missing file or a loop"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {}, "mesh file '{tmp}/m.obj' does "
+                                                              "not exist"),
+    (["register", "{good}", "{good}", "--source-landmarks", "{tmp}/l.json", "-o", "{tmp}/out"],
+     {"l.json/x": "1"}, "landmark file '{tmp}/l.json' is a folder"),
+    (["remesh", "{good}", "--vertices", "200", "--landmarks", "{tmp}/l.json", "-o",
+      "{tmp}/out"], {"l.json": "<fifo>"}, "landmarks file '{tmp}/l.json' is a pipe"),
+])
+def test_an_input_that_is_no_file_is_named_for_what_it_is(argv, files, words, tmp_path, capsys):
+    """... and refused without reading it (a pipe without a writer would block the read)."""
+    (tmp_path / "good.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    _materialize(tmp_path, files)
+
+    def blocked(signum, frame):
+        raise AssertionError("the command blocked reading its input")
+
+    previous = signal.signal(signal.SIGALRM, blocked)
+    signal.alarm(60)
+    try:
+        code, _, err = run_main([a.replace("{tmp}", str(tmp_path)).replace(
+            "{good}", str(tmp_path / "good.obj")) for a in argv], capsys)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert_documented(code, err, {2})
+    assert words.replace("{tmp}", str(tmp_path)) in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_an_experiment_item_whose_mesh_is_a_symlink_loop_fails_alone(tmp_path, capsys):
     (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
     os.symlink("b.obj", tmp_path / "a.obj")

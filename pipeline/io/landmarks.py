@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, file_problem
 
 __all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmarks", "landmarks_from_dict",
            "pair_landmarks", "resolve_landmarks"]
@@ -216,8 +216,9 @@ def _read_table(path: Path) -> LandmarkSet:
 def read_landmarks(path, key: str | None = None) -> LandmarkSet:
     """Read a landmark file (``.json``, ``.csv``, ``.txt``); see the module docstring."""
     path = Path(path)
-    if not path.is_file():
-        raise UserError(f"landmark file '{path}' not found; check the path")
+    problem = file_problem(path, missing="not found")
+    if problem:
+        raise UserError(f"landmark file '{path}' {problem}; check the path")
     ext = path.suffix.lower()
     try:
         if ext == ".json":

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.errors import UserError
+from pipeline.errors import UserError, file_problem
 
 from .artifacts import atomic_write
 
@@ -491,10 +491,9 @@ def read_mesh(path) -> RawMesh:
             f"unsupported mesh format '{ext or path.name}' for '{path}'; "
             f"use one of {', '.join(SUPPORTED_EXTENSIONS)}"
         )
-    if not path.exists():
-        raise UserError(f"mesh file '{path}' does not exist; check the path")
-    if not path.is_file():
-        raise UserError(f"'{path}' is not a file; pass a mesh file")
+    problem = file_problem(path)
+    if problem:
+        raise UserError(f"mesh file '{path}' {problem}; check the path")
     if path.stat().st_size == 0:
         raise UserError(f"mesh file '{path}' is empty; pass a non-empty mesh")
     reader = {".obj": _read_obj, ".off": _read_off, ".ply": _read_trimesh,

@@ -26,7 +26,6 @@ import json
 import os
 import platform
 import shutil
-import stat
 import tempfile
 import time
 import uuid
@@ -34,7 +33,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable
 
-from ..errors import UserError
+from ..errors import UserError, file_problem
 from .artifacts import _umask
 
 __all__ = ["MARKER", "check_output_folder", "output_lock", "replaced_folder", "clean_leftovers",
@@ -55,14 +54,8 @@ def format_bytes(n: float) -> str:
 
 
 def _kind(path: Path) -> str:
-    mode = os.stat(path).st_mode
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISFIFO(mode):
-        return "a pipe"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "a file"
+    """What stands at ``path``, an existing non-folder: ``"a file"``, ``"a device"`` …"""
+    return (file_problem(path) or "is a file").removeprefix("is ")
 
 
 def _nearest_existing(path: Path) -> Path:
