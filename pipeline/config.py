@@ -38,6 +38,15 @@ class RunConfig(Section):
                              "spaces or empty name); put folders into run.out_dir or --out")
         return name
 
+    @field_validator("out_dir")
+    @classmethod
+    def _some_folder(cls, out_dir: str) -> str:
+        """Not empty or blank (``.`` is the working directory)."""
+        if not out_dir.strip():
+            raise ValueError("empty folder; give one ('.' for the working directory) or "
+                             "leave the key out (default 'outputs')")
+        return out_dir
+
 
 class ReportConfig(Section):
     figures: bool = Field(True, description="figures and report pages (false: numbers only)")

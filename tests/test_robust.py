@@ -295,6 +295,7 @@ def _configs():
         ("register partial", base + "register: {source: a.obj}\n"),
         ("register sample and files", base + "register: {sample: true, source: a.obj}\n"),
         ("binary file", "\x00\x01\x02\xff"),
+        ("run.out_dir blank", base + "run: {out_dir: '  '}\n"),
         ("nested 5000 deep", "input: " + "[" * 5000 + "]" * 5000 + "\n"),
     ]
     out = [(f"config:{n}", {"c.yaml": t}, ["run", "{tmp}/c.yaml", "--out", "{out}"], {2})
@@ -308,6 +309,10 @@ def _configs():
            ("sweep nan", "input: {sample: {vertices: 300}}\nsweep: {parameterize.tol: [.nan]}\n"),
            ("run.name ..", "run: {name: ..}\ninput: {sample: {vertices: 300}}\n"),
            ("dataset glob empty", "dataset: {meshes: 'none/*.obj'}\n"),
+           ("dataset meshes empty list", "dataset: {meshes: []}\n"),
+           ("dataset pairs empty list", "dataset: {pairs: []}\n"),
+           ("dataset faces empty list", "dataset: {faces: {meshes: [], landmarks: l.json}}\n"),
+           ("run.out_dir empty", "run: {out_dir: ''}\ninput: {sample: {vertices: 300}}\n"),
            ("workers 0", "experiment: {workers: 0}\ninput: {sample: {vertices: 300}}\n")]
     out += [(f"experiment:{n}", {"e.yaml": t},
              ["experiment", "{tmp}/e.yaml", "--out", "{out}", "--workers", "1"], {2})

@@ -213,7 +213,10 @@ def expand_experiment(data: dict, base: Path, source: str = "experiment") -> Exp
 
 def _files(patterns: str | list[str], base: Path, where: str) -> list[Path]:
     """Paths of a glob or list (entries may be globs). A pattern that matches nothing is a
-    config error; a literal path that does not exist is kept (its item fails, the rest run)."""
+    config error, and so is an empty list; a literal path that does not exist is kept (its
+    item fails, the rest run)."""
+    if not patterns:
+        raise UserError(f"{where}: no mesh given; give a glob or a list of paths")
     out: list[Path] = []
     for pattern in [patterns] if isinstance(patterns, str) else patterns:
         full = resolve_path(pattern, base)
@@ -262,6 +265,9 @@ def _dataset_entries(ds: DatasetConfig | None, base: Path, source: str):
         return [(name, {"input": {"mesh": str(p)}}, {"mesh": name})
                 for name, p in zip(_names(paths), paths)]
     if ds.pairs is not None:
+        if not ds.pairs:
+            raise UserError(f"{source}: dataset.pairs: no pair given; give a list of "
+                            f"source/target entries")
         out = []
         for k, e in enumerate(ds.pairs):
             src, tgt = resolve_path(e.source, base), resolve_path(e.target, base)
