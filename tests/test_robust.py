@@ -628,6 +628,27 @@ def tiny_tmpfs(tmp_path):
         subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
+@pytest.mark.parametrize("name", ["bound", "bound here"])
+def test_a_bind_mounted_output_folder_is_refused_before_computing(name, tmp_path, capsys):
+    """A folder bind-mounted onto itself (same file system: ``os.path.ismount`` misses it)
+    cannot be replaced; skipped where mounting is not permitted."""
+    mesh = tmp_path / "g.obj"
+    mesh.write_text(obj_text(GOOD_V, GOOD_F))
+    mnt = tmp_path / name
+    mnt.mkdir()
+    proc = subprocess.run(["mount", "--bind", str(mnt), str(mnt)], capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        pytest.skip(f"bind mounts are not permitted here ({proc.stderr.strip()})")
+    try:
+        code, _, err = run_main(["parameterize", mesh, "-o", mnt, "--no-figures"], capsys)
+        assert_documented(code, err, {2})
+        assert "is a mount point" in err and "iteration" not in err, err
+        assert list(mnt.iterdir()) == [] and leftovers(tmp_path) == []
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
 def test_a_small_tmpfs_is_refused_before_computing_or_fails_whole(tiny_tmpfs, tmp_path, capsys,
                                                                    synthetic_face):
     s = synthetic_face(800)

@@ -25,6 +25,7 @@ import errno
 import json
 import os
 import platform
+import re
 import shutil
 import tempfile
 import time
@@ -109,6 +110,20 @@ def _check_name_length(path: Path, given, flag: str) -> None:
                         f"bytes); choose a shorter name")
 
 
+def _is_mount_point(path: Path) -> bool:
+    """``os.path.ismount``, or a mount point that ``/proc/self/mountinfo`` lists (a folder
+    bind-mounted from the same file system, which ``ismount`` does not see)."""
+    if os.path.ismount(path):
+        return True
+    try:
+        with open("/proc/self/mountinfo", encoding="utf-8", errors="surrogateescape") as fh:
+            points = [line.split()[4] for line in fh if len(line.split()) > 4]
+    except OSError:
+        return False
+    octal = re.compile(r"\\([0-7]{3})")           # a space is written \040, and so on
+    return str(path) in {octal.sub(lambda m: chr(int(m.group(1), 8)), p) for p in points}
+
+
 def _inside(path: Path, folder: Path) -> bool:
     try:
         path.relative_to(folder)
@@ -142,7 +157,7 @@ def check_output_folder(dest: str | Path, need_bytes: int = 0,
         if not path.is_dir():
             raise UserError(f"{flag} '{given}' is {_kind(path)}, not a folder; remove it or "
                             f"choose another output folder")
-        if replace and os.path.ismount(path):
+        if replace and _is_mount_point(path):
             raise UserError(f"{flag} '{given}' is a mount point, which cannot be replaced; "
                             f"choose a folder inside it")
         foreign = _foreign(path) if replace else []
