@@ -7,6 +7,7 @@ fix, e.g. ``mesh 'a.obj' is closed (no boundary loop); cut it open or pass a dis
 Programming errors are never wrapped in it.
 """
 
+import errno
 import os
 import stat
 
@@ -23,13 +24,17 @@ class UserError(Exception):
 def file_problem(path, missing: str = "does not exist") -> str | None:
     """Why ``path`` cannot be read as a file, as the end of a sentence naming it: ``missing``
     when nothing is there, ``"is a folder"``, ``"is a device"``, ``"is a pipe"``,
-    ``"is a socket"``, ``"is a symbolic link to a missing file or a loop"``; ``None`` for a
-    regular file (or a symbolic link to one)."""
+    ``"is a socket"``, ``"is a symbolic link to a missing file or a loop"``, ``"cannot be
+    reached (file name too long)"`` (the system's reason); ``None`` for a regular file (or a
+    symbolic link to one)."""
     try:
         mode = os.stat(path).st_mode
-    except OSError:
-        return ("is a symbolic link to a missing file or a loop" if os.path.islink(path)
-                else missing)
+    except OSError as exc:
+        if os.path.islink(path):
+            return "is a symbolic link to a missing file or a loop"
+        if exc.errno in (errno.ENOENT, errno.ENOTDIR):
+            return missing
+        return f"cannot be reached ({(exc.strerror or str(exc)).lower()})"
     if stat.S_ISREG(mode):
         return None
     if stat.S_ISDIR(mode):

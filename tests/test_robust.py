@@ -486,6 +486,10 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
      "mesh file '{tmp}/m.obj' is a symbolic link to a missing file or a loop"),
     (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {}, "mesh file '{tmp}/m.obj' does "
                                                               "not exist"),
+    (["parameterize", "{tmp}/" + "m" * 300 + ".obj", "-o", "{tmp}/out"], {},
+     "mesh file '{tmp}/" + "m" * 300 + ".obj' cannot be reached (file name too long)"),
+    (["run", "{tmp}/" + "c" * 300 + ".yaml"], {},
+     "config file '{tmp}/" + "c" * 300 + ".yaml' cannot be reached (file name too long)"),
     (["register", "{good}", "{good}", "--source-landmarks", "{tmp}/l.json", "-o", "{tmp}/out"],
      {"l.json/x": "1"}, "landmark file '{tmp}/l.json' is a folder"),
     (["remesh", "{good}", "--vertices", "200", "--landmarks", "{tmp}/l.json", "-o",
