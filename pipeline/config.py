@@ -19,7 +19,7 @@ from typing import Optional
 from pydantic import (BaseModel, ConfigDict, Field, ValidationError, create_model,
                       field_validator, model_validator)
 
-from .errors import UserError
+from .errors import UserError, file_problem
 from .stages.registry import STAGES, input_file_keys, plan
 from .stages.stage import Section, Stage
 
@@ -37,6 +37,15 @@ class RunConfig(Section):
             raise ValueError("must be a plain folder name (no '/', '\\', '..', surrounding "
                              "spaces or empty name); put folders into run.out_dir or --out")
         return name
+
+    @field_validator("out_dir")
+    @classmethod
+    def _some_folder(cls, out_dir: str) -> str:
+        """Not empty or blank (``.`` is the working directory)."""
+        if not out_dir.strip():
+            raise ValueError("empty folder; give one ('.' for the working directory) or "
+                             "leave the key out (default 'outputs')")
+        return out_dir
 
 
 class ReportConfig(Section):
@@ -167,8 +176,9 @@ def read_yaml_mapping(path: Path) -> dict:
     keys); one-line errors."""
     import yaml
 
-    if not path.is_file():
-        raise UserError(f"config file '{path}' not found; pass the path to a YAML file "
+    problem = file_problem(path, missing="not found")
+    if problem:
+        raise UserError(f"config file '{path}' {problem}; pass the path to a YAML file "
                         f"(examples in configs/)")
     try:
         data = yaml.load(path.read_text(encoding="utf-8"), Loader=_strict_loader())
@@ -182,6 +192,9 @@ def read_yaml_mapping(path: Path) -> dict:
         raise UserError(f"{path}: malformed YAML{at}: {problem}; fix the syntax") from None
     except UnicodeDecodeError:
         raise UserError(f"{path}: not a UTF-8 text file; pass a YAML config") from None
+    except RecursionError:
+        raise UserError(f"{path}: nested too deeply to read (lists or mappings inside each "
+                        f"other thousands of levels down); fix the syntax") from None
     if not isinstance(data, dict):
         raise UserError(f"{path}: expected a mapping of stage names to settings at the top level, "
                         f"got {type(data).__name__}; see configs/parameterize.yaml")
@@ -195,9 +208,11 @@ def check_input_files(config, base: Path, source: str) -> None:
         section, key = dotted.split(".")
         node = getattr(config, section)
         value = None if node is None else getattr(node, key)
-        if value is not None and not resolve_path(value, base).is_file():
-            raise UserError(f"{source}: {dotted}: file '{resolve_path(value, base)}' not "
-                            f"found; paths are relative to the config's folder")
+        problem = None if value is None else file_problem(resolve_path(value, base),
+                                                          missing="not found")
+        if problem:
+            raise UserError(f"{source}: {dotted}: file '{resolve_path(value, base)}' "
+                            f"{problem}; paths are relative to the config's folder")
 
 
 def resolve_path(value: str, base: Path) -> Path:

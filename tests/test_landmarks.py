@@ -72,6 +72,9 @@ def test_csv_and_txt(tmp_path):
     ("f.csv", "a, 1\na, 2\n", ["appears twice"]),
     ("g.yaml", "[1]", ["unsupported"]),
     ("h.txt", "# nothing\n", ["no landmarks"]),
+    ("i.json", "[" * 100_000 + "]" * 100_000, ["nested too deeply"]),
+    ("j.json", "[1, 2, 1" + "0" * 30 + "]", ["beyond any mesh"]),
+    ("k.csv", "1\n2\n1" + "0" * 30 + "\n", ["beyond any mesh"]),
 ])
 def test_bad_files_are_one_line_errors(tmp_path, name, text, words):
     with pytest.raises(UserError) as exc:
@@ -80,6 +83,25 @@ def test_bad_files_are_one_line_errors(tmp_path, name, text, words):
     assert "\n" not in msg
     for w in words:
         assert w.lower() in msg.lower(), msg
+
+
+@pytest.mark.parametrize("name, text", [
+    ("a.json", '{"landmarks": {"nose": 5, "chin": 7, "eye": 2}}'),
+    ("b.json", "[3, 1, 4]"),
+    ("c.csv", "nose, 5\nchin, 7\neye, 2\n"),
+    ("d.txt", "3\n1\n4\n2\n"),
+    ("e.txt", "0.5 1 2\n3 4 5\n"),
+])
+def test_a_utf8_byte_order_mark_is_skipped(tmp_path, name, text):
+    """A file saved with a UTF-8 byte order mark reads as the same file without it (its first
+    line is a landmark, not a header to skip)."""
+    plain = read_landmarks(write(tmp_path, name, text))
+    marked = tmp_path / f"bom_{name}"
+    marked.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    got = read_landmarks(marked)
+    assert got.names == plain.names
+    np.testing.assert_array_equal(got.indices, plain.indices)
+    np.testing.assert_array_equal(got.points, plain.points)
 
 
 def test_missing_file(tmp_path):

@@ -254,13 +254,27 @@ def test_obj_errors_and_results_are_the_general_parsers(tmp_path, monkeypatch, t
         assert _same_raw_mesh(*results)
 
 
+def test_obj_utf8_byte_order_mark_is_skipped(tmp_path, monkeypatch):
+    """A UTF-8 byte order mark before the first ``v`` line: the mesh read without it, by the
+    compiled pass and by the general parser (a lone ``\r`` line end sends a file there)."""
+    for text in ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+                 "v 0 0 0\rv 1 0.5e0 0\nv 0 1 0\nf 1 2 3\nf -3 -2 -1\n"):
+        plain = write_text(tmp_path / "plain.obj", text)
+        marked = tmp_path / "marked.obj"
+        marked.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+        expected = read_mesh(plain)
+        assert len(expected.V) == 3
+        assert _same_raw_mesh(read_mesh(marked), expected)
+        assert _same_raw_mesh(_read_general(marked, monkeypatch), expected)
+
+
 def test_missing_file_and_unknown_extension(tmp_path):
     with pytest.raises(UserError, match="does not exist"):
         read_mesh(tmp_path / "nope.obj")
     with pytest.raises(UserError, match=r"unsupported mesh format '\.xyz'.*\.obj, \.off"):
         read_mesh(write_text(tmp_path / "m.xyz", "1 2 3\n"))
     (tmp_path / "dir.obj").mkdir()
-    with pytest.raises(UserError, match="not a file"):
+    with pytest.raises(UserError, match="dir.obj. is a folder"):
         read_mesh(tmp_path / "dir.obj")
 
 

@@ -164,6 +164,8 @@ def _meshes():
     out += [_mesh_case(n, t, ".off") for n, t in off_cases]
     out += [_mesh_case("off valid", off_text(V, F), ".off", codes=(0,))]
     out += [_mesh_case("obj valid with comments", "# header\n" + obj_text(V, F) + "# end\n",
+                       codes=(0,)),
+            _mesh_case("obj with a utf-8 byte order mark", "\ufeff" + obj_text(V, F),
                        codes=(0,))]
     for ext in (".ply", ".stl", ".mat"):
         out += [_mesh_case(f"{ext} garbage", "this is not a mesh at all\n" * 3, ext),
@@ -293,6 +295,8 @@ def _configs():
         ("register partial", base + "register: {source: a.obj}\n"),
         ("register sample and files", base + "register: {sample: true, source: a.obj}\n"),
         ("binary file", "\x00\x01\x02\xff"),
+        ("run.out_dir blank", base + "run: {out_dir: '  '}\n"),
+        ("nested 5000 deep", "input: " + "[" * 5000 + "]" * 5000 + "\n"),
     ]
     out = [(f"config:{n}", {"c.yaml": t}, ["run", "{tmp}/c.yaml", "--out", "{out}"], {2})
            for n, t in texts]
@@ -305,6 +309,10 @@ def _configs():
            ("sweep nan", "input: {sample: {vertices: 300}}\nsweep: {parameterize.tol: [.nan]}\n"),
            ("run.name ..", "run: {name: ..}\ninput: {sample: {vertices: 300}}\n"),
            ("dataset glob empty", "dataset: {meshes: 'none/*.obj'}\n"),
+           ("dataset meshes empty list", "dataset: {meshes: []}\n"),
+           ("dataset pairs empty list", "dataset: {pairs: []}\n"),
+           ("dataset faces empty list", "dataset: {faces: {meshes: [], landmarks: l.json}}\n"),
+           ("run.out_dir empty", "run: {out_dir: ''}\ninput: {sample: {vertices: 300}}\n"),
            ("workers 0", "experiment: {workers: 0}\ninput: {sample: {vertices: 300}}\n")]
     out += [(f"experiment:{n}", {"e.yaml": t},
              ["experiment", "{tmp}/e.yaml", "--out", "{out}", "--workers", "1"], {2})
@@ -333,6 +341,8 @@ def _landmarks():
         ("unsupported ext", ".xml", "<x/>"),
         ("float index", ".txt", "24.5\n17\n31\n"),
         ("binary", ".json", "\x00\xff\xfe"),
+        ("nested 100000 deep", ".json", "[" * 100_000 + "]" * 100_000),
+        ("index beyond int64", ".json", "[24, 17, 1" + "0" * 30 + "]"),
     ]
     return [(f"landmarks:{n}", {f"lm{ext}": t, "src.obj": obj_text(GOOD_V, GOOD_F),
                                 "tgt.obj": obj_text(GOOD_V * [1, 1, 2], GOOD_F)},
@@ -377,7 +387,31 @@ def _npz_files():
     return out
 
 
-CORPUS = _meshes() + _outputs() + _flags() + _configs() + _landmarks() + _npz_files()
+def _paths():
+    """Inputs given as symbolic links that lead nowhere: a loop (``a`` → ``b`` → ``a``)."""
+    loop = {"a.obj": "<symlink:b.obj>", "b.obj": "<symlink:a.obj>",
+            "la.json": "<symlink:lb.json>", "lb.json": "<symlink:la.json>",
+            "src.obj": obj_text(GOOD_V, GOOD_F), "tgt.obj": obj_text(GOOD_V * [1, 1, 2], GOOD_F)}
+    reg = ["register", "{tmp}/src.obj", "{tmp}/tgt.obj", "-o", "{out}", "--no-figures",
+           "--mode", "paper", "--max-iter", "3"]
+    remesh = ["-o", "{out}", "--vertices", "200", "--no-compare", "--no-report"]
+    cases = [
+        ("mesh symlink loop", PARAM[:1] + ["{tmp}/a.obj"] + PARAM[2:]),
+        ("remesh mesh symlink loop", ["remesh", "{tmp}/a.obj", *remesh]),
+        ("register source symlink loop", [a.replace("src.obj", "a.obj") for a in reg]
+         + ["--source-landmarks", "{tmp}/lm.json"]),
+        ("landmarks symlink loop", reg + ["--source-landmarks", "{tmp}/la.json"]),
+        ("remesh landmarks symlink loop", ["remesh", "{good}", *remesh, "--landmarks",
+                                           "{tmp}/la.json"]),
+        ("morph mesh symlink loop", ["morph", "{tmp}/a.obj", "{tmp}/src.obj", "-o", "{out}"]),
+        ("config mesh symlink loop", ["run", "{tmp}/c.yaml", "--out", "{out}"]),
+    ]
+    files = {**loop, "lm.json": "[24, 17, 31]", "c.yaml": "input: {mesh: a.obj}\n"}
+    return [(f"path:{name}", files, argv, {2}) for name, argv in cases]
+
+
+CORPUS = _meshes() + _outputs() + _flags() + _configs() + _landmarks() + _npz_files() + \
+    _paths()
 
 
 def _materialize(tmp: Path, files: dict) -> None:
@@ -390,6 +424,8 @@ def _materialize(tmp: Path, files: dict) -> None:
             os.mkfifo(path)
         elif isinstance(content, dict):
             np.savez(path, **content)
+        elif isinstance(content, str) and content.startswith("<symlink:"):
+            os.symlink(content.removeprefix("<symlink:").removesuffix(">"), path)
         elif content == "<truncated>":
             arrays = dict(source_vertices=GOOD_V, mapped_points=GOOD_V, source_faces=GOOD_F)
             np.savez(path, **arrays)
@@ -401,7 +437,7 @@ def _materialize(tmp: Path, files: dict) -> None:
 
 def test_the_corpus_covers_every_kind():
     kinds = {case[0].split(":")[0] for case in CORPUS}
-    assert kinds == {"mesh", "out", "flag", "config", "experiment", "landmarks", "npz"}
+    assert kinds == {"mesh", "out", "flag", "config", "experiment", "landmarks", "npz", "path"}
     assert len(CORPUS) >= 150
     assert len({case[0] for case in CORPUS}) == len(CORPUS)
 
@@ -412,7 +448,8 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
     (tmp_path / "good.obj").write_text(obj_text(GOOD_V, GOOD_F))
     _materialize(tmp_path, files)
     out = tmp_path / "out"
-    before = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*") if p.is_file()}
+    before = {p: p.stat().st_mtime_ns for p in tmp_path.rglob("*")
+              if not p.is_symlink() and p.is_file()}
     args = [a.replace("{tmp}", str(tmp_path)).replace("{good}", str(tmp_path / "good.obj"))
             .replace("{out}", str(out)) for a in argv]
     code, _, err = run_main(args, capsys)
@@ -432,6 +469,81 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
                 assert np.all(triple_products(z["sphere"], z["faces"]) > 0)
             else:
                 assert np.all(signed_double_areas(z["uv"], z["faces"]) > 0)
+
+
+@pytest.mark.parametrize("argv, files, words", [
+    (["run", "{tmp}/d"], {"d/x.yaml": "input: {sample: {vertices: 300}}\n"},
+     "config file '{tmp}/d' is a folder"),
+    (["run", "/dev/null"], {}, "config file '/dev/null' is a device"),
+    (["run", "{tmp}/f.yaml"], {"f.yaml": "<fifo>"}, "config file '{tmp}/f.yaml' is a pipe"),
+    (["run", "{tmp}/l.yaml"], {"l.yaml": "<symlink:gone.yaml>"},
+     "config file '{tmp}/l.yaml' is a symbolic link to a missing file or a loop"),
+    (["run", "{tmp}/c.yaml"], {"c.yaml": "input: {mesh: m.obj}\n", "m.obj/x": "1"},
+     "input.mesh: file '{tmp}/m.obj' is a folder"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {"m.obj/x": "1"},
+     "mesh file '{tmp}/m.obj' is a folder"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {"m.obj": "<symlink:gone.obj>"},
+     "mesh file '{tmp}/m.obj' is a symbolic link to a missing file or a loop"),
+    (["parameterize", "{tmp}/m.obj", "-o", "{tmp}/out"], {}, "mesh file '{tmp}/m.obj' does "
+                                                              "not exist"),
+    (["parameterize", "{tmp}/" + "m" * 300 + ".obj", "-o", "{tmp}/out"], {},
+     "mesh file '{tmp}/" + "m" * 300 + ".obj' cannot be reached (file name too long)"),
+    (["run", "{tmp}/" + "c" * 300 + ".yaml"], {},
+     "config file '{tmp}/" + "c" * 300 + ".yaml' cannot be reached (file name too long)"),
+    (["register", "{good}", "{good}", "--source-landmarks", "{tmp}/l.json", "-o", "{tmp}/out"],
+     {"l.json/x": "1"}, "landmark file '{tmp}/l.json' is a folder"),
+    (["remesh", "{good}", "--vertices", "200", "--landmarks", "{tmp}/l.json", "-o",
+      "{tmp}/out"], {"l.json": "<fifo>"}, "landmarks file '{tmp}/l.json' is a pipe"),
+])
+def test_an_input_that_is_no_file_is_named_for_what_it_is(argv, files, words, tmp_path, capsys):
+    """... and refused without reading it (a pipe without a writer would block the read)."""
+    (tmp_path / "good.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    _materialize(tmp_path, files)
+
+    def blocked(signum, frame):
+        raise AssertionError("the command blocked reading its input")
+
+    previous = signal.signal(signal.SIGALRM, blocked)
+    signal.alarm(60)
+    try:
+        code, _, err = run_main([a.replace("{tmp}", str(tmp_path)).replace(
+            "{good}", str(tmp_path / "good.obj")) for a in argv], capsys)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert_documented(code, err, {2})
+    assert words.replace("{tmp}", str(tmp_path)) in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_experiment_item_whose_mesh_is_a_symlink_loop_fails_alone(tmp_path, capsys):
+    (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    os.symlink("b.obj", tmp_path / "a.obj")
+    os.symlink("a.obj", tmp_path / "b.obj")
+    (tmp_path / "e.yaml").write_text("dataset: {meshes: [g.obj, a.obj]}\n"
+                                     "parameterize: {mode: paper, max_iter: 3}\n"
+                                     "report: {figures: false}\n")
+    code, out, err = run_main(["experiment", tmp_path / "e.yaml", "--out", tmp_path / "out",
+                               "--workers", "1"], capsys)
+    assert_documented(code, err, {1})
+    assert "1 ran" not in out and "2 ran" in out and "failed: a:" in out, out
+
+
+def test_an_output_name_too_long_for_the_build_beside_it_is_refused_by_name(tmp_path, capsys):
+    """The run is built beside the folder as ``.NAME.partial-XXXXXXXX``: a folder name that
+    the file system takes but that build name does not is refused before any work, naming
+    the longest name that fits; that one runs."""
+    mesh = tmp_path / "g.obj"
+    mesh.write_text(obj_text(GOOD_V, GOOD_F))
+    fit = os.pathconf(tmp_path, "PC_NAME_MAX") - len(".") - len(".partial-") - 8
+    args = ["parameterize", mesh, "--no-figures", "--mode", "paper", "-o"]
+    code, _, err = run_main(args + [tmp_path / ("o" * (fit + 1))], capsys)
+    assert_documented(code, err, {2})
+    assert f"is {fit + 1} bytes, but at most {fit} fit" in err and "shorter name" in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.obj"]
+    code, _, err = run_main(args + [tmp_path / ("o" * fit)], capsys)
+    assert code == 0, err
+    assert (tmp_path / ("o" * fit) / MARKER).is_file() and leftovers(tmp_path) == []
 
 
 # ------------------------------------------------------------------ runs replace their folder
@@ -516,6 +628,27 @@ def tiny_tmpfs(tmp_path):
         pytest.skip(f"mounting a tmpfs is not permitted here ({proc.stderr.strip()})")
     try:
         yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+@pytest.mark.parametrize("name", ["bound", "bound here"])
+def test_a_bind_mounted_output_folder_is_refused_before_computing(name, tmp_path, capsys):
+    """A folder bind-mounted onto itself (same file system: ``os.path.ismount`` misses it)
+    cannot be replaced; skipped where mounting is not permitted."""
+    mesh = tmp_path / "g.obj"
+    mesh.write_text(obj_text(GOOD_V, GOOD_F))
+    mnt = tmp_path / name
+    mnt.mkdir()
+    proc = subprocess.run(["mount", "--bind", str(mnt), str(mnt)], capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        pytest.skip(f"bind mounts are not permitted here ({proc.stderr.strip()})")
+    try:
+        code, _, err = run_main(["parameterize", mesh, "-o", mnt, "--no-figures"], capsys)
+        assert_documented(code, err, {2})
+        assert "is a mount point" in err and "iteration" not in err, err
+        assert list(mnt.iterdir()) == [] and leftovers(tmp_path) == []
     finally:
         subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 

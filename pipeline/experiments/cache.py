@@ -63,7 +63,7 @@ class FileHashes:
 
     def digest(self, path: str | Path) -> str | None:
         """The file's SHA-256, or ``None`` if it is not a readable file."""
-        path = Path(path).resolve()
+        path = Path(os.path.realpath(path))          # a symlink loop: no stat below
         try:
             st = path.stat()
         except OSError:

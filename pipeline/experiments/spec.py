@@ -38,6 +38,7 @@ import glob
 import hashlib
 import itertools
 import json
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -212,7 +213,10 @@ def expand_experiment(data: dict, base: Path, source: str = "experiment") -> Exp
 
 def _files(patterns: str | list[str], base: Path, where: str) -> list[Path]:
     """Paths of a glob or list (entries may be globs). A pattern that matches nothing is a
-    config error; a literal path that does not exist is kept (its item fails, the rest run)."""
+    config error, and so is an empty list; a literal path that does not exist is kept (its
+    item fails, the rest run)."""
+    if not patterns:
+        raise UserError(f"{where}: no mesh given; give a glob or a list of paths")
     out: list[Path] = []
     for pattern in [patterns] if isinstance(patterns, str) else patterns:
         full = resolve_path(pattern, base)
@@ -261,6 +265,9 @@ def _dataset_entries(ds: DatasetConfig | None, base: Path, source: str):
         return [(name, {"input": {"mesh": str(p)}}, {"mesh": name})
                 for name, p in zip(_names(paths), paths)]
     if ds.pairs is not None:
+        if not ds.pairs:
+            raise UserError(f"{source}: dataset.pairs: no pair given; give a list of "
+                            f"source/target entries")
         out = []
         for k, e in enumerate(ds.pairs):
             src, tgt = resolve_path(e.source, base), resolve_path(e.target, base)
@@ -328,7 +335,7 @@ def _absolutize(data: dict, base: Path) -> None:
         section, key = dotted.split(".")
         node = data.get(section)
         if isinstance(node, dict) and isinstance(node.get(key), str):
-            node[key] = str(resolve_path(node[key], base).resolve())
+            node[key] = os.path.realpath(resolve_path(node[key], base))
 
 
 def _fmt(value) -> str:

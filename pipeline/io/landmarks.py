@@ -12,6 +12,8 @@ Accepted files (indices are 0-based vertex indices of the *input* mesh file):
   them preceded by a name (``nose_tip, 4857``). Separators are commas, semicolons, tabs or
   spaces; ``#`` starts a comment; a first line without numbers is a header and is skipped.
 
+Both may start with a UTF-8 byte order mark (as Windows editors save them); it is skipped.
+
 3D points are snapped to the nearest vertex of the mesh (:func:`resolve_landmarks`), and the
 snapping distance is reported; a point more than :data:`MAX_SNAP` bounding-box diagonals away
 is an error. A name given twice (in a JSON object or a table) is an error. Every problem is a one-line :class:`~pipeline.errors.UserError`.
@@ -28,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, file_problem
 
 __all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmarks", "landmarks_from_dict",
            "pair_landmarks", "resolve_landmarks"]
@@ -36,6 +38,9 @@ __all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmar
 # A point landmark farther from the mesh than this many bounding-box diagonals is an error
 # (points of another mesh or in other units), not a landmark to snap.
 MAX_SNAP = 1.0
+
+# Largest vertex index read: it is stored as int64.
+_MAX_INDEX = np.iinfo(np.int64).max
 
 KEY_ALIASES = {"ibug68": "ibug68_0based_vertex_indices", "ibug": "ibug68_0based_vertex_indices",
                "named": "landmarks"}
@@ -84,6 +89,9 @@ def _entries(values, names, where: str) -> LandmarkSet:
         if isinstance(v, int):
             if v < 0:
                 raise UserError(f"{where}: {what} has a negative vertex index {v}; "
+                                f"use 0-based vertex indices")
+            if v > _MAX_INDEX:
+                raise UserError(f"{where}: {what} has the vertex index {v}, beyond any mesh; "
                                 f"use 0-based vertex indices")
             idx.append(v)
             pts.append([np.nan] * 3)
@@ -149,13 +157,16 @@ def parse_json(text: str, where: str) -> object:
     """JSON of a landmark file; a key given twice in one object (``json`` keeps the last
     silently) and a syntax error are one-line errors."""
     try:
-        return json.loads(text, object_pairs_hook=_unique_pairs)
+        return json.loads(text.removeprefix("\ufeff"), object_pairs_hook=_unique_pairs)
     except _DuplicateKey as exc:
         raise UserError(f"{where}: name '{exc}' appears twice; landmark names must be "
                         f"unique") from None
     except json.JSONDecodeError as exc:
         raise UserError(f"{where}: not valid JSON (line {exc.lineno}: {exc.msg}); "
                         f"fix the file") from None
+    except RecursionError:
+        raise UserError(f"{where}: nested too deeply to read (lists or objects inside each "
+                        f"other thousands of levels down); fix the file") from None
 
 
 _SPLIT = re.compile(r"[,;\t ]+")
@@ -172,7 +183,7 @@ def _number(tok: str):
 def _read_table(path: Path) -> LandmarkSet:
     where = str(path)
     names, values = [], []
-    lines = path.read_text(encoding="utf-8").splitlines()
+    lines = path.read_text(encoding="utf-8-sig").splitlines()
     for lineno, line in enumerate(lines, 1):
         line = line.split("#", 1)[0].strip()
         if not line:
@@ -205,8 +216,9 @@ def _read_table(path: Path) -> LandmarkSet:
 def read_landmarks(path, key: str | None = None) -> LandmarkSet:
     """Read a landmark file (``.json``, ``.csv``, ``.txt``); see the module docstring."""
     path = Path(path)
-    if not path.is_file():
-        raise UserError(f"landmark file '{path}' not found; check the path")
+    problem = file_problem(path, missing="not found")
+    if problem:
+        raise UserError(f"landmark file '{path}' {problem}; check the path")
     ext = path.suffix.lower()
     try:
         if ext == ".json":

@@ -6,7 +6,8 @@ triangulated (so the repair can count them), nothing is welded or cleaned — th
 
 * ``.obj`` — own parser: ``v x y z [w]`` or ``v x y z r g b [a]`` (per-vertex colours), ``f`` with
   ``v``, ``v/vt``, ``v/vt/vn`` or ``v//vn`` tokens, negative (relative) indices, polygons; every
-  other statement (``vt``, ``vn``, ``g``, ``o``, ``usemtl``, comments …) is ignored.
+  other statement (``vt``, ``vn``, ``g``, ``o``, ``usemtl``, comments …) is ignored; a UTF-8
+  byte order mark at the start (as Windows editors save files) is skipped.
 * ``.off`` — own parser for ASCII ``OFF``/``COFF``/``NOFF``/``CNOFF`` (colours from ``COFF``);
   the header's vertex and face counts must match the lines that follow, exactly.
 * ``.ply``, ``.stl`` — via ``trimesh.load(path, process=False, force='mesh')`` (vertex order kept;
@@ -32,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.errors import UserError
+from pipeline.errors import UserError, file_problem
 
 from .artifacts import atomic_write
 
@@ -42,6 +43,7 @@ SUPPORTED_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".mat")
 # Largest coordinate magnitude read: squared lengths and products of areas stay far from
 # float64 overflow (≈ 1.8e308).
 MAX_COORDINATE = 1e60
+UTF8_BOM = b"\xef\xbb\xbf"
 
 
 @dataclass
@@ -230,7 +232,7 @@ def _read_obj(path: Path) -> RawMesh:
 
     where = str(path)
     try:
-        raw = path.read_bytes()
+        raw = path.read_bytes().removeprefix(UTF8_BOM)
     except OSError as exc:
         raise UserError(f"cannot read '{path}': {exc.strerror}; check the path and permissions")
     numbers = obj_numbers(raw)
@@ -489,10 +491,9 @@ def read_mesh(path) -> RawMesh:
             f"unsupported mesh format '{ext or path.name}' for '{path}'; "
             f"use one of {', '.join(SUPPORTED_EXTENSIONS)}"
         )
-    if not path.exists():
-        raise UserError(f"mesh file '{path}' does not exist; check the path")
-    if not path.is_file():
-        raise UserError(f"'{path}' is not a file; pass a mesh file")
+    problem = file_problem(path)
+    if problem:
+        raise UserError(f"mesh file '{path}' {problem}; check the path")
     if path.stat().st_size == 0:
         raise UserError(f"mesh file '{path}' is empty; pass a non-empty mesh")
     reader = {".obj": _read_obj, ".off": _read_off, ".ply": _read_trimesh,

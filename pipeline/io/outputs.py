@@ -1,7 +1,8 @@
 """Output folders: checked before any computation, written by one run at a time, replaced whole.
 
 * :func:`check_output_folder` — one-line :class:`~pipeline.errors.UserError` when a folder cannot
-  be the output: an empty path, a file (or ``/dev/null``) in the way or above it, a mount point,
+  be the output: an empty path, a name too long for the build beside it, a file (or
+  ``/dev/null``) in the way or above it, a mount point,
   no write permission, less free space than the outputs need, files in it that sem-pipeline did
   not write, or an input file inside it (the folder is replaced, so the input would be lost).
 * :func:`output_lock` — an exclusive ``flock`` on ``<parent>/.<name>.lock`` beside the folder
@@ -24,8 +25,8 @@ import errno
 import json
 import os
 import platform
+import re
 import shutil
-import stat
 import tempfile
 import time
 import uuid
@@ -33,13 +34,14 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable
 
-from ..errors import UserError
+from ..errors import UserError, file_problem
 from .artifacts import _umask
 
 __all__ = ["MARKER", "check_output_folder", "output_lock", "replaced_folder", "clean_leftovers",
            "output_folder", "format_bytes"]
 
 MARKER = ".sem-pipeline.json"
+_BUILD_SUFFIX = 8           # the characters tempfile.mkdtemp appends to a build's prefix
 _RENAME_EXCHANGE = 2
 
 
@@ -53,14 +55,8 @@ def format_bytes(n: float) -> str:
 
 
 def _kind(path: Path) -> str:
-    mode = os.stat(path).st_mode
-    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
-        return "a device"
-    if stat.S_ISFIFO(mode):
-        return "a pipe"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "a file"
+    """What stands at ``path``, an existing non-folder: ``"a file"``, ``"a device"`` …"""
+    return (file_problem(path) or "is a file").removeprefix("is ")
 
 
 def _nearest_existing(path: Path) -> Path:
@@ -87,6 +83,45 @@ def owned_entries(folder: Path) -> set[str]:
 def _foreign(folder: Path) -> list[str]:
     owned = owned_entries(folder)
     return sorted(n for n in os.listdir(folder) if n not in owned)
+
+
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) that the file system of ``folder`` (or of its closest
+    existing ancestor) takes."""
+    p = folder
+    while not os.path.isdir(p) and p.parent != p:
+        p = p.parent
+    try:
+        return os.pathconf(p, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        return 255
+
+
+def _check_name_length(path: Path, given, flag: str) -> None:
+    """One-line error when the folder's name, or the build and lock names made beside it
+    (:func:`_prefixes`, :func:`output_lock`), are longer than its file system takes."""
+    name_max = _name_max(path.parent)
+    longest = len(os.fsencode(f"{_prefixes(path)[0]}{'x' * _BUILD_SUFFIX}"))
+    extra = longest - len(os.fsencode(path.name))
+    if longest > name_max:
+        raise UserError(f"{flag} '{given}': the folder name is {len(os.fsencode(path.name))} "
+                        f"bytes, but at most {name_max - extra} fit (the run is built beside "
+                        f"it as '.NAME.partial-XXXXXXXX' in names of at most {name_max} "
+                        f"bytes); choose a shorter name")
+
+
+def _is_mount_point(path: Path) -> bool:
+    """``os.path.ismount``, or a mount point that ``/proc/self/mountinfo`` lists (a folder
+    bind-mounted from the same file system, which ``ismount`` does not see)."""
+    if os.path.ismount(path):
+        return True
+    try:
+        with open("/proc/self/mountinfo", encoding="utf-8", errors="surrogateescape") as fh:
+            points = [line.split()[4] for line in fh if len(line.split()) > 4]
+    except OSError:
+        return False
+    octal = re.compile(r"\\([0-7]{3})")           # a space is written \040, and so on
+    return str(path) in {octal.sub(lambda m: chr(int(m.group(1), 8)), p) for p in points}
 
 
 def _inside(path: Path, folder: Path) -> bool:
@@ -117,11 +152,12 @@ def check_output_folder(dest: str | Path, need_bytes: int = 0,
         path = path.resolve()               # a symlink to a folder: the folder it names
     if path.parent == path:
         raise UserError(f"{flag} '{given}' is the file system root; choose a folder below it")
+    _check_name_length(path, given, flag)
     if os.path.lexists(path):
         if not path.is_dir():
             raise UserError(f"{flag} '{given}' is {_kind(path)}, not a folder; remove it or "
                             f"choose another output folder")
-        if replace and os.path.ismount(path):
+        if replace and _is_mount_point(path):
             raise UserError(f"{flag} '{given}' is a mount point, which cannot be replaced; "
                             f"choose a folder inside it")
         foreign = _foreign(path) if replace else []
@@ -143,8 +179,7 @@ def check_output_folder(dest: str | Path, need_bytes: int = 0,
                         f"outputs need about {format_bytes(need_bytes)}; free some space or "
                         f"choose another output folder")
     for p in inputs:
-        q = Path(os.path.abspath(Path(p).expanduser()))
-        q = q.resolve() if os.path.lexists(q) else q
+        q = Path(os.path.realpath(Path(p).expanduser()))   # a symlink loop stays as given
         if q == path or _inside(q, path):
             raise UserError(f"input '{p}' is inside the {flag} '{given}', which the run "
                             f"replaces; write to another folder or move the input out of it")

@@ -40,6 +40,7 @@ raised (exit code 1).
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -685,7 +686,7 @@ def _pair(ctx: Context) -> Pair:
         pair = sample_pair(rc.sample_vertices, rc.sample_expression, repair)
     else:
         def p(v):
-            return None if v is None else ctx.path(v).resolve()
+            return None if v is None else Path(os.path.realpath(ctx.path(v)))
         pair = load_pair(p(rc.source), p(rc.target), p(rc.source_landmarks),
                          p(rc.target_landmarks), rc.landmark_set, repair, p(rc.truth))
     for face in (pair.source, pair.target):

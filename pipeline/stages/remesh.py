@@ -29,7 +29,7 @@ from typing import Literal, Optional
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..errors import UserError
+from ..errors import UserError, file_problem
 from ..geometry.locate import lift
 from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
@@ -221,10 +221,11 @@ def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
     from ..io.landmarks import parse_json
 
     path = Path(path)
+    problem = file_problem(path, missing="not found")
+    if problem:
+        raise UserError(f"landmarks file '{path}' {problem}; check the path")
     try:
         data = parse_json(path.read_text(encoding="utf-8"), f"landmarks file '{path}'")
-    except FileNotFoundError:
-        raise UserError(f"landmarks file '{path}' not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise UserError(f"landmarks file '{path}' cannot be read ({exc}); "
                         f"expected JSON {{\"landmarks\": {{name: vertex index}}}}") from None
