@@ -546,6 +546,84 @@ def test_an_output_name_too_long_for_the_build_beside_it_is_refused_by_name(tmp_
     assert (tmp_path / ("o" * fit) / MARKER).is_file() and leftovers(tmp_path) == []
 
 
+
+def no_map(monkeypatch):
+    """Make computing a map fail the test: a bad input must be refused before it."""
+    def refuse(*args, **kwargs):
+        raise AssertionError("the map was computed before the bad input was refused")
+
+    import pipeline.stages.parameterize as parameterize
+    import pipeline.stages.register as register
+
+    monkeypatch.setattr(parameterize, "parameterize_stage", refuse)
+    monkeypatch.setattr(register, "parameterize_stage", refuse)
+
+
+def written_besides_a_lock(out: Path) -> list[Path]:
+    """The files and folders below ``out`` other than a run's lock file."""
+    return [p for p in out.rglob("*") if not p.name.endswith(".lock")] if out.exists() else []
+
+
+BAD_REMESH_LANDMARKS = [
+    ("missing", None, "landmarks file '{tmp}/l.json' not found"),
+    ("malformed", "{landmarks: ", "not valid JSON"),
+    ("out of range", '{"landmarks": {"a": 24, "b": 9999}}', "landmark 'b' = vertex 9999"),
+    ("name twice", '{"landmarks": {"a": 24, "a": 17}}', "name 'a' appears twice"),
+]
+
+
+@pytest.mark.parametrize("name, text, words", BAD_REMESH_LANDMARKS,
+                         ids=[c[0] for c in BAD_REMESH_LANDMARKS])
+def test_remesh_refuses_bad_landmarks_before_the_map(name, text, words, tmp_path, capsys,
+                                                     monkeypatch):
+    (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    if text is not None:
+        (tmp_path / "l.json").write_text(text)
+    no_map(monkeypatch)
+    code, _, err = run_main(["remesh", tmp_path / "g.obj", "--vertices", "200", "--landmarks",
+                             tmp_path / "l.json", "-o", tmp_path / "out"], capsys)
+    assert_documented(code, err, {2})
+    assert words.replace("{tmp}", str(tmp_path)) in err, err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name, text, words", BAD_REMESH_LANDMARKS[1:],
+                         ids=[c[0] for c in BAD_REMESH_LANDMARKS[1:]])
+def test_a_run_refuses_bad_remesh_landmarks_before_the_map(name, text, words, tmp_path, capsys,
+                                                            monkeypatch):
+    (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    (tmp_path / "l.json").write_text(text)
+    (tmp_path / "c.yaml").write_text("input: {mesh: g.obj}\nparameterize: {mode: paper}\n"
+                                     "remesh: {vertices: 200, landmarks: l.json}\n")
+    no_map(monkeypatch)
+    code, _, err = run_main(["run", tmp_path / "c.yaml", "--out", tmp_path / "out"], capsys)
+    assert_documented(code, err, {2})
+    assert words in err, err
+    assert written_besides_a_lock(tmp_path / "out") == []
+
+
+@pytest.mark.parametrize("name, text, words", [
+    ("malformed", "{landmarks: ", "not valid JSON"),
+    ("out of range", "[24, 17, 31, 9999]", "landmark #3 is vertex 9999"),
+    ("name twice", '{"landmarks": {"a": 24, "a": 17, "b": 31}}', "name 'a' appears twice")])
+def test_register_refuses_bad_landmarks_before_the_maps(name, text, words, tmp_path, capsys,
+                                                        monkeypatch):
+    (tmp_path / "s.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    (tmp_path / "t.obj").write_text(obj_text(GOOD_V * [1, 1, 2], GOOD_F))
+    (tmp_path / "l.json").write_text(text)
+    (tmp_path / "c.yaml").write_text("input: {mesh: s.obj}\nparameterize: {mode: paper}\n"
+                                     "register: {source: s.obj, target: t.obj, "
+                                     "source_landmarks: l.json}\n")
+    no_map(monkeypatch)
+    for argv in (["register", tmp_path / "s.obj", tmp_path / "t.obj", "--source-landmarks",
+                  tmp_path / "l.json", "-o", tmp_path / "out"],
+                 ["run", tmp_path / "c.yaml", "--out", tmp_path / "out"]):
+        code, _, err = run_main(argv, capsys)
+        assert_documented(code, err, {2})
+        assert words in err, (argv[0], err)
+        assert written_besides_a_lock(tmp_path / "out") == []
+
+
 # ------------------------------------------------------------------ runs replace their folder
 
 

@@ -438,14 +438,18 @@ def _run(ctx: Context) -> dict:
     if not p.ok:
         raise ParameterizationFailed(f"parameterization failed: {p.problem}; remeshing needs "
                                      f"a bijective map")
-    mesh = intake.mesh
+    return {"remesh": remesh_stage(intake.mesh, p.image, rc, _landmarks(ctx))}
+
+
+def _landmarks(ctx: Context) -> dict:
+    """The landmarks to carry, ``{name: vertex index of the repaired mesh}``: those of the
+    ``landmarks`` file, else those of the sample face, else none."""
+    rc, intake = ctx.section("remesh"), ctx.artifacts["intake"]
     if rc.landmarks is not None:
-        landmarks = read_landmarks(ctx.path(rc.landmarks), mesh)
-    elif intake.info.get("landmarks"):
-        landmarks = map_landmarks(intake.info["landmarks"], mesh, "sample landmarks")
-    else:
-        landmarks = {}
-    return {"remesh": remesh_stage(mesh, p.image, rc, landmarks)}
+        return read_landmarks(ctx.path(rc.landmarks), intake.mesh)
+    if intake.info.get("landmarks"):
+        return map_landmarks(intake.info["landmarks"], intake.mesh, "sample landmarks")
+    return {}
 
 
 # Peak memory per remeshed vertex (lattice, triangulation, lift, improvement, measures and
@@ -462,12 +466,13 @@ def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
 
 
 def _check(ctx: Context) -> None:
-    """Refuse a spacing that gives too few vertices, a request that needs more memory than
-    the limit (:mod:`pipeline.limits`) and, for a closed mesh, a pattern with no sphere
-    version, before the map is computed."""
+    """Refuse a bad landmarks file, a spacing that gives too few vertices, a request that
+    needs more memory than the limit (:mod:`pipeline.limits`) and, for a closed mesh, a
+    pattern with no sphere version, before the map is computed."""
     from ..geometry.laplacian import face_double_areas
     from ..limits import check_memory
 
+    _landmarks(ctx)
     rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
     if len(mesh.boundary) == 0:                  # closed: remeshed on the sphere
         _check_sphere_pattern(rc.pattern)
