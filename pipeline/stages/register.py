@@ -697,8 +697,20 @@ def _pair(ctx: Context) -> Pair:
     return pair
 
 
+#: the artifact under which the stage check keeps the pair it read for the run step
+PAIR = "register.pair"
+
+
+def _check(ctx: Context) -> None:
+    """Read the two faces and pair their landmarks before any stage computes, so a bad
+    landmark file is refused before a map of the run is computed; the run step uses the
+    pair read here."""
+    ctx.artifacts[PAIR] = _pair(ctx)
+
+
 def _run(ctx: Context) -> dict:
-    reg = register_stage(_pair(ctx), ctx.section("register"), ctx.section("parameterize"),
+    pair = ctx.artifacts.pop(PAIR, None) or _pair(ctx)
+    reg = register_stage(pair, ctx.section("register"), ctx.section("parameterize"),
                          progress=ctx.progress, log=ctx.log)
     ctx.log(f"register: {register_summary(reg)}")
     return {"registration": reg}
@@ -733,6 +745,8 @@ def register_summary(reg: Registration) -> str:
 STAGE = Stage(name="register", section=RegisterConfig, run=_run, write=_write,
               makes=("registration",), uses=("repair", "parameterize", "report"),
               input_files=("source", "target", "source_landmarks", "target_landmarks", "truth"),
+              mesh_files=("source", "target", "truth"),
               positional=("source", "target"),
               summary=lambda ctx, files: register_summary(ctx.artifacts["registration"]),
+              check=_check,
               help="landmark registration of SOURCE onto TARGET on their SEM disks")
