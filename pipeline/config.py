@@ -20,7 +20,7 @@ from pydantic import (BaseModel, ConfigDict, Field, ValidationError, create_mode
                       field_validator, model_validator)
 
 from .errors import UserError, file_problem
-from .stages.registry import STAGES, input_file_keys, plan
+from .stages.registry import STAGES, input_file_keys, mesh_file_keys, plan
 from .stages.stage import Section, Stage
 
 
@@ -203,16 +203,25 @@ def read_yaml_mapping(path: Path) -> dict:
 
 def check_input_files(config, base: Path, source: str) -> None:
     """One-line error for the first input file of ``config`` that does not exist (every key
-    that a stage declares in ``Stage.input_files``)."""
+    that a stage declares in ``Stage.input_files``) or, for a mesh file
+    (``Stage.mesh_files``), whose suffix is not a supported mesh format."""
+    from .io.meshio import format_problem
+
+    meshes = mesh_file_keys()
     for dotted in input_file_keys():
         section, key = dotted.split(".")
         node = getattr(config, section)
         value = None if node is None else getattr(node, key)
-        problem = None if value is None else file_problem(resolve_path(value, base),
-                                                          missing="not found")
+        if value is None:
+            continue
+        path = resolve_path(value, base)
+        unsupported = format_problem(path) if dotted in meshes else None
+        if unsupported:
+            raise UserError(f"{source}: {dotted}: {unsupported}")
+        problem = file_problem(path, missing="not found")
         if problem:
-            raise UserError(f"{source}: {dotted}: file '{resolve_path(value, base)}' "
-                            f"{problem}; paths are relative to the config's folder")
+            raise UserError(f"{source}: {dotted}: file '{path}' {problem}; paths are "
+                            f"relative to the config's folder")
 
 
 def resolve_path(value: str, base: Path) -> Path:

@@ -624,6 +624,24 @@ def test_register_refuses_bad_landmarks_before_the_maps(name, text, words, tmp_p
         assert written_besides_a_lock(tmp_path / "out") == []
 
 
+
+@pytest.mark.parametrize("config, key", [
+    ("input: {mesh: x.txt}\n", "input.mesh"),
+    ("register: {source: x.txt, target: g.obj, source_landmarks: l.json}\n", "register.source"),
+    ("register: {source: g.obj, target: g.obj, source_landmarks: l.json, truth: x.txt}\n",
+     "register.truth")])
+def test_a_run_refuses_a_mesh_of_unsupported_format_before_creating_anything(config, key,
+                                                                             tmp_path, capsys):
+    for name in ("x.txt", "l.json"):
+        (tmp_path / name).write_text("1\n")
+    (tmp_path / "g.obj").write_text(obj_text(GOOD_V, GOOD_F))
+    (tmp_path / "c.yaml").write_text(config)
+    code, _, err = run_main(["run", tmp_path / "c.yaml", "--out", tmp_path / "out"], capsys)
+    assert_documented(code, err, {2})
+    assert f"{key}: unsupported mesh format '.txt'" in err and ".obj, .off" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 # ------------------------------------------------------------------ runs replace their folder
 
 

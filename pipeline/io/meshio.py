@@ -37,7 +37,7 @@ from pipeline.errors import UserError, file_problem
 
 from .artifacts import atomic_write
 
-__all__ = ["RawMesh", "SUPPORTED_EXTENSIONS", "read_mesh", "write_obj"]
+__all__ = ["RawMesh", "SUPPORTED_EXTENSIONS", "format_problem", "read_mesh", "write_obj"]
 
 SUPPORTED_EXTENSIONS = (".obj", ".off", ".ply", ".stl", ".mat")
 # Largest coordinate magnitude read: squared lengths and products of areas stay far from
@@ -482,15 +482,24 @@ def _read_mat(path: Path) -> RawMesh:
 # --------------------------------------------------------------------------------------------
 
 
+def format_problem(path) -> str | None:
+    """Why ``path`` is not a mesh file by its suffix (a one-line message naming the supported
+    ones), or ``None`` when its suffix is one of :data:`SUPPORTED_EXTENSIONS`."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext in SUPPORTED_EXTENSIONS:
+        return None
+    return (f"unsupported mesh format '{ext or path.name}' for '{path}'; "
+            f"use one of {', '.join(SUPPORTED_EXTENSIONS)}")
+
+
 def read_mesh(path) -> RawMesh:
     """Read ``.obj``, ``.off``, ``.ply``, ``.stl`` or ``.mat``; see the module docstring."""
     path = Path(path)
     ext = path.suffix.lower()
-    if ext not in SUPPORTED_EXTENSIONS:
-        raise UserError(
-            f"unsupported mesh format '{ext or path.name}' for '{path}'; "
-            f"use one of {', '.join(SUPPORTED_EXTENSIONS)}"
-        )
+    problem = format_problem(path)
+    if problem:
+        raise UserError(problem)
     problem = file_problem(path)
     if problem:
         raise UserError(f"mesh file '{path}' {problem}; check the path")

@@ -111,4 +111,5 @@ def _summary(ctx: Context, files: dict) -> str:
 
 STAGE = Stage(name="input", section=InputConfig, run=_run, write=_write, makes=("intake",),
               extra_sections={"repair": RepairOptions}, input_files=("mesh",),
+              mesh_files=("mesh",),
               positional=("mesh",), summary=_summary, command=False)

@@ -23,6 +23,11 @@ def input_file_keys(stages: tuple[Stage, ...] = STAGES) -> tuple[str, ...]:
     return tuple(f"{s.name}.{k}" for s in stages for k in s.input_files)
 
 
+def mesh_file_keys(stages: tuple[Stage, ...] = STAGES) -> tuple[str, ...]:
+    """The dotted config keys that name a mesh file (``input.mesh``, ``register.source``…)."""
+    return tuple(f"{s.name}.{k}" for s in stages for k in s.mesh_files)
+
+
 def _a(name: str) -> str:
     return f"an '{name}'" if name[0] in "aeiou" else f"a '{name}'"
 

@@ -120,6 +120,8 @@ class Stage:
         (``parameterize``); otherwise it runs only when its section is given.
     input_files : tuple[str, ...]
         Keys of the section that name input files.
+    mesh_files : tuple[str, ...]
+        Those of ``input_files`` that name mesh files (their suffix is checked with the files).
     positional : tuple[str, ...]
         Keys of the section given as positional arguments of the subcommands that run this
         stage (``input.mesh`` → ``MESH``).
@@ -128,8 +130,10 @@ class Stage:
         line, the run index's overview).
     check : callable or None
         ``check(ctx) -> None``: refuse a request that cannot fit (a one-line ``UserError``
-        from :func:`pipeline.limits.check_memory`), run before any stage computes when
-        ``check_needs`` is empty, else as soon as the artifacts it names exist.
+        from :func:`pipeline.limits.check_memory`) or a bad input file the stage reads, run
+        before any stage computes when ``check_needs`` is empty, else as soon as the
+        artifacts it names exist. It may keep what it read in ``ctx.artifacts`` for the run
+        step.
     check_needs : tuple[str, ...]
         The artifacts ``check`` reads (``intake`` for a request relative to the mesh).
     command : bool
@@ -154,6 +158,7 @@ class Stage:
     extra_sections: dict = field(default_factory=dict)
     default_on: bool = False
     input_files: tuple[str, ...] = ()
+    mesh_files: tuple[str, ...] = ()
     positional: tuple[str, ...] = ()
     summary: Optional[Callable[[Context, dict], str]] = None
     check: Optional[Callable[[Context], None]] = None
