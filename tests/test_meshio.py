@@ -254,6 +254,26 @@ def test_obj_errors_and_results_are_the_general_parsers(tmp_path, monkeypatch, t
         assert _same_raw_mesh(*results)
 
 
+@pytest.mark.parametrize("text, line", [
+    ("v 0 0 0\nv 1 0\x00 0\nv 0 1 0\nf 1 2 3\n", 2),           # inside a number's gap
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\x00v 0 0 1\nf 1 2 4\n", 4),  # before a statement
+    ("v 0 0 0\r\nv\x001 0 0\r\nv 0 1 0\r\nf 1 2 3\r\n", 2),  # after its keyword
+    ("v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2\x003\r", 4),               # lone CR line ends
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n# a\x00b\nf 1 2 3\n", 4),       # in a comment
+    ("\ufeffv 0 0 0\nv 1 0 0\x00\x00\x00\nv 0 1 0\nf 1 2 3\n", 2),
+])
+def test_obj_nul_byte_is_named_with_its_line(tmp_path, monkeypatch, text, line):
+    """A NUL byte (binary data in an OBJ) is one line naming it and its line, from the
+    compiled pass's reader and from the general parser alike."""
+    p = tmp_path / "nul.obj"
+    p.write_bytes(text.encode("utf-8"))
+    for read in (read_mesh, lambda q: _read_general(q, monkeypatch)):
+        with pytest.raises(UserError) as exc:
+            read(p)
+        assert str(exc.value) == (f"{p}: line {line}: NUL byte, not a text OBJ (binary or "
+                                  f"UTF-16 data); re-export the file as text")
+
+
 def test_obj_utf8_byte_order_mark_is_skipped(tmp_path, monkeypatch):
     """A UTF-8 byte order mark before the first ``v`` line: the mesh read without it, by the
     compiled pass and by the general parser (a lone ``\r`` line end sends a file there)."""

@@ -141,6 +141,7 @@ def _meshes():
         ("duplicate faces only", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 3\n"),
         ("utf16 garbage", "\ufeffv 0 0 0".encode("utf-16").decode("latin-1")),
         ("huge index", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n"),
+        ("nul byte before a vertex line", obj_text(V, F).replace("\nv ", "\n\0v ", 1)),
     ]
     # The two smallest disks: SEM's system is singular there; paper mode's damped fallback
     # keeps the flip-free harmonic map (exit 0, checked bijective below), converged mode says so.

@@ -222,12 +222,29 @@ def _vertices_before(text: str) -> np.ndarray:
     return np.cumsum(is_v)[~is_v]
 
 
+def _line_of(raw: bytes, offset: int) -> int:
+    """The 1-based line of byte ``offset`` of ``raw``, lines ending at ``\n``, ``\r\n`` or a
+    lone ``\r`` (universal newlines)."""
+    head = raw[:offset]
+    return head.count(b"\n") + head.count(b"\r") - head.count(b"\r\n") + 1
+
+
+def _check_no_nul(raw: bytes, where: str) -> None:
+    """Refuse an OBJ file with a NUL byte (binary data, UTF-16 text or a file filled with
+    zeros by a crash), naming the line of the first one."""
+    nul = raw.find(b"\0")
+    if nul >= 0:
+        raise UserError(f"{where}: line {_line_of(raw, nul)}: NUL byte, not a text OBJ (binary "
+                        f"or UTF-16 data); re-export the file as text")
+
+
 def _read_obj(path: Path) -> RawMesh:
     """An OBJ file: its ``v`` and ``f`` numbers read in one compiled pass
     (:func:`._obj.obj_numbers`), or, for a file that pass leaves (anything but decimal
     numbers and integer face tokens in those statements), by the regular expressions and
     numpy's parsers here; both give the same numbers, and every error comes from the
-    checks here in the same order."""
+    checks here in the same order. A file with a NUL byte (which the compiled pass leaves)
+    is refused first (:func:`_check_no_nul`)."""
     from ._obj import obj_numbers
 
     where = str(path)
@@ -237,6 +254,7 @@ def _read_obj(path: Path) -> RawMesh:
         raise UserError(f"cannot read '{path}': {exc.strerror}; check the path and permissions")
     numbers = obj_numbers(raw)
     if numbers is None:
+        _check_no_nul(raw, where)
         # the text as read_text reads it: universal newlines
         text = raw.decode("utf-8", errors="replace").replace("\r\n", "\n").replace("\r", "\n")
         vlines, flines = _OBJ_V.findall(text), _OBJ_F.findall(text)
