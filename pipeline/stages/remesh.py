@@ -438,7 +438,13 @@ def _run(ctx: Context) -> dict:
     if not p.ok:
         raise ParameterizationFailed(f"parameterization failed: {p.problem}; remeshing needs "
                                      f"a bijective map")
-    return {"remesh": remesh_stage(intake.mesh, p.image, rc, _landmarks(ctx))}
+    landmarks = ctx.artifacts.pop(LANDMARKS, None)
+    return {"remesh": remesh_stage(intake.mesh, p.image, rc,
+                                   _landmarks(ctx) if landmarks is None else landmarks)}
+
+
+#: the artifact under which the stage check keeps the landmarks it read for the run step
+LANDMARKS = "remesh.landmarks"
 
 
 def _landmarks(ctx: Context) -> dict:
@@ -468,11 +474,12 @@ def expected_vertices(rc: RemeshConfig, surface_area: float) -> float:
 def _check(ctx: Context) -> None:
     """Refuse a bad landmarks file, a spacing that gives too few vertices, a request that
     needs more memory than the limit (:mod:`pipeline.limits`) and, for a closed mesh, a
-    pattern with no sphere version, before the map is computed."""
+    pattern with no sphere version, before the map is computed; the run step uses the
+    landmarks read here."""
     from ..geometry.laplacian import face_double_areas
     from ..limits import check_memory
 
-    _landmarks(ctx)
+    ctx.artifacts[LANDMARKS] = _landmarks(ctx)
     rc, mesh = ctx.section("remesh"), ctx.artifacts["intake"].mesh
     if len(mesh.boundary) == 0:                  # closed: remeshed on the sphere
         _check_sphere_pattern(rc.pattern)
