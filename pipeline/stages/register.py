@@ -709,9 +709,8 @@ def _check(ctx: Context) -> None:
 
 
 def _run(ctx: Context) -> dict:
-    pair = ctx.artifacts.pop(PAIR, None) or _pair(ctx)
-    reg = register_stage(pair, ctx.section("register"), ctx.section("parameterize"),
-                         progress=ctx.progress, log=ctx.log)
+    reg = register_stage(ctx.artifacts.pop(PAIR), ctx.section("register"),
+                         ctx.section("parameterize"), progress=ctx.progress, log=ctx.log)
     ctx.log(f"register: {register_summary(reg)}")
     return {"registration": reg}
 

@@ -438,9 +438,7 @@ def _run(ctx: Context) -> dict:
     if not p.ok:
         raise ParameterizationFailed(f"parameterization failed: {p.problem}; remeshing needs "
                                      f"a bijective map")
-    landmarks = ctx.artifacts.pop(LANDMARKS, None)
-    return {"remesh": remesh_stage(intake.mesh, p.image, rc,
-                                   _landmarks(ctx) if landmarks is None else landmarks)}
+    return {"remesh": remesh_stage(intake.mesh, p.image, rc, ctx.artifacts.pop(LANDMARKS))}
 
 
 #: the artifact under which the stage check keeps the landmarks it read for the run step
