@@ -494,7 +494,7 @@ def test_corpus(name, files, argv, codes, tmp_path, capsys, monkeypatch):
     (["register", "{good}", "{good}", "--source-landmarks", "{tmp}/l.json", "-o", "{tmp}/out"],
      {"l.json/x": "1"}, "landmark file '{tmp}/l.json' is a folder"),
     (["remesh", "{good}", "--vertices", "200", "--landmarks", "{tmp}/l.json", "-o",
-      "{tmp}/out"], {"l.json": "<fifo>"}, "landmarks file '{tmp}/l.json' is a pipe"),
+      "{tmp}/out"], {"l.json": "<fifo>"}, "landmark file '{tmp}/l.json' is a pipe"),
 ])
 def test_an_input_that_is_no_file_is_named_for_what_it_is(argv, files, words, tmp_path, capsys):
     """... and refused without reading it (a pipe without a writer would block the read)."""
@@ -566,9 +566,10 @@ def written_besides_a_lock(out: Path) -> list[Path]:
 
 
 BAD_REMESH_LANDMARKS = [
-    ("missing", None, "landmarks file '{tmp}/l.json' not found"),
+    ("missing", None, "landmark file '{tmp}/l.json' not found"),
     ("malformed", "{landmarks: ", "not valid JSON"),
-    ("out of range", '{"landmarks": {"a": 24, "b": 9999}}', "landmark 'b' = vertex 9999"),
+    ("out of range", '{"landmarks": {"a": 24, "b": 9999}}',
+     "landmark 'b' is vertex 9999 but the mesh has"),
     ("name twice", '{"landmarks": {"a": 24, "a": 17}}', "name 'a' appears twice"),
 ]
 

@@ -11,6 +11,7 @@ import pytest
 
 from conftest import require_data, run_cli
 from pipeline.geometry import topology as topo
+from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.locate import lift
 from pipeline.geometry.metrics import signed_double_areas
 from pipeline.geometry.remesh_quality import remesh_quality, triangle_quality
@@ -232,6 +233,38 @@ def test_cli_remesh_writes_the_contract_files(small_face_file, tmp_path):
     assert topo.euler_characteristic(F, len(V)) == 1 and len(topo.boundary_loops(F)) == 1
     lm = json.loads((out / "remeshed_landmarks.json").read_text())["landmarks"]
     assert set(lm) == set(face.landmarks)
+
+
+def test_cli_remesh_takes_register_landmark_files(small_face_file, tmp_path):
+    """A CSV of named index and point landmarks, on a file whose vertex indices the repair
+    shifts (an unreferenced vertex first): ``input_vertex`` is the file's vertex, the point is
+    snapped (and said), and each landmark's remesh vertex lies near it."""
+    _, _, face = small_face_file
+    names = sorted(face.landmarks)[:4]
+    shifted = tmp_path / "face.obj"
+    write_obj(shifted, np.vstack([[9.0, 9.0, 9.0], face.V]), face.F + 1)   # vertex 0 unused
+    lines = ["name, index or x y z"]
+    for k, name in enumerate(names):
+        i = face.landmarks[name]
+        lines.append(f"{name}, {i + 1}" if k % 2 == 0 else
+                     f"{name}, " + " ".join(f"{x:.17g}" for x in face.V[i]))
+    (tmp_path / "l.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "out"
+    code, _, err = run_cli("remesh", shifted, "-o", out, "--vertices", 1200, "--no-compare",
+                           "--no-report", "--landmarks", tmp_path / "l.csv", "--max-iter", 40)
+    assert code == 0, err
+    assert "snapped 2 point landmarks to the nearest vertex (distance max 0," in err
+    carried = json.loads((out / "remeshed_landmarks.json").read_text())
+    assert list(carried["landmarks"]) == names
+    import trimesh
+
+    X = np.asarray(trimesh.load(out / "remeshed.obj", process=False).vertices)
+    spacing = np.sqrt(face_double_areas(face.V, face.F).sum() / 2 / 1200)
+    for name in names:
+        d = carried["details"][name]
+        assert d["input_vertex"] == face.landmarks[name] + 1      # the file's own index
+        assert d["vertex"] == carried["landmarks"][name]
+        assert np.linalg.norm(X[d["vertex"]] - face.V[face.landmarks[name]]) < 1.5 * spacing
 
 
 @pytest.mark.parametrize("args,words", [

@@ -32,8 +32,8 @@ import numpy as np
 
 from ..errors import UserError, file_problem
 
-__all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmarks", "landmarks_from_dict",
-           "pair_landmarks", "resolve_landmarks"]
+__all__ = ["LandmarkSet", "KEY_ALIASES", "MAX_SNAP", "parse_json", "read_landmarks",
+           "landmarks_from_dict", "pair_landmarks", "repaired_indices", "resolve_landmarks"]
 
 # A point landmark farther from the mesh than this many bounding-box diagonals is an error
 # (points of another mesh or in other units), not a landmark to snap.
@@ -262,22 +262,27 @@ def pair_landmarks(source: LandmarkSet, target: LandmarkSet) -> tuple[LandmarkSe
     return source, target
 
 
-def resolve_landmarks(lms: LandmarkSet, mesh, n_input: int, label: str = "landmarks"
-                      ) -> tuple[np.ndarray, list[str]]:
+def repaired_indices(lms: LandmarkSet, mesh, n_input: int, label: str = "landmarks"
+                     ) -> tuple[np.ndarray, list[str]]:
     """Vertex indices of the landmarks in the *repaired* mesh, and report lines.
 
     ``mesh`` is a :class:`~pipeline.geometry.repair.RepairedMesh` (``source_index`` maps each
     repaired vertex to its input vertex, −1 for added ones); ``n_input`` is the input vertex
     count. Index landmarks are mapped through ``source_index``; point landmarks are snapped to
     the nearest repaired vertex. Refused with a :class:`UserError`: an index out of range, a
-    vertex the repair removed, a vertex the repair added (hole centres, split midpoints), a vertex
-    on the disk's boundary or on the rim of a closed hole, and two landmarks on one vertex.
+    vertex the repair removed, and a point more than :data:`MAX_SNAP` bounding-box diagonals
+    from the mesh.
+
+    Returns
+    -------
+    indices : (k,) int64
+        The repaired vertex of each landmark, in the set's order.
+    messages : list of str
+        A line on the snapping when there are point landmarks.
     """
     from ..geometry.repair import repaired_vertex_of
 
-    n = len(mesh.V)
-    src = np.asarray(mesh.source_index, dtype=np.int64)
-    inverse = repaired_vertex_of(src, n_input)
+    inverse = repaired_vertex_of(np.asarray(mesh.source_index, dtype=np.int64), n_input)
     out = np.empty(len(lms), dtype=np.int64)
     messages = []
     snapped = []
@@ -309,6 +314,20 @@ def resolve_landmarks(lms: LandmarkSet, mesh, n_input: int, label: str = "landma
         messages.append(f"{label}: snapped {len(snapped)} point landmarks to the nearest vertex "
                         f"(distance max {max(snapped):.4g}, mean {np.mean(snapped):.4g}; "
                         f"{max(snapped) / diag:.2e} of the bounding-box diagonal)")
+    return out, messages
+
+
+def resolve_landmarks(lms: LandmarkSet, mesh, n_input: int, label: str = "landmarks"
+                      ) -> tuple[np.ndarray, list[str]]:
+    """Vertex indices of the landmarks in the *repaired* mesh, and report lines, for a
+    registration: :func:`repaired_indices`, and every landmark an interior vertex of the input
+    of its own. Refused with a :class:`UserError`, besides :func:`repaired_indices`' refusals:
+    a vertex the repair added (hole centres, split midpoints), a vertex on the disk's boundary
+    or on the rim of a closed hole, and two landmarks on one vertex.
+    """
+    out, messages = repaired_indices(lms, mesh, n_input, label)
+    n = len(mesh.V)
+    src = np.asarray(mesh.source_index, dtype=np.int64)
     added = np.zeros(n, bool)
     added[np.asarray(mesh.added_vertices, dtype=np.int64)] = True
     on_boundary = np.zeros(n, bool)

@@ -29,17 +29,17 @@ from typing import Literal, Optional
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
-from ..errors import UserError, file_problem
+from ..errors import UserError
 from ..geometry.locate import lift
 from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.remesh.features import FOLD_BACK_DEG
 from ..geometry.remesh_quality import DISTANCE_SAMPLES
-from ..geometry.repair import RepairedMesh, repaired_vertex_of
+from ..geometry.repair import RepairedMesh
 from .stage import Context, Section, Stage
 
 __all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks",
-           "map_landmarks", "write_remesh", "compare_methods", "remesh_outputs"]
+           "write_remesh", "compare_methods", "remesh_outputs"]
 
 
 class ImproveConfig(Section):
@@ -90,8 +90,8 @@ class RemeshConfig(Section):
                                             "at the same vertex count beside ours")
     report: bool = Field(True, description="report.html and figures")
     landmarks: Optional[str] = Field(
-        None, description="JSON {\"landmarks\": {name: input vertex index}} carried to the "
-                          "remesh")
+        None, description="landmark file carried to the remesh (as register's: JSON, CSV or "
+                          "TXT; 0-based input vertex indices or x y z points)")
     distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
                                   description="random samples per surface for the distances")
 
@@ -124,7 +124,8 @@ class Remesh:
     colors: np.ndarray | None
     samples: DiskSamples
     lifted: tuple                      # (V, F) straight after lifting, before improvement
-    landmarks: dict = field(default_factory=dict)
+    landmarks: dict = field(default_factory=dict)  # {name: {input_vertex (of the input file;
+    #                                      −1: added by the repair), vertex, distance}}
     info: dict = field(default_factory=dict)
     seconds: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)   # remesh_metrics.json, once written
@@ -210,46 +211,57 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     sec["total"] = sum(sec.values())
     info = {"requested_vertices": options.vertices, "requested_spacing": options.spacing,
             **r.info, "attributes": lifted_attrs}
-    return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted, r.landmarks,
-                  info, sec, facts=r.facts, input_distance=r.input_distance)
+    return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted,
+                  _input_file_vertices(r.landmarks, mesh.source_index), info, sec,
+                  facts=r.facts, input_distance=r.input_distance)
 
 
-def read_landmarks(path: str | Path, mesh: RepairedMesh) -> dict:
-    """Landmarks from a JSON file: ``{"landmarks": {name: index}}`` or ``{name: index}``,
-    0-based indices of the *input file's* vertices; mapped to the repaired mesh through
-    ``source_index`` (a landmark whose vertex the repair removed is an error)."""
-    from ..io.landmarks import parse_json
-
-    path = Path(path)
-    problem = file_problem(path, missing="not found")
-    if problem:
-        raise UserError(f"landmarks file '{path}' {problem}; check the path")
-    try:
-        data = parse_json(path.read_text(encoding="utf-8"), f"landmarks file '{path}'")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"landmarks file '{path}' cannot be read ({exc}); "
-                        f"expected JSON {{\"landmarks\": {{name: vertex index}}}}") from None
-    if isinstance(data, dict) and isinstance(data.get("landmarks"), dict):
-        data = data["landmarks"]
-    if not isinstance(data, dict) or not data or not all(
-            isinstance(v, int) and not isinstance(v, bool) for v in data.values()):
-        raise UserError(f"landmarks file '{path}': expected {{\"landmarks\": {{name: vertex "
-                        f"index}}}} with integer (0-based) vertex indices")
-    return map_landmarks(data, mesh, str(path))
+def _input_file_vertices(carried: dict, source_index: np.ndarray) -> dict:
+    """The carried landmarks (:func:`pipeline.geometry.remesh.landmarks.carry_landmarks`, whose
+    ``input_vertex`` is a vertex of the repaired mesh) with ``input_vertex`` the input file's
+    vertex instead (``source_index``; −1 for a vertex the repair added)."""
+    return {name: dict(d, input_vertex=int(source_index[d["input_vertex"]]))
+            for name, d in carried.items()}
 
 
-def map_landmarks(landmarks: dict, mesh: RepairedMesh, where: str = "landmarks") -> dict:
-    """Input-file vertex indices → repaired-mesh vertex indices (via ``source_index``)."""
-    src = mesh.source_index
-    lookup = repaired_vertex_of(src, int(src.max()) + 1 if len(src) else 0)
-    out = {}
-    for name, i in landmarks.items():
-        i = int(i)
-        if i < 0 or i >= len(lookup) or lookup[i] < 0:
-            raise UserError(f"{where}: landmark '{name}' = vertex {i} is not a vertex of the "
-                            f"repaired mesh (out of range or removed by the repair)")
-        out[str(name)] = int(lookup[i])
-    return out
+def read_landmarks(path: str | Path, mesh: RepairedMesh, n_input: int
+                   ) -> tuple[dict, list[str]]:
+    """The landmarks of a landmark file on the repaired mesh.
+
+    Any file :func:`pipeline.io.landmarks.read_landmarks` reads (JSON, CSV or TXT; 0-based
+    vertex indices of the *input file*, or 3D points snapped to the nearest vertex), mapped
+    through ``source_index`` (:func:`pipeline.io.landmarks.repaired_indices`: an index out of
+    range or a vertex the repair removed is an error). Unlike a registration's, a remesh's
+    landmarks may lie on the rim or share a vertex.
+
+    Parameters
+    ----------
+    path : str or Path
+    mesh : RepairedMesh
+    n_input : int
+        The input file's vertex count.
+
+    Returns
+    -------
+    landmarks : dict
+        ``{name: vertex index of the repaired mesh}``, in the file's order; an unnamed set's
+        names are its positions (``"0"``, ``"1"``, …).
+    messages : list of str
+        A line on the snapping when there are point landmarks.
+    """
+    from ..io.landmarks import read_landmarks as read_file
+
+    return _on_repaired(read_file(path), mesh, n_input, f"landmarks file '{path}'")
+
+
+def _on_repaired(lms, mesh: RepairedMesh, n_input: int, label: str) -> tuple[dict, list[str]]:
+    """``{name: repaired vertex}`` of a :class:`~pipeline.io.landmarks.LandmarkSet`, and the
+    report lines of :func:`~pipeline.io.landmarks.repaired_indices`."""
+    from ..io.landmarks import repaired_indices
+
+    idx, messages = repaired_indices(lms, mesh, n_input, label)
+    names = lms.names or [str(k) for k in range(len(lms))]
+    return dict(zip(names, idx.tolist())), messages
 
 
 def write_remesh(r: Remesh, out_dir: str | Path, metrics: dict, report=None) -> dict[str, Path]:
@@ -447,13 +459,21 @@ LANDMARKS = "remesh.landmarks"
 
 def _landmarks(ctx: Context) -> dict:
     """The landmarks to carry, ``{name: vertex index of the repaired mesh}``: those of the
-    ``landmarks`` file, else those of the sample face, else none."""
+    ``landmarks`` file (its snapping reported), else those of the sample face, else none."""
+    from ..io.landmarks import landmarks_from_dict
+
     rc, intake = ctx.section("remesh"), ctx.artifacts["intake"]
+    n_input = intake.info["input_vertices"]
     if rc.landmarks is not None:
-        return read_landmarks(ctx.path(rc.landmarks), intake.mesh)
-    if intake.info.get("landmarks"):
-        return map_landmarks(intake.info["landmarks"], intake.mesh, "sample landmarks")
-    return {}
+        landmarks, messages = read_landmarks(ctx.path(rc.landmarks), intake.mesh, n_input)
+    elif intake.info.get("landmarks"):
+        sample = landmarks_from_dict({"landmarks": intake.info["landmarks"]}, "sample landmarks")
+        landmarks, messages = _on_repaired(sample, intake.mesh, n_input, "sample landmarks")
+    else:
+        return {}
+    for line in messages:
+        ctx.log(f"remesh: {line}")
+    return landmarks
 
 
 # Peak memory per remeshed vertex (lattice, triangulation, lift, improvement, measures and
