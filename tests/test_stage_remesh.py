@@ -267,6 +267,26 @@ def test_cli_remesh_takes_register_landmark_files(small_face_file, tmp_path):
         assert np.linalg.norm(X[d["vertex"]] - face.V[face.landmarks[name]]) < 1.5 * spacing
 
 
+def test_cli_remesh_carries_a_named_landmark_set(small_face_file, tmp_path):
+    """``--landmark-set`` picks another entry of a JSON landmark file, as register's does: an
+    unnamed list is carried under its positions' names."""
+    mesh_path, _, face = small_face_file
+    extra = [face.landmarks[name] for name in sorted(face.landmarks)[:5]]
+    (tmp_path / "l.json").write_text(json.dumps({"landmarks": face.landmarks, "extra": extra}))
+    out = tmp_path / "out"
+    code, _, err = run_cli("remesh", mesh_path, "-o", out, "--vertices", 1000, "--no-compare",
+                           "--no-report", "--landmarks", tmp_path / "l.json",
+                           "--landmark-set", "extra", "--max-iter", 40)
+    assert code == 0, err
+    details = json.loads((out / "remeshed_landmarks.json").read_text())["details"]
+    assert [(k, d["input_vertex"]) for k, d in details.items()] == list(
+        zip(["0", "1", "2", "3", "4"], extra))
+    code, _, err = run_cli("remesh", mesh_path, "-o", tmp_path / "o2", "--vertices", 1000,
+                           "--landmark-set", "extra")
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "no landmarks file is given" in lines[0], err
+
+
 @pytest.mark.parametrize("args,words", [
     (["--vertices", "500", "--spacing", "0.1"], ["exactly one"]),
     ([], ["exactly one"]),

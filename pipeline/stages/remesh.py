@@ -92,6 +92,8 @@ class RemeshConfig(Section):
     landmarks: Optional[str] = Field(
         None, description="landmark file carried to the remesh (as register's: JSON, CSV or "
                           "TXT; 0-based input vertex indices or x y z points)")
+    landmark_set: Optional[str] = Field(
+        None, description="JSON key of the landmark set, e.g. ibug68 (default 'landmarks')")
     distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
                                   description="random samples per surface for the distances")
 
@@ -109,6 +111,10 @@ class RemeshConfig(Section):
         if (self.vertices is None) == (self.spacing is None):
             raise ValueError("give exactly one of 'vertices' (a count) or 'spacing' (a target "
                              "edge length in the mesh's units)")
+        if self.landmark_set is not None and self.landmarks is None:
+            raise ValueError(f"landmark_set '{self.landmark_set}' names a set in a landmarks "
+                             f"file, but no landmarks file is given; give one (--landmarks) "
+                             f"or drop the set")
         return self
 
 
@@ -224,8 +230,8 @@ def _input_file_vertices(carried: dict, source_index: np.ndarray) -> dict:
             for name, d in carried.items()}
 
 
-def read_landmarks(path: str | Path, mesh: RepairedMesh, n_input: int
-                   ) -> tuple[dict, list[str]]:
+def read_landmarks(path: str | Path, mesh: RepairedMesh, n_input: int,
+                   landmark_set: str | None = None) -> tuple[dict, list[str]]:
     """The landmarks of a landmark file on the repaired mesh.
 
     Any file :func:`pipeline.io.landmarks.read_landmarks` reads (JSON, CSV or TXT; 0-based
@@ -240,6 +246,9 @@ def read_landmarks(path: str | Path, mesh: RepairedMesh, n_input: int
     mesh : RepairedMesh
     n_input : int
         The input file's vertex count.
+    landmark_set : str, optional
+        The JSON key of the set (short names: :data:`pipeline.io.landmarks.KEY_ALIASES`);
+        by default the ``"landmarks"`` entry, or the whole file where it has none.
 
     Returns
     -------
@@ -251,7 +260,8 @@ def read_landmarks(path: str | Path, mesh: RepairedMesh, n_input: int
     """
     from ..io.landmarks import read_landmarks as read_file
 
-    return _on_repaired(read_file(path), mesh, n_input, f"landmarks file '{path}'")
+    return _on_repaired(read_file(path, landmark_set), mesh, n_input,
+                        f"landmarks file '{path}'")
 
 
 def _on_repaired(lms, mesh: RepairedMesh, n_input: int, label: str) -> tuple[dict, list[str]]:
@@ -465,7 +475,8 @@ def _landmarks(ctx: Context) -> dict:
     rc, intake = ctx.section("remesh"), ctx.artifacts["intake"]
     n_input = intake.info["input_vertices"]
     if rc.landmarks is not None:
-        landmarks, messages = read_landmarks(ctx.path(rc.landmarks), intake.mesh, n_input)
+        landmarks, messages = read_landmarks(ctx.path(rc.landmarks), intake.mesh, n_input,
+                                             rc.landmark_set)
     elif intake.info.get("landmarks"):
         sample = landmarks_from_dict({"landmarks": intake.info["landmarks"]}, "sample landmarks")
         landmarks, messages = _on_repaired(sample, intake.mesh, n_input, "sample landmarks")
