@@ -153,3 +153,22 @@ def test_below_min_angle_warning_names_forcing_corners_and_counts_the_rest():
     below["input_corners"][0]["even_split_deg"] = 13.3625
     assert "26.7° corner: 1 face, 8.7° there, 13.4° in an even split); 2 that" in \
         below_min_angle_warning(below)
+
+
+def test_landmarks_section_gives_the_distances_and_every_landmark(tmp_path):
+    from pipeline.report.remesh import landmarks_html
+
+    assert landmarks_html({}, 1.0) == ""
+    carried = {"nose <tip>": {"input_vertex": 7, "vertex": 3, "distance": 0.5},
+               "chin": {"input_vertex": -1, "vertex": 9, "distance": 0.25}}
+    text = landmarks_html(carried, 2.0)
+    assert ("2 landmarks carried to the nearest remesh vertex (<code>remeshed_landmarks.json"
+            "</code>): distance from the input vertex at most 0.5, mean 0.375 (0.25 and 0.19 "
+            "target edge lengths).") in text
+    assert "<tr><th>nose &lt;tip&gt;</th><td>7</td><td>3</td><td>0.5</td></tr>" in text
+    assert "<tr><th>chin</th><td>-1</td><td>9</td><td>0.25</td></tr>" in text
+    methods = _methods()
+    page = write_report(tmp_path, methods, np.zeros((len(methods["sem"].V), 2)),
+                        methods["sem"].F, {"name": "face", "target": 400, "landmarks": carried},
+                        figures=False)[0].read_text(encoding="utf-8")
+    assert "<h2>Landmarks</h2>" in page and "target edge" not in page   # no edge length given

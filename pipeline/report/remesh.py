@@ -194,6 +194,30 @@ def write_report(folder: Path, methods: dict[str, Method], uv: np.ndarray, F: np
     return paths
 
 
+def landmarks_html(landmarks: dict, edge_length: float) -> str:
+    """The page's section on the carried landmarks (empty without any): how far each one's
+    remesh vertex is from its input vertex, also in target edge lengths ``edge_length``, and
+    a folded table of all of them.
+
+    ``landmarks``: ``{name: {"input_vertex", "vertex", "distance"}}``
+    (:attr:`pipeline.stages.remesh.Remesh.landmarks`)."""
+    from . import html as h
+
+    if not landmarks:
+        return ""
+    e = h.esc
+    d = np.array([x["distance"] for x in landmarks.values()], dtype=np.float64)
+    in_edges = (f" ({d.max() / edge_length:.2f} and {d.mean() / edge_length:.2f} target edge "
+                f"lengths)" if edge_length > 0 else "")
+    rows = "".join(f"<tr><th>{e(str(name))}</th><td>{x['input_vertex']}</td><td>{x['vertex']}"
+                   f"</td><td>{x['distance']:.4g}</td></tr>" for name, x in landmarks.items())
+    return (f"<h2>Landmarks</h2><p>{len(d)} landmarks carried to the nearest remesh vertex "
+            f"(<code>remeshed_landmarks.json</code>): distance from the input vertex at most "
+            f"{d.max():.4g}, mean {d.mean():.4g}{in_edges}.</p>\n<details><summary>each "
+            f"landmark</summary><table><thead><tr><th>name</th><th>input vertex</th><th>remesh "
+            f"vertex</th><th>distance</th></tr></thead><tbody>{rows}</tbody></table></details>\n")
+
+
 def _write_html(path: Path, rows, methods, meta, verdict, figures) -> Path:
     from . import html as h
 
@@ -320,9 +344,10 @@ splits of edges that leave the surface, {imp.get('sag_splits', 0)} here, and of 
 the input boundary vertices they cut off, {imp.get('rim_splits', 0)} here, balanced by
 collapses of the shortest edges, and a pass on faces below 20° that ends by inserting vertices at
 their off-centres) removes most but not all of it, and
-sharp features are kept only at corner
-vertices {corners}, not along creases.</p>
-{fig_html}"""
+sharp features are kept at corner
+vertices {corners} and along the creases that fold back beyond 90° or run as smooth lines of the
+shape ({imp.get('features_joined', 0)} remesh edges along them here), not along other creases.</p>
+{landmarks_html(meta.get("landmarks") or {}, imp.get("target_edge_length", 0.0))}{fig_html}"""
     return h.write_page(path, f"Remesh report: {meta.get('name', '')}", text, style=STYLE,
                         h1=f"Uniform remeshing through the SEM {domain} map: "
                            f"{meta.get('name', '')}")

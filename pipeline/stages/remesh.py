@@ -442,7 +442,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
                 "angular_distortion_mean_deg", float("nan")),
             "domain": metrics["parameterization"]["domain"],
             "distortion": pm.get("distortion", {}), "warnings": metrics["warnings"],
-            "remesh": metrics["remesh"]}
+            "remesh": metrics["remesh"], "landmarks": remesh.landmarks}
     writer = ((lambda tmp: write_report(tmp, methods, remesh.uv, remesh.F, meta, figures))
               if report else None)
     files = write_remesh(remesh, out_dir, metrics, writer)
