@@ -162,9 +162,11 @@ def test_landmarks_section_gives_the_distances_and_every_landmark(tmp_path):
     carried = {"nose <tip>": {"input_vertex": 7, "vertex": 3, "distance": 0.5},
                "chin": {"input_vertex": -1, "vertex": 9, "distance": 0.25}}
     text = landmarks_html(carried, 2.0)
-    assert ("2 landmarks carried to the nearest remesh vertex (<code>remeshed_landmarks.json"
-            "</code>): distance from the input vertex at most 0.5, mean 0.375 (0.25 and 0.19 "
-            "target edge lengths).") in text
+    assert ("2 landmarks carried to the remesh (<code>remeshed_landmarks.json</code>), 0 of "
+            "them on a vertex exactly on their input vertex; distance from the input vertex at "
+            "most 0.5, mean 0.375 (0.25 and 0.19 target edge lengths).") in text
+    carried["chin"]["distance"] = 0.0
+    assert "1 of them on a vertex exactly" in landmarks_html(carried, 2.0)
     assert "<tr><th>nose &lt;tip&gt;</th><td>7</td><td>3</td><td>0.5</td></tr>" in text
     assert "<tr><th>chin</th><td>-1</td><td>9</td><td>0.25</td></tr>" in text
     methods = _methods()

@@ -211,8 +211,9 @@ def landmarks_html(landmarks: dict, edge_length: float) -> str:
                 f"lengths)" if edge_length > 0 else "")
     rows = "".join(f"<tr><th>{e(str(name))}</th><td>{x['input_vertex']}</td><td>{x['vertex']}"
                    f"</td><td>{x['distance']:.4g}</td></tr>" for name, x in landmarks.items())
-    return (f"<h2>Landmarks</h2><p>{len(d)} landmarks carried to the nearest remesh vertex "
-            f"(<code>remeshed_landmarks.json</code>): distance from the input vertex at most "
+    return (f"<h2>Landmarks</h2><p>{len(d)} landmarks carried to the remesh "
+            f"(<code>remeshed_landmarks.json</code>), {np.count_nonzero(d == 0)} of them on a "
+            f"vertex exactly on their input vertex; distance from the input vertex at most "
             f"{d.max():.4g}, mean {d.mean():.4g}{in_edges}.</p>\n<details><summary>each "
             f"landmark</summary><table><thead><tr><th>name</th><th>input vertex</th><th>remesh "
             f"vertex</th><th>distance</th></tr></thead><tbody>{rows}</tbody></table></details>\n")
