@@ -121,6 +121,15 @@ def test_remesh_warnings_say_when_the_work_budget_ended_the_repairs():
     assert len(w) == 1 and "work budget" in w[0] and "TRIAL_WORK" in w[0]
 
 
+def test_remesh_warnings_say_the_remesh_covers_the_holes_the_intake_closed():
+    assert remesh_warnings({}, {}, holes_closed=0) == []
+    assert remesh_warnings({}, {}, holes_closed=1) == [
+        "the remesh covers the 1 hole close_holes filled with fans to a new centre vertex: it "
+        "has one boundary where the input had 2, and its surface there is the fans', not the "
+        "input's"]
+    assert "the 3 holes close_holes filled" in remesh_warnings({}, {}, holes_closed=3)[0]
+
+
 def test_remesh_warnings_name_a_vertex_count_off_the_request():
     """Within 2 % of the request: nothing; beyond it, one sentence with the count, the
     deviation and its cause (the rim's share of the samples when it is over half)."""

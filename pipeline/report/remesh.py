@@ -389,7 +389,8 @@ def below_min_angle_warning(below: dict) -> str:
 
 
 def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
-                    count: dict | None = None, trials_cut: int = 0) -> list[str]:
+                    count: dict | None = None, trials_cut: int = 0,
+                    holes_closed: int = 0) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
@@ -397,8 +398,14 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
     the faces the minimum-angle pass left (``remesh.improve.below_min_angle``); ``count``:
     ``{"requested", "vertices", "rim"}``, the vertex count asked for and made, and how many of
     the samples were on the rim; ``trials_cut``: the loops of trials the improvement's work
-    budget ended (``remesh.improve.trials_cut``)."""
+    budget ended (``remesh.improve.trials_cut``); ``holes_closed``: the input's holes the
+    intake's ``close_holes`` filled (``input.repair.holes_closed``), which the remesh covers."""
     out = []
+    if holes_closed:
+        what = "hole" if holes_closed == 1 else "holes"
+        out.append(f"the remesh covers the {holes_closed} {what} close_holes filled with fans "
+                   f"to a new centre vertex: it has one boundary where the input had "
+                   f"{holes_closed + 1}, and its surface there is the fans', not the input's")
     want = (count or {}).get("requested")
     got = (count or {}).get("vertices")
     if want and got is not None and abs(got - want) > COUNT_TOLERANCE * want:

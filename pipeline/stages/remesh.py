@@ -430,7 +430,8 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         remesh.info.get("improve", {}).get("below_min_angle"),
         {"requested": remesh.info.get("requested_vertices"), "vertices": int(len(remesh.V)),
          "rim": remesh.info.get("rim_samples")},
-        remesh.info.get("improve", {}).get("trials_cut", 0))
+        remesh.info.get("improve", {}).get("trials_cut", 0),
+        (input_info or {}).get("repair", {}).get("holes_closed", 0))
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
