@@ -603,3 +603,59 @@ def test_a_small_bowtie_scan_proxy_keeps_few_unforced_faces(monkeypatch):
     uv = remesh_map(mesh)
     r = remesh_stage(mesh, uv, RemeshConfig(vertices=2000))
     assert r.info["improve"]["below_min_angle"]["unforced_faces"] <= 4
+
+
+def test_the_faces_at_a_vertex_are_those_of_the_any_formula():
+    """:func:`.improve.faces_at_vertex` gives the indices of
+    ``np.flatnonzero((F == v).any(axis=1))``, in order, for every vertex of a random face array
+    and of a ragged paraboloid's faces, for a vertex no face has, and for one past the largest
+    index (none)."""
+    from pipeline.geometry.remesh.improve import faces_at_vertex
+
+    rng = np.random.default_rng(5)
+    _, real = ragged_paraboloid(n=30, seed=1)
+    for F in (rng.integers(0, 40, (200, 3)), real, np.array([[0, 1, 2]]), np.zeros((0, 3), int)):
+        for v in range(int(F.max(initial=-1)) + 3):
+            expected = np.flatnonzero((F == v).any(axis=1))
+            assert np.array_equal(faces_at_vertex(F, v), expected)
+    assert faces_at_vertex(np.array([[0, 1, 2], [2, 3, 0]]), 0).tolist() == [0, 1]
+    assert faces_at_vertex(np.array([[0, 1, 2], [2, 3, 0]]), 3).tolist() == [1]
+
+
+@pytest.mark.timeout(240)
+def test_rim_corner_changes_judged_on_measures_taken_once_change_nothing(monkeypatch):
+    """The ragged paraboloid of :func:`test_changes_at_unforced_rim_corners_raise_a_narrow_tooth`
+    remeshed at 600 vertices: :meth:`.improve._Operations.best_change` measures the remesh once
+    for all its attempts (:meth:`.improve._Operations.corner_measures`), which start from the
+    same remesh; the remesh is the same, vertex for vertex, as with every attempt measuring
+    it again, with fewer measures. Meanwhile every :meth:`.improve._Operations.faces_at` gives
+    the faces of ``at_points(X, point)[F].any(axis=1)``."""
+    from pipeline.geometry.remesh import improve
+    from pipeline.geometry.remesh.state import at_points
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = repair_mesh(*ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3))
+    uv = remesh_map(mesh)
+    measures, faces_at, share = [], improve._Operations.faces_at, improve._Operations.share_corner
+    measure = improve._Operations.corner_measures
+
+    def counted(ops, point, min_angle_deg):
+        measures.append(1)
+        return measure(ops, point, min_angle_deg)
+
+    def checked(ops, point):
+        found = faces_at(ops, point)
+        assert np.array_equal(found, np.flatnonzero(
+            at_points(ops.S.X, point[None])[ops.S.F].any(axis=1)))
+        return found
+
+    monkeypatch.setattr(improve._Operations, "corner_measures", counted)
+    monkeypatch.setattr(improve._Operations, "faces_at", checked)
+    once = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    n_once, measures[:] = len(measures), []
+    monkeypatch.setattr(improve._Operations, "share_corner",
+                        lambda ops, *a, measured=None, **k: share(ops, *a, **k))
+    each = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    assert np.array_equal(once.V, each.V) and np.array_equal(once.F, each.F)
+    assert 0 < n_once < len(measures)

@@ -1183,10 +1183,12 @@ class _Operations:
         """Each of ``attempts`` (``(change, held vertex)``) tried at the corner at ``point``
         (3,) from the remesh as it was and judged as :meth:`share_corner` judges a change (the
         vertex held meanwhile); the one kept that leaves the corner's faces the largest
-        smallest angle stays."""
+        smallest angle stays. The judge's measures of the remesh as it was
+        (:meth:`corner_measures`) are taken once: every attempt starts from it."""
         start, best = self.saved(), None
+        measured = self.corner_measures(point, min_angle_deg)
         for change, hold in attempts:
-            if self.share_corner(point, min_angle_deg, change, hold=hold):
+            if self.share_corner(point, min_angle_deg, change, hold=hold, measured=measured):
                 if best is None or self.smallest_at(point) > best[0]:
                     best = (self.smallest_at(point), self.saved())
                 self.restore(start)
@@ -1228,7 +1230,7 @@ class _Operations:
         return True
 
     def share_corner(self, point: np.ndarray, min_angle_deg: float, change,
-                     hold: int | None = None) -> bool:
+                     hold: int | None = None, measured: tuple | None = None) -> bool:
         """``change()`` at the corner at ``point`` (3,) (returns whether it changed anything),
         then the usual operations at the faces below ``min_angle_deg`` that no input corner
         forces within ``FORCED_REACH × L`` of the corner, the vertices their collapses removed
@@ -1237,10 +1239,12 @@ class _Operations:
         below the minimum that no input corner forces, nor as many with a smaller smallest
         angle (:func:`.circumcentres.unforced_shortfall`); the vertex ``hold`` (once ``change``
         made it), where given, locked meanwhile (the operations at the faces around it would
-        move it back). Returns whether it was kept."""
+        move it back). ``measured``: :meth:`corner_measures` of the remesh as it is, when the
+        caller knows them. Returns whether it was kept."""
         S = self.S
-        before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
-        n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
+        before, n_folds, worst = (self.corner_measures(point, min_angle_deg)
+                                  if measured is None else measured)
+        saved, n0 = self.saved(), S.n
         if not change():
             return False
         held = None if hold is None else (S.X[hold].copy(), bool(S.locked[hold]))
@@ -1255,6 +1259,16 @@ class _Operations:
             self.restore(saved)
             return False
         return True
+
+    def corner_measures(self, point: np.ndarray, min_angle_deg: float
+                        ) -> tuple[tuple[int, float], int, float]:
+        """What :meth:`share_corner` compares a change at the corner at ``point`` (3,) with:
+        the remesh's :func:`.circumcentres.unforced_shortfall` at ``min_angle_deg``, its
+        number of folds (:attr:`folds`) and the smallest angle at the corner
+        (:meth:`smallest_at`)."""
+        S = self.S
+        return (unforced_shortfall(S, min_angle_deg), int(self.folds(S).sum()),
+                self.smallest_at(point))
 
     def raise_near(self, point: np.ndarray, min_angle_deg: float, count: int) -> None:
         """The usual operations (:func:`.angles.raise_min_angles`) at the faces below
@@ -1280,7 +1294,7 @@ class _Operations:
         """The faces (indices) at the vertex at ``point`` (3,); none where no vertex is there
         (a collapse removed it)."""
         S = self.S
-        return np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
+        return np.flatnonzero(touching(S.F, at_points(S.X, point[None])))
 
     def smallest_at(self, point: np.ndarray) -> float:
         """The smallest angle (degrees) of the faces at the vertex at ``point`` (3,)
@@ -1870,7 +1884,7 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
 def link_edges(S: RemeshState, v: int) -> np.ndarray:
     """The interior half-edges of the link of vertex ``v`` (the edges of its star's faces
     opposite it that another face shares), each in its face of the star."""
-    faces = np.flatnonzero((S.F == v).any(axis=1))
+    faces = faces_at_vertex(S.F, v)
     slot = np.argmax(S.F[faces] == v, axis=1)
     h = 3 * faces + (slot + 1) % 3
     return h[S.twins()[h] >= 0]
@@ -1902,9 +1916,18 @@ def link_flip(S: RemeshState, h: int) -> bool:
 def vertex_star(F: np.ndarray, v: int) -> np.ndarray:
     """The faces of ``F`` (m×3) at vertex ``v``, each rotated so that ``v`` comes first
     (d×3, in the order of ``F``)."""
-    T = F[np.flatnonzero((F == v).any(axis=1))]
+    T = F[faces_at_vertex(F, v)]
     first = np.argmax(T == v, axis=1)
     return np.stack([T[np.arange(len(T)), (first + i) % 3] for i in range(3)], axis=1)
+
+
+def faces_at_vertex(F: np.ndarray, v: int) -> np.ndarray:
+    """The faces of ``F`` (m×3) with ``v`` among their corners (indices, in order):
+    ``np.flatnonzero((F == v).any(axis=1))`` in one compiled pass (:func:`.halfedge.touching`).
+    """
+    mark = np.zeros(max(int(F.max(initial=-1)), int(v)) + 1, bool)
+    mark[v] = True
+    return np.flatnonzero(touching(F, mark))
 
 
 def corner_key(P: np.ndarray) -> bytes:
