@@ -208,8 +208,8 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,
     so every tooth of the rim is a corner (86 snapped) and the minimum-angle pass works
     around them in round after round. Without the memo of :func:`.angles.raise_min_angles`
-    it judges 506 faces, 232 of them in surroundings judged before; with it, each of the
-    274 surroundings once (among them the forced corners' share-out's,
+    it judges 508 faces, 232 of them in surroundings judged before; with it, each of the
+    276 surroundings once (among them the forced corners' share-out's,
     :meth:`.improve._Operations.raise_forced`, the operations after a corner's middle vertex
     is put on its wedge, :meth:`.improve._Operations.aim_corner`, and after the changes at the
     unforced rim corners and the link flips, :meth:`.improve._Operations.aim_unforced` and
@@ -236,14 +236,14 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     monkeypatch.setattr(improve, "RAISE_DEG", 0.0)
     with_memo = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert with_memo.info["improve"]["rim_corners_snapped"] == 86
-    assert sum(judged) == len(set(seen)) == 274 and len(seen) == 506
+    assert sum(judged) == len(set(seen)) == 276 and len(seen) == 508
     raise_min_angles = improve.raise_min_angles
     monkeypatch.setattr(improve, "raise_min_angles",
                         lambda S, m, tol, faces, memo=None, **kw:
                         raise_min_angles(S, m, tol, faces, **kw))
     seen.clear(), judged.clear()
     without = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
-    assert sum(judged) == len(seen) == 506 and len(set(seen)) == 274
+    assert sum(judged) == len(seen) == 508 and len(set(seen)) == 276
     assert np.array_equal(without.V, with_memo.V) and np.array_equal(without.F, with_memo.F)
 
 
@@ -659,3 +659,55 @@ def test_rim_corner_changes_judged_on_measures_taken_once_change_nothing(monkeyp
     each = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     assert np.array_equal(once.V, each.V) and np.array_equal(once.F, each.F)
     assert 0 < n_once < len(measures)
+
+
+def test_the_corner_a_rim_edge_cuts_off_farthest_is_found_ragged_or_not():
+    """The bumped disk of the rim tests (6 boundary vertices raised 0.05, each in the middle of
+    a rim chord), the raised ones ragged: :func:`.rim.rim_gaps` passes over them by default
+    and finds them with nothing skipped; :meth:`.improve._Operations.cut_off_corners` gives,
+    for each such chord from either end, the other end and the raised vertex's polygon
+    corner, and nothing where that corner is within ``SLIVER × L`` of an end."""
+    from pipeline.geometry.remesh.improve import _Operations
+    from pipeline.geometry.remesh.rim import rim_corners, rim_gaps
+
+    S, raised = bumped_rim_state(6, 0.05)
+    loop = topo.boundary_loops(S.F_in)[0]
+    S.ragged = np.isin(loop, raised)
+    corners_X, corner_s = S.of_input(rim_corners)
+    corner = rim_gaps(S, corners_X, corner_s)[3]
+    assert (corner >= 0).all() and not np.isin(loop[corner], raised).any()
+    _, a, b, corner, gap = rim_gaps(S, corners_X, corner_s, skip=np.zeros(len(loop), bool))
+    tips = np.flatnonzero(np.isin(loop[corner], raised))
+    assert sorted(loop[corner[tips]]) == sorted(raised) and (gap[tips] > 0.05).all()
+    ops = _Operations(S, L=0.26, flips=True, max_dihedral_deg=60.0, relax_step=0.5,
+                      refine_sag=0.0)
+    for r in tips:
+        for c, x in ((a[r], b[r]), (b[r], a[r])):
+            (end, point), = ops.cut_off_corners(int(c), [int(x)])
+            assert end == x and np.array_equal(point, S.polygon[corner[r]])
+    ops.L = 10.0
+    assert ops.cut_off_corners(int(a[tips[0]]), [int(b[tips[0]])]) == []
+
+
+@pytest.mark.timeout(120)
+def test_a_rim_vertex_at_a_cut_off_tooth_tip_raises_a_rim_corner(monkeypatch):
+    """The ragged paraboloid of seed 3 (80×80 grid, 4 passes dropping 0.4 of the rim's faces)
+    remeshed at 600 vertices: among the changes at the rim corners of faces below 20° that no
+    input corner forces, the splits of the corner's rim edges at the input boundary vertex each
+    cuts off farthest (:meth:`.improve._Operations.cut_off_corners`: a tooth's tip the rim
+    crosses) leave 1 such face of 3 below 20°; without them 2 of 4. Neither has a face turned
+    over by the report's test."""
+    from pipeline.geometry.remesh import improve
+    from pipeline.geometry.remesh_quality import surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = repair_mesh(*ragged_paraboloid(n=80, seed=3, passes=4, drop=0.4))
+    uv = remesh_map(mesh)
+    tips = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    monkeypatch.setattr(improve._Operations, "cut_off_corners", lambda ops, c, ends: [])
+    without = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    below = [r.info["improve"]["below_min_angle"] for r in (tips, without)]
+    assert [(b["faces"], b["unforced_faces"]) for b in below] == [(3, 1), (4, 2)]
+    assert all(surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
+               for r in (tips, without))

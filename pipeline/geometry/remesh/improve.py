@@ -130,10 +130,11 @@ The schedule (:func:`improve_remesh`):
     :mod:`.wedge`), judged the same way; then at each rim corner where a face below the
     minimum that no input corner forces has its smallest angle (a narrow tooth of a ragged
     rim, its input corner a little wider than two faces of the minimum), the same wedge's
-    changes where it has two faces and splits of its rim edges at ``RIM_SPLIT_TS`` along them
-    on the input's rim, one and both, judged the same way, the vertices added given back by
-    guarded collapses where that leaves no more or worse such faces and no more folds
-    (:meth:`_Operations.aim_unforced`).
+    changes where it has two faces, splits of its rim edges at ``RIM_SPLIT_TS`` along them
+    on the input's rim, one and both, and at the input boundary vertex each cuts off
+    farthest (a tooth's tip the rim crosses), one and both, judged the same way, the vertices
+    added given back by guarded collapses where that leaves no more or worse such faces and
+    no more folds (:meth:`_Operations.aim_unforced`).
     A face none of this raises stays: the report counts the faces below the minimum and,
     among them, those an input corner forces, naming the corners (with the even split of each
     corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
@@ -220,7 +221,7 @@ from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, touching
 from .refine import (SAG_SAMPLES, polygon_segments, refine_by_sag, split_edges,
                      split_long_edges)
 from .relax import tangential_smoothing
-from .rim import RIM_TOL, open_rim_fans, refine_rim
+from .rim import RIM_TOL, open_rim_fans, refine_rim, rim_corners, rim_gaps
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 from .unfold import star_positions, turned_over_rows, unfold_locally
@@ -1138,7 +1139,11 @@ class _Operations:
         :meth:`aim_corner`'s wedge (:meth:`wedge_attempts`); and the split of each of its two
         rim edges at ``RIM_SPLIT_TS`` along it from ``c`` (:meth:`split_rim_edges`: the new
         vertex on the input's rim, where it leaves a wider angle at ``c`` where the rim
-        bulges out beside it), and of both together. Each is ``(change, held vertex)``."""
+        bulges out beside it), and of both together; and the split of each at the input
+        boundary vertex it cuts off farthest (:meth:`cut_off_corners`: a new rim vertex at the
+        tip of a tooth the rim crosses, ragged ones among them, where ``c``'s angle is the
+        narrower for the rim edge cutting across the tooth), and of both together. Each is
+        ``(change, held vertex)``."""
         S = self.S
         star = vertex_star(S.F, c)
         fan = two_face_fan(star)
@@ -1147,8 +1152,32 @@ class _Operations:
         ends = [int(x) for x in ends[S.is_rim[ends]]]
         attempts += [(partial(self.split_rim_edges, c, [x], t), None)
                      for x in ends for t in RIM_SPLIT_TS]
-        return attempts + [(partial(self.split_rim_edges, c, ends, t), None)
-                           for t in RIM_SPLIT_TS if len(ends) == 2]
+        attempts += [(partial(self.split_rim_edges, c, ends, t), None)
+                     for t in RIM_SPLIT_TS if len(ends) == 2]
+        tips = self.cut_off_corners(c, ends)
+        attempts += [(partial(self.split_rim_edges_at, c, [tip]), None) for tip in tips]
+        return attempts + ([(partial(self.split_rim_edges_at, c, tips), None)]
+                           if len(tips) == 2 else [])
+
+    def cut_off_corners(self, c: int, ends: list) -> list:
+        """For the rim edge from ``c`` to each of ``ends``, the input boundary vertex (a polygon
+        corner, ragged ones among them) that the edge cuts off farthest from it
+        (:func:`.rim.rim_gaps`): the tip of a tooth the rim crosses. None for an edge that cuts
+        none off or whose corner is within ``SLIVER × L`` of an end (a needle). Returns
+        ``(end, domain point)`` pairs (the point (2,) a corner of ``S.polygon``)."""
+        S = self.S
+        corners_X, corner_s = S.of_input(rim_corners)
+        _, a, b, corner, gap = rim_gaps(S, corners_X, corner_s,
+                                        skip=np.zeros(len(S.polygon), bool))
+        out = []
+        for x in ends:
+            row = np.flatnonzero(((a == c) & (b == x)) | ((a == x) & (b == c)))
+            if len(row) == 0 or gap[row[0]] <= 0:
+                continue
+            k = corner[row[0]]
+            if min(norms(corners_X[[k, k]] - S.X[[c, x]])) >= SLIVER * self.L:
+                out.append((x, S.polygon[k]))
+        return out
 
     def aim_corner(self, point: np.ndarray, min_angle_deg: float) -> None:
         """At a rim corner (the vertex at ``point``, 3,) with two faces whose smallest angle is
@@ -1202,11 +1231,18 @@ class _Operations:
         it from ``c`` (:meth:`split_middle_edge`); all undone, returning False, where one is
         refused."""
         S = self.S
+        M = np.array([(1.0 - t) * S.uv[c] + t * S.uv[x] for x in ends])
+        _, _, M = S.of_input(polygon_segments).closest(M)
+        return self.split_rim_edges_at(c, list(zip(ends, M)))
+
+    def split_rim_edges_at(self, c: int, splits: list) -> bool:
+        """Split the rim edge from ``c`` to each ``end`` of ``splits`` (``(end, domain point)``
+        pairs) with a new rim vertex at its point (:meth:`split_middle_edge`); all undone,
+        returning False, where one is refused."""
+        S = self.S
         saved = saved_state(S)
-        for x in ends:
-            M = (1.0 - t) * S.uv[c] + t * S.uv[x]
-            _, _, M = S.of_input(polygon_segments).closest(M[None])
-            if not self.split_middle_edge(c, x, M[0]):
+        for x, M in splits:
+            if not self.split_middle_edge(c, x, M):
                 restore_state(S, saved)
                 return False
         return True
