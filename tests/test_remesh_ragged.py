@@ -711,3 +711,32 @@ def test_a_rim_vertex_at_a_cut_off_tooth_tip_raises_a_rim_corner(monkeypatch):
     assert [(b["faces"], b["unforced_faces"]) for b in below] == [(3, 1), (4, 2)]
     assert all(surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
                for r in (tips, without))
+
+
+@pytest.mark.timeout(120)
+def test_a_pair_of_link_flips_mends_a_face_no_single_flip_does(monkeypatch):
+    """The noisy ragged paraboloid (60×60 grid, seed 4, 3 passes dropping 0.3 of the rim's
+    faces) remeshed at 600 vertices: where no single link flip at a free corner of a face
+    below 20° that no input corner forces is kept, a pair of them
+    (:meth:`.improve._Operations.flip_and_move`, :meth:`.improve._Operations.best_flips`)
+    leaves no such face, 6 below 20°; without pairs 1 of 7. Both keep 600 vertices and the
+    same faces turned over by the report's test."""
+    from pipeline.geometry.remesh import improve
+    from pipeline.geometry.remesh_quality import surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = repair_mesh(*noisy_ragged_paraboloid(60, seed=4, passes=3, drop=0.3))
+    uv = remesh_map(mesh)
+    pairs = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    best_flips = improve._Operations.best_flips
+    monkeypatch.setattr(improve._Operations, "best_flips",
+                        lambda ops, v, judge, flips, best=None:
+                        best if flips == 2 else best_flips(ops, v, judge, flips, best))
+    singles = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
+    below = [r.info["improve"]["below_min_angle"] for r in (pairs, singles)]
+    assert [(b["faces"], b["unforced_faces"]) for b in below] == [(6, 0), (7, 1)]
+    assert pairs.info["improve"]["link_flip_pairs"] >= 1
+    assert len(pairs.V) == len(singles.V) == 600
+    d = [surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] for r in (pairs, singles)]
+    assert d[0] <= d[1]

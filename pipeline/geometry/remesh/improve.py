@@ -996,29 +996,55 @@ class _Operations:
         forces). Where a ragged rim's tooth is narrower than the remesh, ``v`` can have
         rim vertices all round (a rim cap), or some rim-to-rim edges in its link, whose star no
         position of ``v`` makes wide enough, which no collapse may remove (a face with three
-        rim corners) and whose link edges no flip judged on its own angles opens. Returns
-        whether one was kept."""
+        rim corners) and whose link edges no flip judged on its own angles opens. Where no
+        single flip is kept, each pair of flips (a link edge, then one of the link after it)
+        is tried the same way: beside a rim cap, a reflex rim vertex can need two of its
+        neighbour's link edges opened at once. Returns whether one was kept."""
         S = self.S
-        start, n_folds = self.saved(), int(self.folds(S).sum())
-        best, smallest = None, float(np.degrees(min_corner_angles(S.X, S.F)).min())
-        for h in link_edges(S, v):
-            if not link_flip(S, int(h)):
-                continue
-            point = S.X[v].copy()
-            self.move_to_best(v, min_angle_deg)
-            self.raise_near(point, min_angle_deg, S.n)
-            after = shortfall_order(unforced_shortfall(S, min_angle_deg))
-            if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
-                    (best is None or after < best[0]) and \
-                    np.degrees(min_corner_angles(S.X, S.F)).min() >= smallest:
-                best = (after, self.saved())
-            self.restore(start)
-            start = self.saved()                 # (restore puts the saved arrays themselves)
+        judge = partial(self.judge_flipped, v, min_angle_deg, before, int(self.folds(S).sum()),
+                        float(np.degrees(min_corner_angles(S.X, S.F)).min()))
+        best = self.best_flips(v, judge, 1)
+        pairs = best is None
+        if pairs:
+            best = self.best_flips(v, judge, 2)
         if best is None:
             return False
         self.restore(best[1])
-        S.tally("link_flips", 1)
+        S.tally("link_flip_pairs" if pairs else "link_flips", 1)
         return True
+
+    def best_flips(self, v: int, judge, flips: int, best: tuple | None = None
+                   ) -> tuple | None:
+        """Each sequence of ``flips`` flips of interior link edges of ``v`` (:func:`link_edges`,
+        :func:`link_flip`; each after the one before it), then ``judge(best)`` (the best so
+        far, :meth:`judge_flipped`), the remesh put back after each. Returns the best."""
+        S = self.S
+        start = self.saved()
+        for h in link_edges(S, v):
+            if not link_flip(S, int(h)):
+                continue
+            best = judge(best) if flips == 1 else self.best_flips(v, judge, flips - 1, best)
+            self.restore(start)
+            start = self.saved()                 # (restore puts the saved arrays themselves)
+        return best
+
+    def judge_flipped(self, v: int, min_angle_deg: float, before: tuple[int, float],
+                      n_folds: int, smallest: float, best: tuple | None) -> tuple | None:
+        """After flips at ``v``: ``v`` moved to the best point of its star
+        (:meth:`move_to_best`) and the local operations near where it was (:meth:`raise_near`);
+        the remesh's shortfall order and state (:meth:`saved`) where they beat ``before`` and
+        ``best`` (``(shortfall order, state)`` or None) with no more than ``n_folds`` folds and
+        no smallest angle below ``smallest``; else ``best``."""
+        S = self.S
+        point = S.X[v].copy()
+        self.move_to_best(v, min_angle_deg)
+        self.raise_near(point, min_angle_deg, S.n)
+        after = shortfall_order(unforced_shortfall(S, min_angle_deg))
+        if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
+                (best is None or after < best[0]) and \
+                np.degrees(min_corner_angles(S.X, S.F)).min() >= smallest:
+            return after, self.saved()
+        return best
 
     def move_to_best(self, v: int, min_angle_deg: float) -> bool:
         """Vertex ``v`` moved to the point of its star first in :func:`star_order` among those
