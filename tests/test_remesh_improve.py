@@ -417,3 +417,27 @@ def test_raise_groups_are_undone_where_the_judge_finds_them_worse(seed):
     quiet, _ = _raised_pushed_flat(seed, lambda S: lambda T: (np.full(len(T), np.inf),
                                                               np.zeros((len(T), 1))))
     assert np.array_equal(quiet.X, S.X) and np.array_equal(quiet.F, S.F)
+
+
+def test_best_flips_tries_each_flip_then_each_pair_and_puts_the_remesh_back():
+    """The flat disk's 37-vertex remesh, its centre with 6 faces: one link flip
+    (:meth:`.improve._Operations.best_flips`) at a time gives it a 7th face, 6 ways; two
+    give it 8, 36 ways (each of the 6 flips, then each of the 6 link edges of the 7 after it
+    that may flip). The remesh is put back after each, and the best the judge hands back is
+    threaded through to the end (here the first state judged)."""
+    from pipeline.geometry.remesh.improve import _Operations
+
+    S = _flat_or_tent_state(0.0)
+    ops = _Operations(S, L=0.3, flips=True, max_dihedral_deg=60.0, relax_step=0.5,
+                      refine_sag=0.0)
+    F0, seen = S.F.copy(), []
+
+    def judge(best):
+        seen.append(int((S.F == 0).any(axis=1).sum()))
+        return best if best is not None else S.F.copy()
+
+    for flips, faces, ways in ((1, 7, 6), (2, 8, 36)):
+        seen.clear()
+        first = ops.best_flips(0, judge, flips)
+        assert seen == [faces] * ways and np.array_equal(S.F, F0)
+        assert (first == 0).any(axis=1).sum() == faces and not np.array_equal(first, F0)

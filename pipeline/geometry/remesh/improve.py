@@ -131,10 +131,11 @@ The schedule (:func:`improve_remesh`):
     :mod:`.wedge`), judged the same way; then at each rim corner where a face below the
     minimum that no input corner forces has its smallest angle (a narrow tooth of a ragged
     rim, its input corner a little wider than two faces of the minimum), the same wedge's
-    changes where it has two faces and splits of its rim edges at ``RIM_SPLIT_TS`` along them
-    on the input's rim, one and both, judged the same way, the vertices added given back by
-    guarded collapses where that leaves no more or worse such faces and no more folds
-    (:meth:`_Operations.aim_unforced`).
+    changes where it has two faces, splits of its rim edges at ``RIM_SPLIT_TS`` along them
+    on the input's rim, one and both, and at the input boundary vertex each cuts off
+    farthest (a tooth's tip the rim crosses), one and both, judged the same way, the vertices
+    added given back by guarded collapses where that leaves no more or worse such faces and
+    no more folds (:meth:`_Operations.aim_unforced`).
     A face none of this raises stays: the report counts the faces below the minimum and,
     among them, those an input corner forces, naming the corners (with the even split of each
     corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
@@ -221,7 +222,7 @@ from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, touching
 from .refine import (SAG_SAMPLES, polygon_segments, refine_by_sag, split_edges,
                      split_long_edges)
 from .relax import tangential_smoothing
-from .rim import RIM_TOL, open_rim_fans, refine_rim
+from .rim import RIM_TOL, open_rim_fans, refine_rim, rim_corners, rim_gaps
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 from .unfold import star_positions, turned_over_rows, unfold_locally
@@ -1005,29 +1006,55 @@ class _Operations:
         forces). Where a ragged rim's tooth is narrower than the remesh, ``v`` can have
         rim vertices all round (a rim cap), or some rim-to-rim edges in its link, whose star no
         position of ``v`` makes wide enough, which no collapse may remove (a face with three
-        rim corners) and whose link edges no flip judged on its own angles opens. Returns
-        whether one was kept."""
+        rim corners) and whose link edges no flip judged on its own angles opens. Where no
+        single flip is kept, each pair of flips (a link edge, then one of the link after it)
+        is tried the same way: beside a rim cap, a reflex rim vertex can need two of its
+        neighbour's link edges opened at once. Returns whether one was kept."""
         S = self.S
-        start, n_folds = self.saved(), int(self.folds(S).sum())
-        best, smallest = None, float(np.degrees(min_corner_angles(S.X, S.F)).min())
-        for h in link_edges(S, v):
-            if not link_flip(S, int(h)):
-                continue
-            point = S.X[v].copy()
-            self.move_to_best(v, min_angle_deg)
-            self.raise_near(point, min_angle_deg, S.n)
-            after = shortfall_order(unforced_shortfall(S, min_angle_deg))
-            if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
-                    (best is None or after < best[0]) and \
-                    np.degrees(min_corner_angles(S.X, S.F)).min() >= smallest:
-                best = (after, self.saved())
-            self.restore(start)
-            start = self.saved()                 # (restore puts the saved arrays themselves)
+        judge = partial(self.judge_flipped, v, min_angle_deg, before, int(self.folds(S).sum()),
+                        float(np.degrees(min_corner_angles(S.X, S.F)).min()))
+        best = self.best_flips(v, judge, 1)
+        pairs = best is None
+        if pairs:
+            best = self.best_flips(v, judge, 2)
         if best is None:
             return False
         self.restore(best[1])
-        S.tally("link_flips", 1)
+        S.tally("link_flip_pairs" if pairs else "link_flips", 1)
         return True
+
+    def best_flips(self, v: int, judge, flips: int, best: tuple | None = None
+                   ) -> tuple | None:
+        """Each sequence of ``flips`` flips of interior link edges of ``v`` (:func:`link_edges`,
+        :func:`link_flip`; each after the one before it), then ``judge(best)`` (the best so
+        far, :meth:`judge_flipped`), the remesh put back after each. Returns the best."""
+        S = self.S
+        start = self.saved()
+        for h in link_edges(S, v):
+            if not link_flip(S, int(h)):
+                continue
+            best = judge(best) if flips == 1 else self.best_flips(v, judge, flips - 1, best)
+            self.restore(start)
+            start = self.saved()                 # (restore puts the saved arrays themselves)
+        return best
+
+    def judge_flipped(self, v: int, min_angle_deg: float, before: tuple[int, float],
+                      n_folds: int, smallest: float, best: tuple | None) -> tuple | None:
+        """After flips at ``v``: ``v`` moved to the best point of its star
+        (:meth:`move_to_best`) and the local operations near where it was (:meth:`raise_near`);
+        the remesh's shortfall order and state (:meth:`saved`) where they beat ``before`` and
+        ``best`` (``(shortfall order, state)`` or None) with no more than ``n_folds`` folds and
+        no smallest angle below ``smallest``; else ``best``."""
+        S = self.S
+        point = S.X[v].copy()
+        self.move_to_best(v, min_angle_deg)
+        self.raise_near(point, min_angle_deg, S.n)
+        after = shortfall_order(unforced_shortfall(S, min_angle_deg))
+        if after < shortfall_order(before) and self.folds(S).sum() <= n_folds and \
+                (best is None or after < best[0]) and \
+                np.degrees(min_corner_angles(S.X, S.F)).min() >= smallest:
+            return after, self.saved()
+        return best
 
     def move_to_best(self, v: int, min_angle_deg: float) -> bool:
         """Vertex ``v`` moved to the point of its star first in :func:`star_order` among those
@@ -1148,7 +1175,11 @@ class _Operations:
         :meth:`aim_corner`'s wedge (:meth:`wedge_attempts`); and the split of each of its two
         rim edges at ``RIM_SPLIT_TS`` along it from ``c`` (:meth:`split_rim_edges`: the new
         vertex on the input's rim, where it leaves a wider angle at ``c`` where the rim
-        bulges out beside it), and of both together. Each is ``(change, held vertex)``."""
+        bulges out beside it), and of both together; and the split of each at the input
+        boundary vertex it cuts off farthest (:meth:`cut_off_corners`: a new rim vertex at the
+        tip of a tooth the rim crosses, ragged ones among them, where ``c``'s angle is the
+        narrower for the rim edge cutting across the tooth), and of both together. Each is
+        ``(change, held vertex)``."""
         S = self.S
         star = vertex_star(S.F, c)
         fan = two_face_fan(star)
@@ -1157,8 +1188,32 @@ class _Operations:
         ends = [int(x) for x in ends[S.is_rim[ends]]]
         attempts += [(partial(self.split_rim_edges, c, [x], t), None)
                      for x in ends for t in RIM_SPLIT_TS]
-        return attempts + [(partial(self.split_rim_edges, c, ends, t), None)
-                           for t in RIM_SPLIT_TS if len(ends) == 2]
+        attempts += [(partial(self.split_rim_edges, c, ends, t), None)
+                     for t in RIM_SPLIT_TS if len(ends) == 2]
+        tips = self.cut_off_corners(c, ends)
+        attempts += [(partial(self.split_rim_edges_at, c, [tip]), None) for tip in tips]
+        return attempts + ([(partial(self.split_rim_edges_at, c, tips), None)]
+                           if len(tips) == 2 else [])
+
+    def cut_off_corners(self, c: int, ends: list) -> list:
+        """For the rim edge from ``c`` to each of ``ends``, the input boundary vertex (a polygon
+        corner, ragged ones among them) that the edge cuts off farthest from it
+        (:func:`.rim.rim_gaps`): the tip of a tooth the rim crosses. None for an edge that cuts
+        none off or whose corner is within ``SLIVER × L`` of an end (a needle). Returns
+        ``(end, domain point)`` pairs (the point (2,) a corner of ``S.polygon``)."""
+        S = self.S
+        corners_X, corner_s = S.of_input(rim_corners)
+        _, a, b, corner, gap = rim_gaps(S, corners_X, corner_s,
+                                        skip=np.zeros(len(S.polygon), bool))
+        out = []
+        for x in ends:
+            row = np.flatnonzero(((a == c) & (b == x)) | ((a == x) & (b == c)))
+            if len(row) == 0 or gap[row[0]] <= 0:
+                continue
+            k = corner[row[0]]
+            if min(norms(corners_X[[k, k]] - S.X[[c, x]])) >= SLIVER * self.L:
+                out.append((x, S.polygon[k]))
+        return out
 
     def aim_corner(self, point: np.ndarray, min_angle_deg: float) -> None:
         """At a rim corner (the vertex at ``point``, 3,) with two faces whose smallest angle is
@@ -1193,10 +1248,12 @@ class _Operations:
         """Each of ``attempts`` (``(change, held vertex)``) tried at the corner at ``point``
         (3,) from the remesh as it was and judged as :meth:`share_corner` judges a change (the
         vertex held meanwhile); the one kept that leaves the corner's faces the largest
-        smallest angle stays."""
+        smallest angle stays. The judge's measures of the remesh as it was
+        (:meth:`corner_measures`) are taken once: every attempt starts from it."""
         start, best = self.saved(), None
+        measured = self.corner_measures(point, min_angle_deg)
         for change, hold in attempts:
-            if self.share_corner(point, min_angle_deg, change, hold=hold):
+            if self.share_corner(point, min_angle_deg, change, hold=hold, measured=measured):
                 if best is None or self.smallest_at(point) > best[0]:
                     best = (self.smallest_at(point), self.saved())
                 self.restore(start)
@@ -1210,11 +1267,18 @@ class _Operations:
         it from ``c`` (:meth:`split_middle_edge`); all undone, returning False, where one is
         refused."""
         S = self.S
+        M = np.array([(1.0 - t) * S.uv[c] + t * S.uv[x] for x in ends])
+        _, _, M = S.of_input(polygon_segments).closest(M)
+        return self.split_rim_edges_at(c, list(zip(ends, M)))
+
+    def split_rim_edges_at(self, c: int, splits: list) -> bool:
+        """Split the rim edge from ``c`` to each ``end`` of ``splits`` (``(end, domain point)``
+        pairs) with a new rim vertex at its point (:meth:`split_middle_edge`); all undone,
+        returning False, where one is refused."""
+        S = self.S
         saved = saved_state(S)
-        for x in ends:
-            M = (1.0 - t) * S.uv[c] + t * S.uv[x]
-            _, _, M = S.of_input(polygon_segments).closest(M[None])
-            if not self.split_middle_edge(c, x, M[0]):
+        for x, M in splits:
+            if not self.split_middle_edge(c, x, M):
                 restore_state(S, saved)
                 return False
         return True
@@ -1238,7 +1302,7 @@ class _Operations:
         return True
 
     def share_corner(self, point: np.ndarray, min_angle_deg: float, change,
-                     hold: int | None = None) -> bool:
+                     hold: int | None = None, measured: tuple | None = None) -> bool:
         """``change()`` at the corner at ``point`` (3,) (returns whether it changed anything),
         then the usual operations at the faces below ``min_angle_deg`` that no input corner
         forces within ``FORCED_REACH × L`` of the corner, the vertices their collapses removed
@@ -1247,10 +1311,12 @@ class _Operations:
         below the minimum that no input corner forces, nor as many with a smaller smallest
         angle (:func:`.circumcentres.unforced_shortfall`); the vertex ``hold`` (once ``change``
         made it), where given, locked meanwhile (the operations at the faces around it would
-        move it back). Returns whether it was kept."""
+        move it back). ``measured``: :meth:`corner_measures` of the remesh as it is, when the
+        caller knows them. Returns whether it was kept."""
         S = self.S
-        before, saved = unforced_shortfall(S, min_angle_deg), self.saved()
-        n_folds, n0, worst = int(self.folds(S).sum()), S.n, self.smallest_at(point)
+        before, n_folds, worst = (self.corner_measures(point, min_angle_deg)
+                                  if measured is None else measured)
+        saved, n0 = self.saved(), S.n
         if not change():
             return False
         held = None if hold is None else (S.X[hold].copy(), bool(S.locked[hold]))
@@ -1265,6 +1331,16 @@ class _Operations:
             self.restore(saved)
             return False
         return True
+
+    def corner_measures(self, point: np.ndarray, min_angle_deg: float
+                        ) -> tuple[tuple[int, float], int, float]:
+        """What :meth:`share_corner` compares a change at the corner at ``point`` (3,) with:
+        the remesh's :func:`.circumcentres.unforced_shortfall` at ``min_angle_deg``, its
+        number of folds (:attr:`folds`) and the smallest angle at the corner
+        (:meth:`smallest_at`)."""
+        S = self.S
+        return (unforced_shortfall(S, min_angle_deg), int(self.folds(S).sum()),
+                self.smallest_at(point))
 
     def raise_near(self, point: np.ndarray, min_angle_deg: float, count: int) -> None:
         """The usual operations (:func:`.angles.raise_min_angles`) at the faces below
@@ -1290,7 +1366,7 @@ class _Operations:
         """The faces (indices) at the vertex at ``point`` (3,); none where no vertex is there
         (a collapse removed it)."""
         S = self.S
-        return np.flatnonzero(at_points(S.X, point[None])[S.F].any(axis=1))
+        return np.flatnonzero(touching(S.F, at_points(S.X, point[None])))
 
     def smallest_at(self, point: np.ndarray) -> float:
         """The smallest angle (degrees) of the faces at the vertex at ``point`` (3,)
@@ -1880,7 +1956,7 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
 def link_edges(S: RemeshState, v: int) -> np.ndarray:
     """The interior half-edges of the link of vertex ``v`` (the edges of its star's faces
     opposite it that another face shares), each in its face of the star."""
-    faces = np.flatnonzero((S.F == v).any(axis=1))
+    faces = faces_at_vertex(S.F, v)
     slot = np.argmax(S.F[faces] == v, axis=1)
     h = 3 * faces + (slot + 1) % 3
     return h[S.twins()[h] >= 0]
@@ -1912,9 +1988,18 @@ def link_flip(S: RemeshState, h: int) -> bool:
 def vertex_star(F: np.ndarray, v: int) -> np.ndarray:
     """The faces of ``F`` (m×3) at vertex ``v``, each rotated so that ``v`` comes first
     (d×3, in the order of ``F``)."""
-    T = F[np.flatnonzero((F == v).any(axis=1))]
+    T = F[faces_at_vertex(F, v)]
     first = np.argmax(T == v, axis=1)
     return np.stack([T[np.arange(len(T)), (first + i) % 3] for i in range(3)], axis=1)
+
+
+def faces_at_vertex(F: np.ndarray, v: int) -> np.ndarray:
+    """The faces of ``F`` (m×3) with ``v`` among their corners (indices, in order):
+    ``np.flatnonzero((F == v).any(axis=1))`` in one compiled pass (:func:`.halfedge.touching`).
+    """
+    mark = np.zeros(max(int(F.max(initial=-1)), int(v)) + 1, bool)
+    mark[v] = True
+    return np.flatnonzero(touching(F, mark))
 
 
 def corner_key(P: np.ndarray) -> bytes:

@@ -44,9 +44,11 @@ def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray
     return norms(P - (A + t[:, None] * e))
 
 
-def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
+def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray,
+             skip: np.ndarray | None = None):
     """For every rim edge of ``S``, the input boundary vertex (polygon corner) farthest from it
-    among those the polygon passes between its ends.
+    among those the polygon passes between its ends, none of ``skip`` (k bool; default
+    ``S.ragged``).
 
     Parameters
     ----------
@@ -61,7 +63,7 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     h, a, b : (r,) int
         The rim half-edges ``a → b`` (counter-clockwise, as the polygon runs) and their ends.
     corner : (r,) int
-        The farthest corner of each, none of ``S.ragged`` (−1 where the polygon has none
+        The farthest corner of each, none of ``skip`` (−1 where the polygon has none
         between the ends).
     gap : (r,) float
         Its distance to the chord ``X[a]``–``X[b]`` (0 where there is none).
@@ -73,7 +75,8 @@ def rim_gaps(S: RemeshState, corners_X: np.ndarray, corner_s: np.ndarray):
     order = np.argsort(s_a, kind="stable")
     # the rim edge each corner falls on: the last one starting at or before it (cyclically)
     e = order[(np.searchsorted(s_a[order], corner_s, side="right") - 1) % len(order)]
-    d = np.where(S.ragged, -1.0, segment_distances(corners_X, S.X[a[e]], S.X[b[e]]))
+    d = np.where(S.ragged if skip is None else skip, -1.0,
+                 segment_distances(corners_X, S.X[a[e]], S.X[b[e]]))
     corner = np.full(len(h), -1, np.int64)
     gap = np.zeros(len(h))
     by = np.lexsort((-d, e))                    # per edge, the farthest corner first
