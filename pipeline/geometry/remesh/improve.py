@@ -1489,13 +1489,13 @@ class _Operations:
         minimum-angle operations around the faces below ``min_angle_deg`` (:meth:`raise_angles`,
         :meth:`last_resort`) and the free corners of those that no input corner forces moved
         (:meth:`move_each`); undone unless that leaves fewer folds and no more or worse such
-        faces (:func:`.circumcentres.unforced_shortfall`). The groups of folds
-        :meth:`unfold_kept` put back, their operations judged where the faces around them were
-        still below the minimum, may be undone once the passes after it have raised those;
-        and at a ragged rim's notch end beside a locked spike tip, the only pair of operations
-        that undoes the fold (the notch end's rim vertex removed, then a flip) makes a face
-        below the minimum, which the earlier repairs' floor refuses and the operations after
-        it can raise."""
+        faces (:func:`.circumcentres.unforced_shortfall`). The folds :meth:`unfold_kept`
+        leaves (its groups put back, or made by the refinements after it) may have an undoing
+        once the passes after it have changed the faces around them; and at a ragged rim's
+        notch end beside a locked spike tip, the only pairs of operations that undo the fold
+        (a rim collapse and an operation after it, :meth:`.unfold._FoldPatch.two_step`) make a
+        face below the minimum, which the earlier repairs' floor refuses and the operations
+        after them can raise."""
         S = self.S
         n_folds = int(self.folds(S).sum())
         if n_folds == 0:
