@@ -339,3 +339,69 @@ def test_fold_repair_makes_no_face_degenerate_on_the_surface():
     a, b, c = new[0]
     S.X[c] = S.X[b]                                   # two corners at one point
     assert patch.better(old, new) is None
+
+
+def _folded_operations(rings: int = 8) -> _Operations:
+    """The operations of the improvement on the coarse remesh of the sheared disk with
+    ``rings`` rings (folds in the plane), no vertex locked."""
+    uv_in, F_in, V_in, loop, locator = _sheared_disk()
+    S, _ = coarse_state(uv_in, F_in, V_in, loop, locator, rings)
+    S.locked = np.zeros(S.n, bool)
+    return _Operations(S, 1 / rings, True, 20.0, 0.5, 0.2)
+
+
+def test_folds_left_at_the_end_are_undone_once_more_and_kept_where_fewer():
+    """On the sheared disk the folds left once more (:meth:`_Operations.unfold_left`): none is
+    left and the faces below 20° that no input corner forces are no more or worse than
+    before; the vertices stay the lifts of their disk positions."""
+    from pipeline.geometry.remesh.circumcentres import shortfall_order, unforced_shortfall
+
+    ops = _folded_operations()
+    S = ops.S
+    assert len(turned_over_faces(S)) > 0
+    before = shortfall_order(unforced_shortfall(S, 20.0))
+    ops.unfold_left(20.0)
+    assert len(turned_over_faces(S)) == 0
+    assert shortfall_order(unforced_shortfall(S, 20.0)) <= before
+    assert np.allclose(S.X, lift(S.V_in, S.F_in, S.face, S.bary))
+
+
+@pytest.mark.parametrize("turn", [False, True])
+def test_folds_left_at_the_end_are_put_back_where_the_operations_leave_as_many(monkeypatch,
+                                                                                 turn):
+    """Where the operations after the minimum-angle pass leave as many folds (a no-op) or
+    more (the corners of a face not turned over swapped: it turns over), the remesh, its log
+    and its fold counts are put back bit for bit."""
+    ops = _folded_operations()
+    S = ops.S
+
+    def operations(bad, min_angle_deg, floor):
+        assert bad is None and floor == 0.0
+        if turn:
+            f = np.setdiff1d(np.arange(len(S.F)), turned_over_faces(S))[0]
+            S.F[f] = S.F[f, [0, 2, 1]]
+            S.set_faces(S.F)
+        S.tally("fold_operations", 1)
+
+    monkeypatch.setattr(_Operations, "unfold_giving_back",
+                        lambda self, *args, **kwargs: operations(*args, **kwargs))
+    F, X, log = S.F.copy(), S.X.copy(), dict(S.log)
+    folds = turned_over_faces(S)
+    ops.unfold_left(20.0)
+    assert S.log.get("fold_operations") is None
+    assert np.array_equal(S.F, F) and np.array_equal(S.X, X) and S.log == log
+    assert np.array_equal(turned_over_faces(S), folds)
+    assert np.array_equal(np.flatnonzero(ops.folds(S)), folds)
+
+
+def test_no_fold_left_at_the_end_tries_nothing(monkeypatch):
+    """With no fold left, :meth:`_Operations.unfold_left` makes no operation."""
+    ops = _folded_operations()
+    ops.unfold_left(20.0)
+    assert len(turned_over_faces(ops.S)) == 0
+
+    def fail(*args, **kwargs):
+        raise AssertionError("tried")
+
+    monkeypatch.setattr(_Operations, "unfold_giving_back", fail)
+    ops.unfold_left(20.0)

@@ -135,7 +135,11 @@ The schedule (:func:`improve_remesh`):
     on the input's rim, one and both, and at the input boundary vertex each cuts off
     farthest (a tooth's tip the rim crosses), one and both, judged the same way, the vertices
     added given back by guarded collapses where that leaves no more or worse such faces and
-    no more folds (:meth:`_Operations.aim_unforced`).
+    no more folds (:meth:`_Operations.aim_unforced`); last, where folds are left, the fold
+    repair's local operations at all of them once more, their two-steps under no floor, and
+    where they leave fewer folds the minimum-angle operations and the star moves after them,
+    undone unless that leaves fewer folds and no more or worse faces below the minimum that
+    no input corner forces (:meth:`_Operations.unfold_left`).
     A face none of this raises stays: the report counts the faces below the minimum and,
     among them, those an input corner forces, naming the corners (with the even split of each
     corner's angle sum); then ``EVEN_STEPS`` smoothing steps as in step 6
@@ -887,8 +891,8 @@ class _Operations:
         refinement before them did not see), the corner splits among its kinds, and the looser
         operations again; then those faces refined one at a time (:meth:`refine_each`); then
         the faces forced by input corners raised (:meth:`raise_forced`) and the rim corners
-        of the unforced ones changed (:meth:`aim_unforced`). Given
-        ``kept``
+        of the unforced ones changed (:meth:`aim_unforced`); last, where folds are left, the
+        fold repair's operations at them once more (:meth:`unfold_left`). Given ``kept``
         (``(P, Q)``, k×3 and l×3 points),
         the vertices at ``P`` are locked for the first collapses (they remove none of them:
         a vertex followed onto the input, :meth:`follow`, stays on it), those at ``Q`` for
@@ -926,6 +930,7 @@ class _Operations:
         self.refine_each(target, min_angle_deg)
         self.raise_forced(min_angle_deg)
         self.aim_unforced(min_angle_deg)
+        self.unfold_left(min_angle_deg)
 
     def refine_left(self, target: int, min_angle_deg: float, corners: bool = False) -> None:
         """Up to ``GRADE_PASSES`` times while it is kept: the faces below ``min_angle_deg``
@@ -1540,11 +1545,8 @@ class _Operations:
             if not budget.spend(S, before[0]):
                 break
             trials, saved = trials + 1, self.saved()
-            rim = int(S.is_rim.sum())
             corners = S.X[S.F[at].ravel()]
-            self.unfold(at, floor=min_angle_deg)
-            if S.is_rim.sum() < rim:
-                split_for_count(S, rim - int(S.is_rim.sum()), min_angle_deg)
+            self.unfold_giving_back(at, min_angle_deg, floor=min_angle_deg)
             self.raise_angles(min_angle_deg)
             self.last_resort(min_angle_deg)
             left = int(self.folds(S).sum())
@@ -1554,6 +1556,45 @@ class _Operations:
                 tried = np.vstack([tried, corners])
         if trials:
             S.tally("fold_groups_tried", trials)
+
+    def unfold_giving_back(self, bad: np.ndarray | None, min_angle_deg: float, floor: float
+                           ) -> None:
+        """The local operations around the folds ``bad`` (:meth:`unfold`, default all, their
+        two-steps under ``floor``, degrees), the rim vertices they removed given back by
+        splits that make no face below ``min_angle_deg`` (:func:`.angles.split_for_count`)."""
+        S = self.S
+        rim = int(S.is_rim.sum())
+        self.unfold(bad, floor=floor)
+        if S.is_rim.sum() < rim:
+            split_for_count(S, rim - int(S.is_rim.sum()), min_angle_deg)
+
+    def unfold_left(self, min_angle_deg: float) -> None:
+        """Where folds are left at the end of the minimum-angle pass: the local operations
+        around all of them once more, their two-steps under no floor
+        (:meth:`unfold_giving_back` with ``floor`` 0); where that leaves fewer folds, the
+        minimum-angle operations around the faces below ``min_angle_deg`` (:meth:`raise_angles`,
+        :meth:`last_resort`) and the free corners of those that no input corner forces moved
+        (:meth:`move_each`); undone unless that leaves fewer folds and no more or worse such
+        faces (:func:`.circumcentres.unforced_shortfall`). The folds :meth:`unfold_kept`
+        leaves (its groups put back, or made by the refinements after it) may have an undoing
+        once the passes after it have changed the faces around them; and at a ragged rim's
+        notch end beside a locked spike tip, the only pairs of operations that undo the fold
+        (a rim collapse and an operation after it, :meth:`.unfold._FoldPatch.two_step`) make a
+        face below the minimum, which the earlier repairs' floor refuses and the operations
+        after them can raise."""
+        S = self.S
+        n_folds = int(self.folds(S).sum())
+        if n_folds == 0:
+            return
+        saved, before = self.saved(), unforced_shortfall(S, min_angle_deg)
+        self.unfold_giving_back(None, min_angle_deg, floor=0.0)
+        if self.folds(S).sum() < n_folds:
+            self.raise_angles(min_angle_deg)
+            self.last_resort(min_angle_deg)
+            self.move_each(min_angle_deg)
+        if self.folds(S).sum() >= n_folds or shortfall_order(
+                unforced_shortfall(S, min_angle_deg)) > shortfall_order(before):
+            self.restore(saved)
 
     def unfold(self, bad: np.ndarray | None = None, floor: float = 0.0) -> None:
         """The local operations around the folds ``bad`` (face indices; default: all of them,
