@@ -141,8 +141,11 @@ def test_a_ragged_rim_remesh_keeps_no_fold_and_at_most_one_face_below_the_minimu
 def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     """The ragged paraboloid on an 80×80 grid (seed 1) with its bowtie vertices kept: teeth
     hanging on the rim by a vertex, notches closing on a vertex. The intake splits them (one
-    vertex per fan, reported), keeps the largest piece on request, and the remesh of 1,000
-    vertices is one disk with no face turned over."""
+    vertex per fan, reported), keeps the largest piece on request, and the remesh asked for
+    1,000 vertices is one disk with no face turned over. It keeps 1,001: a rim cap's fan
+    opened at a face below the minimum that no input corner forces
+    (:meth:`.improve._Operations.open_fan`) mends it, and the collapse that would give its
+    vertex back leaves a face below (:meth:`.improve._Operations.give_back`)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import RepairOptions, repair_mesh
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
@@ -155,7 +158,7 @@ def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     assert mesh.report["components_dropped"] > 0
     uv = remesh_map(mesh)
     r = remesh_stage(mesh, uv, RemeshConfig(vertices=1000))
-    assert len(r.V) == 1000 and is_disk(mesh_facts(r.V, r.F))
+    assert len(r.V) == 1001 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
 
 
@@ -208,11 +211,12 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     faces: 1,742 vertices) remeshed at 800 vertices: a remesh edge about twice the input's,
     so every tooth of the rim is a corner (86 snapped) and the minimum-angle pass works
     around them in round after round. Without the memo of :func:`.angles.raise_min_angles`
-    it judges 508 faces, 232 of them in surroundings judged before; with it, each of the
-    276 surroundings once (among them the forced corners' share-out's,
+    it judges 505 faces, 232 of them in surroundings judged before; with it, each of the
+    273 surroundings once (among them the forced corners' share-out's,
     :meth:`.improve._Operations.raise_forced`, the operations after a corner's middle vertex
     is put on its wedge, :meth:`.improve._Operations.aim_corner`, and after the changes at the
-    unforced rim corners and the link flips, :meth:`.improve._Operations.aim_unforced` and
+    unforced rim corners, the rim caps' fans opened there and the link flips,
+    :meth:`.improve._Operations.aim_unforced`, :meth:`.improve._Operations.open_fan` and
     :meth:`.improve._Operations.flip_and_move`), and the remesh is the same
     bit for bit (the raise above
     ``RAISE_DEG`` after the evening steps, which judges faces at its own threshold, off)."""
@@ -236,14 +240,14 @@ def test_a_toothed_rim_judges_each_surroundings_once_and_the_memo_changes_nothin
     monkeypatch.setattr(improve, "RAISE_DEG", 0.0)
     with_memo = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
     assert with_memo.info["improve"]["rim_corners_snapped"] == 86
-    assert sum(judged) == len(set(seen)) == 276 and len(seen) == 508
+    assert sum(judged) == len(set(seen)) == 273 and len(seen) == 505
     raise_min_angles = improve.raise_min_angles
     monkeypatch.setattr(improve, "raise_min_angles",
                         lambda S, m, tol, faces, memo=None, **kw:
                         raise_min_angles(S, m, tol, faces, **kw))
     seen.clear(), judged.clear()
     without = remesh_stage(mesh, uv, RemeshConfig(vertices=800))
-    assert sum(judged) == len(seen) == 508 and len(set(seen)) == 276
+    assert sum(judged) == len(seen) == 505 and len(set(seen)) == 273
     assert np.array_equal(without.V, with_memo.V) and np.array_equal(without.F, with_memo.F)
 
 
@@ -558,20 +562,12 @@ def test_changes_at_unforced_rim_corners_raise_a_narrow_tooth(monkeypatch):
     given back) leave 2 such faces of 5 below 20°; without them 3 of 6. Both keep 600
     vertices and no face turned over by the report's test."""
     from pipeline.geometry.remesh import improve
-    from pipeline.geometry.remesh_quality import surface_distance
-    from pipeline.geometry.repair import repair_mesh
-    from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
-    mesh = repair_mesh(*ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3))
-    uv = remesh_map(mesh)
-    aimed = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
-    monkeypatch.setattr(improve._Operations, "aim_unforced", lambda ops, min_angle_deg: None)
-    kept = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
-    below = [r.info["improve"]["below_min_angle"] for r in (aimed, kept)]
-    assert [(b["faces"], b["unforced_faces"]) for b in below] == [(5, 2), (6, 3)]
-    assert len(aimed.V) == len(kept.V) == 600
-    assert all(surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
-               for r in (aimed, kept))
+    below, counts, folds = _remeshed_with_and_without(
+        monkeypatch, ragged_paraboloid(n=80, seed=2, passes=3, drop=0.3), 600,
+        improve._Operations, "aim_unforced", lambda ops, min_angle_deg: None)
+    assert below == [(5, 2), (6, 3)]
+    assert counts == [600, 600] and folds == [0, 0]
 
 
 @pytest.mark.timeout(240)
@@ -695,7 +691,8 @@ def test_a_rim_vertex_at_a_cut_off_tooth_tip_raises_a_rim_corner(monkeypatch):
     remeshed at 600 vertices: among the changes at the rim corners of faces below 20° that no
     input corner forces, the splits of the corner's rim edges at the input boundary vertex each
     cuts off farthest (:meth:`.improve._Operations.cut_off_corners`: a tooth's tip the rim
-    crosses) leave 1 such face of 3 below 20°; without them 2 of 4. Neither has a face turned
+    crosses) leave no such face, 2 below 20° (the last one mended by a rim cap's fan opened,
+    :meth:`.improve._Operations.open_fan`); without them 2 of 4. Neither has a face turned
     over by the report's test."""
     from pipeline.geometry.remesh import improve
     from pipeline.geometry.remesh_quality import surface_distance
@@ -708,9 +705,48 @@ def test_a_rim_vertex_at_a_cut_off_tooth_tip_raises_a_rim_corner(monkeypatch):
     monkeypatch.setattr(improve._Operations, "cut_off_corners", lambda ops, c, ends: [])
     without = remesh_stage(mesh, uv, RemeshConfig(vertices=600))
     below = [r.info["improve"]["below_min_angle"] for r in (tips, without)]
-    assert [(b["faces"], b["unforced_faces"]) for b in below] == [(3, 1), (4, 2)]
+    assert [(b["faces"], b["unforced_faces"]) for b in below] == [(2, 0), (4, 2)]
     assert all(surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
                for r in (tips, without))
+
+
+@pytest.mark.timeout(120)
+def test_a_rim_cap_fan_opened_at_an_unforced_face_raises_it(monkeypatch):
+    """The ragged paraboloid of seed 2 (80×80 grid, 4 passes dropping 0.4 of the rim's faces)
+    remeshed at 600 vertices: among the changes at the rim corners of faces below 20° that no
+    input corner forces, the corner's fan opened (:meth:`.improve._Operations.open_fan`: the
+    interior edge across its angle wider than :data:`.rim.RIM_FAN_MAX_DEG` split, a rim cap's
+    long edge) leaves no such face, 2 below 20°; without it 1 of 3. Both keep 601 vertices
+    and no face turned over by the report's test."""
+    from pipeline.geometry.remesh import improve
+
+    below, counts, folds = _remeshed_with_and_without(
+        monkeypatch, ragged_paraboloid(n=80, seed=2, passes=4, drop=0.4), 600,
+        improve._Operations, "open_fan", lambda ops, c: False)
+    assert below == [(2, 0), (3, 1)]
+    assert counts == [601, 601] and folds == [0, 0]
+
+
+def _remeshed_with_and_without(monkeypatch, mesh_VF, vertices: int, owner, name: str,
+                               replacement) -> tuple[list, list, list]:
+    """The ragged mesh ``mesh_VF`` (``V, F``) repaired and remeshed at ``vertices`` through the
+    2-step paper map, as made and with ``owner.name`` replaced by ``replacement``: per remesh,
+    ``(faces below the minimum angle, those no input corner forces)``, the vertex count and
+    the faces turned over by the report's test."""
+    from pipeline.geometry.remesh_quality import surface_distance
+    from pipeline.geometry.repair import repair_mesh
+    from pipeline.stages.remesh import RemeshConfig, remesh_stage
+
+    mesh = repair_mesh(*mesh_VF)
+    uv = remesh_map(mesh)
+    made = remesh_stage(mesh, uv, RemeshConfig(vertices=vertices))
+    monkeypatch.setattr(owner, name, replacement)
+    without = remesh_stage(mesh, uv, RemeshConfig(vertices=vertices))
+    below = [r.info["improve"]["below_min_angle"] for r in (made, without)]
+    return ([(b["faces"], b["unforced_faces"]) for b in below],
+            [len(r.V) for r in (made, without)],
+            [surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"]
+             for r in (made, without)])
 
 
 @pytest.mark.timeout(120)

@@ -8,7 +8,8 @@ from pipeline.geometry import topology as topo
 from pipeline.geometry.locate import lift
 from pipeline.geometry.remesh.halfedge import DISK_SHAPE_MIN, disk_shape
 from pipeline.geometry.metrics import corner_angles, signed_double_areas
-from pipeline.geometry.remesh.rim import (open_rim_fans, refine_rim, rim_gaps,
+from pipeline.geometry.remesh.refine import split_keeps_shape
+from pipeline.geometry.remesh.rim import (fan_edges, open_rim_fans, refine_rim, rim_gaps,
                                           segment_distances)
 from pipeline.geometry.remesh.sampling import arc_parameters
 from pipeline.geometry.remesh.state import RemeshState
@@ -88,20 +89,51 @@ def test_refine_rim_respects_budget_gap_and_closed_meshes():
     assert refine_rim(S, tol=0.001, min_gap=0.0, budget=100) == 0
 
 
+def polygon_state() -> RemeshState:
+    """A 24-gon (every tenth boundary vertex of :func:`remesh_helpers.disk_map`'s disk)
+    triangulated without interior vertices: every vertex on the rim."""
+    uv_in, F_in, V_in, loop, locator = disk_map()
+    uv = uv_in[loop[::10]]
+    F = ccw_delaunay(uv)
+    face, bary = locator.locate(uv)
+    return RemeshState(lift(V_in, F_in, face, bary), F, uv, np.ones(len(uv), bool), face, bary,
+                       V_in, F_in, uv_in, locator, uv_in[loop])
+
+
 def test_open_rim_fans_splits_the_edge_across_every_wide_rim_angle():
     """A 24-gon triangulated without interior vertices (every face has three rim corners; the
     Delaunay triangulation of points on a circle has angles up to nearly 180° at rim vertices):
     after opening the fans no angle at a rim vertex is wider than the bound, every new vertex
     is interior, and the result is a counter-clockwise disk."""
-    uv_in, F_in, V_in, loop, locator = disk_map()
-    uv = uv_in[loop[::10]]
-    F = ccw_delaunay(uv)
-    face, bary = locator.locate(uv)
-    S = RemeshState(lift(V_in, F_in, face, bary), F, uv, np.ones(len(uv), bool), face, bary,
-                    V_in, F_in, uv_in, locator, uv_in[loop])
+    S = polygon_state()
+    n0 = S.n
     wide = np.degrees(corner_angles(S.X, S.F)).max()
     assert wide > 150.0
     done = open_rim_fans(S, 120.0, rounds=10)
-    assert done > 0 and S.n == len(uv) + done and not S.is_rim[len(uv):].any()
+    assert done > 0 and S.n == n0 + done and not S.is_rim[n0:].any()
     assert np.degrees(corner_angles(S.X, S.F))[S.is_rim[S.F]].max() <= 120.0
     assert (signed_double_areas(S.uv, S.F) > 0).all() and is_disk(mesh_facts(S.X, S.F))
+
+
+def test_fan_edges_are_the_interior_half_edges_across_wide_angles_at_the_vertices_asked():
+    """On the 24-gon of the test above: :func:`.rim.fan_edges` at every rim vertex gives,
+    face by face, the half-edge opposite each corner wider than the bound at a rim vertex,
+    those with a twin (interior) whose split keeps the shapes (the formula written out), and
+    at one vertex those of its own wide corners alone; at no vertex, none."""
+    S = polygon_state()
+    wide = np.degrees(corner_angles(S.X, S.F)) > 120.0
+    t, c = np.nonzero(wide & S.is_rim[S.F])
+    h = 3 * t + (c + 1) % 3
+    twin = S.twins()[h]
+    h, twin = h[twin >= 0], twin[twin >= 0]
+    keep = split_keeps_shape(S, h, twin)
+    got_h, got_twin = fan_edges(S, S.is_rim, 120.0)
+    assert len(got_h) > 0
+    assert got_h.tolist() == h[keep].tolist() and got_twin.tolist() == twin[keep].tolist()
+    v = int(S.F[t[0], c[0]])
+    at = np.zeros(S.n, bool)
+    at[v] = True
+    one, _ = fan_edges(S, at, 120.0)
+    assert len(one) > 0 and one.tolist() == [x for x in h[keep].tolist()
+                                             if S.F[x // 3, (x % 3 + 2) % 3] == v]
+    assert len(fan_edges(S, np.zeros(S.n, bool), 120.0)[0]) == 0

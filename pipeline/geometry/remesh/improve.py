@@ -133,9 +133,14 @@ The schedule (:func:`improve_remesh`):
     rim, its input corner a little wider than two faces of the minimum), the same wedge's
     changes where it has two faces, splits of its rim edges at ``RIM_SPLIT_TS`` along them
     on the input's rim, one and both, and at the input boundary vertex each cuts off
-    farthest (a tooth's tip the rim crosses), one and both, judged the same way, the vertices
+    farthest (a tooth's tip the rim crosses), one and both, judged the same way; at those
+    corners and at the rim corners where such a face has an angle wider than
+    ``RIM_FAN_MAX_DEG`` (a rim cap), the corner's fan opened (the interior edge across each
+    such angle at it split, :meth:`_Operations.open_fan`), judged the same way and kept only
+    where it leaves fewer such faces or a larger smallest angle among them; the vertices
     added given back by guarded collapses where that leaves no more or worse such faces and
-    no more folds (:meth:`_Operations.aim_unforced`); last, where folds are left, the fold
+    no more folds, all at once or else one at a time (:meth:`_Operations.aim_unforced`,
+    :meth:`_Operations.give_back`); last, where folds are left, the fold
     repair's local operations at all of them once more, their two-steps under no floor, and
     where they leave fewer folds the minimum-angle operations and the star moves after them,
     undone unless that leaves fewer folds and no more or worse faces below the minimum that
@@ -222,11 +227,12 @@ from .features import place_features, release_features
 from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, flip_in_place, sag_flips, valence_flips
-from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, touching
+from .halfedge import DISK_SHAPE_MIN, disk_shape, edge_table, independent_edges, touching
 from .refine import (SAG_SAMPLES, polygon_segments, refine_by_sag, split_edges,
                      split_long_edges)
 from .relax import tangential_smoothing
-from .rim import RIM_TOL, open_rim_fans, refine_rim, rim_corners, rim_gaps
+from .rim import (RIM_FAN_MAX_DEG, RIM_TOL, fan_edges, open_rim_fans, refine_rim, rim_corners,
+                  rim_gaps)
 from .sag import edge_sag, edge_sag_along, may_sag
 from .state import RemeshState, at_points, face_normals, turned_against
 from .unfold import star_positions, turned_over_rows, unfold_locally
@@ -1141,19 +1147,33 @@ class _Operations:
         has its smallest angle, each changed as :meth:`rim_corner_attempts` lists (the best
         kept, :meth:`best_change`): a narrow tooth of a ragged rim (an input corner a little
         wider than two faces of the minimum) whose middle vertex the local operations leave
-        near one rim neighbour, or whose rim edges cut across the input's rim beside it; then
-        the vertices they added given back (:meth:`give_back`)."""
+        near one rim neighbour, or whose rim edges cut across the input's rim beside it; at
+        these and at the rim corners where such a face has an angle wider than
+        :data:`.rim.RIM_FAN_MAX_DEG` (a rim cap: its long edge across the rim vertex, its
+        small angles at the ends), the corner's fan opened (:meth:`open_fan`), kept as
+        :meth:`share_corner` keeps a change and only where it mends a face (``gain``: the
+        global fan opening of :meth:`open_fans`, judged on the whole remesh, is undone where
+        it opens fans that need no opening); then the vertices they added given back
+        (:meth:`give_back`)."""
         S = self.S
         bad, _ = unforced_below(S, min_angle_deg)
         if len(bad) == 0:
             return
         T = S.F[bad]
-        smallest = T[np.arange(len(bad)), corner_angles_deg(S.X, T).argmin(axis=1)]
-        n0 = S.n
-        for point in S.X[np.unique(smallest[S.is_rim[smallest]])]:
+        A = corner_angles_deg(S.X, T)
+        smallest = T[np.arange(len(bad)), A.argmin(axis=1)]
+        widest = T[np.arange(len(bad)), A.argmax(axis=1)]
+        smallest = np.unique(smallest[S.is_rim[smallest]])
+        widest = np.setdiff1d(widest[S.is_rim[widest] & (A.max(axis=1) > RIM_FAN_MAX_DEG)],
+                              smallest)
+        n0, points = S.n, S.X[np.r_[smallest, widest]]
+        for i, point in enumerate(points):
+            c = self.rim_vertex_at(point)
+            if c is not None and i < len(smallest):
+                self.best_change(point, min_angle_deg, self.rim_corner_attempts(c, min_angle_deg))
             c = self.rim_vertex_at(point)
             if c is not None:
-                self.best_change(point, min_angle_deg, self.rim_corner_attempts(c, min_angle_deg))
+                self.share_corner(point, min_angle_deg, partial(self.open_fan, c), gain=True)
         if S.n > n0:
             self.give_back(n0, min_angle_deg)
 
@@ -1162,18 +1182,32 @@ class _Operations:
         guards away from the vertices added since (:meth:`restore_angle_count`) and the local
         operations around the faces then below ``min_angle_deg`` (:meth:`raise_angles`),
         undone where that leaves another count, more faces below the minimum that no input
-        corner forces, as many with a smaller smallest angle, or more folds."""
+        corner forces, as many with a smaller smallest angle, or more folds; where that is
+        undone, one vertex at a time the same way (the added vertices known by their
+        positions), until one is undone: the collapses of many at once can squeeze a face
+        that those of fewer leave alone."""
+        S = self.S
+        added = S.X[target:].copy()
+        if self.give_back_to(target, min_angle_deg, at_points(S.X, added)):
+            return
+        while S.n > target and self.give_back_to(S.n - 1, min_angle_deg, at_points(S.X, added)):
+            pass
+
+    def give_back_to(self, count: int, min_angle_deg: float, added: np.ndarray) -> bool:
+        """:meth:`give_back`'s collapses down to ``count`` vertices, away from the vertices
+        ``added`` (n bool) and their neighbours, and the local operations after them; undone
+        as it says. Returns whether they were kept."""
         S = self.S
         before, saved, n_folds = unforced_shortfall(S, min_angle_deg), self.saved(), \
             int(self.folds(S).sum())
-        added = np.zeros(S.n, bool)
-        added[target:] = True
-        self.restore_angle_count(target, min_angle_deg, keep=added)
+        self.restore_angle_count(count, min_angle_deg, keep=added)
         self.raise_angles(min_angle_deg)
         after = unforced_shortfall(S, min_angle_deg)
-        if S.n != target or shortfall_order(after) > shortfall_order(before) or \
+        if S.n != count or shortfall_order(after) > shortfall_order(before) or \
                 self.folds(S).sum() > n_folds:
             self.restore(saved)
+            return False
+        return True
 
     def rim_corner_attempts(self, c: int, min_angle_deg: float) -> list:
         """The changes tried at the rim corner ``c``: with two faces, those of
@@ -1199,6 +1233,23 @@ class _Operations:
         attempts += [(partial(self.split_rim_edges_at, c, [tip]), None) for tip in tips]
         return attempts + ([(partial(self.split_rim_edges_at, c, tips), None)]
                            if len(tips) == 2 else [])
+
+    def open_fan(self, c: int) -> bool:
+        """The fan of the rim vertex ``c`` opened: the interior edges across its angles wider
+        than :data:`.rim.RIM_FAN_MAX_DEG` split at their middles on the disk
+        (:func:`.rim.fan_edges`; those of no face in common), flips around the faces
+        changed. Returns whether one was."""
+        S = self.S
+        at = np.zeros(S.n, bool)
+        at[c] = True
+        h, twin = fan_edges(S, at)
+        sel = independent_edges(len(S.F), h, twin, np.zeros(len(h)))
+        if len(sel) == 0:
+            return False
+        F_before = S.F.copy()
+        split_edges(S, h[sel], twin[sel])
+        self.flip(since=F_before)
+        return True
 
     def cut_off_corners(self, c: int, ends: list) -> list:
         """For the rim edge from ``c`` to each of ``ends``, the input boundary vertex (a polygon
@@ -1307,7 +1358,8 @@ class _Operations:
         return True
 
     def share_corner(self, point: np.ndarray, min_angle_deg: float, change,
-                     hold: int | None = None, measured: tuple | None = None) -> bool:
+                     hold: int | None = None, measured: tuple | None = None,
+                     gain: bool = False) -> bool:
         """``change()`` at the corner at ``point`` (3,) (returns whether it changed anything),
         then the usual operations at the faces below ``min_angle_deg`` that no input corner
         forces within ``FORCED_REACH × L`` of the corner, the vertices their collapses removed
@@ -1317,7 +1369,9 @@ class _Operations:
         angle (:func:`.circumcentres.unforced_shortfall`); the vertex ``hold`` (once ``change``
         made it), where given, locked meanwhile (the operations at the faces around it would
         move it back). ``measured``: :meth:`corner_measures` of the remesh as it is, when the
-        caller knows them. Returns whether it was kept."""
+        caller knows them. With ``gain``, also undone unless the shortfall shrinks (fewer such
+        faces, or as many with a larger smallest angle): a change whose vertex the count may
+        not get back must mend a face. Returns whether it was kept."""
         S = self.S
         before, n_folds, worst = (self.corner_measures(point, min_angle_deg)
                                   if measured is None else measured)
@@ -1330,9 +1384,9 @@ class _Operations:
         self.raise_near(point, min_angle_deg, n0)
         if held is not None:
             S.locked[at_points(S.X, held[0][None])] = held[1]
+        after = shortfall_order(unforced_shortfall(S, min_angle_deg))
         if self.smallest_at(point) <= worst or self.folds(S).sum() > n_folds or \
-                shortfall_order(unforced_shortfall(S, min_angle_deg)) > \
-                shortfall_order(before):
+                after > shortfall_order(before) or (gain and after == shortfall_order(before)):
             self.restore(saved)
             return False
         return True

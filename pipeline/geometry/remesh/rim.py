@@ -149,20 +149,32 @@ def open_rim_fans(S: RemeshState, max_angle_deg: float = RIM_FAN_MAX_DEG,
     angle halves it and gives the rim vertex one more face."""
     done = 0
     for _ in range(rounds):
-        F = S.F
-        wide = np.degrees(corner_angles(S.X, F)) > max_angle_deg
-        t, c = np.nonzero(wide & S.is_rim[F])
-        if len(t) == 0:
-            break
-        h = 3 * t + (c + 1) % 3                         # the half-edge opposite corner c
-        twin = S.twins()[h]
-        inner = twin >= 0
-        h, twin = h[inner], twin[inner]
-        keep = split_keeps_shape(S, h, twin)
-        h, twin = h[keep], twin[keep]
-        sel = independent_edges(len(F), h, twin, np.zeros(len(h)))
+        h, twin = fan_edges(S, S.is_rim, max_angle_deg)
+        sel = independent_edges(len(S.F), h, twin, np.zeros(len(h)))
         if len(sel) == 0:
             break
         done += split_edges(S, h[sel], twin[sel])
     S.tally("rim_fan_splits", done)
     return done
+
+
+def fan_edges(S: RemeshState, at: np.ndarray, max_angle_deg: float = RIM_FAN_MAX_DEG
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """The interior half-edges across the angles wider than ``max_angle_deg`` at the vertices
+    ``at`` (n bool, rim vertices) whose split keeps the faces' shapes on the disk
+    (:func:`.refine.split_keeps_shape`), face by face: what :func:`open_rim_fans` splits.
+
+    Returns
+    -------
+    h, twin : (k,) int
+        The half-edges (each opposite its wide corner in its face) and their twins.
+    """
+    F = S.F
+    wide = np.degrees(corner_angles(S.X, F)) > max_angle_deg
+    t, c = np.nonzero(wide & at[F])
+    h = 3 * t + (c + 1) % 3                             # the half-edge opposite corner c
+    twin = S.twins()[h]
+    inner = twin >= 0
+    h, twin = h[inner], twin[inner]
+    keep = split_keeps_shape(S, h, twin)
+    return h[keep], twin[keep]
