@@ -142,10 +142,10 @@ def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     """The ragged paraboloid on an 80×80 grid (seed 1) with its bowtie vertices kept: teeth
     hanging on the rim by a vertex, notches closing on a vertex. The intake splits them (one
     vertex per fan, reported), keeps the largest piece on request, and the remesh asked for
-    1,000 vertices is one disk with no face turned over. It keeps 1,001: a rim cap's fan
-    opened at a face below the minimum that no input corner forces
-    (:meth:`.improve._Operations.open_fan`) mends it, and the collapse that would give its
-    vertex back leaves a face below (:meth:`.improve._Operations.give_back`)."""
+    1,000 vertices is one disk with no face turned over, within the 2 % of the count (it keeps
+    1,001: a rim cap's fan opened at a face below the minimum that no input corner forces,
+    :meth:`.improve._Operations.open_fan`, mends it, and the collapse that would give its
+    vertex back leaves a face below, :meth:`.improve._Operations.give_back`)."""
     from pipeline.geometry.remesh_quality import is_disk, mesh_facts, surface_distance
     from pipeline.geometry.repair import RepairOptions, repair_mesh
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
@@ -158,7 +158,7 @@ def test_a_ragged_rim_with_bowties_is_split_and_remeshed():
     assert mesh.report["components_dropped"] > 0
     uv = remesh_map(mesh)
     r = remesh_stage(mesh, uv, RemeshConfig(vertices=1000))
-    assert len(r.V) == 1001 and is_disk(mesh_facts(r.V, r.F))
+    assert abs(len(r.V) - 1000) <= 20 and is_disk(mesh_facts(r.V, r.F))
     assert surface_distance(mesh.V, mesh.F, r.V, r.F)["turned_over_faces"] == 0
 
 
