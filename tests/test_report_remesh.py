@@ -176,6 +176,9 @@ def test_landmarks_section_gives_the_distances_and_every_landmark(tmp_path):
             "most 0.5, mean 0.375 (0.25 and 0.19 target edge lengths).") in text
     carried["chin"]["distance"] = 0.0
     assert "1 of them on a vertex exactly" in landmarks_html(carried, 2.0)
+    carried["nose <tip>"]["distance"] = 0.0
+    assert ("2 landmarks carried to the remesh (<code>remeshed_landmarks.json</code>), each on a "
+            "vertex exactly on its input vertex.</p>") in landmarks_html(carried, 2.0)
     assert "<tr><th>nose &lt;tip&gt;</th><td>7</td><td>3</td><td>0.5</td></tr>" in text
     assert "<tr><th>chin</th><td>-1</td><td>9</td><td>0.25</td></tr>" in text
     methods = _methods()

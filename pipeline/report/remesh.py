@@ -211,10 +211,12 @@ def landmarks_html(landmarks: dict, edge_length: float) -> str:
                 f"lengths)" if edge_length > 0 else "")
     rows = "".join(f"<tr><th>{e(str(name))}</th><td>{x['input_vertex']}</td><td>{x['vertex']}"
                    f"</td><td>{x['distance']:.4g}</td></tr>" for name, x in landmarks.items())
+    how_far = ("each on a vertex exactly on its input vertex" if not d.any() else
+               f"{np.count_nonzero(d == 0)} of them on a vertex exactly on their input vertex; "
+               f"distance from the input vertex at most {d.max():.4g}, mean {d.mean():.4g}"
+               f"{in_edges}")
     return (f"<h2>Landmarks</h2><p>{len(d)} landmarks carried to the remesh "
-            f"(<code>remeshed_landmarks.json</code>), {np.count_nonzero(d == 0)} of them on a "
-            f"vertex exactly on their input vertex; distance from the input vertex at most "
-            f"{d.max():.4g}, mean {d.mean():.4g}{in_edges}.</p>\n<details><summary>each "
+            f"(<code>remeshed_landmarks.json</code>), {how_far}.</p>\n<details><summary>each "
             f"landmark</summary><table><thead><tr><th>name</th><th>input vertex</th><th>remesh "
             f"vertex</th><th>distance</th></tr></thead><tbody>{rows}</tbody></table></details>\n")
 
