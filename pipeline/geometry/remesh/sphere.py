@@ -23,8 +23,7 @@ sphere): sample → triangulate → locate → lift → improve.
    and angles), every vertex a sphere position lifted by eq. (1) and every face positively
    oriented on the sphere (:mod:`.domain`), so the result is a closed genus-0 manifold.
 
-Landmarks go to the nearest new vertex (:mod:`.landmarks`), after the improvement put a locked
-vertex on each one's input vertex (:func:`.uniform.interior_landmarks`).
+Landmarks go to the nearest new vertex (:mod:`.landmarks`).
 """
 
 from __future__ import annotations
@@ -42,7 +41,7 @@ from .landmarks import carry_landmarks
 from .sampling import DiskSamples
 from .state import RemeshState
 from .uniform import (RemeshResult, built_input_distance, check_remesh, check_topology,
-                      improve_state, interior_landmarks)
+                      improve_state)
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 SPHERE_PATTERNS = ("jittered", "hexagonal")
@@ -225,7 +224,6 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         imp.update(improve_state(S, L, vertices, corners, min_angle_deg=min_angle_deg,
                                  refine_sag=refine_sag,
                                  sag_floor=refine_sag * target_length(V, F, len(V)),
-                                 landmarks_uv=S_in[interior_landmarks(landmarks, [])],
                                  **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         input_tree = built_input_distance(S)
