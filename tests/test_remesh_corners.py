@@ -76,3 +76,12 @@ def test_nearest_rows_are_the_trees_and_ties_go_to_the_tree():
         assert np.array_equal(nearest_rows(lattice, centre, k), want)
     many = rng.uniform(-1.0, 1.0, (NEAR_DIRECT + 1, 2))
     assert np.array_equal(nearest_rows(P, many, 3), cKDTree(P).query(many, k=3)[1])
+
+
+def test_interior_landmarks_keep_the_order_once_each_and_leave_the_rim_out():
+    from pipeline.geometry.remesh.uniform import interior_landmarks
+
+    got = interior_landmarks({"a": 7, "b": 3, "c": 7, "d": 0, "e": 9, "f": 3}, np.array([0, 9, 4]))
+    assert got.dtype == np.int64 and got.tolist() == [7, 3]
+    assert interior_landmarks(None, np.array([0, 1])).tolist() == []
+    assert interior_landmarks({}, []).tolist() == []

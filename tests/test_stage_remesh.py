@@ -50,6 +50,28 @@ def test_stage_gives_a_disk_with_lifted_attributes(face_map, improve):
         assert t1["min_angle_p05_deg"] > t0["min_angle_p05_deg"]
 
 
+def test_landmarks_move_no_vertex_unless_asked_to_be_exact(face_map):
+    """By default the landmarks change nothing of the remesh (each goes to the nearest vertex);
+    with ``exact_landmarks`` each interior one kept apart from the corners gets a locked vertex
+    bitwise on its input vertex, and the tallies count them."""
+    face, mesh, p = face_map
+    lms = face.landmarks
+    plain = remesh_stage(mesh, p.uv, RemeshConfig(vertices=2000))
+    carried = remesh_stage(mesh, p.uv, RemeshConfig(vertices=2000), lms)
+    assert np.array_equal(plain.V, carried.V) and np.array_equal(plain.F, carried.F)
+    assert "landmarks_snapped" not in carried.info["improve"]
+    exact = remesh_stage(mesh, p.uv, RemeshConfig(vertices=2000, exact_landmarks=True), lms)
+    imp = exact.info["improve"]
+    on = [d["vertex"] for d in exact.landmarks.values() if d["distance"] == 0.0]
+    assert imp["landmarks_snapped"] + imp.get("landmarks_inserted", 0) == len(lms) - \
+        imp.get("landmarks_too_close", 0) <= len(on)
+    assert len(on) >= len(lms) - 2
+    for name, d in exact.landmarks.items():
+        if d["distance"] == 0.0:
+            assert np.array_equal(exact.V[d["vertex"]], mesh.V[lms[name]])
+    assert abs(len(exact.V) - 2000) <= 40
+
+
 def test_stage_with_spacing(face_map):
     _, mesh, p = face_map
     L = 0.6

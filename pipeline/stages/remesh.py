@@ -94,6 +94,9 @@ class RemeshConfig(Section):
                           "TXT; 0-based input vertex indices or x y z points)")
     landmark_set: Optional[str] = Field(
         None, description="JSON key of the landmark set, e.g. ibug68 (default 'landmarks')")
+    exact_landmarks: bool = Field(
+        False, description="a locked remesh vertex exactly on each interior landmark (else the "
+                           "nearest vertex; the triangles around a locked one pay for it)")
     distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
                                   description="random samples per surface for the distances")
 
@@ -203,13 +206,14 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
         F = _outward(mesh.F, uv)
         r = sphere_remesh(mesh.V, F, uv, vertices=options.vertices, spacing=options.spacing,
                           improve=options.improve is not None, landmarks=landmarks,
+                          exact_landmarks=options.exact_landmarks,
                           pattern=options.pattern, seed=options.seed, **imp.model_dump())
     else:
         r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
                            spacing=options.spacing, pattern=options.pattern,
                            rim_relax=options.rim_relax, seed=options.seed,
                            improve=options.improve is not None, landmarks=landmarks,
-                           **imp.model_dump())
+                           exact_landmarks=options.exact_landmarks, **imp.model_dump())
     t = time.perf_counter()
     colors = lift(mesh.colors, F, r.face, r.bary) if mesh.colors is not None else None
     lifted_attrs = {k: lift(v, F, r.face, r.bary) for k, v in (attributes or {}).items()}

@@ -13,7 +13,8 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
-   first, none within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L``
+   first, none within ``CORNER_GAP × L`` of one kept before, and so onto each landmark's
+   input vertex (``landmarks_uv``, after the corners); then locked vertices about ``L``
    apart along the input's feature lines (the edges folded more than ``feature_angle_deg``)
    and the edges between consecutive ones kept until the repairs free them (:mod:`.features`);
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
@@ -337,6 +338,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    refine_sag: float = 0.2, refine_budget: float = 0.3,
                    target_vertices: int | None = None,
                    corners_uv: np.ndarray | None = None,
+                   landmarks_uv: np.ndarray | None = None,
                    isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6,
                    pinned_relax_iterations: int = 2,
@@ -369,6 +371,11 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         The count to restore after refinement; default: the count after refinement.
     corners_uv : (k, 2) float, optional
         Disk images of sharp interior input vertices, sharpest first.
+    landmarks_uv : (j, 2) float, optional
+        Disk images of the interior input vertices that carry landmarks: each gets a locked
+        vertex on it after the corners (tallied as ``landmarks_snapped``, ``_inserted`` and
+        ``_too_close``: one within ``CORNER_GAP × L`` of a vertex kept before gets none), which
+        the later passes keep as they keep the corners'.
     isotropic_iterations : int
         Rounds of split / collapse / flip / smoothing at the target length (step 4).
     final_relax_iterations : int
@@ -414,6 +421,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     if feature_angle_deg > 0 and not on_sphere(S.uv):
         joined = place_features(S, L, feature_angle_deg)
         ops.features = S.X[np.unique(joined)]
+    if landmarks_uv is not None and len(landmarks_uv):
+        landmarks = snap_vertices(S, landmarks_uv, min_gap=CORNER_GAP * L, counts="landmarks")
+        ops.corners = np.vstack([ops.corners, S.X[landmarks]])
     ops.flip()
     lap("flips")
     for _ in range(relax_iterations):

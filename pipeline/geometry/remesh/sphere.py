@@ -23,7 +23,8 @@ sphere): sample → triangulate → locate → lift → improve.
    and angles), every vertex a sphere position lifted by eq. (1) and every face positively
    oriented on the sphere (:mod:`.domain`), so the result is a closed genus-0 manifold.
 
-Landmarks go to the nearest new vertex (:mod:`.landmarks`).
+Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks``, after the
+improvement put a locked vertex on each one's input vertex (:func:`.uniform.interior_landmarks`).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from .landmarks import carry_landmarks
 from .sampling import DiskSamples
 from .state import RemeshState
 from .uniform import (RemeshResult, built_input_distance, check_remesh, check_topology,
-                      improve_state)
+                      improve_state, interior_landmarks)
 
 GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 SPHERE_PATTERNS = ("jittered", "hexagonal")
@@ -147,8 +148,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
                   vertices: int | None = None, spacing: float | None = None,
                   improve: bool = True, corner_angle_deg: float = 30.0,
                   refine_sag: float = 0.2, min_angle_deg: float = 20.0,
-                  landmarks: dict | None = None, pattern: str = "jittered", seed: int = 0,
-                  **params) -> RemeshResult:
+                  landmarks: dict | None = None, exact_landmarks: bool = False,
+                  pattern: str = "jittered", seed: int = 0, **params) -> RemeshResult:
     """Remesh a closed genus-0 mesh uniformly through its bijective equiareal sphere map
     (module docstring).
 
@@ -178,6 +179,9 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         The improvement's minimum-angle pass threshold (0: no pass).
     landmarks : dict, optional
         ``{name: input vertex index}``.
+    exact_landmarks : bool
+        With ``improve``, each landmark gets a locked vertex on it
+        (:func:`.improve.improve_remesh`'s ``landmarks_uv``).
     pattern : {"jittered", "hexagonal"}
         The samples: the Fibonacci lattice with seeded offsets (:func:`jittered_sphere`) or
         exact (:func:`fibonacci_sphere`).
@@ -224,6 +228,8 @@ def sphere_remesh(V: np.ndarray, F: np.ndarray, S_in: np.ndarray, *,
         imp.update(improve_state(S, L, vertices, corners, min_angle_deg=min_angle_deg,
                                  refine_sag=refine_sag,
                                  sag_floor=refine_sag * target_length(V, F, len(V)),
+                                 landmarks_uv=S_in[interior_landmarks(
+                                     landmarks if exact_landmarks else None, [])],
                                  **params))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         input_tree = built_input_distance(S)

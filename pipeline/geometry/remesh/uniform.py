@@ -11,7 +11,10 @@ lift → improve.
 5. **Improve** (optional, :mod:`.improve`) the triangles' shape on the surface, every vertex
    staying on it and every face counter-clockwise on the disk.
 
-Landmarks go to the nearest new vertex (:mod:`.landmarks`).
+Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks`` and the
+improvement pass, the interior ones have a locked vertex put on their input vertex first (a
+landmark lands on a remesh vertex exactly unless it is within ``CORNER_GAP × L`` of a sharper
+corner or an earlier landmark), which the triangles around it pay for.
 """
 
 from __future__ import annotations
@@ -95,7 +98,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    corner_angle_deg: float = 30.0, isotropic_iterations: int = 4,
                    final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, follow_input: float = 0.25,
-                   feature_angle_deg: float = 0.0, landmarks: dict | None = None) -> RemeshResult:
+                   feature_angle_deg: float = 0.0, landmarks: dict | None = None,
+                   exact_landmarks: bool = False) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -124,6 +128,9 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         Input corners sharper than this keep a vertex (0: none).
     landmarks : dict, optional
         ``{name: input vertex index}``.
+    exact_landmarks : bool
+        With ``improve``, each interior landmark gets a locked vertex on it
+        (:func:`.improve.improve_remesh`'s ``landmarks_uv``).
 
     Returns
     -------
@@ -165,7 +172,9 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
             isotropic_iterations=isotropic_iterations,
             final_relax_iterations=final_relax_iterations,
             pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg,
-            follow_input=follow_input, feature_angle_deg=feature_angle_deg))
+            follow_input=follow_input, feature_angle_deg=feature_angle_deg,
+            landmarks_uv=uv[interior_landmarks(landmarks if exact_landmarks else None,
+                                               boundary)]))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         input_tree = built_input_distance(S)
     lap("improve")
@@ -185,6 +194,15 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     }
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
                         facts, input_tree)
+
+
+def interior_landmarks(landmarks: dict | None, boundary: np.ndarray) -> np.ndarray:
+    """The input vertices (k int, in the order given, each once) of the ``landmarks``
+    (``{name: input vertex index}``) that are not on the ``boundary`` loop: the rim keeps its
+    own samples, so a landmark there goes to the nearest of them."""
+    idx = np.fromiter((landmarks or {}).values(), dtype=np.int64)
+    idx = idx[np.sort(np.unique(idx, return_index=True)[1])]
+    return idx[~np.isin(idx, boundary)]
 
 
 def built_input_distance(S: RemeshState) -> MeshDistance | None:
