@@ -14,7 +14,7 @@ Accepted files (indices are 0-based vertex indices of the *input* mesh file):
 
 Both may start with a UTF-8 byte order mark (as Windows editors save them); it is skipped.
 
-3D points are snapped to the nearest vertex of the mesh (:func:`resolve_landmarks`), and the
+3D points are snapped to the nearest vertex of the mesh (:func:`repaired_indices`), and the
 snapping distance is reported; a point more than :data:`MAX_SNAP` bounding-box diagonals away
 is an error. A name given twice (in a JSON object or a table) is an error. Every problem is a one-line :class:`~pipeline.errors.UserError`.
 

@@ -13,10 +13,11 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 The schedule (:func:`improve_remesh`):
 
 1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
-   first, none within ``CORNER_GAP × L`` of one kept before, and so onto each landmark's
-   input vertex (``landmarks_uv``, after the corners); then locked vertices about ``L``
+   first, none within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L``
    apart along the input's feature lines (the edges folded more than ``feature_angle_deg``)
    and the edges between consecutive ones kept until the repairs free them (:mod:`.features`);
+   then, given ``landmarks_uv``, one onto each landmark's input vertex, none within
+   ``CORNER_GAP × L`` of a vertex locked before;
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
 3. refinement: split the rim edges that cut off an input boundary vertex by more than
    ``RIM_TOL × refine_sag × L`` at that vertex (:mod:`.rim`); split edges farther than
@@ -373,7 +374,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         Disk images of sharp interior input vertices, sharpest first.
     landmarks_uv : (j, 2) float, optional
         Disk images of the interior input vertices that carry landmarks: each gets a locked
-        vertex on it after the corners (tallied as ``landmarks_snapped``, ``_inserted`` and
+        vertex on it after the corners and feature lines (tallied as ``landmarks_snapped``, ``_inserted`` and
         ``_too_close``: one within ``CORNER_GAP × L`` of a vertex kept before gets none), which
         the later passes keep as they keep the corners'.
     isotropic_iterations : int

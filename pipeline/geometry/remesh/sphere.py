@@ -23,8 +23,9 @@ sphere): sample → triangulate → locate → lift → improve.
    and angles), every vertex a sphere position lifted by eq. (1) and every face positively
    oriented on the sphere (:mod:`.domain`), so the result is a closed genus-0 manifold.
 
-Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks``, after the
-improvement put a locked vertex on each one's input vertex (:func:`.uniform.interior_landmarks`).
+Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks`` the
+improvement first puts a locked vertex on each one's input vertex
+(:func:`.uniform.interior_landmarks`), so that this vertex is the nearest.
 """
 
 from __future__ import annotations

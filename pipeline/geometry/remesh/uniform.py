@@ -13,8 +13,9 @@ lift → improve.
 
 Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks`` and the
 improvement pass, the interior ones have a locked vertex put on their input vertex first (a
-landmark lands on a remesh vertex exactly unless it is within ``CORNER_GAP × L`` of a sharper
-corner or an earlier landmark), which the triangles around it pay for.
+landmark lands on a remesh vertex exactly unless it is within ``CORNER_GAP × L`` of a vertex
+locked before: a corner's, a feature line's or an earlier landmark's), which the triangles
+around it pay for.
 """
 
 from __future__ import annotations
