@@ -82,6 +82,7 @@ class DiskSamples:
     pattern: str
     iterations: int = 0         # count-solving evaluations
     polygon: np.ndarray | None = None   # the rim polygon the samples were made for
+    rim_lengths: np.ndarray | None = None   # its edges' rim lengths (None: their own)
 
     @property
     def rim(self) -> np.ndarray:
@@ -103,13 +104,16 @@ def rim_polygon(polygon: np.ndarray | None, resolution: int = 4096) -> np.ndarra
 class _Polygon:
     """Arc-length sampling, inside test and distance for a closed convex-ish polygon."""
 
-    def __init__(self, P: np.ndarray):
+    def __init__(self, P: np.ndarray, rim_lengths: np.ndarray | None = None):
         self.P = P
         self.A, self.B = P, np.roll(P, -1, axis=0)
         self.segments = Segments(self.A, self.B)     # closest-point queries, tree built once
         seg = np.linalg.norm(self.B - self.A, axis=1)
         self.cum = np.r_[0.0, np.cumsum(seg)]
         self.length = float(self.cum[-1])
+        # the rim samples' spacing measure along each edge: its own length unless given
+        self.rim_cum = self.cum if rim_lengths is None else np.r_[0.0, np.cumsum(rim_lengths)]
+        self.rim_length = float(self.rim_cum[-1])
         x, y = P[:, 0], P[:, 1]
         self.area = 0.5 * float((x * np.roll(y, -1) - np.roll(x, -1) * y).sum())
         self.radius = float(np.linalg.norm(P, axis=1).max())
@@ -131,8 +135,23 @@ class _Polygon:
         t = (s - self.cum[i]) / np.maximum(self.cum[i + 1] - self.cum[i], 1e-300)
         return self.A[i] + t[:, None] * (self.B[i] - self.A[i])
 
+    def rim_position(self, points: np.ndarray) -> np.ndarray:
+        """Each point's closest point on the polygon as a rim length (k,) from the first
+        vertex (:attr:`rim_cum`)."""
+        seg, t, _ = self.segments.closest(points)
+        return self.rim_cum[seg] + t * (self.rim_cum[seg + 1] - self.rim_cum[seg])
+
+    def at_rim_length(self, s: np.ndarray) -> np.ndarray:
+        """Points at rim lengths ``s`` (mod the rim's) from the first vertex: exactly on
+        edges, each edge's rim length spread evenly along it."""
+        c = self.rim_cum
+        s = np.mod(s, self.rim_length)
+        i = np.clip(np.searchsorted(c, s, side="right") - 1, 0, len(self.P) - 1)
+        t = (s - c[i]) / np.maximum(c[i + 1] - c[i], 1e-300)
+        return self.A[i] + t[:, None] * (self.B[i] - self.A[i])
+
     def rim(self, n: int) -> np.ndarray:
-        return self.at_arclength(self.length * np.arange(n) / n)
+        return self.at_rim_length(self.rim_length * np.arange(n) / n)
 
     def inner_distance(self, X: np.ndarray) -> np.ndarray:
         """Signed distance to the polygon, positive inside (the polygon is convex: a SEM image
@@ -264,13 +283,14 @@ _BLUE_SPACING = 1.33      # Poisson-disk radius r: the density of a lattice of s
 
 def _count(poly: _Polygon, pattern: str, h: float, seed: int) -> tuple[int, np.ndarray, int]:
     inner = _interior(poly, pattern, h, seed)
-    n_rim = max(MIN_RIM, int(round(poly.length / h)))
+    n_rim = max(MIN_RIM, int(round(poly.rim_length / h)))
     return n_rim + len(inner), inner, n_rim
 
 
 def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
                 pattern: str = "hexagonal", polygon: np.ndarray | None = None,
-                relax: int = 3, seed: int = 0) -> DiskSamples:
+                relax: int = 3, seed: int = 0, rim_lengths: np.ndarray | None = None
+                ) -> DiskSamples:
     """Even samples of the polygon (default: the unit circle); give ``n_vertices`` or ``spacing``.
 
     ``spacing`` is the target edge length ``h`` in disk units. With ``n_vertices`` the spacing
@@ -280,7 +300,11 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
         raise ValueError(f"unknown pattern {pattern!r}; use one of {PATTERNS}")
     if (n_vertices is None) == (spacing is None):
         raise ValueError("give exactly one of n_vertices or spacing")
-    poly = _Polygon(rim_polygon(polygon))
+    P = rim_polygon(polygon)
+    if rim_lengths is not None and polygon is not None and P[0] is not polygon[0] and \
+            not np.array_equal(P[0], np.asarray(polygon)[0, :2]):
+        rim_lengths = np.roll(np.asarray(rim_lengths)[::-1], -1)     # the polygon reversed
+    poly = _Polygon(P, rim_lengths)
     evaluations = 0
     if spacing is not None:
         h = float(spacing)
@@ -291,8 +315,8 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
         # closed form: N ≈ (area shrunk by the margin band) / (√3/2 h²) + perimeter / h
         a = np.sqrt(3.0) / 2.0
         L, A = poly.length, poly.area
-        # solve (A − L·(MARGIN − 0.5)·h)/(a h²) + L/h = N for h (a quadratic in 1/h)
-        b = L - L * (MARGIN - 0.5) / a
+        # solve (A − L·(MARGIN − 0.5)·h)/(a h²) + L_rim/h = N for h (a quadratic in 1/h)
+        b = poly.rim_length - L * (MARGIN - 0.5) / a
         h = 2 * A / a / (b + np.sqrt(b * b + 4 * N * A / a))
         logs = []
         best = None
@@ -318,7 +342,8 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
     points = np.vstack([rim, inner])
     if relax > 0 and len(inner):
         points = _relax_band(points, n_rim, poly, h, relax)
-    return DiskSamples(points, n_rim, float(h), pattern, evaluations, poly.P)
+    return DiskSamples(points, n_rim, float(h), pattern, evaluations, poly.P,
+                       None if rim_lengths is None else np.diff(poly.rim_cum))
 
 
 def _relax_band(points: np.ndarray, n_rim: int, poly: _Polygon, h: float, sweeps: int
@@ -545,11 +570,11 @@ def snap_rim(samples: DiskSamples, targets: np.ndarray) -> np.ndarray:
     most half a rim spacing, staying between its neighbours). Returns the indices moved."""
     if samples.polygon is None or len(targets) == 0:
         return np.zeros(0, np.int64)
-    poly = _Polygon(samples.polygon)
+    poly = _Polygon(samples.polygon, samples.rim_lengths)
     T = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
-    s = poly.arc_position(T)
+    s = poly.rim_position(T)
     nb = samples.n_rim
-    k = np.rint(s / (poly.length / nb)).astype(np.int64) % nb
+    k = np.rint(s / (poly.rim_length / nb)).astype(np.int64) % nb
     _, first = np.unique(k, return_index=True)
     first = np.sort(first)
     samples.points = samples.points.copy()
