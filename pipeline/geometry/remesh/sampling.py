@@ -4,8 +4,13 @@ The image of a SEM map is the polygon ``P = uv[boundary]``, inscribed in the uni
 the map is equiareal, points spread evenly over ``P`` are spread evenly over the surface.
 
 :func:`sample_disk` returns ``DiskSamples``: the *rim* samples first (indices ``0 … n_rim−1``,
-counter-clockwise), evenly spaced by arc length **on the polygon** (so they locate exactly on
-the image's boundary edges), then the *interior* samples. Patterns:
+counter-clockwise, exactly on the image's boundary edges), then the *interior* samples. The
+map keeps areas, not boundary lengths: the surface's rim can be several times longer or
+shorter than the polygon. The rim samples are spaced evenly by arc length on the polygon,
+unless the surface's rim (``rim_points``) is at least ``RIM_STRETCH_MIN`` × longer: then they
+are spaced evenly along the surface's rim, measured by chords at the spacing ``h`` (a ragged
+rim's teeth between two samples do not count) and never sparser on the polygon than ``h``
+(:func:`rim_lengths_on_surface`); the rim count is that length over ``h``. Patterns:
 
 * ``hexagonal`` — an equilateral lattice of spacing ``h`` (the densest even
   pattern: every interior triangle equilateral, valence 6), clipped to the points at least
@@ -49,6 +54,7 @@ and raises.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -67,6 +73,7 @@ JITTER = 0.5          # jittered: offsets uniform in [−JITTER/2, JITTER/2] × 
 MARGIN = 0.6          # interior samples at least MARGIN·h inside the rim polygon
 BAND = 3.0            # relax interior points within BAND·h of the rim
 MIN_RIM = 8
+RIM_STRETCH_MIN = 1.5   # the rim samples follow the surface's rim when it is this × longer
 
 
 @dataclass
@@ -82,7 +89,8 @@ class DiskSamples:
     pattern: str
     iterations: int = 0         # count-solving evaluations
     polygon: np.ndarray | None = None   # the rim polygon the samples were made for
-    rim_lengths: np.ndarray | None = None   # its edges' rim lengths (None: their own)
+    rim_lengths: np.ndarray | None = None   # p: what its edges count for on the rim (None:
+    #                                         their own lengths; rim_lengths_on_surface)
 
     @property
     def rim(self) -> np.ndarray:
@@ -95,14 +103,19 @@ def rim_polygon(polygon: np.ndarray | None, resolution: int = 4096) -> np.ndarra
         t = 2 * np.pi * np.arange(resolution) / resolution
         return np.column_stack([cos(t), sin(t)])
     P = np.asarray(polygon, dtype=np.float64)[:, :2]
+    return P[::-1] if _signed_double_area(P) < 0 else P        # make it CCW
+
+
+def _signed_double_area(P: np.ndarray) -> float:
+    """Twice the signed area of the closed polygon ``P`` (p, 2): positive counter-clockwise."""
     x, y = P[:, 0], P[:, 1]
-    if (x * np.roll(y, -1) - np.roll(x, -1) * y).sum() < 0:        # make it CCW
-        P = P[::-1]
-    return P
+    return float((x * np.roll(y, -1) - np.roll(x, -1) * y).sum())
 
 
 class _Polygon:
-    """Arc-length sampling, inside test and distance for a closed convex-ish polygon."""
+    """Arc-length sampling, inside test and distance for a closed convex-ish polygon ``P``
+    (p, 2); ``rim_lengths`` (p,), the length each edge ``P[i] → P[i+1]`` counts for in the
+    spacing of the rim samples (default: its own)."""
 
     def __init__(self, P: np.ndarray, rim_lengths: np.ndarray | None = None):
         self.P = P
@@ -111,11 +124,8 @@ class _Polygon:
         seg = np.linalg.norm(self.B - self.A, axis=1)
         self.cum = np.r_[0.0, np.cumsum(seg)]
         self.length = float(self.cum[-1])
-        # the rim samples' spacing measure along each edge: its own length unless given
-        self.rim_cum = self.cum if rim_lengths is None else np.r_[0.0, np.cumsum(rim_lengths)]
-        self.rim_length = float(self.rim_cum[-1])
-        x, y = P[:, 0], P[:, 1]
-        self.area = 0.5 * float((x * np.roll(y, -1) - np.roll(x, -1) * y).sum())
+        self._set_rim_lengths(rim_lengths)
+        self.area = 0.5 * _signed_double_area(P)
         self.radius = float(np.linalg.norm(P, axis=1).max())
         # every point of the disk of this radius is inside (distance from the origin to the
         # nearest edge line), so only the ring outside it needs the exact distance
@@ -123,27 +133,36 @@ class _Polygon:
         cr = np.abs(e[:, 0] * self.A[:, 1] - e[:, 1] * self.A[:, 0])
         self.apothem = float((cr / np.maximum(seg, 1e-300)).min())
 
+    def _set_rim_lengths(self, rim_lengths: np.ndarray | None) -> None:
+        # the rim samples are spaced evenly by this measure: each edge's own length unless
+        # rim_lengths (p,) gives another
+        self.rim_lengths = rim_lengths
+        self.rim_cum = self.cum if rim_lengths is None else np.r_[0.0, np.cumsum(rim_lengths)]
+        self.rim_length = float(self.rim_cum[-1])
+
+    def spaced_by(self, rim_lengths: np.ndarray | None) -> _Polygon:
+        """The same polygon (its closest-segment tree shared) with the rim measure
+        ``rim_lengths`` (p,) (None: the edges' own lengths)."""
+        other = copy.copy(self)
+        other._set_rim_lengths(rim_lengths)
+        return other
+
     def arc_position(self, points: np.ndarray) -> np.ndarray:
         """Arc length (k,) from the first vertex to each point's closest point on the polygon."""
-        seg, t, _ = self.segments.closest(points)
-        return self.cum[seg] + t * (self.cum[seg + 1] - self.cum[seg])
-
-    def at_arclength(self, s: np.ndarray) -> np.ndarray:
-        """Points at arc lengths ``s`` (mod perimeter) from the first vertex: exactly on edges."""
-        s = np.mod(s, self.length)
-        i = np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.P) - 1)
-        t = (s - self.cum[i]) / np.maximum(self.cum[i + 1] - self.cum[i], 1e-300)
-        return self.A[i] + t[:, None] * (self.B[i] - self.A[i])
+        return self._measure_of(self.cum, points)
 
     def rim_position(self, points: np.ndarray) -> np.ndarray:
-        """Each point's closest point on the polygon as a rim length (k,) from the first
-        vertex (:attr:`rim_cum`)."""
+        """Rim length (k,) (:attr:`rim_cum`) from the first vertex to each point's closest
+        point on the polygon."""
+        return self._measure_of(self.rim_cum, points)
+
+    def _measure_of(self, cum: np.ndarray, points: np.ndarray) -> np.ndarray:
         seg, t, _ = self.segments.closest(points)
-        return self.rim_cum[seg] + t * (self.rim_cum[seg + 1] - self.rim_cum[seg])
+        return cum[seg] + t * (cum[seg + 1] - cum[seg])
 
     def at_rim_length(self, s: np.ndarray) -> np.ndarray:
-        """Points at rim lengths ``s`` (mod the rim's) from the first vertex: exactly on
-        edges, each edge's rim length spread evenly along it."""
+        """Points (k, 2) at rim lengths ``s`` (k,) (mod the rim's) from the first vertex:
+        exactly on edges, each edge's rim length spread evenly along it."""
         c = self.rim_cum
         s = np.mod(s, self.rim_length)
         i = np.clip(np.searchsorted(c, s, side="right") - 1, 0, len(self.P) - 1)
@@ -151,6 +170,7 @@ class _Polygon:
         return self.A[i] + t[:, None] * (self.B[i] - self.A[i])
 
     def rim(self, n: int) -> np.ndarray:
+        """``n`` points (n, 2) evenly spaced by rim length, the first at the first vertex."""
         return self.at_rim_length(self.rim_length * np.arange(n) / n)
 
     def inner_distance(self, X: np.ndarray) -> np.ndarray:
@@ -289,22 +309,28 @@ def _count(poly: _Polygon, pattern: str, h: float, seed: int) -> tuple[int, np.n
 
 def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
                 pattern: str = "hexagonal", polygon: np.ndarray | None = None,
-                relax: int = 3, seed: int = 0, rim_lengths: np.ndarray | None = None
+                relax: int = 3, seed: int = 0, rim_points: np.ndarray | None = None
                 ) -> DiskSamples:
     """Even samples of the polygon (default: the unit circle); give ``n_vertices`` or ``spacing``.
 
     ``spacing`` is the target edge length ``h`` in disk units. With ``n_vertices`` the spacing
     is solved for (see the module docstring) and the count is within 2 % (usually exact).
+    ``rim_points`` (p, 3), the surface points of the ``polygon``'s vertices (p, 2) in disk
+    units (the map's area scale applied), spaces the rim samples by the surface's rim where
+    it is longer than the polygon (:func:`rim_lengths_on_surface`).
     """
     if pattern not in PATTERNS:
         raise ValueError(f"unknown pattern {pattern!r}; use one of {PATTERNS}")
     if (n_vertices is None) == (spacing is None):
         raise ValueError("give exactly one of n_vertices or spacing")
-    P = rim_polygon(polygon)
-    if rim_lengths is not None and polygon is not None and P[0] is not polygon[0] and \
-            not np.array_equal(P[0], np.asarray(polygon)[0, :2]):
-        rim_lengths = np.roll(np.asarray(rim_lengths)[::-1], -1)     # the polygon reversed
-    poly = _Polygon(P, rim_lengths)
+    poly = _Polygon(rim_polygon(polygon))
+    if rim_points is not None:
+        if polygon is None:
+            raise ValueError("rim_points are the surface points of a polygon's vertices")
+        X = np.asarray(rim_points, dtype=np.float64)
+        X = X[::-1] if _signed_double_area(np.asarray(polygon)[:, :2]) < 0 else X
+        h = spacing if spacing is not None else _closed_form_spacing(poly, int(n_vertices))
+        poly = poly.spaced_by(rim_lengths_on_surface(poly.P, X, h))
     evaluations = 0
     if spacing is not None:
         h = float(spacing)
@@ -312,12 +338,7 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
         evaluations = 1
     else:
         N = int(n_vertices)
-        # closed form: N ≈ (area shrunk by the margin band) / (√3/2 h²) + perimeter / h
-        a = np.sqrt(3.0) / 2.0
-        L, A = poly.length, poly.area
-        # solve (A − L·(MARGIN − 0.5)·h)/(a h²) + L_rim/h = N for h (a quadratic in 1/h)
-        b = poly.rim_length - L * (MARGIN - 0.5) / a
-        h = 2 * A / a / (b + np.sqrt(b * b + 4 * N * A / a))
+        h = _closed_form_spacing(poly, N)
         logs = []
         best = None
         for _ in range(6):
@@ -342,8 +363,46 @@ def sample_disk(n_vertices: int | None = None, spacing: float | None = None,
     points = np.vstack([rim, inner])
     if relax > 0 and len(inner):
         points = _relax_band(points, n_rim, poly, h, relax)
-    return DiskSamples(points, n_rim, float(h), pattern, evaluations, poly.P,
-                       None if rim_lengths is None else np.diff(poly.rim_cum))
+    return DiskSamples(points, n_rim, float(h), pattern, evaluations, poly.P, poly.rim_lengths)
+
+
+def _closed_form_spacing(poly: _Polygon, n_vertices: int) -> float:
+    """The spacing ``h`` for which ``(A − L·(MARGIN − 0.5)·h)/(√3/2·h²) + L_rim/h`` (the
+    lattice in the area shrunk by the margin band, and the rim samples) is ``n_vertices``:
+    a quadratic in ``1/h``."""
+    a = np.sqrt(3.0) / 2.0
+    L, A = poly.length, poly.area
+    b = poly.rim_length - L * (MARGIN - 0.5) / a
+    return float(2 * A / a / (b + np.sqrt(b * b + 4 * n_vertices * A / a)))
+
+
+def rim_lengths_on_surface(P: np.ndarray, X: np.ndarray, h: float) -> np.ndarray | None:
+    """The length (p,) each edge ``P[i] → P[i+1]`` of the rim polygon ``P`` (p, 2) counts for
+    when the rim samples follow the surface's rim ``X`` (p, 3, the surface points of ``P``'s
+    vertices, in disk units) at the spacing ``h``; None where that is the polygon's own.
+
+    The polygon is cut into ``m = round(perimeter / h)`` equal arcs; each arc counts the chord
+    between the surface points its ends lift to (linearly along the edges, as the lift does),
+    or its own length if the chord is shorter, and its count is spread over the polygon's
+    edges in proportion to arc length. Chords at the spacing skip what the rim does between
+    two samples (a ragged rim's teeth), and an arc never counts less than its length: the rim
+    samples are never sparser on the polygon than ``h`` (a rim shorter on the surface than
+    on the disk keeps the polygon's spacing). None unless the arcs count ``RIM_STRETCH_MIN``
+    × the perimeter at least: a rim about as long on the surface as on the disk keeps the
+    polygon's even spacing."""
+    seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+    cum = np.r_[0.0, np.cumsum(seg)]
+    m = max(MIN_RIM, int(round(cum[-1] / h)))
+    s = cum[-1] * np.arange(m + 1) / m
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(P) - 1)
+    t = (s - cum[i]) / np.maximum(cum[i + 1] - cum[i], 1e-300)
+    Xc = np.vstack([X, X[:1]])
+    Y = Xc[i] + t[:, None] * (Xc[i + 1] - Xc[i])
+    chord = np.linalg.norm(np.diff(Y, axis=0), axis=1)
+    counted = np.maximum(chord, cum[-1] / m)
+    if counted.sum() < RIM_STRETCH_MIN * cum[-1]:
+        return None
+    return np.diff(np.interp(cum, s, np.r_[0.0, np.cumsum(counted)]))
 
 
 def _relax_band(points: np.ndarray, n_rim: int, poly: _Polygon, h: float, sweeps: int

@@ -143,12 +143,9 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     locator = PointLocator(uv, F, boundary)
     lap("locate")
     ratio = area_scale(V, F, uv)
-    import os
-    rim_lengths = (np.linalg.norm(np.roll(V[boundary], -1, axis=0) - V[boundary], axis=1)
-                   * np.sqrt(ratio)) if os.environ.get("SEM_RIM3D") else None
     samples = sample_disk(vertices, None if spacing is None else spacing * np.sqrt(ratio),
                           pattern, polygon=uv[boundary], relax=rim_relax, seed=seed,
-                          rim_lengths=rim_lengths)
+                          rim_points=V[boundary] * np.sqrt(ratio))
     L = samples.spacing / np.sqrt(ratio)                                 # target length in 3D
     # the input's angle defects and rim turnings, for the rim's corners, its ragged vertices
     # and the interior corners
