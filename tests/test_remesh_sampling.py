@@ -178,8 +178,9 @@ def test_rim_samples_are_spaced_by_the_surface_rim_where_it_is_longer():
 
 
 def test_a_rim_shorter_on_the_surface_leaves_the_samples_unchanged():
-    """A surface rim nowhere longer than the polygon, or longer by less than
-    ``RIM_STRETCH_MIN``, gives exactly the polygon's samples."""
+    """A surface rim nowhere longer than the polygon, longer by less than
+    ``RIM_STRETCH_MIN``, or folding back on itself at the spacing, gives exactly the
+    polygon's samples."""
     from pipeline.geometry.remesh.sampling import rim_lengths_on_surface
 
     P = uneven_polygon(60, 5)
@@ -188,6 +189,11 @@ def test_a_rim_shorter_on_the_surface_leaves_the_samples_unchanged():
     # a rim longer on the surface, but by less than RIM_STRETCH_MIN: the same
     X = np.column_stack([P, 0.05 * np.sin(9 * np.arctan2(P[:, 1], P[:, 0]))])
     assert rim_lengths_on_surface(P, X, 0.05) is None
+    # a rim 3 × longer that folds back on itself somewhere (a slit): the same
+    P, X = stretched_rim()
+    assert rim_lengths_on_surface(P, X, 0.01) is not None
+    X[150, 2] += 0.3                            # out 0.3 and back across two edges
+    assert rim_lengths_on_surface(P, X, 0.01) is None
     a, b = sample_disk(3000, polygon=P, rim_points=X), sample_disk(3000, polygon=P)
     assert np.array_equal(a.points, b.points) and a.rim_lengths is None
 

@@ -7,7 +7,8 @@ the map is equiareal, points spread evenly over ``P`` are spread evenly over the
 counter-clockwise, exactly on the image's boundary edges), then the *interior* samples. The
 map keeps areas, not boundary lengths: the surface's rim can be several times longer or
 shorter than the polygon. The rim samples are spaced evenly by arc length on the polygon,
-unless the surface's rim (``rim_points``) is at least ``RIM_STRETCH_MIN`` × longer: then they
+unless the surface's rim (``rim_points``) is at least ``RIM_STRETCH_MIN`` × longer and
+nowhere folds back on itself at the spacing (``RIM_FOLD_BACK_COS``): then they
 are spaced evenly along the surface's rim, measured by chords at the spacing ``h`` (a ragged
 rim's teeth between two samples do not count) and never sparser on the polygon than ``h``
 (:func:`rim_lengths_on_surface`); the rim count is that length over ``h``. Patterns:
@@ -74,6 +75,7 @@ MARGIN = 0.6          # interior samples at least MARGIN·h inside the rim polyg
 BAND = 3.0            # relax interior points within BAND·h of the rim
 MIN_RIM = 8
 RIM_STRETCH_MIN = 1.5   # the rim samples follow the surface's rim when it is this × longer
+RIM_FOLD_BACK_COS = -0.9   # ... and no two consecutive chords h apart turn back further
 
 
 @dataclass
@@ -388,8 +390,11 @@ def rim_lengths_on_surface(P: np.ndarray, X: np.ndarray, h: float) -> np.ndarray
     two samples (a ragged rim's teeth), and an arc never counts less than its length: the rim
     samples are never sparser on the polygon than ``h`` (a rim shorter on the surface than
     on the disk keeps the polygon's spacing). None unless the arcs count ``RIM_STRETCH_MIN``
-    × the perimeter at least: a rim about as long on the surface as on the disk keeps the
-    polygon's even spacing."""
+    × the perimeter at least (a rim about as long on the surface as on the disk keeps the
+    polygon's even spacing), and None where the rim folds back on itself at the spacing
+    (two consecutive chords at an angle whose cosine is below ``RIM_FOLD_BACK_COS``: a slit,
+    a seam whose two sides meet, where rim samples crowded on both sides of a narrow strip
+    leave folds)."""
     seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
     cum = np.r_[0.0, np.cumsum(seg)]
     m = max(MIN_RIM, int(round(cum[-1] / h)))
@@ -400,9 +405,16 @@ def rim_lengths_on_surface(P: np.ndarray, X: np.ndarray, h: float) -> np.ndarray
     Y = Xc[i] + t[:, None] * (Xc[i + 1] - Xc[i])
     chord = np.linalg.norm(np.diff(Y, axis=0), axis=1)
     counted = np.maximum(chord, cum[-1] / m)
-    if counted.sum() < RIM_STRETCH_MIN * cum[-1]:
+    if counted.sum() < RIM_STRETCH_MIN * cum[-1] or _folds_back(np.diff(Y, axis=0)):
         return None
     return np.diff(np.interp(cum, s, np.r_[0.0, np.cumsum(counted)]))
+
+
+def _folds_back(D: np.ndarray) -> bool:
+    """Whether two consecutive chords ``D`` (m, 3) of a closed rim turn back on each other
+    (the cosine of their angle below ``RIM_FOLD_BACK_COS``)."""
+    u = D / np.maximum(np.linalg.norm(D, axis=1), 1e-300)[:, None]
+    return bool(((u * np.roll(u, -1, axis=0)).sum(axis=1) < RIM_FOLD_BACK_COS).any())
 
 
 def _relax_band(points: np.ndarray, n_rim: int, poly: _Polygon, h: float, sweeps: int
