@@ -157,10 +157,10 @@ def join_loop(S: RemeshState, vs: np.ndarray, seg: np.ndarray, v: np.ndarray,
     ``vs`` (edges ``seg`` long) round it, the last to the first (:func:`.features.join_edges`,
     judging the faces turned over by ``turned``: :func:`turned_outside`, then, for the pairs
     left, not at all: counted as ``hole_joins_unjudged``), the pairs added to ``S.joined``;
-    where a pair cannot be joined (counted as ``hole_joins_failed``), the one remesh edge its segment crosses is split where the loop
-    crosses it (:func:`_split_across`), or else a locked vertex is put on the loop's point
-    halfway between its ends (:func:`.corners.snap_vertices`) and both halves are joined, up
-    to ``MAX_HALVINGS`` times, then :class:`.state.RemeshFailed`.
+    where a pair cannot be joined (counted as ``hole_joins_failed``), the one remesh edge its
+    segment crosses is split where the loop crosses it (:func:`_split_across`), or else a
+    locked vertex is put on the loop's point halfway between its ends (:func:`locked_on`) and
+    both halves are joined, up to ``MAX_HALVINGS`` times, then :class:`.state.RemeshFailed`.
 
     Returns
     -------
