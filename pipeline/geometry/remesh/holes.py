@@ -300,14 +300,16 @@ def cut_holes(S: RemeshState, fans: np.ndarray) -> int:
 
 
 def check_loops(S: RemeshState) -> None:
-    """Check that every kept edge between two hole vertices (``S.fixed``) is still an edge of
-    ``S`` (before the cut); raise :class:`.state.RemeshFailed` if one is missing (an
-    operation of the improvement removed it)."""
+    """Check that every hole edge placed (``hole_edges`` in the log) is still a kept edge
+    between two vertices at ``S.fixed`` and an edge of ``S`` (before the cut); raise
+    :class:`.state.RemeshFailed` if one is missing (an operation of the improvement removed
+    it, or moved or removed one of its ends)."""
     if len(S.fixed) == 0:
         return
     pairs = S.joined[S.is_fixed(S.joined[:, 0], S.joined[:, 1])]
     a, b = topo.half_edges(S.F)
     have = set(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist()))
     missing = [p for p in np.sort(pairs, axis=1).tolist() if tuple(p) not in have]
+    missing += [None] * (S.log.get("hole_edges", 0) - len(pairs))
     if missing:
         _failed(f"{len(missing)} edges of the hole loops were lost in the improvement")
