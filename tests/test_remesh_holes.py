@@ -80,14 +80,20 @@ def test_the_count_is_the_output_count(holed):
 
 
 def test_hole_rims_lie_on_the_input_loops_and_keep_their_length(holed):
+    """The square hole's rim follows its loop (the same length); the round one, a staircase
+    of grid edges (a ragged loop, :func:`.holes.is_ragged`), has its rim's chords cut across
+    the steps: its length is the circle's, not the staircase's."""
+    from pipeline.geometry.remesh.holes import is_ragged
+
     _, mesh, _, r = holed
     loops = topo.boundary_loops(r.F)
     outer = max(loops, key=lambda lp: np.abs(r.V[lp, :2]).max())
     inner = [lp for lp in loops if lp is not outer]
-    for Q in hole_polylines(mesh):
+    for Q, square in zip(hole_polylines(mesh), (True, False)):
         rim = min(inner, key=lambda lp: segment_distance(r.V[lp], Q).max())
         assert segment_distance(r.V[rim], Q).max() <= 1e-9
-        length_in = norms(np.diff(Q, axis=0)).sum()
+        assert is_ragged(Q[:-1]) != square
+        length_in = norms(np.diff(Q, axis=0)).sum() if square else 2 * np.pi * ROUND[2]
         length_out = norms(r.V[np.r_[rim, rim[:1]][1:]] - r.V[rim]).sum()
         assert abs(length_out / length_in - 1) <= 0.03
 
@@ -228,3 +234,73 @@ def test_untangled_adds_the_loop_vertices_where_a_chord_crosses_a_loop():
     (_, seg, t), (_, seg_small, t_small) = untangled(uv, loops)
     assert np.allclose(t, np.r_[0.0, np.cumsum(seg)][:4])
     assert np.allclose(t_small, loops[1][2])
+
+
+def test_spaced_stops_cut_across_the_teeth_of_a_ragged_loop():
+    """A circle of radius 1 with teeth 0.05 deep every 0.02 of arc: the stops are loop
+    vertices about L = 0.3 apart in space, some ten times fewer than the vertices, and each
+    consecutive pair's chord within L / 2 of L."""
+    from pipeline.geometry.remesh.holes import spaced_stops
+
+    a = np.linspace(0, 2 * np.pi, 315)[:-1]
+    r = 1 + 0.05 * (np.arange(len(a)) % 2)
+    Q = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)])
+    Q = np.vstack([Q, Q[:1]])
+    stops = spaced_stops(Q, 0.3)
+    gaps = norms(np.roll(Q[stops], -1, axis=0) - Q[stops])
+    assert stops[0] == 0 and (np.diff(stops) > 0).all() and stops[-1] < len(Q) - 1
+    assert 15 <= len(stops) <= 25
+    assert (np.abs(gaps - 0.3) <= 0.15).all()
+
+
+def test_untangled_lets_a_chord_cut_across_its_own_teeth():
+    """A square whose bottom side zigzags across the chord between its bottom corners: the
+    chord crosses only its own stretch of loop, so no vertex is added; a second loop that
+    the chord crosses adds the zigzag's vertex nearest the middle of the stretch."""
+    from pipeline.geometry.remesh.holes import untangled
+
+    uv = np.array([[0, 0], [0.3, 0.2], [0.6, -0.2], [1, 0], [1, 1], [0, 1],
+                   [0.75, -0.05], [0.85, 0.05], [0.8, 0.1]], float)
+    square = np.r_[0, 1, 2, 3, 4, 5, 0]
+    seg = np.linalg.norm(np.diff(uv[square], axis=0), axis=1)
+    s = np.r_[0.0, np.cumsum(seg)]
+    t = s[[0, 3, 4, 5]]
+    ((_, _, alone),) = untangled(uv, [(square, seg, t)])
+    assert np.array_equal(alone, t)
+    small = np.r_[6, 7, 8, 6]
+    seg_small = np.linalg.norm(np.diff(uv[small], axis=0), axis=1)
+    (_, _, got), _ = untangled(uv, [(square, seg, t),
+                                   (small, seg_small, np.r_[0.0, np.cumsum(seg_small)][:3])])
+    assert np.allclose(got, np.sort(np.r_[t, s[1]])) or np.allclose(got, np.sort(np.r_[t, s[2]]))
+
+
+def test_a_hole_that_cannot_be_kept_is_covered_with_a_warning(monkeypatch):
+    """With the first hole's loop failing to join, that hole is covered (its fan's faces stay,
+    its loop size in ``holes_covered``) and the other kept: a disk with one hole; the
+    warnings name the covered hole."""
+    import pipeline.geometry.remesh.holes as holes
+    from pipeline.geometry.remesh.state import RemeshFailed
+    from pipeline.report.remesh import remesh_warnings
+
+    join_loop, calls = holes.join_loop, []
+
+    def failing_first(S, *args):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RemeshFailed("forced")
+        return join_loop(S, *args)
+
+    monkeypatch.setattr(holes, "join_loop", failing_first)
+    V, F = holed_sheet(2)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    r = remesh_stage(mesh, remesh_map(mesh), RemeshConfig(vertices=1500))
+    log = r.info["improve"]
+    size = len(mesh.hole_loops()[0])
+    assert log["hole_loops_not_placed"] == 1
+    assert log["holes_covered"] == [size] and log["holes_covered_index"] == [0]
+    assert r.info["holes_kept"] == 1
+    assert is_disk_with_holes(mesh_facts(r.V, r.F), 1)
+    rim = min(topo.boundary_loops(r.F), key=len)
+    assert segment_distance(r.V[rim], hole_polylines(mesh)[1]).max() <= 1e-9
+    warnings = remesh_warnings({}, {}, holes_covered=log["holes_covered"])
+    assert any(f"{size}-vertex loop could not be kept open" in w for w in warnings)

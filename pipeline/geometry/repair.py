@@ -181,11 +181,12 @@ def fan_faces(F: np.ndarray, centres) -> np.ndarray:
     return np.isin(F, np.asarray(centres, np.int64)).any(axis=1)
 
 
-def open_mesh(mesh) -> tuple[np.ndarray, np.ndarray]:
-    """A :class:`RepairedMesh` with the holes the repair closed open again: its vertices
-    (n', 3) without the fans' centres and its faces (m', 3) without the fans
-    (:func:`display_faces`), renumbered; ``(mesh.V, mesh.F)`` where it closed none."""
-    F = display_faces(mesh)
+def open_mesh(mesh, covered=()) -> tuple[np.ndarray, np.ndarray]:
+    """A :class:`RepairedMesh` with the holes the repair closed open again but those whose
+    indices (into ``mesh.closed_holes``) are in ``covered``: its vertices (n', 3) without the
+    opened fans' centres and its faces (m', 3) without those fans (:func:`display_faces`),
+    renumbered; ``(mesh.V, mesh.F)`` where it opens none."""
+    F = display_faces(mesh, covered)
     if F is mesh.F:
         return mesh.V, mesh.F
     used = np.zeros(len(mesh.V), bool)
@@ -194,12 +195,14 @@ def open_mesh(mesh) -> tuple[np.ndarray, np.ndarray]:
     return mesh.V[used], new[F]
 
 
-def display_faces(mesh) -> np.ndarray:
+def display_faces(mesh, covered=()) -> np.ndarray:
     """The faces of a :class:`RepairedMesh` minus the fans of the holes the repair closed (the
-    input's holes open again), (m', 3) int; ``mesh.F`` itself where it closed none."""
-    if not mesh.closed_holes:
+    input's holes open again) but those whose indices are in ``covered``, (m', 3) int;
+    ``mesh.F`` itself where it opens none."""
+    centres = [h["centre_vertex"] for i, h in enumerate(mesh.closed_holes) if i not in covered]
+    if not centres:
         return mesh.F
-    return mesh.F[~mesh.fan_faces()]
+    return mesh.F[~fan_faces(mesh.F, centres)]
 
 
 # --------------------------------------------------------------------------------------------

@@ -394,7 +394,7 @@ def below_min_angle_warning(below: dict) -> str:
 
 def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
                     count: dict | None = None, trials_cut: int = 0,
-                    holes_closed: int = 0) -> list[str]:
+                    holes_closed: int = 0, holes_covered: list | None = None) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
@@ -403,8 +403,15 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
     ``{"requested", "vertices", "rim"}``, the vertex count asked for and made, and how many of
     the samples were on the rim; ``trials_cut``: the loops of trials the improvement's work
     budget ended (``remesh.improve.trials_cut``); ``holes_closed``: the input's holes the
-    intake's ``close_holes`` filled (``input.repair.holes_closed``), which the remesh covers."""
+    intake's ``close_holes`` filled (``input.repair.holes_closed``), which the remesh covers;
+    ``holes_covered``: the loop sizes (input vertices) of the holes the remesh meant to keep
+    open and covered instead (``remesh.improve.holes_covered``)."""
     out = []
+    for size in holes_covered or []:
+        out.append(f"the hole with a {size}-vertex loop could not be kept open (its loop's "
+                   f"edges could not all be made or kept): the remesh covers it with the "
+                   f"fan's surface close_holes filled it with, one boundary fewer than the "
+                   f"input")
     if holes_closed:
         what = "hole" if holes_closed == 1 else "holes"
         out.append(f"the remesh covers the {holes_closed} {what} close_holes filled with fans "

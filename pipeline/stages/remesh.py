@@ -238,6 +238,15 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
                   facts=r.facts, input_distance=r.input_distance)
 
 
+def lifted_note(info: dict) -> str:
+    """The plain lift's note where the remesh kept holes open (``info["holes_kept"]``)."""
+    if not info.get("holes_kept"):
+        return ""
+    return ("its faces whose disk centroid lies in a hole kept open are left out; with no "
+            "vertices on the holes' loops, its hole rims run along its own edges, across "
+            "the input's")
+
+
 def keeps_holes(mesh: RepairedMesh, options: RemeshConfig) -> bool:
     """Whether the remesh of ``mesh`` keeps the holes its repair closed open: there are some,
     ``keep_holes`` is on and so is the improvement pass (which places their rims)."""
@@ -366,7 +375,7 @@ def compare_methods(V_in: np.ndarray, F_in: np.ndarray, remesh, target: int,
         out["sem_lifted"] = Method("sem_lifted", Xl, Fl, remesh.seconds["sample"]
                                    + remesh.seconds["delaunay"] + remesh.seconds["locate"]
                                    + remesh.seconds["lift"],
-                                   quality(Xl, Fl))
+                                   quality(Xl, Fl), lifted_note(remesh.info))
     say("measuring the improved remesh")
     out["sem"] = Method("sem", remesh.V, remesh.F, remesh.seconds["total"],
                         quality(remesh.V, remesh.F, remesh.facts or None))
@@ -425,7 +434,8 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
     t0 = time.perf_counter()
     target = remesh.info.get("requested_vertices") or len(remesh.V)
     kept = remesh.info.get("holes_kept", 0)
-    V_in, F_in = open_mesh(mesh) if kept else (mesh.V, mesh.F)
+    covered = remesh.info.get("improve", {}).get("holes_covered_index", [])
+    V_in, F_in = open_mesh(mesh, covered) if kept else (mesh.V, mesh.F)
     methods = compare_methods(V_in, F_in, remesh, target, compare, n_random,
                               progress=progress)
     t_measure = time.perf_counter() - t0
@@ -455,7 +465,8 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         {"requested": remesh.info.get("requested_vertices"), "vertices": int(len(remesh.V)),
          "rim": remesh.info.get("rim_samples")},
         remesh.info.get("improve", {}).get("trials_cut", 0),
-        0 if kept else (input_info or {}).get("repair", {}).get("holes_closed", 0))
+        0 if kept else (input_info or {}).get("repair", {}).get("holes_closed", 0),
+        remesh.info.get("improve", {}).get("holes_covered") if kept else None)
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
@@ -574,6 +585,8 @@ def _summary(ctx: Context, files: dict) -> str:
     d = sem.get("distance", {})
     shape = (("closed genus 0" if sem.get("is_sphere") else "NOT closed genus 0")
              if r.uv.shape[1] == 3 else disk_shape_words(sem, r.info.get("holes_kept", 0)))
+    covered = len(r.info.get("improve", {}).get("holes_covered", []))
+    shape += f" ({covered} more covered: see the warnings)" if covered else ""
     return (f"{len(r.V)} vertices, {len(r.F)} faces, {shape}, "
             f"min angle {t['min_angle_deg']:.1f}°, mean smallest angle "
             f"{t['mean_min_angle_deg']:.1f}°, Hausdorff {100 * d.get('hausdorff_rel', 0):.3f} % "

@@ -487,12 +487,14 @@ def chain_sums(values: np.ndarray, counts) -> np.ndarray:
     return total
 
 
-def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> np.ndarray:
+def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG,
+                   fans: np.ndarray | None = None) -> np.ndarray:
     """Lock a remesh vertex on every point of the input's feature chains (:func:`chain_points`
     at spacing ``L``; :func:`.corners.snap_vertices`, ``FEATURE_GAP × L`` apart) and join
     consecutive ones (:func:`join_edges`); the joined pairs are added to ``S.joined``. The
     chains are those of the edges folded more than ``angle_deg`` at faces the map dilates at
-    most ``MAX_DILATATION``, with the smooth creases below it (:func:`smooth_creases`).
+    most ``MAX_DILATATION``, with the smooth creases below it (:func:`smooth_creases`), none
+    at the ``fans`` filling the holes (whose loops :mod:`.holes` keeps already).
 
     Parameters
     ----------
@@ -502,6 +504,8 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
         Target edge length, in the mesh's units.
     angle_deg : float
         The crease threshold (:func:`feature_edges`).
+    fans : (M,) bool, optional
+        The input faces that fill the holes: no edge of theirs is a feature edge.
 
     Returns
     -------
@@ -509,10 +513,14 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
         The pairs joined.
     """
     even = stretch_anisotropy(S.V_in, S.F_in, S.uv_in) <= MAX_DILATATION
+    if fans is not None:
+        even &= ~fans
     folds = edge_folds(S.V_in, S.F_in)
     E, angle = feature_edges(S.V_in, S.F_in, angle_deg, faces=even, folds=folds)
     if angle_deg > SMOOTH_CREASE_DEG:
         E_smooth, angle_smooth = smooth_creases(S.V_in, S.F_in, L, angle_deg, folds)
+        if fans is not None:
+            E_smooth, angle_smooth = off_fans(S.F_in, fans, E_smooth, angle_smooth)
         S.tally("feature_smooth_edges", len(E_smooth))
         E, angle = with_edges(E, angle, E_smooth, angle_smooth)
     chains = feature_chains(S.V_in, E, TURN_DEG)
@@ -531,6 +539,16 @@ def place_features(S: RemeshState, L: float, angle_deg: float = FEATURE_DEG) -> 
     S.locked[np.setdiff1d(placed, pairs)] = False       # a point on no kept edge: a start
     S.tally("features_joined", len(pairs))
     return pairs
+
+
+def off_fans(F: np.ndarray, fans: np.ndarray, E: np.ndarray, angle: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """The edges ``E`` (e, 2) int and their ``angle`` (e,) but those with both ends on faces
+    of ``F`` (m×3) among the ``fans`` (m bool): a hole loop's edges and a fan's spokes."""
+    on_fan = np.zeros(int(max(F.max(), E.max(initial=0))) + 1, bool)
+    on_fan[F[fans].ravel()] = True
+    keep = ~(on_fan[E[:, 0]] & on_fan[E[:, 1]])
+    return E[keep], angle[keep]
 
 
 def smooth_creases(V: np.ndarray, F: np.ndarray, L: float, max_deg: float = 180.0,

@@ -433,7 +433,7 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
     ops.corners = S.X[S.locked].copy()
     if feature_angle_deg > 0 and not on_sphere(S.uv):
-        joined = place_features(S, L, feature_angle_deg)
+        joined = place_features(S, L, feature_angle_deg, fans if hole_loops else None)
         ops.features = S.X[np.unique(joined)]
     if len(S.fixed):
         ops.features = np.vstack([S.fixed, ops.features])

@@ -140,6 +140,12 @@ class RemeshState:
     fixed : (k, 3) float
         Where the vertices on the input's hole loops are (:mod:`.holes`): locked for good,
         their kept edges (:meth:`is_fixed`) never dropped or flipped. None by default.
+    hole_chains : list of (j, 2, 3) float or None
+        Each hole loop's kept edges as the positions of their ends, None for a loop that
+        could not be placed (:func:`.holes.place_holes`). None by default.
+    fans : (M,) bool
+        The input faces that fill the holes kept open (:func:`.holes.place_holes`): left out
+        of the input's angle sums (:meth:`angle_sums_in`). None by default.
     joined : (k, 2) int
         Vertex pairs whose edge is kept (the input's feature lines, :mod:`.features`): no flip
         removes it and no split divides it; their ends are locked. None by default.
@@ -169,6 +175,8 @@ class RemeshState:
     joined: np.ndarray | None = None
     ragged: np.ndarray | None = None
     fixed: np.ndarray | None = None
+    hole_chains: list | None = None
+    fans: np.ndarray | None = None
     log: dict = field(default_factory=dict)
     surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
@@ -202,11 +210,20 @@ class RemeshState:
 
     def angle_sums_in(self) -> np.ndarray:
         """The sum (degrees, N) of the input faces' angles at each input vertex, computed
-        once."""
+        once: without the ``fans``, if given (a hole loop's vertex has the angle of the input
+        with its holes open, as a rim vertex has)."""
         if self._angle_sums_in is None:
-            A = np.degrees(corner_angles(self.V_in, self.F_in))
-            self._angle_sums_in = np.bincount(self.F_in.ravel(), A.ravel(), len(self.V_in))
+            F = self.F_in if self.fans is None else self.F_in[~self.fans]
+            A = np.degrees(corner_angles(self.V_in, F))
+            self._angle_sums_in = np.bincount(F.ravel(), A.ravel(), len(self.V_in))
         return self._angle_sums_in
+
+    def on_boundary(self) -> np.ndarray:
+        """The vertices (n bool) on the remesh's boundary once the holes are cut: the rim's
+        and those at the hole loops' ``fixed`` points."""
+        if len(self.fixed) == 0:
+            return self.is_rim
+        return self.is_rim | at_points(self.X, self.fixed)
 
     def pullback(self) -> np.ndarray:
         """:func:`pullback_matrices` (M×2×3) of the input map, computed once."""

@@ -34,7 +34,7 @@ from .angles import corner_angles_deg, forced_corners, input_vertex_under
 from .corners import boundary_corners, interior_corners, ragged_boundary, vertex_turning
 from .domain import on_sphere
 from .fidelity import input_distance
-from .holes import check_loops, cut_holes
+from .holes import cut_holes, lift_with_holes_cut, loop_of_fans
 from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
@@ -196,6 +196,11 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         input_tree = built_input_distance(S)
     lap("improve")
     check_remesh(X, F_out, uv_out)
+    if holes:
+        holes -= len(imp["holes_covered"])
+        lifted = lift_with_holes_cut(*lifted, samples.points, locator,
+                                     loop_of_fans(F, fans, hole_loops),
+                                     imp["holes_covered_index"])
     facts = check_topology(X, F_out, holes=holes)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
@@ -285,8 +290,7 @@ def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndar
     improve_remesh(S, L, target_vertices=target, corners_uv=corners,
                    min_angle_deg=min_angle_deg, fans=fans, **params)
     if fans is not None:
-        check_loops(S)
-        cut_holes(S, fans)
+        cut_holes(S, loop_of_fans(S.F_in, fans, params["hole_loops"]))
     imp = {"enabled": True, "target_edge_length": float(L), **S.log}
     imp["below_min_angle"] = below_min_angle(S, S.V_in, min_angle_deg)
     imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
@@ -334,9 +338,9 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     the nearest input vertex of each) and, per corner (``input_corners``), its input angle
     sum, how many faces below the minimum it has and their smallest angle there, and the even
     split of its sum among the fewest faces a vertex there can have (``even_split_deg``: 2 on
-    the rim, 3 inside; degrees): the best the corner's faces can share where the remesh's
-    faces there span the input's angle sum (:meth:`.improve._Operations.raise_forced` aims
-    at it)."""
+    the rim or a hole's loop, 3 inside; degrees): the best the corner's faces can share where
+    the remesh's faces there span the input's angle sum
+    (:meth:`.improve._Operations.raise_forced` aims at it)."""
     from scipy.spatial import cKDTree
 
     bad = skinny_faces(S.X, S.F, min_angle_deg) if min_angle_deg > 0 else np.zeros(0, int)
@@ -347,7 +351,7 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
     sums = S.angle_sums_in()[input_vertex_under(S, corners)]
     A = corner_angles_deg(S.X, T)
-    fewest = np.where(S.is_rim[corners], 2, 3)
+    fewest = np.where(S.on_boundary()[corners], 2, 3)
     per = [{"vertex": int(i), "angle_sum_deg": float(s), "faces": int((T[at] == v).sum()),
             "smallest_angle_deg": float(A[at & (T == v)].min()), "even_split_deg": float(s / k)}
            for v, i, s, k in zip(corners, np.atleast_1d(names), sums, fewest)]
