@@ -28,6 +28,7 @@ from functools import partial
 import numpy as np
 
 from .. import topology as topo
+from ..locate import lift
 from ..metrics import signed_double_areas
 from ..rows import norms
 from .corners import insert_vertices, snap_vertices
@@ -341,6 +342,24 @@ def _halved(S: RemeshState, vs: np.ndarray, seg: np.ndarray, todo: list) -> list
     m = locked_on(S, along_chain(S.uv_in, vs, seg, mid), "hole_midpoints")
     return [half for (a, b, ta, tb), w, tm in zip(todo, m.tolist(), mid.tolist())
             for half in ((a, w, ta, tm), (w, b, tm, tb))]
+
+
+def away_from_holes(S: RemeshState, P: np.ndarray, gap: float) -> np.ndarray:
+    """The disk points ``P`` (p×2) whose surface points lie ``gap`` or farther from every
+    placed hole loop's edges (``S.hole_chains``): a vertex locked nearer would make a sliver
+    of the face between it and the loop's kept edge, which no operation could mend."""
+    from .rim import segment_distances
+
+    chains = [c for c in S.hole_chains or [] if c is not None]
+    if not chains or len(P) == 0:
+        return P
+    C = np.vstack(chains)
+    f, b = S.locator.locate(P)
+    X = lift(S.V_in, S.F_in, f, b)
+    near = np.array([segment_distances(np.repeat(x[None], len(C), 0), C[:, 0], C[:, 1]).min()
+                     < gap for x in X], bool)
+    S.tally("corners_near_holes", int(near.sum()))
+    return P[~near]
 
 
 def locked_on(S: RemeshState, Q: np.ndarray, counts: str) -> np.ndarray:

@@ -15,7 +15,7 @@ The schedule (:func:`improve_remesh`):
 1. given ``hole_loops``, locked vertices about ``L`` apart along each hole loop of the input,
    joined round it by kept edges that no step frees (:mod:`.holes`); snap (or insert) a
    locked vertex onto each sharp input corner (:mod:`.corners`), sharpest first, none
-   within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L`` apart along
+   within ``CORNER_GAP × L`` of one kept before or of a hole loop's edges; then locked vertices about ``L`` apart along
    the input's feature lines (the edges folded more than ``feature_angle_deg``) and the edges
    between consecutive ones kept until the repairs free them (:mod:`.features`);
    then, given ``landmarks_uv``, one onto each landmark's input vertex, none within
@@ -227,7 +227,7 @@ from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
-from .holes import place_holes
+from .holes import away_from_holes, place_holes
 from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, flip_in_place, sag_flips, valence_flips
@@ -429,6 +429,8 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     lap = Stopwatch(S.log, "seconds")
     if hole_loops:
         place_holes(S, hole_loops, fans, L)
+    if hole_loops and corners_uv is not None:
+        corners_uv = away_from_holes(S, corners_uv, CORNER_GAP * L)
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
     ops.corners = S.X[S.locked].copy()
