@@ -108,6 +108,23 @@ def test_no_face_lies_in_a_hole(holed):
         assert (np.hypot(c[:, 0] - cx, c[:, 1] - cy) > 0.9 * rr).all()
 
 
+def test_the_plain_lift_leaves_the_kept_holes_out(holed):
+    """The plain lift (before the improvement) has no face with its three corners in a hole
+    (its hole rims run along its own edges, across the loops), keeps every vertex it uses and
+    is cut: more boundary than its disk's rim."""
+    k, _, _, r = holed
+    X, F = r.lifted
+    P = X[F]
+    x0, x1, y0, y1 = SQUARE
+    inside = (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
+    if k > 1:
+        cx, cy, rr = ROUND
+        inside |= np.hypot(P[..., 0] - cx, P[..., 1] - cy) < rr
+    assert not inside.all(axis=1).any()
+    assert len(np.unique(F)) == len(X)
+    assert len(topo.boundary_loops(F)) >= 1 + k
+
+
 def test_the_remesh_stays_on_the_open_input(holed):
     _, mesh, _, r = holed
     V, F = open_mesh(mesh)
