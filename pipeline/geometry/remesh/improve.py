@@ -15,9 +15,10 @@ The schedule (:func:`improve_remesh`):
 1. given ``hole_loops``, locked vertices about ``L`` apart along each hole loop of the input,
    joined round it by kept edges that no step frees (:mod:`.holes`); snap (or insert) a
    locked vertex onto each sharp input corner (:mod:`.corners`), sharpest first, none
-   within ``CORNER_GAP × L`` of one kept before or of a hole loop's edges; then locked vertices about ``L`` apart along
-   the input's feature lines (the edges folded more than ``feature_angle_deg``) and the edges
-   between consecutive ones kept until the repairs free them (:mod:`.features`);
+   within ``CORNER_GAP × L`` of one kept before or of a hole loop's edges; then locked
+   vertices about ``L`` apart along the input's feature lines (the edges folded more than
+   ``feature_angle_deg``, none of the holes' fans) and the edges between consecutive ones
+   kept until the repairs free them (:mod:`.features`);
    then, given ``landmarks_uv``, one onto each landmark's input vertex, none within
    ``CORNER_GAP × L`` of a vertex locked before;
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
