@@ -67,10 +67,12 @@ TOPOLOGY = "one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); man
 
 
 def topology(q: dict) -> str:
-    """What a quality dict says of the mesh's topology: ``yes, …`` for a disk or a closed genus-0
-    surface, else ``no (χ, loops, components)``."""
+    """What a quality dict says of the mesh's topology: ``yes, …`` for a disk (with its holes,
+    if any) or a closed genus-0 surface, else ``no (χ, loops, components)``."""
     if q["is_disk"]:
         return "yes, a disk"
+    if q.get("holes") and q.get("is_disk_with_holes"):
+        return f"yes, a disk with {q['holes']} {'hole' if q['holes'] == 1 else 'holes'}"
     if q.get("is_sphere"):
         return "yes, closed genus 0"
     f = q["facts"]
@@ -392,7 +394,7 @@ def below_min_angle_warning(below: dict) -> str:
 
 def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
                     count: dict | None = None, trials_cut: int = 0,
-                    holes_closed: int = 0) -> list[str]:
+                    holes_closed: int = 0, holes_covered: list | None = None) -> list[str]:
     """What the user should know before trusting the remesh, one sentence per finding.
 
     ``distortion``: the map's summary (:func:`..geometry.metrics.distortion_summary`, with the
@@ -401,8 +403,15 @@ def remesh_warnings(distortion: dict, methods: dict, below: dict | None = None,
     ``{"requested", "vertices", "rim"}``, the vertex count asked for and made, and how many of
     the samples were on the rim; ``trials_cut``: the loops of trials the improvement's work
     budget ended (``remesh.improve.trials_cut``); ``holes_closed``: the input's holes the
-    intake's ``close_holes`` filled (``input.repair.holes_closed``), which the remesh covers."""
+    intake's ``close_holes`` filled (``input.repair.holes_closed``), which the remesh covers;
+    ``holes_covered``: the loop sizes (input vertices) of the holes the remesh meant to keep
+    open and covered instead (``remesh.improve.holes_covered``)."""
     out = []
+    for size in holes_covered or []:
+        out.append(f"the hole with a {size}-vertex loop could not be kept open (its loop's "
+                   f"edges could not all be made or kept): the remesh covers it with the "
+                   f"fan's surface close_holes filled it with, one boundary fewer than the "
+                   f"input")
     if holes_closed:
         what = "hole" if holes_closed == 1 else "holes"
         out.append(f"the remesh covers the {holes_closed} {what} close_holes filled with fans "

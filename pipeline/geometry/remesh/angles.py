@@ -204,12 +204,13 @@ def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | No
 def sharp_vertices(S: RemeshState, min_angle_deg: float) -> np.ndarray:
     """The vertices (n bool) on an input vertex (:func:`on_input_corners`) whose angle sum on
     the input is below ``min_angle_deg`` × the fewest faces a vertex there can have (3 inside,
-    2 on the rim): the corners of :func:`forcing_corners`."""
+    2 on the rim or a hole's loop, :meth:`.state.RemeshState.on_boundary`): the corners of
+    :func:`forcing_corners`."""
     on = np.flatnonzero(on_input_corners(S))
     sharp = np.zeros(S.n, bool)
     if len(on):
         sums = S.angle_sums_in()[input_vertex_under(S, on)]
-        sharp[on] = sums < min_angle_deg * np.where(S.is_rim[on], 2, 3)
+        sharp[on] = sums < min_angle_deg * np.where(S.on_boundary()[on], 2, 3)
     return sharp
 
 

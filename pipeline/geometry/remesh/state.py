@@ -20,6 +20,11 @@ from ..metrics import corner_angles
 from ..rows import cross, dots, norms
 
 
+class RemeshFailed(RuntimeError):
+    """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
+    the disk, a lost hole); it is never written."""
+
+
 def at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Which rows of ``X`` (n×3) are exactly, bit for bit, one of the points ``P`` (k×3): how
     locks are carried through operations that renumber the vertices (a locked vertex keeps its
@@ -132,6 +137,15 @@ class RemeshState:
     ragged : (k,) bool
         The polygon's corners (input boundary vertices) that the rim crosses rather than
         follows (:func:`.corners.ragged_boundary`); none by default.
+    fixed : (k, 3) float
+        Where the vertices on the input's hole loops are (:mod:`.holes`): locked for good,
+        their kept edges (:meth:`is_fixed`) never dropped or flipped. None by default.
+    hole_chains : list of (j, 2, 3) float or None
+        Each hole loop's kept edges as the positions of their ends, None for a loop that
+        could not be placed (:func:`.holes.place_holes`). None by default.
+    fans : (M,) bool
+        The input faces that fill the holes kept open (:func:`.holes.place_holes`): left out
+        of the input's angle sums (:meth:`angle_sums_in`). None by default.
     joined : (k, 2) int
         Vertex pairs whose edge is kept (the input's feature lines, :mod:`.features`): no flip
         removes it and no split divides it; their ends are locked. None by default.
@@ -160,6 +174,9 @@ class RemeshState:
     locked: np.ndarray | None = None
     joined: np.ndarray | None = None
     ragged: np.ndarray | None = None
+    fixed: np.ndarray | None = None
+    hole_chains: list | None = None
+    fans: np.ndarray | None = None
     log: dict = field(default_factory=dict)
     surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
@@ -175,6 +192,8 @@ class RemeshState:
             self.joined = np.zeros((0, 2), np.int64)
         if self.ragged is None:
             self.ragged = np.zeros(len(self.polygon), bool)
+        if self.fixed is None:
+            self.fixed = np.zeros((0, 3))
 
     @property
     def n(self) -> int:
@@ -191,11 +210,20 @@ class RemeshState:
 
     def angle_sums_in(self) -> np.ndarray:
         """The sum (degrees, N) of the input faces' angles at each input vertex, computed
-        once."""
+        once: without the ``fans``, if given (a hole loop's vertex has the angle of the input
+        with its holes open, as a rim vertex has)."""
         if self._angle_sums_in is None:
-            A = np.degrees(corner_angles(self.V_in, self.F_in))
-            self._angle_sums_in = np.bincount(self.F_in.ravel(), A.ravel(), len(self.V_in))
+            F = self.F_in if self.fans is None else self.F_in[~self.fans]
+            A = np.degrees(corner_angles(self.V_in, F))
+            self._angle_sums_in = np.bincount(F.ravel(), A.ravel(), len(self.V_in))
         return self._angle_sums_in
+
+    def on_boundary(self) -> np.ndarray:
+        """The vertices (n bool) on the remesh's boundary once the holes are cut: the rim's
+        and those at the hole loops' ``fixed`` points."""
+        if len(self.fixed) == 0:
+            return self.is_rim
+        return self.is_rim | at_points(self.X, self.fixed)
 
     def pullback(self) -> np.ndarray:
         """:func:`pullback_matrices` (M×2×3) of the input map, computed once."""
@@ -270,6 +298,12 @@ class RemeshState:
         q = lo * (self.n + 1) + hi
         i = np.minimum(np.searchsorted(key, q), len(key) - 1)
         return key[i] == q
+
+    def is_fixed(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Which edges ``a–b`` (k int each) are kept edges between two vertices at ``fixed``
+        points (a hole loop's edges); k bool."""
+        at = at_points(self.X, self.fixed)
+        return at[a] & at[b] & self.is_joined(a, b)
 
     # ------------------------------------------------------------------------------------ log
 

@@ -1,0 +1,323 @@
+"""The input's holes kept open by the remesh (:mod:`pipeline.geometry.remesh.holes`): a
+constructed disk with a square and a round hole for the exact facts, the ICT face with its eye
+and mouth openings for the quality and the command line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import require_data, run_cli
+from pipeline.geometry import topology as topo
+from pipeline.geometry.remesh_quality import (is_disk, is_disk_with_holes, mesh_facts,
+                                              point_mesh_distance, remesh_quality)
+from pipeline.geometry.remesh.uniform import uniform_remesh
+from pipeline.geometry.repair import RepairOptions, open_mesh, repair_mesh
+from pipeline.geometry.rows import norms
+from pipeline.stages.remesh import RemeshConfig, remesh_stage
+from remesh_helpers import remesh_map
+
+SQUARE = (-0.55, -0.2, -0.2, 0.2)        # x0, x1, y0, y1
+ROUND = (0.4, 0.1, 0.22)                 # cx, cy, r
+
+
+def holed_sheet(holes: int) -> tuple[np.ndarray, np.ndarray]:
+    """A gently domed square sheet (a 71 × 71 grid on [−1, 1]²) with the faces inside a
+    square hole (``holes`` ≥ 1) and a round one (``holes`` = 2) removed: ``(V, F)``."""
+    x = np.linspace(-1, 1, 71)
+    X, Y = np.meshgrid(x, x)
+    P = np.column_stack([X.ravel(), Y.ravel()])
+    i = np.arange(70)
+    a = (i[:, None] * 71 + i[None, :]).ravel()
+    F = np.vstack([np.column_stack([a, a + 1, a + 72]), np.column_stack([a, a + 72, a + 71])])
+    c = P[F].mean(axis=1)
+    x0, x1, y0, y1 = SQUARE
+    cut = (c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 1] > y0) & (c[:, 1] < y1)
+    if holes > 1:
+        cx, cy, r = ROUND
+        cut |= np.hypot(c[:, 0] - cx, c[:, 1] - cy) < r
+    V = np.column_stack([P, 0.3 * (1 - 0.5 * (P ** 2).sum(axis=1))])
+    return V, F[~cut]
+
+
+@pytest.fixture(scope="module", params=[1, 2])
+def holed(request):
+    """The holed sheet repaired with its holes closed, its map, and its remesh at 1,500
+    vertices keeping the holes: ``(k, mesh, uv, remesh)``."""
+    V, F = holed_sheet(request.param)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    uv = remesh_map(mesh)
+    return request.param, mesh, uv, remesh_stage(mesh, uv, RemeshConfig(vertices=1500))
+
+
+def hole_polylines(mesh) -> list:
+    """The input's hole loops as closed polylines, (k + 1, 3) each."""
+    return [mesh.V[np.r_[lp, lp[:1]]] for lp in mesh.hole_loops()]
+
+
+def segment_distance(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The distance of each point ``P`` (p×3) from the closed polyline ``Q`` (q×3)."""
+    A, B = Q[:-1], Q[1:]
+    d = B - A
+    t = np.clip(((P[:, None] - A[None]) * d[None]).sum(axis=2) / (d ** 2).sum(axis=1), 0, 1)
+    return np.linalg.norm(A[None] + t[..., None] * d[None] - P[:, None], axis=2).min(axis=1)
+
+
+def test_holes_stay_open_with_the_input_topology(holed):
+    k, mesh, _, r = holed
+    f = mesh_facts(r.V, r.F)
+    assert is_disk_with_holes(f, k) and not is_disk(f)
+    assert f["boundary_loops"] == 1 + k and f["euler_characteristic"] == 1 - k
+    assert r.info["holes_kept"] == k
+
+
+def test_the_count_is_the_output_count(holed):
+    _, _, _, r = holed
+    assert abs(len(r.V) - 1500) <= 0.02 * 1500
+    assert r.info["vertices_with_holes_filled"] > 1500
+
+
+def test_hole_rims_lie_on_the_input_loops_and_keep_their_length(holed):
+    """The square hole's rim follows its loop (the same length); the round one, a staircase
+    of grid edges (a ragged loop, :func:`.holes.is_ragged`), has its rim's chords cut across
+    the steps: its length is the circle's, not the staircase's."""
+    from pipeline.geometry.remesh.holes import is_ragged
+
+    _, mesh, _, r = holed
+    loops = topo.boundary_loops(r.F)
+    outer = max(loops, key=lambda lp: np.abs(r.V[lp, :2]).max())
+    inner = [lp for lp in loops if lp is not outer]
+    for Q, square in zip(hole_polylines(mesh), (True, False)):
+        rim = min(inner, key=lambda lp: segment_distance(r.V[lp], Q).max())
+        assert segment_distance(r.V[rim], Q).max() <= 1e-9
+        assert is_ragged(Q[:-1]) != square
+        length_in = norms(np.diff(Q, axis=0)).sum() if square else 2 * np.pi * ROUND[2]
+        length_out = norms(r.V[np.r_[rim, rim[:1]][1:]] - r.V[rim]).sum()
+        assert abs(length_out / length_in - 1) <= 0.03
+
+
+def test_no_face_lies_in_a_hole(holed):
+    k, _, _, r = holed
+    c = r.V[r.F].mean(axis=1)
+    x0, x1, y0, y1 = SQUARE
+    assert not ((c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 1] > y0) & (c[:, 1] < y1)).any()
+    if k > 1:
+        cx, cy, rr = ROUND
+        assert (np.hypot(c[:, 0] - cx, c[:, 1] - cy) > 0.9 * rr).all()
+
+
+def test_the_plain_lift_leaves_the_kept_holes_out(holed):
+    """The plain lift (before the improvement) has no face with its three corners in a hole
+    (its hole rims run along its own edges, across the loops), keeps every vertex it uses and
+    is cut: more boundary than its disk's rim."""
+    k, _, _, r = holed
+    X, F = r.lifted
+    P = X[F]
+    x0, x1, y0, y1 = SQUARE
+    inside = (P[..., 0] > x0) & (P[..., 0] < x1) & (P[..., 1] > y0) & (P[..., 1] < y1)
+    if k > 1:
+        cx, cy, rr = ROUND
+        inside |= np.hypot(P[..., 0] - cx, P[..., 1] - cy) < rr
+    assert not inside.all(axis=1).any()
+    assert len(np.unique(F)) == len(X)
+    assert len(topo.boundary_loops(F)) >= 1 + k
+
+
+def test_the_remesh_stays_on_the_open_input(holed):
+    _, mesh, _, r = holed
+    V, F = open_mesh(mesh)
+    d, _ = point_mesh_distance(r.V, V, F)
+    assert d.max() <= 1e-9
+
+
+def test_cover_holes_is_the_remesh_of_the_filled_disk(holed):
+    """``keep_holes: false`` remeshes the disk the fans fill as before: the same remesh, bit
+    for bit, as the disk remesher given no holes, with one boundary loop."""
+    _, mesh, uv, _ = holed
+    r = remesh_stage(mesh, uv, RemeshConfig(vertices=1500, keep_holes=False))
+    plain = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=1500,
+                           **RemeshConfig(vertices=1500).improve.model_dump())
+    assert np.array_equal(r.V, plain.V) and np.array_equal(r.F, plain.F)
+    assert is_disk(mesh_facts(r.V, r.F))
+
+
+def test_open_mesh_drops_the_fans_and_their_centres():
+    V, F = holed_sheet(2)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    Vo, Fo = open_mesh(mesh)
+    centres = [h["centre_vertex"] for h in mesh.closed_holes]
+    fans = mesh.fan_faces()
+    assert len(Vo) == len(mesh.V) - 2 and len(Fo) == len(mesh.F) - fans.sum()
+    assert np.isin(mesh.F[fans], centres).any(axis=1).all()
+    assert not np.isin(mesh.F[~fans], centres).any()
+    assert not np.isin(mesh.V[centres], Vo).all(axis=1).any()
+    assert is_disk_with_holes(mesh_facts(Vo, Fo), 2)
+
+
+@pytest.fixture(scope="module")
+def ict_holes_5k(tmp_path_factory):
+    """The ICT neutral face with its eyes and mouth open, remeshed at 5,000 vertices by the
+    command line (measures and report on)."""
+    path = require_data("faces", "ict", "ict_A_neutral_holes.obj")
+    out = tmp_path_factory.mktemp("ict_holes") / "out"
+    code, stdout, err = run_cli("remesh", path, "--close-holes", "--vertices", 5000, "-o", out)
+    return code, stdout, err, out
+
+
+def test_ict_holes_cli_keeps_the_holes(ict_holes_5k):
+    code, stdout, err, out = ict_holes_5k
+    assert code == 0, err
+    assert "one disk with 3 holes, as the input" in stdout
+    m = json.loads((out / "remesh_metrics.json").read_text())
+    sem = m["methods"]["sem"]
+    assert sem["facts"]["boundary_loops"] == 4 and sem["facts"]["euler_characteristic"] == -2
+    assert abs(sem["facts"]["vertices"] - 5000) <= 0.02 * 5000
+    assert m["input"]["faces"] == m["methods"]["input"]["facts"]["faces"]
+    assert m["methods"]["input"]["facts"]["boundary_loops"] == 4        # the open input
+    assert not any("covers" in w for w in m["warnings"])
+    assert "yes, a disk with 3 holes" in (out / "report.html").read_text()
+
+
+def test_ict_holes_quality(ict_holes_5k):
+    """Measured: mean smallest angle 50.7°, no unforced face below 20°, Hausdorff 0.30 % of
+    the diagonal against the input with its holes (pymeshlab: 50.0°, 0.41 %)."""
+    code, _, err, out = ict_holes_5k
+    assert code == 0, err
+    m = json.loads((out / "remesh_metrics.json").read_text())
+    sem = m["methods"]["sem"]
+    assert sem["triangles"]["mean_min_angle_deg"] >= 50.0
+    assert m["remesh"]["improve"]["below_min_angle"]["unforced_faces"] == 0
+    assert sem["distance"]["hausdorff_rel"] <= 0.005
+
+
+def test_ict_holes_remesh_lies_on_the_rims():
+    from pipeline.stages.load import load_stage
+
+    path = require_data("faces", "ict", "ict_A_neutral_holes.obj")
+    intake = load_stage(path, RepairOptions(close_holes=True))
+    r = remesh_stage(intake.mesh, remesh_map(intake.mesh), RemeshConfig(vertices=5000))
+    q = remesh_quality(*open_mesh(intake.mesh), r.V, r.F, n_random=20_000)
+    assert q["holes"] == 3 and q["is_disk_with_holes"]
+    on_rim = np.zeros(len(r.V), bool)
+    on_rim[np.concatenate(topo.boundary_loops(r.F))] = True
+    rims = np.vstack([segment_distance(r.V[on_rim], Q) for Q in hole_polylines(intake.mesh)])
+    outer = topo.boundary_loops(r.F)
+    assert (rims.min(axis=0) <= 1e-9).sum() == on_rim.sum() - max(map(len, outer))
+
+
+def test_a_loop_the_flips_cannot_join_is_split_on_the_loop(monkeypatch):
+    """With every flip refused, the loop's pairs are joined by the fallbacks alone: the one
+    edge a pair's segment crosses split where the loop crosses it, or the loop's midpoint
+    put in; the hole is kept all the same, its rim on the input loop."""
+    import pipeline.geometry.remesh.holes as holes
+
+    monkeypatch.setattr(holes, "turned_outside", lambda S, fans, T: np.ones(len(T), bool))
+    monkeypatch.setattr(holes, "_nothing_turned", lambda T: np.ones(len(T), bool))
+    V, F = holed_sheet(1)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    r = remesh_stage(mesh, remesh_map(mesh), RemeshConfig(vertices=1500))
+    log = r.info["improve"]
+    assert log["hole_joins_failed"] > 0
+    assert log.get("hole_edges_split", 0) + log.get("hole_midpoints_snapped", 0) \
+        + log.get("hole_midpoints_inserted", 0) > 0
+    assert is_disk_with_holes(mesh_facts(r.V, r.F), 1)
+    rim = min(topo.boundary_loops(r.F), key=len)
+    assert segment_distance(r.V[rim], hole_polylines(mesh)[0]).max() <= 1e-9
+
+
+def test_crossings_are_proper_crossings_only():
+    from pipeline.geometry.remesh.holes import crossings
+
+    P, Q = np.array([[0.0, 0.0], [0.0, 0.0]]), np.array([[1.0, 1.0], [1.0, 0.0]])
+    A, B = np.array([[0.0, 1.0], [1.0, 0.0], [2.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 1.0],
+                                                                     [3.0, 0.0]])
+    assert crossings(P, Q, A, B).tolist() == [[True, False, False], [False, False, False]]
+
+
+def test_untangled_adds_the_loop_vertices_where_a_chord_crosses_a_loop():
+    """A square loop with points on two opposite corners only: its chords (the diagonal, both
+    ways) cross a small loop's edge, so the square's other corners go back in; the small
+    loop's points, on all its vertices, are left."""
+    from pipeline.geometry.remesh.holes import untangled
+
+    uv = np.array([[0, 0], [2, 0], [2, 2], [0, 2], [0.8, 1.2], [1.2, 0.8], [1.2, 1.2]], float)
+    square, small = np.r_[0, 1, 2, 3, 0], np.r_[4, 5, 6, 4]
+    loops = []
+    for vs, stops in ((square, [0, 2]), (small, [0, 1, 2])):
+        seg = np.linalg.norm(np.diff(uv[vs], axis=0), axis=1)
+        loops.append((vs, seg, np.r_[0.0, np.cumsum(seg)][stops]))
+    (_, seg, t), (_, seg_small, t_small) = untangled(uv, loops)
+    assert np.allclose(t, np.r_[0.0, np.cumsum(seg)][:4])
+    assert np.allclose(t_small, loops[1][2])
+
+
+def test_spaced_stops_cut_across_the_teeth_of_a_ragged_loop():
+    """A circle of radius 1 with teeth 0.05 deep every 0.02 of arc: the stops are loop
+    vertices about L = 0.3 apart in space, some ten times fewer than the vertices, and each
+    consecutive pair's chord within L / 2 of L."""
+    from pipeline.geometry.remesh.holes import spaced_stops
+
+    a = np.linspace(0, 2 * np.pi, 315)[:-1]
+    r = 1 + 0.05 * (np.arange(len(a)) % 2)
+    Q = np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)])
+    Q = np.vstack([Q, Q[:1]])
+    stops = spaced_stops(Q, 0.3)
+    gaps = norms(np.roll(Q[stops], -1, axis=0) - Q[stops])
+    assert stops[0] == 0 and (np.diff(stops) > 0).all() and stops[-1] < len(Q) - 1
+    assert 15 <= len(stops) <= 25
+    assert (np.abs(gaps - 0.3) <= 0.15).all()
+
+
+def test_untangled_lets_a_chord_cut_across_its_own_teeth():
+    """A square whose bottom side zigzags across the chord between its bottom corners: the
+    chord crosses only its own stretch of loop, so no vertex is added; a second loop that
+    the chord crosses adds the zigzag's vertex nearest the middle of the stretch."""
+    from pipeline.geometry.remesh.holes import untangled
+
+    uv = np.array([[0, 0], [0.3, 0.2], [0.6, -0.2], [1, 0], [1, 1], [0, 1],
+                   [0.75, -0.05], [0.85, 0.05], [0.8, 0.1]], float)
+    square = np.r_[0, 1, 2, 3, 4, 5, 0]
+    seg = np.linalg.norm(np.diff(uv[square], axis=0), axis=1)
+    s = np.r_[0.0, np.cumsum(seg)]
+    t = s[[0, 3, 4, 5]]
+    ((_, _, alone),) = untangled(uv, [(square, seg, t)])
+    assert np.array_equal(alone, t)
+    small = np.r_[6, 7, 8, 6]
+    seg_small = np.linalg.norm(np.diff(uv[small], axis=0), axis=1)
+    (_, _, got), _ = untangled(uv, [(square, seg, t),
+                                   (small, seg_small, np.r_[0.0, np.cumsum(seg_small)][:3])])
+    assert np.allclose(got, np.sort(np.r_[t, s[1]])) or np.allclose(got, np.sort(np.r_[t, s[2]]))
+
+
+def test_a_hole_that_cannot_be_kept_is_covered_with_a_warning(monkeypatch):
+    """With the first hole's loop failing to join, that hole is covered (its fan's faces stay,
+    its loop size in ``holes_covered``) and the other kept: a disk with one hole; the
+    warnings name the covered hole."""
+    import pipeline.geometry.remesh.holes as holes
+    from pipeline.geometry.remesh.state import RemeshFailed
+    from pipeline.report.remesh import remesh_warnings
+
+    join_loop, calls = holes.join_loop, []
+
+    def failing_first(S, *args):
+        calls.append(1)
+        if len(calls) == 1:
+            raise RemeshFailed("forced")
+        return join_loop(S, *args)
+
+    monkeypatch.setattr(holes, "join_loop", failing_first)
+    V, F = holed_sheet(2)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    r = remesh_stage(mesh, remesh_map(mesh), RemeshConfig(vertices=1500))
+    log = r.info["improve"]
+    size = len(mesh.hole_loops()[0])
+    assert log["hole_loops_not_placed"] == 1
+    assert log["holes_covered"] == [size] and log["holes_covered_index"] == [0]
+    assert r.info["holes_kept"] == 1
+    assert is_disk_with_holes(mesh_facts(r.V, r.F), 1)
+    rim = min(topo.boundary_loops(r.F), key=len)
+    assert segment_distance(r.V[rim], hole_polylines(mesh)[1]).max() <= 1e-9
+    warnings = remesh_warnings({}, {}, holes_covered=log["holes_covered"])
+    assert any(f"{size}-vertex loop could not be kept open" in w for w in warnings)
