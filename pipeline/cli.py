@@ -87,11 +87,12 @@ def _nested_model(field):
 
 def _option(key: str, field, default) -> str:
     """How a subcommand spells the config key ``key`` whose value is ``default`` unless given:
-    the field's own ``flag``, or ``--key``; a boolean not off by default ``--no-key`` (the
-    flag can only switch it off)."""
+    the field's own ``flag``, or ``--key``; a boolean not off by default its own ``flag`` or
+    ``--no-key`` (the flag can only switch it off)."""
+    flag = (field.json_schema_extra or {}).get("flag")
     if _unwrap(field.annotation) is bool and default is not False:
-        return f"--no-{key.replace('_', '-')}"
-    return (field.json_schema_extra or {}).get("flag") or "--" + key.replace("_", "-")
+        return flag or f"--no-{key.replace('_', '-')}"
+    return flag or "--" + key.replace("_", "-")
 
 
 def _add_field(parser, section: str, key: str, field, default=None) -> None:

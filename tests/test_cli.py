@@ -192,10 +192,20 @@ def test_close_holes_option_parameterizes_the_holed_grid(tmp_path):
     assert "closed" in err.lower() or "hole" in err.lower()   # the repair is reported
 
 
+def test_remesh_of_the_holed_grid_keeps_the_hole(tmp_path):
+    path = _holed_grid(tmp_path / "holed.obj")
+    code, out, err = run_cli("remesh", path, "-o", tmp_path / "o", "--close-holes",
+                             "--vertices", 300, "--no-compare", "--no-report")
+    assert code == 0, err
+    assert "one disk with 1 hole, as the input" in out and "covers" not in err
+    metrics = json.loads((tmp_path / "o" / "remesh_metrics.json").read_text())
+    assert metrics["methods"]["sem"]["facts"]["boundary_loops"] == 2
+
+
 def test_remesh_of_the_holed_grid_warns_that_it_covers_the_hole(tmp_path):
     path = _holed_grid(tmp_path / "holed.obj")
     code, _, err = run_cli("remesh", path, "-o", tmp_path / "o", "--close-holes", "--vertices",
-                           300, "--no-compare", "--no-report")
+                           300, "--no-compare", "--no-report", "--cover-holes")
     assert code == 0, err
     warning = ("the remesh covers the 1 hole close_holes filled with fans to a new centre "
                "vertex: it has one boundary where the input had 2")

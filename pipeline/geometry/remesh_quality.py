@@ -46,8 +46,8 @@ __all__ = ["mesh_facts", "triangle_quality", "valence_stats", "closest_points_on
            "MeshDistance", "MiddleOffsets", "middle_offsets", "SampledSurface", "face_centroids",
            "z_order", "point_mesh_distance",
            "surface_samples", "surface_distance", "turned_over_faces", "remesh_quality",
-           "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_sphere",
-           "DISTANCE_SAMPLES"]
+           "degenerate_faces", "bounding_box_diagonal", "is_disk", "is_disk_with_holes",
+           "hole_count", "is_sphere", "DISTANCE_SAMPLES"]
 
 DEGENERATE_RTOL = 1e-12      # 2·area ≤ this × longest edge² counts as degenerate
 
@@ -138,10 +138,22 @@ def _referenced_count(F: np.ndarray, n: int) -> int:
 
 def is_disk(facts: dict) -> bool:
     """One manifold, consistently oriented component with one boundary loop and χ = 1."""
-    return (facts["components"] == 1 and facts["boundary_loops"] == 1
-            and facts["euler_characteristic"] == 1 and facts["nonmanifold_edges"] == 0
+    return is_disk_with_holes(facts, 0)
+
+
+def is_disk_with_holes(facts: dict, holes: int) -> bool:
+    """One manifold, consistently oriented component with 1 + ``holes`` boundary loops and
+    χ = 1 − ``holes`` (:func:`is_disk` for no holes)."""
+    return (facts["components"] == 1 and facts["boundary_loops"] == 1 + holes
+            and facts["euler_characteristic"] == 1 - holes and facts["nonmanifold_edges"] == 0
             and facts["nonmanifold_vertices"] == 0 and facts["consistently_oriented"]
             and facts["unreferenced_vertices"] == 0)
+
+
+def hole_count(facts: dict) -> int:
+    """How many holes a mesh with these :func:`mesh_facts` has besides its outer boundary:
+    its boundary loops but one (0 for none or a pinched boundary)."""
+    return max((facts["boundary_loops"] or 0) - 1, 0)
 
 
 def is_sphere(facts: dict) -> bool:
@@ -710,7 +722,8 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     ``facts``: :func:`mesh_facts` of ``(V, F)``, ``double_area``: its faces' doubled areas,
     when already computed).
 
-    Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``triangles``
+    Keys: ``facts`` (:func:`mesh_facts`), ``is_disk``, ``is_sphere``, ``holes``
+    (:func:`hole_count`), ``is_disk_with_holes`` (that many), ``triangles``
     (:func:`triangle_quality`; angles in degrees, CVs dimensionless), ``valence``
     (:func:`valence_stats`), ``distance`` (:func:`surface_distance`; ``*_rel`` = fraction of
     the input's bounding-box diagonal). Keys starting with ``_`` hold per-face arrays.
@@ -718,7 +731,9 @@ def remesh_quality(V_in: np.ndarray, F_in: np.ndarray, V: np.ndarray, F: np.ndar
     with topo.kept_edge_groups():             # every measure below groups F's edges
         dA = face_double_areas(V, F) if double_area is None else double_area
         facts = mesh_facts(V, F, dA) if facts is None else facts
+        holes = hole_count(facts)
         out = {"facts": facts, "is_disk": is_disk(facts), "is_sphere": is_sphere(facts),
+               "holes": holes, "is_disk_with_holes": is_disk_with_holes(facts, holes),
                "triangles": triangle_quality(V, F, dA),
                "valence": valence_stats(F, len(V))}
         if distance:

@@ -162,6 +162,45 @@ class RepairedMesh:
         """True for a closed genus-0 surface (no boundary loop): its domain is the sphere."""
         return len(self.boundary) == 0
 
+    def fan_faces(self) -> np.ndarray:
+        """Which faces (m bool) are those of the fans that closed the input's holes (a face at
+        a hole's centre vertex)."""
+        return fan_faces(self.F, [h["centre_vertex"] for h in self.closed_holes])
+
+    def hole_loops(self) -> list:
+        """The loops (vertex indices, (k,) int each) of the holes the repair closed, each as
+        its fan runs round it."""
+        return [np.asarray(h["loop"], np.int64) for h in self.closed_holes]
+
+
+def fan_faces(F: np.ndarray, centres) -> np.ndarray:
+    """Which faces of ``F`` (m×3) are at one of the ``centres`` (vertex indices), (m,) bool:
+    the fans :func:`repair_mesh` closes holes with."""
+    if len(centres) == 0:
+        return np.zeros(len(F), bool)
+    return np.isin(F, np.asarray(centres, np.int64)).any(axis=1)
+
+
+def open_mesh(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """A :class:`RepairedMesh` with the holes the repair closed open again: its vertices
+    (n', 3) without the fans' centres and its faces (m', 3) without the fans
+    (:func:`display_faces`), renumbered; ``(mesh.V, mesh.F)`` where it closed none."""
+    F = display_faces(mesh)
+    if F is mesh.F:
+        return mesh.V, mesh.F
+    used = np.zeros(len(mesh.V), bool)
+    used[F.ravel()] = True
+    new = np.cumsum(used) - 1
+    return mesh.V[used], new[F]
+
+
+def display_faces(mesh) -> np.ndarray:
+    """The faces of a :class:`RepairedMesh` minus the fans of the holes the repair closed (the
+    input's holes open again), (m', 3) int; ``mesh.F`` itself where it closed none."""
+    if not mesh.closed_holes:
+        return mesh.F
+    return mesh.F[~mesh.fan_faces()]
+
 
 # --------------------------------------------------------------------------------------------
 # small pure helpers

@@ -67,10 +67,12 @@ TOPOLOGY = "one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); man
 
 
 def topology(q: dict) -> str:
-    """What a quality dict says of the mesh's topology: ``yes, …`` for a disk or a closed genus-0
-    surface, else ``no (χ, loops, components)``."""
+    """What a quality dict says of the mesh's topology: ``yes, …`` for a disk (with its holes,
+    if any) or a closed genus-0 surface, else ``no (χ, loops, components)``."""
     if q["is_disk"]:
         return "yes, a disk"
+    if q.get("holes") and q.get("is_disk_with_holes"):
+        return f"yes, a disk with {q['holes']} {'hole' if q['holes'] == 1 else 'holes'}"
     if q.get("is_sphere"):
         return "yes, closed genus 0"
     f = q["facts"]

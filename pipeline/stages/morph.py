@@ -168,7 +168,7 @@ def _run(ctx: Context) -> dict:
     if mc.inputs is not None:
         V0, V1, F = load_morph_inputs(mc.inputs)
     else:
-        from .register import display_faces
+        from ..geometry.repair import display_faces
 
         reg = ctx.artifacts["registration"]
         S = reg.pair.source.mesh

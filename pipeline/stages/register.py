@@ -50,7 +50,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..errors import UserError
-from ..geometry.repair import RepairOptions
+from ..geometry.repair import RepairOptions, display_faces
 from ..geometry.sem import SEMOptions
 from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import read_mesh, write_obj
@@ -208,14 +208,6 @@ def _input_order(intake: Intake) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- the method
-
-
-def display_faces(mesh) -> np.ndarray:
-    """The repaired faces minus the fans of holes the repair closed (the input's holes)."""
-    centres = [h["centre_vertex"] for h in mesh.closed_holes]
-    if not centres:
-        return mesh.F
-    return mesh.F[~np.isin(mesh.F, centres).any(axis=1)]
 
 
 @dataclass

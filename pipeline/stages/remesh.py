@@ -17,6 +17,11 @@ Improvement is on by default: the plain lift of equilateral disk triangles is sk
 map's angle distortion, and across the slivers the map squeezes long protrusions into, its
 edges leave the surface; the improvement pass fixes both while keeping the vertex count. Turn
 it off (``improve: false``, ``--no-improve``) for the paper's plain lift.
+
+Where the intake closed holes (``close_holes``: eyes, mouth), the remesh keeps them open
+(``keep_holes``, with the improvement pass; :mod:`pipeline.geometry.remesh.holes`), and the
+measures and baselines take the input with its holes open (:func:`..geometry.repair.open_mesh`);
+``keep_holes: false`` (``--cover-holes``) covers them with the fans' surface, with a warning.
 """
 
 from __future__ import annotations
@@ -35,7 +40,7 @@ from ..geometry.metrics import boundary_self_crossings, signed_double_areas
 from ..geometry.remesh import PATTERNS, DiskSamples, uniform_remesh
 from ..geometry.remesh.features import FOLD_BACK_DEG
 from ..geometry.remesh_quality import DISTANCE_SAMPLES
-from ..geometry.repair import RepairedMesh
+from ..geometry.repair import RepairedMesh, open_mesh
 from .stage import Context, Section, Stage
 
 __all__ = ["RemeshConfig", "ImproveConfig", "Remesh", "remesh_stage", "read_landmarks",
@@ -97,6 +102,10 @@ class RemeshConfig(Section):
     exact_landmarks: bool = Field(
         False, description="a locked remesh vertex exactly on each interior landmark (else the "
                            "nearest vertex; the triangles around a locked one pay for it)")
+    keep_holes: bool = Field(
+        True, description="keep the holes the intake's close_holes filled open, their rims "
+                          "followed (with the improvement pass; off: the fans' surface covers "
+                          "them)", json_schema_extra={"flag": "--cover-holes"})
     distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
                                   description="random samples per surface for the distances")
 
@@ -209,11 +218,14 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
                           exact_landmarks=options.exact_landmarks,
                           pattern=options.pattern, seed=options.seed, **imp.model_dump())
     else:
+        holes = keeps_holes(mesh, options)
         r = uniform_remesh(mesh.V, mesh.F, uv, mesh.boundary, vertices=options.vertices,
                            spacing=options.spacing, pattern=options.pattern,
                            rim_relax=options.rim_relax, seed=options.seed,
                            improve=options.improve is not None, landmarks=landmarks,
-                           exact_landmarks=options.exact_landmarks, **imp.model_dump())
+                           exact_landmarks=options.exact_landmarks, **imp.model_dump(),
+                           **({"hole_loops": mesh.hole_loops(), "fans": mesh.fan_faces()}
+                              if holes else {}))
     t = time.perf_counter()
     colors = lift(mesh.colors, F, r.face, r.bary) if mesh.colors is not None else None
     lifted_attrs = {k: lift(v, F, r.face, r.bary) for k, v in (attributes or {}).items()}
@@ -224,6 +236,12 @@ def remesh_stage(mesh: RepairedMesh, uv: np.ndarray, options: RemeshConfig,
     return Remesh(r.V, r.F, r.uv, r.face, r.bary, colors, r.samples, r.lifted,
                   _input_file_vertices(r.landmarks, mesh.source_index), info, sec,
                   facts=r.facts, input_distance=r.input_distance)
+
+
+def keeps_holes(mesh: RepairedMesh, options: RemeshConfig) -> bool:
+    """Whether the remesh of ``mesh`` keeps the holes its repair closed open: there are some,
+    ``keep_holes`` is on and so is the improvement pass (which places their rims)."""
+    return bool(mesh.closed_holes) and options.keep_holes and options.improve is not None
 
 
 def _input_file_vertices(carried: dict, source_index: np.ndarray) -> dict:
@@ -406,14 +424,16 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
 
     t0 = time.perf_counter()
     target = remesh.info.get("requested_vertices") or len(remesh.V)
-    methods = compare_methods(mesh.V, mesh.F, remesh, target, compare, n_random,
+    kept = remesh.info.get("holes_kept", 0)
+    V_in, F_in = open_mesh(mesh) if kept else (mesh.V, mesh.F)
+    methods = compare_methods(V_in, F_in, remesh, target, compare, n_random,
                               progress=progress)
     t_measure = time.perf_counter() - t0
     pm = parameterization.metrics
     rows = comparison_table(methods)
     metrics = {
-        "input": dict(input_info or {}, vertices=int(len(mesh.V)), faces=int(len(mesh.F)),
-                      bbox_diagonal=bounding_box_diagonal(mesh.V)),
+        "input": dict(input_info or {}, vertices=int(len(V_in)), faces=int(len(F_in)),
+                      bbox_diagonal=bounding_box_diagonal(V_in)),
         "parameterization": {"domain": "sphere" if remesh.uv.shape[1] == 3 else "disk",
                              "mode": pm["parameterization"].get("mode"),
                              "iterations": pm["parameterization"].get("iterations"),
@@ -435,7 +455,7 @@ def remesh_outputs(mesh, parameterization, remesh, out_dir, input_info: dict | N
         {"requested": remesh.info.get("requested_vertices"), "vertices": int(len(remesh.V)),
          "rim": remesh.info.get("rim_samples")},
         remesh.info.get("improve", {}).get("trials_cut", 0),
-        (input_info or {}).get("repair", {}).get("holes_closed", 0))
+        0 if kept else (input_info or {}).get("repair", {}).get("holes_closed", 0))
     metrics["summary"] = {f"vs_{k}": {"ours_better": b, "ours_worse": w}
                           for k, (b, w) in verdicts(rows, methods).items()}
     meta = {"name": Path(str((input_info or {}).get("source", "mesh"))).stem,
@@ -553,11 +573,22 @@ def _summary(ctx: Context, files: dict) -> str:
     t = sem["triangles"]
     d = sem.get("distance", {})
     shape = (("closed genus 0" if sem.get("is_sphere") else "NOT closed genus 0")
-             if r.uv.shape[1] == 3 else ("one disk" if sem["is_disk"] else "NOT a disk"))
+             if r.uv.shape[1] == 3 else disk_shape_words(sem, r.info.get("holes_kept", 0)))
     return (f"{len(r.V)} vertices, {len(r.F)} faces, {shape}, "
             f"min angle {t['min_angle_deg']:.1f}°, mean smallest angle "
             f"{t['mean_min_angle_deg']:.1f}°, Hausdorff {100 * d.get('hausdorff_rel', 0):.3f} % "
             f"of the diagonal, {r.seconds['total']:.2f} s")
+
+
+def disk_shape_words(sem: dict, holes: int) -> str:
+    """What the summary line says of a disk remesh's topology (``sem``: its measures, with
+    ``holes`` the input's holes it kept): ``one disk``, ``one disk with k holes, as the
+    input`` or ``NOT …``."""
+    if not holes:
+        return "one disk" if sem["is_disk"] else "NOT a disk"
+    words = f"one disk with {holes} {'hole' if holes == 1 else 'holes'}"
+    return f"{words}, as the input" if sem.get("holes") == holes and \
+        sem.get("is_disk_with_holes") else f"NOT {words}"
 
 
 STAGE = Stage(name="remesh", section=RemeshConfig, run=_run, write=_write,

@@ -322,29 +322,61 @@ def chain_points(V: np.ndarray, uv: np.ndarray, chains: list, L: float,
     P, which, rank = [], [], []
     long_enough = chain_sums(chain_steps(V, chains), [len(vs) - 1 for vs in chains])
     for c in np.flatnonzero(~(long_enough < min_length * L)).tolist():
-        vs = chains[c]
-        seg = norms(V[vs[1:]] - V[vs[:-1]])
-        s = np.r_[0.0, np.cumsum(seg)]
-        stops = chain_stops(V[vs], s, L)
-        t, r = [], []
-        for i, j in zip(stops[:-1], stops[1:]):
-            k = max(1, int(round((s[j] - s[i]) / L))) if s[j] - s[i] > MAX_STEP * L else 1
-            t.append(np.linspace(s[i], s[j], k + 1)[:-1])
-            r.append(np.r_[1, np.full(k - 1, 2)])
-        t.append(s[-1:])
-        r.append([1])
-        t, r = np.concatenate(t), np.concatenate(r)
-        r[0] = r[-1] = 0
-        if vs[0] == vs[-1]:
-            t, r = t[:-1], r[:-1]                 # a closed chain: its start once
-        e = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
-        f = np.clip((t - s[e]) / np.maximum(seg[e], 1e-300), 0.0, 1.0)[:, None]
-        P.append((1.0 - f) * uv[vs[e]] + f * uv[vs[e + 1]])
+        seg, t, r = chain_arcs(V, chains[c], L)
+        P.append(along_chain(uv, chains[c], seg, t))
         which.append(np.full(len(t), c))
         rank.append(r)
     if not P:
         return np.zeros((0, uv.shape[1])), np.zeros(0, np.int64), np.zeros(0, np.int64)
     return np.vstack(P), np.concatenate(which), np.concatenate(rank)
+
+
+def chain_arcs(V: np.ndarray, vs: np.ndarray, L: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where :func:`chain_points` puts the points of one chain, as arc lengths along it.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    vs : (k,) int
+        The chain's vertices in order (``vs[0] == vs[-1]`` for a closed chain).
+    L : float
+
+    Returns
+    -------
+    seg : (k - 1,) float
+        The lengths of the chain's edges.
+    t : (p,) float
+        The points' arc lengths, increasing (a closed chain's start once).
+    rank : (p,) int
+        As :func:`chain_points` ranks them.
+    """
+    seg = norms(V[vs[1:]] - V[vs[:-1]])
+    s = np.r_[0.0, np.cumsum(seg)]
+    stops = chain_stops(V[vs], s, L)
+    t, r = [], []
+    for i, j in zip(stops[:-1], stops[1:]):
+        k = max(1, int(round((s[j] - s[i]) / L))) if s[j] - s[i] > MAX_STEP * L else 1
+        t.append(np.linspace(s[i], s[j], k + 1)[:-1])
+        r.append(np.r_[1, np.full(k - 1, 2)])
+    t.append(s[-1:])
+    r.append([1])
+    t, r = np.concatenate(t), np.concatenate(r)
+    r[0] = r[-1] = 0
+    if vs[0] == vs[-1]:
+        t, r = t[:-1], r[:-1]                 # a closed chain: its start once
+    return seg, t, r
+
+
+def along_chain(uv: np.ndarray, vs: np.ndarray, seg: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The disk images (p×2) of the points at arc lengths ``t`` (p) along the chain ``vs``
+    (k int) whose edges are ``seg`` (k − 1) long (:func:`chain_arcs`): the map is affine on
+    an input edge, so a point a fraction along it has its image the same fraction along the
+    edge's image."""
+    s = np.r_[0.0, np.cumsum(seg)]
+    e = np.clip(np.searchsorted(s, t, side="right") - 1, 0, len(seg) - 1)
+    f = np.clip((t - s[e]) / np.maximum(seg[e], 1e-300), 0.0, 1.0)[:, None]
+    return (1.0 - f) * uv[vs[e]] + f * uv[vs[e + 1]]
 
 
 def chain_stops(Q: np.ndarray, s: np.ndarray, L: float) -> np.ndarray:
@@ -632,7 +664,8 @@ def vertices_at(uv: np.ndarray, P: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     return np.where(d <= tol, j, -1)
 
 
-def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndarray:
+def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8, turned=None
+               ) -> np.ndarray:
     """Make each pair ``a–b`` an edge of ``S`` by flipping, one at a time, an edge its disk
     segment crosses (:func:`_crossed_edges`; a flip only where its quad is strictly convex on
     the disk, both new faces keep a disk shape of at least ``DISK_SHAPE_MIN`` and neither
@@ -648,6 +681,10 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     S : RemeshState
         Its faces changed in place.
     pairs : (k, 2) int
+    max_flips : int
+    turned : callable, optional
+        Which new faces (k×3 vertex indices → k bool) turn over on the surface, instead of
+        :func:`.unfold.turned_over_rows` with ``ties``.
 
     Returns
     -------
@@ -660,7 +697,7 @@ def join_edges(S: RemeshState, pairs: np.ndarray, max_flips: int = 8) -> np.ndar
     done = set(map(tuple, np.sort(S.joined, axis=1).tolist())) if len(S.joined) else set()
     joined = []
     uv = S.uv
-    turned = partial(turned_over_rows, S, ties=True)
+    turned = turned or partial(turned_over_rows, S, ties=True)
     changed = _flip_thin(F, VF, uv, S.X, turned, done)
     for a, b in pairs.tolist():
         for _ in range(max_flips + 1):
@@ -736,6 +773,12 @@ def _flip_thin(F, VF, uv, X, turned, done, passes: int = 3) -> bool:
         if not touched:
             break
     return flipped
+
+
+def crossed_edges(S: RemeshState, a: int, b: int) -> list:
+    """The edges of ``S`` the disk segment ``a → b`` crosses, from ``a``, as ``(t, p, q)``
+    (:func:`_crossed_edges`)."""
+    return _crossed_edges(S.F, face_sets(S.F, S.n), S.uv, a, b)
 
 
 def _crossed_edges(F, VF, uv, a, b) -> list:
@@ -815,7 +858,10 @@ def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None 
     """Free the feature vertices ``at`` marks (n bool): the kept edges at them dropped from
     ``S.joined``, and they and the feature vertices left on no kept edge unlocked, except
     those at one of the points ``corners`` (k×3: the input's sharp corners, which stay
-    locked). Returns the unlocked vertices (indices)."""
+    locked) and those at ``S.fixed`` (a hole loop's, whose kept edges stay too). Returns the
+    unlocked vertices (indices)."""
+    if len(S.fixed):
+        at = at & ~at_points(S.X, S.fixed)
     on = np.zeros(S.n, bool)
     on[S.joined.ravel()] = True
     if not (at & on).any():

@@ -148,8 +148,8 @@ VALENCE_ROUNDS = 2      # valence flips: at most this many rounds (a third finds
 
 def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.ndarray,
                   max_dihedral_deg: float = 20.0, min_angle_deg: float = 35.0,
-                  max_rounds: int = VALENCE_ROUNDS, twin: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, int]:
+                  max_rounds: int = VALENCE_ROUNDS, twin: np.ndarray | None = None,
+                  fixed=None) -> tuple[np.ndarray, int]:
     """Flip interior edges that bring the valences of the quad's four corners closer to the
     regular ones (Botsch & Kobbelt 2004).
 
@@ -174,6 +174,8 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
     max_rounds : int
     twin : (3m,) int, optional
         The half-edge twins of ``F``; updated in place to those of the result.
+    fixed : callable ``fixed(a, b) -> (k,) bool``, optional
+        The edges ``a–b`` never flipped.
 
     Returns
     -------
@@ -199,6 +201,8 @@ def valence_flips(X: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nda
         ok = np.flatnonzero(flat & valid)
         ok = ok[_shapes_kept(uv, p[ok], a[ok], q[ok], b[ok])]
         ok = ok[_angles_kept(X, a[ok], b[ok], p[ok], q[ok], floor)]
+        if fixed is not None:
+            ok = ok[~fixed(a[ok], b[ok])]
         if len(ok) == 0:
             break
         win = ok[independent_by(n, (a[ok], b[ok], p[ok], q[ok]), -gain[ok])]

@@ -12,10 +12,12 @@ counter-clockwise on the disk, so the output stays a parameterized disk.
 
 The schedule (:func:`improve_remesh`):
 
-1. snap (or insert) a locked vertex onto each sharp input corner (:mod:`.corners`), sharpest
-   first, none within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L``
-   apart along the input's feature lines (the edges folded more than ``feature_angle_deg``)
-   and the edges between consecutive ones kept until the repairs free them (:mod:`.features`);
+1. given ``hole_loops``, locked vertices about ``L`` apart along each hole loop of the input,
+   joined round it by kept edges that no step frees (:mod:`.holes`); snap (or insert) a
+   locked vertex onto each sharp input corner (:mod:`.corners`), sharpest first, none
+   within ``CORNER_GAP × L`` of one kept before; then locked vertices about ``L`` apart along
+   the input's feature lines (the edges folded more than ``feature_angle_deg``) and the edges
+   between consecutive ones kept until the repairs free them (:mod:`.features`);
    then, given ``landmarks_uv``, one onto each landmark's input vertex, none within
    ``CORNER_GAP × L`` of a vertex locked before;
 2. flips, then ``relax_iterations`` × (tangential smoothing, flips);
@@ -225,6 +227,7 @@ from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
+from .holes import place_holes
 from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, flip_in_place, sag_flips, valence_flips
@@ -345,7 +348,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
                    pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, sag_floor: float = 0.0,
                    follow_input: float = 0.25,
-                   feature_angle_deg: float = 0.0) -> RemeshState:
+                   feature_angle_deg: float = 0.0,
+                   hole_loops: list | None = None, fans: np.ndarray | None = None
+                   ) -> RemeshState:
     """Improve the remesh ``S`` in place (see the module docstring for the schedule).
 
     Parameters
@@ -402,6 +407,12 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         Step 1 also locks vertices along the input's feature lines, the edges whose dihedral
         angle exceeds this, and keeps the edges between them (:mod:`.features`; on the disk
         only; default 0: none — :data:`.features.FEATURE_DEG` is the threshold measured).
+    hole_loops : list of (k,) int, optional
+        The loops (input vertex indices) of the holes the input's fans fill: before
+        everything else in step 1, each gets locked vertices along it joined by kept edges
+        that no step frees (:func:`.holes.place_holes`; on the disk only).
+    fans : (M,) bool, optional
+        With ``hole_loops``, the input faces that fill the holes.
 
     Returns
     -------
@@ -416,12 +427,16 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
     ops = _Operations(S, L, flips, max_dihedral_deg, relax_step, refine_sag,
                       max(sag_floor, noisy_sag))
     lap = Stopwatch(S.log, "seconds")
+    if hole_loops:
+        place_holes(S, hole_loops, fans, L)
     if corners_uv is not None and len(corners_uv):
         snap_vertices(S, corners_uv, min_gap=CORNER_GAP * L)
     ops.corners = S.X[S.locked].copy()
     if feature_angle_deg > 0 and not on_sphere(S.uv):
         joined = place_features(S, L, feature_angle_deg)
         ops.features = S.X[np.unique(joined)]
+    if len(S.fixed):
+        ops.features = np.vstack([S.fixed, ops.features])
     if landmarks_uv is not None and len(landmarks_uv):
         landmarks = snap_vertices(S, landmarks_uv, min_gap=CORNER_GAP * L, counts="landmarks")
         ops.corners = np.vstack([ops.corners, S.X[landmarks]])
@@ -596,13 +611,14 @@ class _Operations:
 
     def flip_valence(self) -> None:
         """Flips towards regular valences (:func:`.flips.valence_flips`), the new faces'
-        smallest angle at least ``VALENCE_MIN_DEG`` or the old faces'."""
+        smallest angle at least ``VALENCE_MIN_DEG`` or the old faces', none of a hole loop's
+        edges (:meth:`.state.RemeshState.is_fixed`)."""
         if not self.flips:
             return
         S = self.S
         twin = S.twins().copy()
         F, k = valence_flips(S.X, S.F, S.uv, S.is_rim, self.max_dihedral_deg, VALENCE_MIN_DEG,
-                             twin=twin)
+                             twin=twin, fixed=S.is_fixed if len(S.fixed) else None)
         S.set_faces(F, twin)
         S.tally("valence_flips", k)
 

@@ -20,6 +20,11 @@ from ..metrics import corner_angles
 from ..rows import cross, dots, norms
 
 
+class RemeshFailed(RuntimeError):
+    """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
+    the disk, a lost hole); it is never written."""
+
+
 def at_points(X: np.ndarray, P: np.ndarray) -> np.ndarray:
     """Which rows of ``X`` (n×3) are exactly, bit for bit, one of the points ``P`` (k×3): how
     locks are carried through operations that renumber the vertices (a locked vertex keeps its
@@ -132,6 +137,9 @@ class RemeshState:
     ragged : (k,) bool
         The polygon's corners (input boundary vertices) that the rim crosses rather than
         follows (:func:`.corners.ragged_boundary`); none by default.
+    fixed : (k, 3) float
+        Where the vertices on the input's hole loops are (:mod:`.holes`): locked for good,
+        their kept edges (:meth:`is_fixed`) never dropped or flipped. None by default.
     joined : (k, 2) int
         Vertex pairs whose edge is kept (the input's feature lines, :mod:`.features`): no flip
         removes it and no split divides it; their ends are locked. None by default.
@@ -160,6 +168,7 @@ class RemeshState:
     locked: np.ndarray | None = None
     joined: np.ndarray | None = None
     ragged: np.ndarray | None = None
+    fixed: np.ndarray | None = None
     log: dict = field(default_factory=dict)
     surface_middles: bool = False
     _twin: tuple | None = field(default=None, repr=False)   # (the F they belong to, twins)
@@ -175,6 +184,8 @@ class RemeshState:
             self.joined = np.zeros((0, 2), np.int64)
         if self.ragged is None:
             self.ragged = np.zeros(len(self.polygon), bool)
+        if self.fixed is None:
+            self.fixed = np.zeros((0, 3))
 
     @property
     def n(self) -> int:
@@ -270,6 +281,12 @@ class RemeshState:
         q = lo * (self.n + 1) + hi
         i = np.minimum(np.searchsorted(key, q), len(key) - 1)
         return key[i] == q
+
+    def is_fixed(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Which edges ``a–b`` (k int each) are kept edges between two vertices at ``fixed``
+        points (a hole loop's edges); k bool."""
+        at = at_points(self.X, self.fixed)
+        return at[a] & at[b] & self.is_joined(a, b)
 
     # ------------------------------------------------------------------------------------ log
 

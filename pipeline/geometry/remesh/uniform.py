@@ -15,7 +15,9 @@ Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmar
 improvement pass, the interior ones have a locked vertex put on their input vertex first (a
 landmark lands on a remesh vertex exactly unless it is within ``CORNER_GAP × L`` of a vertex
 locked before: a corner's, a feature line's or an earlier landmark's), which the triangles
-around it pay for.
+around it pay for. Given the loops of the holes an input's fans fill, the improvement keeps
+them as locked, joined vertices along each loop and cuts the faces inside them away at the
+end (:mod:`.holes`): the remesh is a disk with those holes, as the input was before the fans.
 """
 
 from __future__ import annotations
@@ -32,11 +34,12 @@ from .angles import corner_angles_deg, forced_corners, input_vertex_under
 from .corners import boundary_corners, interior_corners, ragged_boundary, vertex_turning
 from .domain import on_sphere
 from .fidelity import input_distance
+from .holes import check_loops, cut_holes
 from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
 from .landmarks import carry_landmarks
 from .sampling import DiskSamples, sample_disk, snap_rim, triangulate_samples
-from .state import RemeshState
+from .state import RemeshFailed, RemeshState
 
 
 @dataclass
@@ -100,7 +103,8 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    final_relax_iterations: int = 6, pinned_relax_iterations: int = 2,
                    min_angle_deg: float = 20.0, follow_input: float = 0.25,
                    feature_angle_deg: float = 0.0, landmarks: dict | None = None,
-                   exact_landmarks: bool = False) -> RemeshResult:
+                   exact_landmarks: bool = False, hole_loops: list | None = None,
+                   fans: np.ndarray | None = None) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -132,6 +136,12 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     exact_landmarks : bool
         With ``improve``, each interior landmark gets a locked vertex on it
         (:func:`.improve.improve_remesh`'s ``landmarks_uv``).
+    hole_loops : list of (k,) int, optional
+        With ``improve``: the loops of the input's holes that ``fans`` fill, kept open
+        (:mod:`.holes`): the disk is remeshed with the vertex count that leaves about
+        ``vertices`` once the faces in the holes are cut away (:func:`with_holes_filled`).
+    fans : (M,) bool, optional
+        The input faces that fill the holes (with ``hole_loops``).
 
     Returns
     -------
@@ -139,6 +149,11 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
     """
     seconds = dict.fromkeys(("sample", "delaunay", "locate", "lift", "improve", "landmarks"),
                             0.0)
+    if hole_loops and not improve:
+        raise ValueError("uniform_remesh: keeping holes needs the improvement pass")
+    holes = len(hole_loops) if hole_loops else 0
+    if holes and vertices is not None:
+        vertices = with_holes_filled(V, F, boundary, hole_loops, fans, vertices)
     lap = Stopwatch(seconds)
     locator = PointLocator(uv, F, boundary)
     lap("locate")
@@ -175,12 +190,13 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
             pinned_relax_iterations=pinned_relax_iterations, min_angle_deg=min_angle_deg,
             follow_input=follow_input, feature_angle_deg=feature_angle_deg,
             landmarks_uv=uv[interior_landmarks(landmarks if exact_landmarks else None,
-                                               boundary)]))
+                                               boundary)],
+            **({"hole_loops": hole_loops, "fans": fans} if holes else {})))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         input_tree = built_input_distance(S)
     lap("improve")
     check_remesh(X, F_out, uv_out)
-    facts = check_topology(X, F_out)
+    facts = check_topology(X, F_out, holes=holes)
     carried = carry_landmarks(landmarks or {}, V, uv, X, uv_out, F_out)
     lap("landmarks")
     info = {
@@ -193,8 +209,35 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         "count_evaluations": samples.iterations,
         "improve": imp,
     }
+    if holes:
+        info.update(holes_kept=holes, vertices_with_holes_filled=vertices)
     return RemeshResult(X, F_out, uv_out, face, bary, samples, lifted, carried, info, seconds,
                         facts, input_tree)
+
+
+def with_holes_filled(V: np.ndarray, F: np.ndarray, boundary: np.ndarray, hole_loops: list,
+                      fans: np.ndarray, vertices: int) -> int:
+    """The vertex count to remesh the disk ``(V, F)`` with so that ``vertices`` are left once
+    the faces in the holes (in the ``fans``, m bool) are cut away. A triangulation with ``f``
+    faces and ``b`` boundary vertices on a surface of Euler characteristic ``χ`` has
+    ``χ + (f + b) / 2`` vertices; the faces go with the area (the map is equiareal, the
+    samples even), a share ``ρ`` (the area outside the fans over the whole) of them is kept,
+    and the boundary vertices are about the lengths of the ``boundary`` and of the
+    ``hole_loops`` over the target length ``L = √(2 A / (√3 n))`` of the area ``A`` outside
+    the fans at ``vertices``: ``1 + b₀ / 2 + (2 n − 2 + 2 k − b₀ − b_h) / (2 ρ)``."""
+    dA = face_double_areas(V, F)
+    rho = dA[~fans].sum() / dA.sum()
+    L = np.sqrt(dA[~fans].sum() / (np.sqrt(3) * vertices))
+    b_out = loop_length(V, boundary) / L
+    b_holes = sum(loop_length(V, loop) for loop in hole_loops) / L
+    k = len(hole_loops)
+    return int(round(1 + b_out / 2 + (2 * vertices - 2 + 2 * k - b_out - b_holes) / (2 * rho)))
+
+
+def loop_length(V: np.ndarray, loop: np.ndarray) -> float:
+    """The length of the closed polyline through ``V[loop]`` (k int)."""
+    P = V[loop]
+    return float(np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1).sum())
 
 
 def interior_landmarks(landmarks: dict | None, boundary: np.ndarray) -> np.ndarray:
@@ -214,10 +257,12 @@ def built_input_distance(S: RemeshState) -> MeshDistance | None:
 
 
 def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndarray, *,
-                  min_angle_deg: float, **params) -> dict:
-    """Run :func:`.improve.improve_remesh` on ``S`` (either domain) and return what the
-    remesh's ``info["improve"]`` says of it: the operation counts and seconds per step, the
-    target length and the faces left below ``min_angle_deg`` (:func:`below_min_angle`).
+                  min_angle_deg: float, fans: np.ndarray | None = None, **params) -> dict:
+    """Run :func:`.improve.improve_remesh` on ``S`` (either domain), with ``fans`` (M bool,
+    the input faces that fill the holes of ``params["hole_loops"]``) cut the holes out
+    (:func:`.holes.cut_holes`), and return what the remesh's ``info["improve"]`` says of it:
+    the operation counts and seconds per step, the target length and the faces left below
+    ``min_angle_deg`` (:func:`below_min_angle`).
 
     Parameters
     ----------
@@ -238,16 +283,14 @@ def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndar
     dict
     """
     improve_remesh(S, L, target_vertices=target, corners_uv=corners,
-                   min_angle_deg=min_angle_deg, **params)
+                   min_angle_deg=min_angle_deg, fans=fans, **params)
+    if fans is not None:
+        check_loops(S)
+        cut_holes(S, fans)
     imp = {"enabled": True, "target_edge_length": float(L), **S.log}
     imp["below_min_angle"] = below_min_angle(S, S.V_in, min_angle_deg)
     imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     return imp
-
-
-class RemeshFailed(RuntimeError):
-    """The remesh breaks an invariant of the product (a degenerate face, a face clockwise on
-    the disk); it is never written."""
 
 
 def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
@@ -267,17 +310,18 @@ def check_remesh(X: np.ndarray, F: np.ndarray, uv: np.ndarray) -> None:
                            f"{np.r_[flat, clockwise][:5].tolist()}); nothing is written")
 
 
-def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False) -> dict:
+def check_topology(X: np.ndarray, F: np.ndarray, closed: bool = False, holes: int = 0) -> dict:
     """Raise :class:`RemeshFailed` unless ``(X, F)`` is one manifold disk (one boundary loop,
-    Euler characteristic 1) or, with ``closed``, one closed, manifold, consistently oriented
-    component with Euler characteristic 2 (a sphere). Returns the facts it checked
-    (:func:`..remesh_quality.mesh_facts`), for the remesh's measures."""
-    from ..remesh_quality import is_disk, is_sphere, mesh_facts
+    Euler characteristic 1), with ``holes`` one manifold disk with that many holes (1 +
+    ``holes`` boundary loops, χ = 1 − ``holes``) or, with ``closed``, one closed, manifold,
+    consistently oriented component with Euler characteristic 2 (a sphere). Returns the facts
+    it checked (:func:`..remesh_quality.mesh_facts`), for the remesh's measures."""
+    from ..remesh_quality import is_disk_with_holes, is_sphere, mesh_facts
 
     f = mesh_facts(X, F)
-    if not (is_sphere(f) if closed else is_disk(f)):
+    if not (is_sphere(f) if closed else is_disk_with_holes(f, holes)):
         what = "sphere remesh is not a closed genus-0 manifold" if closed else \
-            "remesh is not one manifold disk"
+            "remesh is not one manifold disk" + (f" with {holes} holes" if holes else "")
         raise RemeshFailed(f"remesh: the {what} ({f}); nothing is written")
     return f
 
