@@ -182,18 +182,16 @@ def pymeshlab_row(name: str, path: Path, n: int) -> str:
     input the command remeshes (``path`` read and repaired as it does, the openings the repair
     closed open again), measured as the command measures ours (see the module docstring)."""
     from pipeline.geometry.remesh_quality import remesh_quality
-    from pipeline.geometry.repair import RepairOptions
+    from pipeline.geometry.repair import RepairOptions, open_mesh
     from pipeline.stages.baselines import isotropic_remesh
     from pipeline.stages.load import load_stage
-    from pipeline.stages.register import display_faces
 
     flags = FLAGS.get(name, ())
     options = RepairOptions(keep_largest_component="--keep-largest-component" in flags,
                             close_holes="--close-holes" in flags)
-    mesh = load_stage(path, options).mesh
-    F = display_faces(mesh)
-    b = isotropic_remesh(mesh.V, F, n, max_runs=1)
-    q = remesh_quality(mesh.V, F, b.V, b.F)
+    V, F = open_mesh(load_stage(path, options).mesh)
+    b = isotropic_remesh(V, F, n, max_runs=1)
+    q = remesh_quality(V, F, b.V, b.F)
     per_face = q["triangles"]["_per_face_min_angle"]
     return measures_row("  pymeshlab", n, len(b.V), q["triangles"], int((per_face < 20).sum()),
                         "-", q["distance"], b.seconds, b.cpu_seconds)
