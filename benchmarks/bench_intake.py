@@ -34,13 +34,15 @@ def data_dir() -> Path:
     return Path(os.environ.get("SEM_DATA", REPO.parent / "shared" / "data"))
 
 
-def scan_proxy(folder: Path, iterations: int = 2, name: str = "scan_proxy.obj") -> Path:
+def scan_proxy(folder: Path, iterations: int = 2, name: str = "scan_proxy.obj",
+               source: str = "ict_A_neutral_disk.obj") -> Path:
     """The ``--scan`` case (see the module docstring) written to ``folder / name``; with
     ``iterations`` Loop subdivisions instead of 2 (3: about 425k vertices, 850k faces), the
-    same noise."""
+    same noise; made from the ICT face ``source`` (``ict_A_neutral_holes.obj``: with its eye
+    and mouth openings)."""
     import trimesh
 
-    m = trimesh.load(data_dir() / "faces" / "ict" / "ict_A_neutral_disk.obj", process=False)
+    m = trimesh.load(data_dir() / "faces" / "ict" / source, process=False)
     V, F = trimesh.remesh.subdivide_loop(m.vertices, m.faces, iterations=iterations)
     t = trimesh.Trimesh(V, F, process=False)
     rng = np.random.default_rng(1)

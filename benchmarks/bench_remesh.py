@@ -6,6 +6,7 @@ location at 10^6 faces.
     python benchmarks/bench_remesh.py --compare [--maps converged paper 30] [--vertices 5000 ...]
                                       [--meshes choi_human_face ict_A_neutral_disk ...] [--no-cli]
     python benchmarks/bench_remesh.py --compare --closed [--vertices 5000 20000] [--meshes ...]
+    python benchmarks/bench_remesh.py --compare --holes [--vertices 5000 20000] [--meshes ...]
 
 ``--compare``: per mesh and count (default: every disk mesh of ``../shared/data/meshes`` and
 the ICT ``*_disk`` faces, at 5k, 20k and 100k vertices), pymeshlab's isotropic explicit
@@ -26,6 +27,12 @@ pymeshlab's call).
 the higher-genus ones), read and repaired as the ``input`` stage does, mapped onto the sphere by
 ``parameterize_stage`` (``--maps paper``: the alternating-hemisphere iterations; ``converged``:
 Gauss–Newton; ``N``: at most N Gauss–Newton steps) and remeshed through the sphere.
+
+``--holes``: the ICT faces with their eye and mouth openings (``*_holes.obj``), read and
+repaired with ``close_holes`` (the openings filled for the map) and remeshed with the openings
+kept (the remesh's default, ``sem-pipeline remesh --close-holes``); pymeshlab remeshes, and both
+are measured against, the input with its openings (:func:`pipeline.geometry.repair.open_mesh`);
+``topo`` says ``disk+K`` for one disk with K holes.
 
 Remesh table: for each mesh (parameterized once with ``SEMOptions(mode="paper")``, not timed
 in the total) and each vertex count, the median over ``--repeat`` runs of every step of
@@ -79,6 +86,16 @@ def disk_meshes() -> list[str]:
                   + [p.stem for p in (data_dir() / "faces" / "ict").glob("*_disk.obj")])
 
 
+def holes_meshes() -> list[str]:
+    """The ICT faces with their openings, ``*_holes.obj`` (remeshed with ``--close-holes``)."""
+    return sorted(p.stem for p in (data_dir() / "faces" / "ict").glob("*_holes.obj"))
+
+
+def with_holes(name: str) -> bool:
+    """Whether the benchmark name is a mesh with openings, read with ``close_holes``."""
+    return name.endswith("_holes")
+
+
 def mesh_path(name: str) -> Path | None:
     """The file of a benchmark name (closed, disk mesh or ICT face), None for a generated one."""
     for path in (data_dir() / "closed" / f"{name}.obj", data_dir() / "meshes" / f"{name}.obj",
@@ -105,8 +122,11 @@ def load(name: str):
             np.savez(cache, V=V, F=F)
         d = np.load(cache)
         return repair_mesh(d["V"], d["F"], name=name)
+    from pipeline.geometry.repair import RepairOptions
+
     path = mesh_path(name)
-    return load_stage(path if path is not None else data_dir() / "meshes" / f"{name}.obj").mesh
+    return load_stage(path if path is not None else data_dir() / "meshes" / f"{name}.obj",
+                      RepairOptions(close_holes=with_holes(name))).mesh
 
 
 def parameterize(mesh):
@@ -150,12 +170,12 @@ def compile_package() -> None:
     compileall.compile_dir(str(REPO / "pipeline"), quiet=1)
 
 
-def cli_remesh(path: Path, n: int, repeat: int):
+def cli_remesh(path: Path, n: int, repeat: int, flags=()):
     """``sem-pipeline remesh PATH --vertices n --no-compare --no-report`` as a user runs it
     (a fresh interpreter: start, imports, read, repair, map, remesh, measure, write; the
     package's bytecode compiled, :func:`compile_package`): the mesh it wrote, its wall seconds
     and its CPU seconds (user + system; steadier than the wall time when other jobs share the
-    machine), each the median of ``repeat`` runs."""
+    machine), each the median of ``repeat`` runs; ``flags``: more of the command's options."""
     import resource
     import tempfile
 
@@ -173,7 +193,7 @@ def cli_remesh(path: Path, n: int, repeat: int):
         for _ in range(repeat):
             t, c = time.perf_counter(), cpu()
             subprocess.run([sys.executable, "-m", "pipeline", "remesh", str(path), "-o", str(out),
-                            "--vertices", str(n), "--no-compare", "--no-report"],
+                            "--vertices", str(n), "--no-compare", "--no-report", *flags],
                            check=True, capture_output=True)
             secs.append(time.perf_counter() - t)
             cpus.append(cpu() - c)
@@ -192,6 +212,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
     value where it is at least as good as pymeshlab's; ``area CV`` needs ≤ 0.6 × pymeshlab's
     for the mark, the seconds of ``ours/cli`` less than pymeshlab's call."""
     from pipeline.geometry.remesh_quality import remesh_quality
+    from pipeline.geometry.repair import open_mesh
     from pipeline.stages import baselines
     from pipeline.stages.remesh import RemeshConfig, remesh_stage
 
@@ -201,12 +222,13 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
     print(head)
 
     def measure(mesh, V, F):
-        r = remesh_quality(mesh.V, mesh.F, V, F, n_random)
+        r = remesh_quality(*open_mesh(mesh), V, F, n_random)
         vals = {**r["triangles"], **r["distance"]}
         vals["fraction_min_angle_below_30"] *= 100
         vals["hausdorff_rel"] *= 100
         vals["rms_rel"] *= 100
-        shape = "disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else "NO"
+        shape = ("disk" if r["is_disk"] else "χ=2" if r["is_sphere"] else
+                 f"disk+{r['holes']}" if r["is_disk_with_holes"] else "NO")
         folds = r["distance"]["turned_over_faces"]
         return vals, shape if not folds else f"{shape}/{folds} folds"
 
@@ -229,7 +251,7 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
         mesh = load(name)
         ms = {how: parameterize_with(mesh, how) for how in maps}
         for n in counts:
-            b = baselines.isotropic_remesh(mesh.V, mesh.F, n)
+            b = baselines.isotropic_remesh(*open_mesh(mesh), n)
             ref, disk = measure(mesh, b.V, b.F)
             line(name, n, "pymeshlab", len(b.V), ref, disk, 0.0, b.seconds,
                  tail=f" (CPU {b.cpu_seconds:.2f} s)")
@@ -249,7 +271,8 @@ def bench_compare(names, counts, maps, repeat, n_random=100_000, cli=True):
                      ref)
             path = mesh_path(name)
             if cli and path is not None:
-                V, F, t_cli, cpu_cli = cli_remesh(path, n, repeat)
+                V, F, t_cli, cpu_cli = cli_remesh(
+                    path, n, repeat, ("--close-holes",) if with_holes(name) else ())
                 vals, disk = measure(mesh, V, F)
                 line(name, n, "ours/cli", len(V), vals, disk, 0.0, t_cli, ref,
                      "*" if t_cli < b.seconds else " ", f" (CPU {cpu_cli:.2f} s)")
@@ -364,11 +387,16 @@ def main(argv=None):
     ap.add_argument("--closed", action="store_true",
                     help="the closed genus-0 meshes through the sphere map "
                          "(default meshes: all of them; default counts 5000 20000)")
+    ap.add_argument("--holes", action="store_true",
+                    help="the ICT faces with their openings, kept open (default counts 5000 "
+                         "20000)")
     args = ap.parse_args(argv)
     # defaults by mode; a value given on the command line is kept even when it equals
     # another mode's default
     if args.closed:
         meshes, counts = list(CLOSED_GENUS0), [5000, 20000]
+    elif args.holes:
+        meshes, counts = holes_meshes(), [5000, 20000]
     elif args.compare:
         meshes, counts = disk_meshes(), [5000, 20000, 100000]
     else:

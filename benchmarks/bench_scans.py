@@ -18,6 +18,9 @@ ICT faces of ``../shared/data/faces/ict`` (seeded, so every run makes the same f
   ``--keep-largest-component`` (the teeth become pieces of their own);
 * ``mild``: ict_B_smile_jawopen Loop-subdivided once (about 26k vertices), noise 0.01 % of the
   diagonal, 3 such passes.
+* ``holes``: ``noisy`` made from ict_A_neutral with its eye and mouth openings
+  (``ict_A_neutral_holes.obj``), 3 such passes, which make the openings' rims ragged too; run
+  with ``--close-holes`` (the remesh keeps the openings).
 
 * ``large`` (only when named in ``--scans``): ict_A_neutral Loop-subdivided three times (about 425k
   vertices, 850k faces: a real scan's size), the noise of ``noisy``
@@ -57,8 +60,9 @@ from bench_intake import REPO, data_dir, scan_proxy  # noqa: E402  (puts REPO on
 
 from pipeline.io.meshio import read_mesh, write_obj  # noqa: E402
 
-SCANS = ("noisy", "jagged", "bowtie", "mild")
-KEEP_LARGEST = {"bowtie"}     # run with --keep-largest-component: the pieces its bowties hold on
+SCANS = ("noisy", "jagged", "bowtie", "mild", "holes")
+# the command's flags per proxy: the pieces bowtie's bowties hold on; the openings of holes
+FLAGS = {"bowtie": ("--keep-largest-component",), "holes": ("--close-holes",)}
 LARGE = "large"
 
 
@@ -116,6 +120,11 @@ def make_scans(folder: Path, names) -> dict:
         V = V + t.vertex_normals * rng.normal(0, 0.0001 * diag, (len(V), 1))
         V, F = ragged_rim(np.asarray(V), np.asarray(F), 3, 0.4, rng)
         out["mild"] = write_obj(folder / "scan_mild.obj", V, F)
+    if "holes" in names:
+        m = read_mesh(scan_proxy(folder, name="scan_holes_smooth.obj",
+                                 source="ict_A_neutral_holes.obj"))
+        V, F = ragged_rim(m.V, np.asarray(m.faces), 3, 0.4, np.random.default_rng(4))
+        out["holes"] = write_obj(folder / "scan_holes.obj", V, F)
     if LARGE in names:
         out[LARGE] = scan_proxy(folder, iterations=3, name="scan_large.obj")
     return {k: v for k, v in out.items() if k in names}
@@ -159,8 +168,7 @@ def measures_row(label: str, n: int, vertices: int, triangles: dict, below: int,
 def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
     """One table row, ``name``'s: the command on ``path`` at ``n`` vertices (see the module
     docstring)."""
-    flags = ["--keep-largest-component"] if name in KEEP_LARGEST else []
-    run, out, wall, cpu = run_command(path, n, folder, flags)
+    run, out, wall, cpu = run_command(path, n, folder, FLAGS.get(name, ()))
     if run.returncode:
         return f"{name:12s} {n:6d}  failed: {run.stderr.strip().splitlines()[-1]}"
     metrics = json.loads((out / "remesh_metrics.json").read_text())
@@ -171,16 +179,19 @@ def remesh_row(name: str, path: Path, n: int, folder: Path) -> str:
 
 def pymeshlab_row(name: str, path: Path, n: int) -> str:
     """pymeshlab's row under ``name``'s at ``n`` vertices: one isotropic remeshing call on the
-    input the command remeshes (``path`` read and repaired as it does), measured as the command
-    measures ours (see the module docstring)."""
+    input the command remeshes (``path`` read and repaired as it does, the openings the repair
+    closed open again), measured as the command measures ours (see the module docstring)."""
     from pipeline.geometry.remesh_quality import remesh_quality
-    from pipeline.geometry.repair import RepairOptions
+    from pipeline.geometry.repair import RepairOptions, open_mesh
     from pipeline.stages.baselines import isotropic_remesh
     from pipeline.stages.load import load_stage
 
-    mesh = load_stage(path, RepairOptions(keep_largest_component=name in KEEP_LARGEST)).mesh
-    b = isotropic_remesh(mesh.V, mesh.F, n, max_runs=1)
-    q = remesh_quality(mesh.V, mesh.F, b.V, b.F)
+    flags = FLAGS.get(name, ())
+    options = RepairOptions(keep_largest_component="--keep-largest-component" in flags,
+                            close_holes="--close-holes" in flags)
+    V, F = open_mesh(load_stage(path, options).mesh)
+    b = isotropic_remesh(V, F, n, max_runs=1)
+    q = remesh_quality(V, F, b.V, b.F)
     per_face = q["triangles"]["_per_face_min_angle"]
     return measures_row("  pymeshlab", n, len(b.V), q["triangles"], int((per_face < 20).sum()),
                         "-", q["distance"], b.seconds, b.cpu_seconds)
