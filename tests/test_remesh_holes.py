@@ -321,3 +321,38 @@ def test_a_hole_that_cannot_be_kept_is_covered_with_a_warning(monkeypatch):
     assert segment_distance(r.V[rim], hole_polylines(mesh)[1]).max() <= 1e-9
     warnings = remesh_warnings({}, {}, holes_covered=log["holes_covered"])
     assert any(f"{size}-vertex loop could not be kept open" in w for w in warnings)
+
+
+def test_the_face_by_face_moves_skip_the_faces_in_a_kept_hole(monkeypatch):
+    """With every hole loop whole, :func:`.improve.each_unforced_face` (as the star moves ask
+    it) yields no face whose disk centroid is in a hole's fan, even the worst one: a vertex
+    inside the square hole moved onto the chord of two of its neighbours squashes faces that
+    the cut removes; asked to keep the holes' faces, it yields one of them first."""
+    import copy
+
+    import pipeline.geometry.remesh.improve as improve
+    from pipeline.geometry.remesh.holes import all_loops_whole, in_fans
+
+    states, move_each = [], improve._Operations.move_each
+
+    def capture(ops, min_angle_deg):
+        states.append(copy.deepcopy(ops.S))
+        return move_each(ops, min_angle_deg)
+
+    monkeypatch.setattr(improve._Operations, "move_each", capture)
+    V, F = holed_sheet(1)
+    mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
+    remesh_stage(mesh, remesh_map(mesh), RemeshConfig(vertices=1500))
+    S = states[-1]
+    assert all_loops_whole(S)
+    star_in = np.array([in_fans(S, np.flatnonzero((S.F == v).any(axis=1))).all()
+                        for v in range(S.n)])
+    v = int(np.flatnonzero(star_in & ~S.is_rim & ~S.locked)[0])
+    f = np.flatnonzero((S.F == v).any(axis=1))[0]
+    a, b = (w for w in S.F[f] if w != v)
+    S.X[v] = 0.5 * (S.X[a] + S.X[b])                     # a face of 0° at a and b
+    inside = lambda g: bool(in_fans(S, np.array([g]))[0])  # noqa: E731
+    first = [g for g, _ in improve.each_unforced_face(S, 20.0, 1, outside_holes=False)]
+    assert len(first) == 1 and inside(first[0])
+    yielded = [g for g, _ in improve.each_unforced_face(S, 20.0, 50, outside_holes=True)]
+    assert not any(inside(g) for g in yielded)

@@ -412,6 +412,19 @@ def intact_loops(S: RemeshState) -> np.ndarray:
     return out
 
 
+def all_loops_whole(S: RemeshState) -> bool:
+    """Whether ``S`` has holes and every loop of them is placed and whole
+    (:func:`intact_loops`): all its holes would be cut, none covered."""
+    return S.fans is not None and bool(intact_loops(S).all())
+
+
+def in_fans(S: RemeshState, faces: np.ndarray) -> np.ndarray:
+    """Which of the ``faces`` (k indices) of ``S`` lie in a hole by the cut's test of a face
+    alone (:func:`faces_in_holes` without the regions' votes): its disk centroid in the image
+    of an input face of the holes' fans (``S.fans``); (k,) bool."""
+    return S.fans[S.locator.locate(S.uv[S.F[faces]].mean(axis=1))[0]]
+
+
 def faces_in_holes(S: RemeshState, holes: np.ndarray, kept: np.ndarray) -> np.ndarray:
     """Which faces of ``S`` (m bool) lie in a hole that is ``kept`` (h bool): the faces
     between the edges of the kept loops split into regions, and a region is in hole ``i``

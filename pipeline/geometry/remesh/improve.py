@@ -228,7 +228,7 @@ from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
 from .face_memo import FaceMemo
 from .features import place_features, release_features
-from .holes import away_from_holes, place_holes
+from .holes import all_loops_whole, away_from_holes, in_fans, place_holes
 from .fidelity import follow_input as snap_far_input
 from .fidelity import FarMemo, Settled, input_distance, input_reach, settle_on_far_input
 from .flips import flip_edges, flip_in_place, sag_flips, valence_flips
@@ -983,7 +983,9 @@ class _Operations:
                        shortfall=shortfall)
 
     def move_each(self, min_angle_deg: float) -> None:
-        """Face after face, worst first, each once (:func:`each_unforced_face`): the free
+        """Face after face, worst first, each once, none in a hole the cut removes
+        (:func:`each_unforced_face` with ``outside_holes``: each face's trials judge the whole
+        remesh, and a scan's ragged openings leave many faces in their fans): the free
         corners (interior, not locked) of a face still below ``min_angle_deg`` that no input
         corner forces, one after the other, each moved to the point of its star
         (:func:`.unfold.star_positions`) with no face of the star turned over and none at a
@@ -999,7 +1001,7 @@ class _Operations:
         face with three rim corners) and whose moves among the minimum-angle operations' few
         candidates (:func:`.angles.move_candidates`) do not reach the star's best point."""
         S = self.S
-        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
+        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES, outside_holes=True):
             free = S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]].tolist()
             if not any(self.move_in_star(v, min_angle_deg, shortfall) for v in free):
                 any(self.flip_and_move(v, min_angle_deg, shortfall) for v in free)
@@ -1999,10 +2001,14 @@ class TrialBudget:
         return True
 
 
-def each_unforced_face(S: RemeshState, min_angle_deg: float, limit: int):
+def each_unforced_face(S: RemeshState, min_angle_deg: float, limit: int,
+                       outside_holes: bool = False):
     """Yield the faces below ``min_angle_deg`` that no input corner forces
-    (:func:`.circumcentres.unforced_below`), measured again after each: the worst one not
-    yielded before (known by its corners' positions, :func:`corner_key`), with the shortfall
+    (:func:`.circumcentres.unforced_below`), measured again after each, with
+    ``outside_holes`` none in a hole the cut will remove (where every hole loop is whole,
+    :func:`.holes.all_loops_whole`: the faces whose disk centroid is in a hole's fan,
+    :func:`.holes.in_fans`; the work on them is lost with them): the worst one not yielded
+    before (known by its corners' positions, :func:`corner_key`), with the shortfall
     measured (:func:`.circumcentres.shortfall_of`), at most ``limit`` of them and none once
     they have spent their :class:`TrialBudget` (each costing the faces below when it is
     yielded); the caller may change ``S`` in between.
@@ -2012,10 +2018,12 @@ def each_unforced_face(S: RemeshState, min_angle_deg: float, limit: int):
     f : int
     shortfall : (int, float)
     """
-    tried, budget = set(), TrialBudget.for_remesh(S)
+    tried, budget, cut = set(), TrialBudget.for_remesh(S), \
+        outside_holes and all_loops_whole(S)
     for _ in range(limit):
         bad, worst = unforced_below(S, min_angle_deg)
-        f = next((f for f in bad if corner_key(S.X[S.F[f]]) not in tried), None)
+        outside = bad[~in_fans(S, bad)] if cut and len(bad) else bad
+        f = next((f for f in outside if corner_key(S.X[S.F[f]]) not in tried), None)
         if f is None or not budget.spend(S, len(bad)):
             return
         tried.add(corner_key(S.X[S.F[f]]))
