@@ -103,9 +103,10 @@ class RemeshConfig(Section):
         False, description="a locked remesh vertex exactly on each interior landmark (else the "
                            "nearest vertex; the triangles around a locked one pay for it)")
     keep_holes: bool = Field(
-        True, description="keep the holes the intake's close_holes filled open, their rims "
-                          "followed (with the improvement pass; off: the fans' surface covers "
-                          "them)", json_schema_extra={"flag": "--cover-holes"})
+        True, description="the holes the intake's close_holes filled stay open, their rims "
+                          "followed (with the improvement pass); --cover-holes: the fans' "
+                          "surface covers them instead",
+        json_schema_extra={"flag": "--cover-holes"})
     distance_samples: int = Field(DISTANCE_SAMPLES, ge=1000,
                                   description="random samples per surface for the distances")
 
