@@ -53,8 +53,9 @@ def test_verdicts_name_a_baseline_that_is_not_a_disk():
     methods["fast_simplification"] = Method("fast_simplification", V2, F2, 0.5,
                                             remesh_quality(V, F, V2, F2, 2000, 0))
     better, worse = verdicts(comparison_table(methods), methods)["fast_simplification"]
-    assert ("one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented: "
-            "yes, a disk vs no (χ = 2, 2 loops, 2 components)") in better
+    assert ("one disk (χ = 1, one boundary loop; with k holes χ = 1 − k, 1 + k loops) or closed "
+            "genus 0 (χ = 2); manifold, oriented: yes, a disk vs no (χ = 2, 2 loops, 2 "
+            "components)") in better
     assert not any(t.startswith("one disk") for t in worse)
     methods["sem"], methods["fast_simplification"] = methods["fast_simplification"], sem
     better, worse = verdicts(comparison_table(methods), methods)["fast_simplification"]

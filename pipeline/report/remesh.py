@@ -63,7 +63,8 @@ def _fmt(x, digits=2, pct=False):
     return f"{x:.{digits}f}"
 
 
-TOPOLOGY = "one disk (χ = 1, one boundary loop) or closed genus 0 (χ = 2); manifold, oriented"
+TOPOLOGY = ("one disk (χ = 1, one boundary loop; with k holes χ = 1 − k, 1 + k loops) or closed "
+            "genus 0 (χ = 2); manifold, oriented")
 
 
 def topology(q: dict) -> str:
