@@ -189,10 +189,19 @@ def open_mesh(mesh, covered=()) -> tuple[np.ndarray, np.ndarray]:
     F = display_faces(mesh, covered)
     if F is mesh.F:
         return mesh.V, mesh.F
-    used = np.zeros(len(mesh.V), bool)
+    V, F, _ = used_vertices_only(mesh.V, F)
+    return V, F
+
+
+def used_vertices_only(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                 np.ndarray]:
+    """``(V, F)`` (n×3, m×3) without the vertices no face uses, the rest in their order:
+    the vertices (n', 3), the faces renumbered (m, 3) and each old vertex's new index (n,
+    int, −1 for a dropped one)."""
+    used = np.zeros(len(V), bool)
     used[F.ravel()] = True
-    new = np.cumsum(used) - 1
-    return mesh.V[used], new[F]
+    new = np.where(used, np.cumsum(used) - 1, -1)
+    return V[used], new[F], new
 
 
 def display_faces(mesh, covered=()) -> np.ndarray:

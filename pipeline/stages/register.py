@@ -50,7 +50,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..errors import UserError
-from ..geometry.repair import RepairOptions, display_faces
+from ..geometry.repair import RepairOptions, display_faces, used_vertices_only
 from ..geometry.sem import SEMOptions
 from ..io.artifacts import save_npz, staged_output, write_json
 from ..io.meshio import read_mesh, write_obj
@@ -527,11 +527,8 @@ def nricp_baseline(pair: Pair, diag: float) -> dict:
     S, T = pair.source.mesh, pair.target.mesh
 
     def compact(mesh):
-        F = display_faces(mesh)
-        used = np.unique(F)
-        new = np.full(len(mesh.V), -1, dtype=np.int64)
-        new[used] = np.arange(len(used))
-        return trimesh.Trimesh(mesh.V[used], new[F], process=False), used, new
+        V, F, new = used_vertices_only(mesh.V, display_faces(mesh))
+        return trimesh.Trimesh(V, F, process=False), np.flatnonzero(new >= 0), new
 
     src, used_s, new_s = compact(S)
     tgt, _, new_t = compact(T)

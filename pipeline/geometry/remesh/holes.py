@@ -30,6 +30,7 @@ import numpy as np
 from .. import topology as topo
 from ..locate import lift
 from ..metrics import signed_double_areas
+from ..repair import used_vertices_only
 from ..rows import norms
 from .corners import insert_vertices, snap_vertices
 from .features import along_chain, chain_arcs, crossed_edges, join_edges, vertices_at
@@ -234,8 +235,15 @@ def turned_outside(S: RemeshState, fans: np.ndarray, T: np.ndarray) -> np.ndarra
     centroid is in the image of one of the ``fans`` (M bool) is cut away at the end, and
     across a slit (a closed mouth) the flips that join a loop make such faces spanning it."""
     T = np.asarray(T, np.int64).reshape(-1, 3)
-    inside = fans[S.locator.locate(S.uv[T].mean(axis=1))[0]]
+    inside = fans[input_face_under(S.locator, S.uv, T)]
     return turned_over_rows(S, T, ties=True) & ~inside
+
+
+def input_face_under(locator, uv: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The input face (k int) under each face ``T`` (k×3 indices of the disk points ``uv``):
+    the one whose image holds the face's disk centroid (``locator``: the input map's
+    :class:`..locate.PointLocator`); the test by which a face lies in a hole's fan."""
+    return locator.locate(uv[T].mean(axis=1))[0]
 
 
 def join_loop(S: RemeshState, vs: np.ndarray, seg: np.ndarray, v: np.ndarray,
@@ -402,14 +410,21 @@ def intact_loops(S: RemeshState) -> np.ndarray:
     an edge of ``S`` between two vertices at their placed positions; (h,) bool."""
     a, b = topo.half_edges(S.F)
     have = set(zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist()))
-    where = {S.X[i].tobytes(): i for i in np.flatnonzero(at_points(S.X, S.fixed)).tolist()}
     out = np.zeros(len(S.hole_chains), bool)
-    for k, chain in enumerate(S.hole_chains):
-        if chain is None:
-            continue
-        ends = [(where.get(p.tobytes(), -1), where.get(q.tobytes(), -1)) for p, q in chain]
-        out[k] = all(min(e) >= 0 and (min(e), max(e)) in have for e in ends)
+    for k, ends in enumerate(chain_vertices(S, S.hole_chains)):
+        out[k] = ends is not None and all(e[0] >= 0 and tuple(e) in have for e in ends.tolist())
     return out
+
+
+def chain_vertices(S: RemeshState, chains: list) -> list:
+    """Each hole loop's kept edges (``chains``: (j, 2, 3) end positions, or None) as the
+    vertices of ``S`` at their ends, each row sorted ((j, 2) int; −1 where no vertex is at a
+    ``S.fixed`` point there), None for None."""
+    where = {S.X[i].tobytes(): i for i in np.flatnonzero(at_points(S.X, S.fixed)).tolist()}
+    return [None if chain is None else
+            np.sort(np.array([[where.get(p.tobytes(), -1) for p in edge] for edge in chain],
+                             np.int64).reshape(-1, 2), axis=1)
+            for chain in chains]
 
 
 def all_loops_whole(S: RemeshState) -> bool:
@@ -422,7 +437,7 @@ def in_fans(S: RemeshState, faces: np.ndarray) -> np.ndarray:
     """Which of the ``faces`` (k indices) of ``S`` lie in a hole by the cut's test of a face
     alone (:func:`faces_in_holes` without the regions' votes): its disk centroid in the image
     of an input face of the holes' fans (``S.fans``); (k,) bool."""
-    return S.fans[S.locator.locate(S.uv[S.F[faces]].mean(axis=1))[0]]
+    return S.fans[input_face_under(S.locator, S.uv, S.F[faces])]
 
 
 def faces_in_holes(S: RemeshState, holes: np.ndarray, kept: np.ndarray) -> np.ndarray:
@@ -435,11 +450,8 @@ def faces_in_holes(S: RemeshState, holes: np.ndarray, kept: np.ndarray) -> np.nd
     from scipy.sparse.csgraph import connected_components
 
     m = len(S.F)
-    walls = set()
-    for chain in (c for c, k in zip(S.hole_chains, kept) if k):
-        v = np.flatnonzero(at_points(S.X, chain.reshape(-1, 3)))
-        idx = {S.X[i].tobytes(): i for i in v.tolist()}
-        walls |= {tuple(sorted((idx[p.tobytes()], idx[q.tobytes()]))) for p, q in chain}
+    kept_chains = [c for c, k in zip(S.hole_chains, kept) if k]
+    walls = {tuple(e) for ends in chain_vertices(S, kept_chains) for e in ends.tolist()}
     a, b = topo.half_edges(S.F)
     twin = S.twins()
     h = np.flatnonzero(twin >= 0)
@@ -448,7 +460,7 @@ def faces_in_holes(S: RemeshState, holes: np.ndarray, kept: np.ndarray) -> np.nd
     h = h[~wall]
     graph = coo_matrix((np.ones(len(h)), (h // 3, twin[h] // 3)), shape=(m, m))
     _, region = connected_components(graph, directed=False)
-    label = holes[S.locator.locate(S.uv[S.F].mean(axis=1))[0]]
+    label = holes[input_face_under(S.locator, S.uv, S.F)]
     label = np.where((label >= 0) & kept[np.maximum(label, 0)], label, -1)
     area = np.abs(signed_double_areas(S.uv, S.F))
     k = len(kept) + 1
@@ -490,9 +502,7 @@ def lift_with_holes_cut(X: np.ndarray, F: np.ndarray, uv: np.ndarray, locator,
     that hole's fan (``holes``, M int, :func:`loop_of_fans`; ``locator`` over the input's
     map), and without the vertices no other face uses. It has no vertices on the loops, so
     its hole rims run along its own edges."""
-    label = holes[locator.locate(uv[F].mean(axis=1))[0]]
+    label = holes[input_face_under(locator, uv, F)]
     cut = (label >= 0) & ~np.isin(label, np.asarray(covered, np.int64))
-    F = F[~cut]
-    used = np.zeros(len(X), bool)
-    used[F.ravel()] = True
-    return X[used], (np.cumsum(used) - 1)[F]
+    X, F, _ = used_vertices_only(X, F[~cut])
+    return X, F

@@ -380,8 +380,9 @@ def improve_remesh(S: RemeshState, L: float, *, relax_iterations: int = 2, flips
         Disk images of sharp interior input vertices, sharpest first.
     landmarks_uv : (j, 2) float, optional
         Disk images of the interior input vertices that carry landmarks: each gets a locked
-        vertex on it after the corners and feature lines (tallied as ``landmarks_snapped``, ``_inserted`` and
-        ``_too_close``: one within ``CORNER_GAP × L`` of a vertex kept before gets none), which
+        vertex on it after the corners and feature lines (tallied as ``landmarks_snapped``,
+        ``_inserted`` and ``_too_close``: one within ``CORNER_GAP × L`` of a vertex kept before
+        gets none), which
         the later passes keep as they keep the corners'.
     isotropic_iterations : int
         Rounds of split / collapse / flip / smoothing at the target length (step 4).
