@@ -26,7 +26,8 @@ pymeshlab's call).
 ``--closed``: the closed genus-0 meshes of ``../shared/data/closed`` (default: all of them but
 the higher-genus ones), read and repaired as the ``input`` stage does, mapped onto the sphere by
 ``parameterize_stage`` (``--maps paper``: the alternating-hemisphere iterations; ``converged``:
-Gauss–Newton; ``N``: at most N Gauss–Newton steps) and remeshed through the sphere.
+Gauss–Newton; ``auto``: the remesh command's map, a few free and hemisphere iterations; ``N``:
+at most N Gauss–Newton steps) and remeshed through the sphere.
 
 ``--holes``: the ICT faces with their eye and mouth openings (``*_holes.obj``), read and
 repaired with ``close_holes`` (the openings filled for the map) and remeshed with the openings
@@ -142,12 +143,14 @@ def parameterize(mesh):
 
 def parameterize_with(mesh, how: str):
     """The map for ``--compare``: ``paper`` (Algorithm 1, 10 steps), ``paperK`` (Algorithm 1,
-    K steps), ``converged`` (the default converged map) or an integer (converged mode, at most
+    K steps), ``converged`` (the default converged map), ``auto`` (the remesh command's map,
+    :meth:`pipeline.geometry.sem.SEMOptions.for_domain`) or an integer (converged mode, at most
     that many steps)."""
     from pipeline.geometry.sem import SEMOptions
     from pipeline.stages.parameterize import parameterize_stage
 
     opts = (SEMOptions(mode="paper") if how == "paper" else SEMOptions() if how == "converged"
+            else SEMOptions(mode="auto") if how == "auto"
             else SEMOptions(mode="paper", max_iter=int(how[5:])) if how.startswith("paper")
             else SEMOptions(mode="converged", max_iter=int(how)))
     t = time.perf_counter()
@@ -381,7 +384,8 @@ def main(argv=None):
     ap.add_argument("--compare", action="store_true",
                     help="the side-by-side quality table against pymeshlab instead of the steps")
     ap.add_argument("--maps", nargs="+", default=["converged"],
-                    help="with --compare: paper | converged | N (converged, at most N steps)")
+                    help="with --compare: paper | paperK | converged | auto | N (converged, "
+                         "at most N steps)")
     ap.add_argument("--no-cli", action="store_true",
                     help="with --compare: no ours/cli rows (the command end to end)")
     ap.add_argument("--closed", action="store_true",

@@ -24,14 +24,15 @@ from pipeline.geometry import sphere
 from pipeline.geometry.laplacian import face_double_areas
 from pipeline.geometry.metrics import corner_angles
 from pipeline.geometry.repair import repair_mesh
-from pipeline.geometry.sem import REMESH_DISK_STEPS, SEMOptions
+from pipeline.geometry.sem import (REMESH_DISK_STEPS, REMESH_SPHERE_FREE_STEPS,
+                                   REMESH_SPHERE_STEPS, SEMOptions)
 from pipeline.geometry.sphere_metrics import (sphere_angular_distortion,
                                               sphere_distortion_summary,
                                               sphere_local_area_ratios,
                                               spherical_corner_angles)
 from pipeline.io.meshio import read_mesh, write_obj
 from pipeline.stages.parameterize import (Parameterization, ParameterizationFailed,
-                                          resolve_domain, sphere_options,
+                                          parameterize_stage, resolve_domain, sphere_options,
                                           write_parameterization)
 from test_sphere import icosphere, torus
 
@@ -122,14 +123,44 @@ def test_domain_resolution_and_its_messages():
         resolve_domain("sphere", False)
 
 
-def test_auto_mode_is_paper_on_the_disk_and_converged_on_the_sphere():
+def test_auto_mode_is_a_few_paper_steps_on_the_disk_and_on_the_sphere():
     auto = SEMOptions(mode="auto", max_iter=None)
     assert auto.for_domain("disk").mode == "paper"
     assert auto.for_domain("disk").iterations() == REMESH_DISK_STEPS == 2
+    assert auto.for_domain("disk").free_iter is None
     assert SEMOptions(mode="auto", max_iter=7).for_domain("disk").iterations() == 7   # asked
-    assert auto.for_domain("sphere").mode == "converged"
+    sphere_auto = auto.for_domain("sphere")
+    assert sphere_auto.mode == "paper"
+    assert sphere_auto.iterations() == REMESH_SPHERE_STEPS == 2
+    assert sphere_auto.free_iter == REMESH_SPHERE_FREE_STEPS == 3
+    assert sphere_options(sphere_auto) == \
+        {"solver": "auto", "method": "hemisphere", "max_iter": 2, "gradient_iter": 0,
+         "cycles": 1, "free_iter": 3}
+    asked = SEMOptions(mode="auto", max_iter=7, free_iter=0).for_domain("sphere")
+    assert (asked.iterations(), asked.free_iter) == (7, 0)
     assert SEMOptions(mode="paper").for_domain("sphere").mode == "paper"   # asked: kept
+    assert SEMOptions(mode="paper").for_domain("sphere").free_iter is None
+    assert SEMOptions(mode="converged").for_domain("sphere").mode == "converged"
     assert SEMOptions().for_domain("disk").mode == "converged"
+
+
+def test_auto_sphere_map_is_a_bijection_of_a_mesh_with_long_spikes():
+    """The remesh's sphere map (``mode: auto``) of a closed mesh whose Tutte start crowds six
+    spikes into tiny areas: every spherical triangle positively oriented and their areas
+    summing to 4π (a covering of degree 1: one preimage per point, which the remesh's point
+    location needs), and much less area distortion than the start."""
+    V, F = icosphere(4)
+    D = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1.0]])
+    theta = np.arccos(np.clip(V @ D.T, -1, 1))
+    V = V * (1 + 3.0 * np.exp(-(theta / 0.3) ** 2).sum(axis=1))[:, None]
+    p = parameterize_stage(repair_mesh(V, F), SEMOptions(mode="auto"))
+    assert p.options.mode == "paper" and p.options.free_iter == REMESH_SPHERE_FREE_STEPS
+    S, F = p.sphere, p.mesh.F
+    assert np.all(sphere.triple_products(S, F) > 0)
+    assert sphere.spherical_triangle_areas(S, F).sum() == pytest.approx(4 * np.pi, rel=1e-9)
+    assert p.metrics["status"] == "ok" and p.flipped_faces == 0
+    measures = p.sem.measures
+    assert measures["face_area_distortion"] < 0.1 * p.sem.start["face_area_distortion"]
 
 
 def test_sphere_options_map_the_section():
@@ -139,6 +170,7 @@ def test_sphere_options_map_the_section():
          "cycles": 1}
     assert sphere_options(SEMOptions(max_iter=7, tol=1e-4, solver="scipy")) == \
         {"solver": "scipy", "newton_iter": 7, "tol": 1e-4}
+    assert sphere_options(SEMOptions(free_iter=4)) == {"solver": "auto", "free_iter": 4}
 
 
 def test_folded_map_writes_its_diagnosis_but_no_map(tmp_path):
@@ -213,7 +245,8 @@ def test_closed_mesh_remeshes_through_the_cli_and_pairs_only_with_closed(tmp_pat
     n, m = len(out.V), out.n_faces
     assert abs(n - 300) <= 6 and n - m // 2 == 2            # closed: E = 3m/2, χ = n − m/2
     rm = json.loads((tmp_path / "r" / "remesh_metrics.json").read_text())
-    assert rm["parameterization"]["mode"] == "converged"   # --mode auto on the sphere
+    assert rm["parameterization"]["mode"] == "paper"   # --mode auto on the sphere
+    assert rm["parameterization"]["iterations"] <= REMESH_SPHERE_STEPS
     code, _, err = cli("remesh", small_face[0], "-o", tmp_path / "d", "--vertices", "300",
                        "--no-compare", "--no-report")
     assert code == 0, err

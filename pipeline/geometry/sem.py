@@ -85,15 +85,25 @@ from .solvers import NotPositiveDefinite, make_solver, solve_complex
 #: last percent of evenness (``benchmarks/bench_remesh.py --compare --maps paper paper2``).
 REMESH_DISK_STEPS = 2
 
+#: The sphere map of ``mode: auto``, the remesh's: ``REMESH_SPHERE_FREE_STEPS`` iterations of
+#: the free phase from the Tutte start (:func:`.sphere.spherical_sem`'s ``free_iter``), then
+#: ``REMESH_SPHERE_STEPS`` guarded alternating-hemisphere iterations (paper mode), every
+#: spherical triangle positively oriented. The first two free iterations spread the start's
+#: crowded limbs; the later ones, and the Gauss–Newton steps of converged mode, remove the last
+#: percent of the area distortion, which the remesh's isotropic rounds even out on the surface
+#: anyway (``benchmarks/bench_remesh.py --compare --closed --maps converged auto``).
+REMESH_SPHERE_FREE_STEPS = 3
+REMESH_SPHERE_STEPS = 2
+
 
 class SEMOptions(BaseModel):
     """SEM's settings; also the ``parameterize`` section of a run config (validated once, here).
 
     ``max_iter`` defaults to 10 steps in paper mode (Algorithm 1) and 1000 in converged mode.
     ``mode: auto`` is the quick map for remeshing: on the disk paper mode with
-    ``REMESH_DISK_STEPS`` steps unless ``max_iter`` says otherwise, on the sphere converged mode
-    (whose Gauss–Newton map is as quick there and gives the better remesh); :meth:`for_domain`
-    resolves it.
+    ``REMESH_DISK_STEPS`` steps, on the sphere paper mode with ``REMESH_SPHERE_STEPS``
+    hemisphere iterations after ``REMESH_SPHERE_FREE_STEPS`` free ones, unless ``max_iter``
+    (and ``free_iter``) say otherwise; :meth:`for_domain` resolves it.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -120,13 +130,19 @@ class SEMOptions(BaseModel):
     # E_S/bound − 1 is at most gn_drop × its value where phase B started (gn_drop 0: off)
     gn_cv: float = Field(0.01, gt=0.0)
     gn_drop: float = Field(0.03, ge=0.0, le=1.0)
+    # sphere: iterations of the free phase before the hemisphere or Gauss–Newton steps
+    # (spherical_sem's free_iter; None: its default)
+    free_iter: Optional[int] = Field(None, ge=0)
 
     def for_domain(self, domain: str) -> "SEMOptions":
         """These options with ``mode: auto`` resolved for ``domain`` ("disk" or "sphere")."""
         if self.mode != "auto":
             return self
         if domain == "sphere":
-            return self.model_copy(update={"mode": "converged"})
+            steps = REMESH_SPHERE_STEPS if self.max_iter is None else self.max_iter
+            free = REMESH_SPHERE_FREE_STEPS if self.free_iter is None else self.free_iter
+            return self.model_copy(update={"mode": "paper", "max_iter": steps,
+                                           "free_iter": free})
         steps = REMESH_DISK_STEPS if self.max_iter is None else self.max_iter
         return self.model_copy(update={"mode": "paper", "max_iter": steps})
 

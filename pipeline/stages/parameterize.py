@@ -36,7 +36,10 @@ steps); ``paper`` runs only the alternating-hemisphere iterations of the publish
 SEM, ``max_iter`` (default 10) of them, without the gradient phase: a quick map, as Algorithm 1
 is on the disk. ``tol``, ``patience``, ``min_step`` and ``solver`` are passed on when given (the
 section's defaults are the disk's, so ``tol``, ``patience`` and ``min_step`` only when set
-explicitly).
+explicitly), and ``free_iter``, the free phase's iterations before either, when not None (the
+kernel's default: 10). ``auto``, the remesh's map, is paper mode with
+``REMESH_SPHERE_STEPS`` iterations after ``REMESH_SPHERE_FREE_STEPS`` free ones
+(:meth:`SEMOptions.for_domain`).
 
 A map with flipped (folded) faces, or a disk map whose boundary image crosses itself (it wraps
 part of the mesh twice with every face positive), is a failure: its ``metrics.json`` (status
@@ -196,7 +199,7 @@ def sphere_options(options: SEMOptions) -> dict:
     """Keyword arguments of :func:`spherical_sem` for the ``parameterize`` section (see the
     module docstring: ``paper`` = hemisphere iterations only, ``max_iter`` default 10;
     ``converged`` = the kernel's defaults, ``max_iter`` caps the Gauss–Newton steps; explicit
-    ``tol``/``patience``/``min_step`` passed)."""
+    ``tol``/``patience``/``min_step`` passed, ``free_iter`` unless None)."""
     kw: dict = {"solver": options.solver}
     if options.mode == "paper":
         kw.update(method="hemisphere", max_iter=options.iterations(), gradient_iter=0,
@@ -205,6 +208,8 @@ def sphere_options(options: SEMOptions) -> dict:
         kw["newton_iter"] = options.max_iter
     kw.update({k: getattr(options, k) for k in ("tol", "patience", "min_step")
                if k in options.model_fields_set})
+    if options.free_iter is not None:
+        kw["free_iter"] = options.free_iter
     return kw
 
 
