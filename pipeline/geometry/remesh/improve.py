@@ -968,7 +968,8 @@ class _Operations:
                 break
 
     def refine_each(self, target: int, min_angle_deg: float) -> None:
-        """Face after face, worst first, each once (known by its corners' positions): a face
+        """Face after face, worst first, each once (known by its corners' positions), none in
+        a hole the cut removes (:func:`each_unforced_face` with ``outside_holes``): a face
         still below ``min_angle_deg`` that no input corner forces refined alone (:meth:`grade`
         with its corner splits, ``only`` its corners, the caps' splits only for a cap:
         :func:`.circumcentres.cap_split`), at most ``EACH_FACES`` of them. Kept as
@@ -978,7 +979,8 @@ class _Operations:
         (an interior vertex with rim vertices all round it, squeezed against a short rim
         edge, whose collapse would make a face with three rim corners)."""
         S = self.S
-        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
+        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES,
+                                               outside_holes=True):
             caps = (False, True) if cap_split(S, f) is not None else (False,)
             self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps,
                        shortfall=shortfall)
