@@ -332,15 +332,12 @@ def test_a_hole_that_cannot_be_kept_is_covered_with_a_warning(monkeypatch):
     assert any(f"{size}-vertex loop could not be kept open" in w for w in warnings)
 
 
-def test_the_face_by_face_moves_skip_the_faces_in_a_kept_hole(monkeypatch):
-    """With every hole loop whole, :func:`.improve.each_unforced_face` (as the star moves ask
-    it) yields no face whose disk centroid is in a hole's fan, even the worst one: a vertex
-    inside the square hole moved onto the chord of two of its neighbours squashes faces that
-    the cut removes; asked to keep the holes' faces, it yields one of them first."""
+def state_at_move_each(monkeypatch):
+    """The remesh state (a copy) as the face-by-face star moves get it on the sheet with the
+    square hole (:func:`holed_sheet`) remeshed at 1,500 vertices keeping it."""
     import copy
 
     import pipeline.geometry.remesh.improve as improve
-    from pipeline.geometry.remesh.holes import all_loops_whole, in_fans
 
     states, move_each = [], improve._Operations.move_each
 
@@ -352,7 +349,18 @@ def test_the_face_by_face_moves_skip_the_faces_in_a_kept_hole(monkeypatch):
     V, F = holed_sheet(1)
     mesh = repair_mesh(V, F, options=RepairOptions(close_holes=True))
     remesh_stage(mesh, remesh_map(mesh), RemeshConfig(vertices=1500))
-    S = states[-1]
+    return states[-1]
+
+
+def test_the_face_by_face_moves_skip_the_faces_in_a_kept_hole(monkeypatch):
+    """With every hole loop whole, :func:`.improve.each_unforced_face` (as the star moves ask
+    it) yields no face whose disk centroid is in a hole's fan, even the worst one: a vertex
+    inside the square hole moved onto the chord of two of its neighbours squashes faces that
+    the cut removes; asked to keep the holes' faces, it yields one of them first."""
+    import pipeline.geometry.remesh.improve as improve
+    from pipeline.geometry.remesh.holes import all_loops_whole, in_fans
+
+    S = state_at_move_each(monkeypatch)
     assert all_loops_whole(S)
     star_in = np.array([in_fans(S, np.flatnonzero((S.F == v).any(axis=1))).all()
                         for v in range(S.n)])
@@ -451,3 +459,56 @@ def test_no_face_covers_a_ragged_hole():
     near_star = np.hypot(c[:, 0] + 0.45, c[:, 1]) < 0.45
     reference = SampledSurface(Vo, Fo, 0, 0)
     assert turned_over_faces(r.V, r.F[near_star], reference) == 0
+
+
+@pytest.mark.parametrize("radius, spaced, kept", [
+    (0.7, False, False),     # a flat tooth (angles below 1°): dropped
+    (0.3, False, True),      # a deep tooth (30°, 30°, 120°): kept
+    (1.01, False, True),     # a flat notch: its triangle lies in the hole, kept
+    (0.7, True, True),       # a flat tooth among the spaced stops: kept
+])
+def test_thin_teeth_lose_their_added_tip(radius, spaced, kept):
+    """A unit circle of 40 vertices (the hole inside) with vertex 10 moved to ``radius``,
+    stops every fifth vertex: vertex 10 is dropped by :func:`.holes.without_thin_teeth`
+    where it is an added stop at the tip of a tooth (inside the circle) whose triangle with
+    stops 5 and 15 has an angle below ``TOOTH_MIN_DEG``, and only there."""
+    from pipeline.geometry.metrics import min_corner_angles
+    from pipeline.geometry.remesh.holes import TOOTH_MIN_DEG, without_thin_teeth
+
+    a = np.linspace(0, 2 * np.pi, 41)
+    r = np.where(np.arange(41) == 10, radius, 1.0)
+    P = np.column_stack([r * np.cos(a), r * np.sin(a)])
+    P[-1] = P[0]
+    Q = np.column_stack([P, np.zeros(41)])
+    stops = list(range(0, 40, 5))
+    base = set(stops) if spaced else set(stops) - {10}
+    thin = np.degrees(min_corner_angles(Q, np.array([[5, 10, 15]])))[0] < TOOTH_MIN_DEG
+    assert thin == (radius == 0.7)
+    out = without_thin_teeth(Q, P, stops, base, 1.0)
+    assert list(out) == (stops if kept else [s for s in stops if s != 10])
+
+
+def test_across_unjoined_are_the_free_vertices_beyond_the_edges_not_kept(monkeypatch):
+    """:func:`.improve.across_unjoined` of each face with a hole loop's vertex among its
+    corners: for each of its edges in order that is not kept (``S.joined``) and has a face
+    across it, the vertex of that face off the edge where it is free (not on the rim, not
+    locked), found by a search of the faces; some of those faces have a kept edge."""
+    import pipeline.geometry.remesh.improve as improve
+
+    S = state_at_move_each(monkeypatch)
+    free = ~S.is_rim & ~S.locked
+    near = np.flatnonzero((~free[S.F]).any(axis=1))
+    kept_any = False
+    for f in near.tolist():
+        want = []
+        for i in range(3):
+            a, b = int(S.F[f, i]), int(S.F[f, (i + 1) % 3])
+            kept = bool(S.is_joined(np.array([a]), np.array([b]))[0])
+            kept_any |= kept
+            other = [g for g in np.flatnonzero((S.F == a).any(axis=1) & (S.F == b).any(axis=1))
+                     if g != f]
+            if not kept and other:
+                q = next(int(w) for w in S.F[other[0]] if w not in (a, b))
+                want += [q] if free[q] else []
+        assert improve.across_unjoined(S, f).tolist() == want
+    assert kept_any

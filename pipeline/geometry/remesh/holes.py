@@ -10,7 +10,9 @@ vertices about ``L`` apart in space, whose chords cut across its teeth, with the
 farthest from a chord added where the loop runs beyond it by more than ``NOTCH_TOL × L`` on
 the surface's side or ``TOOTH_TOL × L`` on the hole's (:func:`followed_stops`: the faces
 along a chord would otherwise cover a notch of the hole with the fan's surface, or the cut
-take a tooth of the surface away). Where the disk chord
+take a tooth of the surface away), but not at the tip of a tooth whose triangle with its
+neighbours would have an angle below ``TOOTH_MIN_DEG`` (:func:`without_thin_teeth`: that
+face stays, and the tooth goes with the hole). Where the disk chord
 between two consecutive points crosses another chord, another loop or another stretch of its
 own loop (a slit, such as a closed mouth), the loop vertex nearest the middle between them is
 added, until none does (:func:`untangled`). Consecutive ones are joined by an edge that no
@@ -33,7 +35,7 @@ import numpy as np
 
 from .. import topology as topo
 from ..locate import lift
-from ..metrics import signed_double_areas
+from ..metrics import min_corner_angles, signed_double_areas
 from ..repair import used_vertices_only
 from ..rows import norms
 from .corners import insert_vertices, snap_vertices
@@ -48,6 +50,8 @@ RAGGED_DEPTH = 0.25      # a loop whose median vertex sits this × its median ed
                          # chord of its neighbours is ragged (a scan's ~0.55, a model's < 0.1)
 NOTCH_TOL = 0.2          # × L: a chord of a ragged loop covers its hole no deeper than this
 TOOTH_TOL = 0.3          # × L: and cuts off a tooth of the surface no deeper than this
+TOOTH_MIN_DEG = 20.0     # a followed tooth whose triangle with its neighbours is thinner is
+                         # dropped
 LOOP_GAP = 0.3           # × L (at least the loop's median edge): save where a point would
                          # come nearer its neighbours than this
 
@@ -182,7 +186,8 @@ def followed_stops(Q: np.ndarray, P: np.ndarray, stops: np.ndarray, notch_tol: f
     notch of the hole into the surface, which the chord's faces would cover: the surface
     there is the fan's filling, not the input's), ``tooth_tol`` on its hole's side (a tooth
     of the surface, which the cut would take away with the hole); a vertex within ``gap`` of
-    either end of the chord is not added (a needle).
+    either end of the chord is not added (a needle); then the added tips of thin teeth are
+    dropped (:func:`without_thin_teeth`).
 
     Parameters
     ----------
@@ -208,7 +213,43 @@ def followed_stops(Q: np.ndarray, P: np.ndarray, stops: np.ndarray, notch_tol: f
         if j is not None:
             out.add(j)
             todo += [(a, j), (j, b)]
-    return np.array(sorted(out), np.int64)
+    return without_thin_teeth(Q, P, sorted(out), set(stops), inner)
+
+
+def without_thin_teeth(Q: np.ndarray, P: np.ndarray, stops: list, spaced: set,
+                       inner: float) -> np.ndarray:
+    """The ``stops`` (increasing indices into the closed loop ``Q``, k×3; disk images ``P``,
+    k×2, the loop's inside turning as ``inner``) without those not in ``spaced`` that are
+    the tip of a tooth between their neighbours (on the hole's side of their chord) whose
+    triangle with them has an angle below ``TOOTH_MIN_DEG`` (:func:`_thin_tooth`), dropped
+    one at a time until none is: that triangle is the face the remesh keeps there (its
+    chord, the one edge not kept, flips only to a vertex across it, whose face then has
+    the tooth's short edge facing it), and no triangulation of the surface raises its
+    angles; without the tip the tooth goes with the hole. Returns them as (p,) int."""
+    stops = list(stops)
+    while True:
+        thin = next((k for k in range(len(stops)) if stops[k] not in spaced
+                     and _thin_tooth(Q, P, *_around(stops, len(Q), k), inner)), None)
+        if thin is None:
+            return np.array(stops, np.int64)
+        del stops[thin]
+
+
+def _around(stops: list, closed: int, k: int) -> tuple[int, int, int]:
+    """``stops[k]`` and the stops before and after it round a closed loop of ``closed``
+    points (its last the first again): ``(before, stops[k], after)``, ``after`` being
+    ``closed − 1`` after the last stop and ``before`` the last stop before the first."""
+    return stops[k - 1], stops[k], stops[k + 1] if k + 1 < len(stops) else closed - 1
+
+
+def _thin_tooth(Q: np.ndarray, P: np.ndarray, a: int, j: int, b: int, inner: float) -> bool:
+    """Whether loop vertex ``j`` (of ``Q``, k×3; disk images ``P``, k×2) lies on the hole's
+    side of the chord ``a``–``b`` (as in :func:`_beyond_chord`) and the triangle ``a, j, b``
+    has an angle below ``TOOTH_MIN_DEG``."""
+    d = P[b] - P[a]
+    side = inner * (d[0] * (P[j, 1] - P[a, 1]) - d[1] * (P[j, 0] - P[a, 0]))
+    smallest = min_corner_angles(Q, np.array([[a, j, b]]))[0]
+    return bool(side > 0 and np.degrees(smallest) < TOOTH_MIN_DEG)
 
 
 def _beyond_chord(Q: np.ndarray, P: np.ndarray, a: int, b: int, inner: float,
