@@ -488,6 +488,19 @@ def test_thin_teeth_lose_their_added_tip(radius, spaced, kept):
     assert list(out) == (stops if kept else [s for s in stops if s != 10])
 
 
+def test_on_boundary_of_some_vertices_is_the_whole_row_indexed(monkeypatch):
+    """:meth:`.state.RemeshState.on_boundary` of given vertices equals its whole row
+    indexed by them, bit for bit, on a remesh whose hole loop's vertices are on it besides
+    the rim's (the minimum-angle pass asks it of the vertices on input corners alone)."""
+    S = state_at_move_each(monkeypatch)
+    whole = S.on_boundary()
+    assert whole.sum() > S.is_rim.sum()
+    v = np.random.default_rng(0).permutation(S.n)[: S.n // 2]
+    v = np.r_[v, np.flatnonzero(whole & ~S.is_rim)]
+    assert np.array_equal(S.on_boundary(v), whole[v])
+    assert np.array_equal(S.on_boundary(np.arange(S.n)), whole)
+
+
 def test_across_unjoined_are_the_free_vertices_beyond_the_edges_not_kept(monkeypatch):
     """:func:`.improve.across_unjoined` of each face with a hole loop's vertex among its
     corners: for each of its edges in order that is not kept (``S.joined``) and has a face
