@@ -246,10 +246,16 @@ def _thin_tooth(Q: np.ndarray, P: np.ndarray, a: int, j: int, b: int, inner: flo
     """Whether loop vertex ``j`` (of ``Q``, k×3; disk images ``P``, k×2) lies on the hole's
     side of the chord ``a``–``b`` (as in :func:`_beyond_chord`) and the triangle ``a, j, b``
     has an angle below ``TOOTH_MIN_DEG``."""
-    d = P[b] - P[a]
-    side = inner * (d[0] * (P[j, 1] - P[a, 1]) - d[1] * (P[j, 0] - P[a, 0]))
     smallest = min_corner_angles(Q, np.array([[a, j, b]]))[0]
-    return bool(side > 0 and np.degrees(smallest) < TOOTH_MIN_DEG)
+    return bool(_side_of_chord(P, a, b, j, inner) > 0 and np.degrees(smallest) < TOOTH_MIN_DEG)
+
+
+def _side_of_chord(P: np.ndarray, a: int, b: int, i, inner: float):
+    """Which side of the disk chord ``P[a]``–``P[b]`` (``P``: k×2) the points ``P[i]`` (an
+    index or j indices) lie on: positive on the loop's inside (it turns as ``inner``, the
+    sign of its area), negative outside; a float or (j,) float."""
+    d = P[b] - P[a]
+    return inner * (d[0] * (P[i, 1] - P[a, 1]) - d[1] * (P[i, 0] - P[a, 0]))
 
 
 def _beyond_chord(Q: np.ndarray, P: np.ndarray, a: int, b: int, inner: float,
@@ -264,8 +270,7 @@ def _beyond_chord(Q: np.ndarray, P: np.ndarray, a: int, b: int, inner: float,
     i = np.arange(a + 1, b)
     if len(i) == 0:
         return None
-    d = P[b] - P[a]
-    side = inner * (d[0] * (P[i, 1] - P[a, 1]) - d[1] * (P[i, 0] - P[a, 0]))
+    side = _side_of_chord(P, a, b, i, inner)
     dist = segment_distances(Q[i], np.repeat(Q[a:a + 1], len(i), 0),
                              np.repeat(Q[b:b + 1], len(i), 0))
     ok = ((dist > np.where(side > 0, tols[1], tols[0])) & (norms(Q[i] - Q[a]) >= gap)
