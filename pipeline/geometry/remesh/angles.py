@@ -210,7 +210,7 @@ def sharp_vertices(S: RemeshState, min_angle_deg: float) -> np.ndarray:
     sharp = np.zeros(S.n, bool)
     if len(on):
         sums = S.angle_sums_in()[input_vertex_under(S, on)]
-        sharp[on] = sums < min_angle_deg * np.where(S.on_boundary()[on], 2, 3)
+        sharp[on] = sums < min_angle_deg * np.where(S.on_boundary(on), 2, 3)
     return sharp
 
 

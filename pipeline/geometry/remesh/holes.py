@@ -6,7 +6,13 @@ them as constraints of that one disk (:func:`place_holes`, before the corners, f
 and landmarks): each hole loop gets locked remesh vertices about ``L`` apart along it
 (:func:`loop_arcs`): on a smooth loop the points of :func:`.features.chain_arcs`, which follow
 it within its bend tolerance; on a ragged one (a scan's opening, :func:`is_ragged`) loop
-vertices about ``L`` apart in space, whose chords cut across its teeth. Where the disk chord
+vertices about ``L`` apart in space, whose chords cut across its teeth, with the loop vertex
+farthest from a chord added where the loop runs beyond it by more than ``NOTCH_TOL × L`` on
+the surface's side or ``TOOTH_TOL × L`` on the hole's (:func:`followed_stops`: the faces
+along a chord would otherwise cover a notch of the hole with the fan's surface, or the cut
+take a tooth of the surface away), but not at the tip of a tooth whose triangle with its
+neighbours would have an angle below ``TOOTH_MIN_DEG`` (:func:`without_thin_teeth`: that
+face stays, and the tooth goes with the hole). Where the disk chord
 between two consecutive points crosses another chord, another loop or another stretch of its
 own loop (a slit, such as a closed mouth), the loop vertex nearest the middle between them is
 added, until none does (:func:`untangled`). Consecutive ones are joined by an edge that no
@@ -29,7 +35,7 @@ import numpy as np
 
 from .. import topology as topo
 from ..locate import lift
-from ..metrics import signed_double_areas
+from ..metrics import min_corner_angles, signed_double_areas
 from ..repair import used_vertices_only
 from ..rows import norms
 from .corners import insert_vertices, snap_vertices
@@ -42,6 +48,12 @@ MAX_INSERT_PASSES = 8    # rounds of insertions of a hole loop's points left wit
 MAX_HALVINGS = 4         # a pair still unjoined after this many halvings: RemeshFailed
 RAGGED_DEPTH = 0.25      # a loop whose median vertex sits this × its median edge off the
                          # chord of its neighbours is ragged (a scan's ~0.55, a model's < 0.1)
+NOTCH_TOL = 0.2          # × L: a chord of a ragged loop covers its hole no deeper than this
+TOOTH_TOL = 0.3          # × L: and cuts off a tooth of the surface no deeper than this
+TOOTH_MIN_DEG = 20.0     # a followed tooth whose triangle with its neighbours is thinner is
+                         # dropped
+LOOP_GAP = 0.3           # × L (at least the loop's median edge): save where a point would
+                         # come nearer its neighbours than this
 
 
 def place_holes(S: RemeshState, loops: list, fans: np.ndarray, L: float) -> np.ndarray:
@@ -68,7 +80,7 @@ def place_holes(S: RemeshState, loops: list, fans: np.ndarray, L: float) -> np.n
         The positions of the hole vertices.
     """
     S.fans = fans
-    arcs = untangled(S.uv_in, [loop_arcs(S.V_in, loop, L) for loop in loops])
+    arcs = untangled(S.uv_in, [loop_arcs(S.V_in, S.uv_in, loop, L) for loop in loops])
     turned = partial(turned_outside, S, fans)
     pairs = [placed_loop(S, vs, seg, t, turned) for vs, seg, t in arcs]
     kept = [p for p in pairs if p is not None]
@@ -91,17 +103,22 @@ def placed_loop(S: RemeshState, vs: np.ndarray, seg: np.ndarray, t: np.ndarray, 
         return None
 
 
-def loop_arcs(V: np.ndarray, loop: np.ndarray, L: float
+def loop_arcs(V: np.ndarray, uv: np.ndarray, loop: np.ndarray, L: float
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A hole loop as a closed chain and its points' arc lengths: on a ragged loop
     (:func:`is_ragged`), loop vertices about ``L`` apart in space (:func:`spaced_stops`),
-    so that the chords between them cut across its teeth; on another, the points of
+    so that the chords between them cut across its teeth, and those where the loop runs
+    farther beyond a chord (:func:`followed_stops`, none nearer a neighbour than
+    ``LOOP_GAP × L`` or the loop's median edge: a remesh about as fine as the loop would
+    follow each of its teeth); on another, the points of
     :func:`.features.chain_arcs` (the loop followed within its bend tolerance); at least
     ``MIN_LOOP_POINTS`` of them (evenly spaced by arc length on a loop too short for more).
 
     Parameters
     ----------
     V : (n, 3) float
+    uv : (n, 2) float
+        The disk map.
     loop : (k,) int
     L : float
 
@@ -117,7 +134,9 @@ def loop_arcs(V: np.ndarray, loop: np.ndarray, L: float
     vs = np.r_[loop, loop[:1]].astype(np.int64)
     if is_ragged(V[loop]):
         seg = norms(V[vs[1:]] - V[vs[:-1]])
-        t = np.r_[0.0, np.cumsum(seg)][spaced_stops(V[vs], L)]
+        stops = followed_stops(V[vs], uv[vs], spaced_stops(V[vs], L), NOTCH_TOL * L,
+                               TOOTH_TOL * L, max(LOOP_GAP * L, float(np.median(seg))))
+        t = np.r_[0.0, np.cumsum(seg)][stops]
     else:
         seg, t, _ = chain_arcs(V, vs, L)
     if len(t) < MIN_LOOP_POINTS:
@@ -157,6 +176,106 @@ def spaced_stops(Q: np.ndarray, L: float) -> np.ndarray:
     if len(stops) > 1 and norms(Q[stops[-1:]] - Q[:1])[0] < L / 2:
         stops.pop()
     return np.array(stops, np.int64)
+
+
+def followed_stops(Q: np.ndarray, P: np.ndarray, stops: np.ndarray, notch_tol: float,
+                   tooth_tol: float, gap: float) -> np.ndarray:
+    """The ``stops`` of a ragged hole loop with, between two consecutive ones, the loop vertex
+    farthest in space from their chord beyond its tolerance added (:func:`_beyond_chord`),
+    again between the new pairs, until none is: ``notch_tol`` on the chord's outer side (a
+    notch of the hole into the surface, which the chord's faces would cover: the surface
+    there is the fan's filling, not the input's), ``tooth_tol`` on its hole's side (a tooth
+    of the surface, which the cut would take away with the hole); a vertex within ``gap`` of
+    either end of the chord is not added (a needle); then the added tips of thin teeth are
+    dropped (:func:`without_thin_teeth`).
+
+    Parameters
+    ----------
+    Q : (k, 3) float
+        The loop closed (``Q[0] == Q[-1]``).
+    P : (k, 2) float
+        Its disk images, the hole inside them.
+    stops : (p,) int
+        Indices into ``Q``, increasing, below ``k − 1``.
+    notch_tol, tooth_tol, gap : float
+
+    Returns
+    -------
+    (p', ) int
+        The stops with those added, increasing.
+    """
+    inner = np.sign(np.sum(P[:-1, 0] * P[1:, 1] - P[1:, 0] * P[:-1, 1]))
+    stops = [int(x) for x in stops]
+    todo, out = list(zip(stops, stops[1:] + [len(Q) - 1])), set(stops)
+    while todo:
+        a, b = todo.pop()
+        j = _beyond_chord(Q, P, a, b, inner, (notch_tol, tooth_tol), gap)
+        if j is not None:
+            out.add(j)
+            todo += [(a, j), (j, b)]
+    return without_thin_teeth(Q, P, sorted(out), set(stops), inner)
+
+
+def without_thin_teeth(Q: np.ndarray, P: np.ndarray, stops: list, spaced: set,
+                       inner: float) -> np.ndarray:
+    """The ``stops`` (increasing indices into the closed loop ``Q``, k×3; disk images ``P``,
+    k×2, the loop's inside turning as ``inner``) without those not in ``spaced`` that are
+    the tip of a tooth between their neighbours (on the hole's side of their chord) whose
+    triangle with them has an angle below ``TOOTH_MIN_DEG`` (:func:`_thin_tooth`), dropped
+    one at a time until none is: that triangle is the face the remesh keeps there (its
+    chord, the one edge not kept, flips only to a vertex across it, whose face then has
+    the tooth's short edge facing it), and no triangulation of the surface raises its
+    angles; without the tip the tooth goes with the hole. Returns them as (p,) int."""
+    stops = list(stops)
+    while True:
+        thin = next((k for k in range(len(stops)) if stops[k] not in spaced
+                     and _thin_tooth(Q, P, *_around(stops, len(Q), k), inner)), None)
+        if thin is None:
+            return np.array(stops, np.int64)
+        del stops[thin]
+
+
+def _around(stops: list, closed: int, k: int) -> tuple[int, int, int]:
+    """``stops[k]`` and the stops before and after it round a closed loop of ``closed``
+    points (its last the first again): ``(before, stops[k], after)``, ``after`` being
+    ``closed − 1`` after the last stop and ``before`` the last stop before the first."""
+    return stops[k - 1], stops[k], stops[k + 1] if k + 1 < len(stops) else closed - 1
+
+
+def _thin_tooth(Q: np.ndarray, P: np.ndarray, a: int, j: int, b: int, inner: float) -> bool:
+    """Whether loop vertex ``j`` (of ``Q``, k×3; disk images ``P``, k×2) lies on the hole's
+    side of the chord ``a``–``b`` (as in :func:`_beyond_chord`) and the triangle ``a, j, b``
+    has an angle below ``TOOTH_MIN_DEG``."""
+    smallest = min_corner_angles(Q, np.array([[a, j, b]]))[0]
+    return bool(_side_of_chord(P, a, b, j, inner) > 0 and np.degrees(smallest) < TOOTH_MIN_DEG)
+
+
+def _side_of_chord(P: np.ndarray, a: int, b: int, i, inner: float):
+    """Which side of the disk chord ``P[a]``–``P[b]`` (``P``: k×2) the points ``P[i]`` (an
+    index or j indices) lie on: positive on the loop's inside (it turns as ``inner``, the
+    sign of its area), negative outside; a float or (j,) float."""
+    d = P[b] - P[a]
+    return inner * (d[0] * (P[i, 1] - P[a, 1]) - d[1] * (P[i, 0] - P[a, 0]))
+
+
+def _beyond_chord(Q: np.ndarray, P: np.ndarray, a: int, b: int, inner: float,
+                  tols: tuple, gap: float) -> int | None:
+    """The vertex of ``Q`` (k×3; disk images ``P``, k×2) strictly between ``a`` and ``b``
+    farthest in space from the chord ``Q[a]``–``Q[b]`` among those farther than
+    ``tols[0]`` on its outer side or ``tols[1]`` on its inner side (the disk's side of the
+    chord that the loop's inside, turning as ``inner``, the sign of its area, lies on) and
+    at least ``gap`` from both ends; None where there is none."""
+    from .rim import segment_distances
+
+    i = np.arange(a + 1, b)
+    if len(i) == 0:
+        return None
+    side = _side_of_chord(P, a, b, i, inner)
+    dist = segment_distances(Q[i], np.repeat(Q[a:a + 1], len(i), 0),
+                             np.repeat(Q[b:b + 1], len(i), 0))
+    ok = ((dist > np.where(side > 0, tols[1], tols[0])) & (norms(Q[i] - Q[a]) >= gap)
+          & (norms(Q[i] - Q[b]) >= gap))
+    return int(i[ok][np.argmax(dist[ok])]) if ok.any() else None
 
 
 def untangled(uv: np.ndarray, arcs: list) -> list:

@@ -968,7 +968,8 @@ class _Operations:
                 break
 
     def refine_each(self, target: int, min_angle_deg: float) -> None:
-        """Face after face, worst first, each once (known by its corners' positions): a face
+        """Face after face, worst first, each once (known by its corners' positions), none in
+        a hole the cut removes (:func:`each_unforced_face` with ``outside_holes``): a face
         still below ``min_angle_deg`` that no input corner forces refined alone (:meth:`grade`
         with its corner splits, ``only`` its corners, the caps' splits only for a cap:
         :func:`.circumcentres.cap_split`), at most ``EACH_FACES`` of them. Kept as
@@ -978,7 +979,8 @@ class _Operations:
         (an interior vertex with rim vertices all round it, squeezed against a short rim
         edge, whose collapse would make a face with three rim corners)."""
         S = self.S
-        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES):
+        for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES,
+                                               outside_holes=True):
             caps = (False, True) if cap_split(S, f) is not None else (False,)
             self.grade(target, min_angle_deg, corners=True, only=S.X[S.F[f]], caps=caps,
                        shortfall=shortfall)
@@ -996,14 +998,17 @@ class _Operations:
         (fewest faces of the star below the minimum, then the largest smallest angle), where
         that comes before the star as it is;
         undone if it leaves more such faces, or as many with no larger smallest angle, or more
-        faces turned over (:attr:`folds`); the first move kept ends the face's turn. Where the
+        faces turned over (:attr:`folds`); the first move kept ends the face's turn. A face
+        with no free corner (three locked ones: a tooth of a ragged hole loop) has the free
+        vertices across its edges that are not kept (:func:`across_unjoined`) tried instead,
+        whose :meth:`flip_and_move` can flip that edge away. Where the
         rim is sampled closer than the remesh's spacing, such a corner is an interior vertex
         with rim vertices all round (a notch), which no collapse may remove (it would make a
         face with three rim corners) and whose moves among the minimum-angle operations' few
         candidates (:func:`.angles.move_candidates`) do not reach the star's best point."""
         S = self.S
         for f, shortfall in each_unforced_face(S, min_angle_deg, EACH_FACES, outside_holes=True):
-            free = S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]].tolist()
+            free = free_corners(S, f).tolist() or across_unjoined(S, f).tolist()
             if not any(self.move_in_star(v, min_angle_deg, shortfall) for v in free):
                 any(self.flip_and_move(v, min_angle_deg, shortfall) for v in free)
 
@@ -2075,6 +2080,26 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
     ok = (n_turned == 0) & \
         (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
     return star, where, angles, ok, now
+
+
+def free_corners(S: RemeshState, f: int) -> np.ndarray:
+    """The corners of face ``f`` that the operations may move (neither on the rim nor
+    locked), in its order; (j,) int."""
+    return S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]]
+
+
+def across_unjoined(S: RemeshState, f: int) -> np.ndarray:
+    """The free corners (:func:`free_corners`) across the edges of face ``f`` that are not
+    kept (``S.joined``) and have a face on the other side, in the order of ``f``'s edges;
+    (j,) int. A face with three locked corners (a tooth of a ragged hole loop, its chord the
+    one edge not kept) changes only by a flip of that edge, which gives the vertex across it
+    the tooth's tip (:meth:`_Operations.flip_and_move`)."""
+    F, twin = S.F, S.twins()
+    h = 3 * f + np.arange(3)
+    kept = S.is_joined(F[f], F[f, [1, 2, 0]])
+    g = twin[h][~kept & (twin[h] >= 0)]
+    q = F[g // 3, (g % 3 + 2) % 3]
+    return q[~S.is_rim[q] & ~S.locked[q]]
 
 
 def link_edges(S: RemeshState, v: int) -> np.ndarray:

@@ -218,12 +218,14 @@ class RemeshState:
             self._angle_sums_in = np.bincount(F.ravel(), A.ravel(), len(self.V_in))
         return self._angle_sums_in
 
-    def on_boundary(self) -> np.ndarray:
-        """The vertices (n bool) on the remesh's boundary once the holes are cut: the rim's
-        and those at the hole loops' ``fixed`` points."""
+    def on_boundary(self, v: np.ndarray | None = None) -> np.ndarray:
+        """Which of the vertices ``v`` (k int; all n by default) are on the remesh's
+        boundary once the holes are cut: the rim's and those at the hole loops' ``fixed``
+        points; k bool."""
+        rim = self.is_rim if v is None else self.is_rim[v]
         if len(self.fixed) == 0:
-            return self.is_rim
-        return self.is_rim | at_points(self.X, self.fixed)
+            return rim
+        return rim | at_points(self.X if v is None else self.X[v], self.fixed)
 
     def pullback(self) -> np.ndarray:
         """:func:`pullback_matrices` (M×2×3) of the input map, computed once."""

@@ -352,7 +352,7 @@ def below_min_angle(S: RemeshState, V: np.ndarray, min_angle_deg: float) -> dict
     names = cKDTree(V).query(S.X[corners])[1] if len(corners) else np.zeros(0, int)
     sums = S.angle_sums_in()[input_vertex_under(S, corners)]
     A = corner_angles_deg(S.X, T)
-    fewest = np.where(S.on_boundary()[corners], 2, 3)
+    fewest = np.where(S.on_boundary(corners), 2, 3)
     per = [{"vertex": int(i), "angle_sum_deg": float(s), "faces": int((T[at] == v).sum()),
             "smallest_angle_deg": float(A[at & (T == v)].min()), "even_split_deg": float(s / k)}
            for v, i, s, k in zip(corners, np.atleast_1d(names), sums, fewest)]
