@@ -342,15 +342,22 @@ def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
 
 
 def saved_state(S: RemeshState) -> dict:
-    """Copies of the arrays of ``S`` the operations change (:func:`restore_state`)."""
-    return {k: getattr(S, k).copy() for k in _STATE}
+    """Copies of the arrays of ``S`` the operations change (:func:`restore_state`), with the
+    half-edge twins of ``F`` under ``"twins"`` where they are known
+    (:meth:`.state.RemeshState.cached_twins`: no operation changes them in place, and
+    computing them again costs a sort of every half-edge)."""
+    saved = {k: getattr(S, k).copy() for k in _STATE}
+    twins = S.cached_twins()
+    if twins is not None:
+        saved["twins"] = twins
+    return saved
 
 
 def restore_state(S: RemeshState, saved: dict) -> None:
-    """Put ``S`` back as :func:`saved_state` saved it."""
-    for key, value in saved.items():
-        setattr(S, key, value)
-    S.set_faces(saved["F"])
+    """Put ``S`` back as :func:`saved_state` saved it (its twins with it, where saved)."""
+    for key in _STATE:
+        setattr(S, key, saved[key])
+    S.set_faces(saved["F"], saved.get("twins"))
 
 
 def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,

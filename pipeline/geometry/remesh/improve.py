@@ -2122,8 +2122,7 @@ def link_flip(S: RemeshState, h: int) -> bool:
     f, c, d = h // 3, h % 3, g % 3
     a, b, p = int(F[f, c]), int(F[f, (c + 1) % 3]), int(F[f, (c + 2) % 3])
     q = int(F[g // 3, (d + 2) % 3])
-    if S.is_joined(np.array([a]), np.array([b]))[0] or \
-            ((F == p) & ((np.roll(F, 1, axis=1) == q) | (np.roll(F, -1, axis=1) == q))).any():
+    if S.is_joined(np.array([a]), np.array([b]))[0] or sharing_edge(F, p, q):
         return False
     new = np.array([[p, a, q], [q, b, p]])
     if (S.is_rim[new].all(axis=1)).any() or (disk_shape(S.uv, new) < DISK_SHAPE_MIN).any():
@@ -2132,6 +2131,13 @@ def link_flip(S: RemeshState, h: int) -> bool:
     flip_in_place(F, twin, np.array([h]), tuple(np.array([x]) for x in (a, b, p, q)))
     S.set_faces(F, twin)
     return True
+
+
+def sharing_edge(F: np.ndarray, p: int, q: int) -> bool:
+    """Whether a face of ``F`` (m×3) has ``q`` next to ``p`` (either way round): whether
+    ``p`` and ``q`` are joined by an edge. Only the faces at ``p`` are read."""
+    T = F[np.flatnonzero(F.ravel() == p) // 3]
+    return bool(((T == p) & ((np.roll(T, 1, axis=1) == q) | (np.roll(T, -1, axis=1) == q))).any())
 
 
 def vertex_star(F: np.ndarray, v: int) -> np.ndarray:

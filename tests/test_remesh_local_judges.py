@@ -1,0 +1,99 @@
+"""Local forms of whole-remesh tests in the minimum-angle pass: each against the formula over
+every face or vertex it replaces, on constructed and real remeshes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.geometry import topology as topo
+from pipeline.geometry.remesh.circumcentres import restore_state, saved_state
+from pipeline.geometry.remesh.features import release_features
+from pipeline.geometry.remesh.improve import link_edges, link_flip, sharing_edge
+from pipeline.geometry.remesh.refine import split_long_edges
+from pipeline.geometry.remesh.state import at_points
+from remesh_helpers import coarse_state, disk_map
+
+
+def _sharing_edge_whole(F, p, q):
+    """The whole-face formula :func:`sharing_edge` replaces."""
+    return bool(((F == p) & ((np.roll(F, 1, axis=1) == q)
+                             | (np.roll(F, -1, axis=1) == q))).any())
+
+
+def test_sharing_edge_is_the_whole_face_formula():
+    """Every pair of vertices of a real remesh (edges and not), and a constructed one with a
+    repeated corner and a vertex on no face: the same answer as the formula over all faces."""
+    S, _ = coarse_state(*disk_map(0.2), 4)
+    n = S.n
+    got = [sharing_edge(S.F, p, q) for p in range(n) for q in range(n)]
+    assert got == [_sharing_edge_whole(S.F, p, q) for p in range(n) for q in range(n)]
+    edges = {(min(a, b), max(a, b)) for f in S.F.tolist() for a, b in zip(f, f[1:] + f[:1])}
+    assert sum(got) == 2 * len(edges)
+    F = np.array([[0, 1, 2], [2, 2, 3], [3, 1, 0]])
+    for p in range(5):
+        for q in range(5):
+            assert sharing_edge(F, p, q) == _sharing_edge_whole(F, p, q)
+
+
+def test_restore_puts_back_the_twins_of_the_saved_faces():
+    """After splits and flips, a restore (of a state saved with twins known) leaves twins
+    known and equal to those computed again from the faces; a state saved without them
+    restores none."""
+    S, _ = coarse_state(*disk_map(0.2), 5)
+    rng = np.random.default_rng(3)
+    S.twins()
+    for _ in range(20):
+        saved = saved_state(S)
+        assert "twins" in saved
+        if rng.random() < 0.5:
+            split_long_edges(S, 0.0, budget=int(rng.integers(1, 4)))
+        for h in link_edges(S, int(rng.integers(S.n)))[:2]:
+            link_flip(S, int(h))
+        if rng.random() < 0.7:
+            restore_state(S, saved)
+            assert S.cached_twins() is not None
+        assert np.array_equal(S.twins(), topo.interior_edge_twins(S.F))
+    S.set_faces(S.F.copy())
+    saved = saved_state(S)
+    assert "twins" not in saved
+    restore_state(S, saved)
+    assert S.cached_twins() is None
+
+
+def _release_whole(S, at, corners):
+    """:func:`release_features` with the hole loops' points tested over all vertices."""
+    at = at & ~at_points(S.X, S.fixed)
+    on = np.zeros(S.n, bool)
+    on[S.joined.ravel()] = True
+    if not (at & on).any():
+        return np.zeros(0, np.int64)
+    S.joined = S.joined[~(at & on)[S.joined].any(axis=1)]
+    still = np.zeros(S.n, bool)
+    still[S.joined.ravel()] = True
+    free = np.flatnonzero(on & ~still)
+    if corners is not None:
+        free = free[~at_points(S.X[free], corners)]
+    S.locked[free] = False
+    return free
+
+
+def test_release_features_reads_the_hole_points_at_the_marked_vertices_alone():
+    """Kept edges along a real remesh's edges, some of their vertices at ``fixed``: random
+    marks free the same vertices, leave the same kept edges and locks as the test over all
+    vertices, and leave the marks as they were."""
+    rng = np.random.default_rng(5)
+    for trial in range(30):
+        S, _ = coarse_state(*disk_map(0.2), 4)
+        E = np.sort(S.F[:, :2], axis=1)
+        S.joined = E[rng.choice(len(E), 12, replace=False)]
+        S.locked[S.joined.ravel()] = True
+        S.fixed = S.X[rng.choice(S.joined.ravel(), 3)]
+        at = rng.random(S.n) < 0.2
+        at_before = at.copy()
+        corners = S.X[rng.choice(S.n, 2)] if trial % 2 else None
+        T = coarse_state(*disk_map(0.2), 4)[0]
+        T.joined, T.locked, T.fixed = S.joined.copy(), S.locked.copy(), S.fixed.copy()
+        free = release_features(S, at, corners)
+        assert np.array_equal(at, at_before)
+        assert np.array_equal(free, _release_whole(T, at, corners))
+        assert np.array_equal(S.joined, T.joined) and np.array_equal(S.locked, T.locked)
