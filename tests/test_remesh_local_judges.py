@@ -6,11 +6,13 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry import topology as topo
-from pipeline.geometry.remesh.circumcentres import restore_state, saved_state
+from pipeline.geometry.remesh.circumcentres import (restore_state, saved_state, unforced_among,
+                                                    unforced_below)
 from pipeline.geometry.remesh.features import release_features
 from pipeline.geometry.remesh.improve import link_edges, link_flip, sharing_edge
 from pipeline.geometry.remesh.refine import split_long_edges
 from pipeline.geometry.remesh.state import at_points
+from pipeline.geometry.rows import norms
 from remesh_helpers import coarse_state, disk_map
 
 
@@ -97,3 +99,23 @@ def test_release_features_reads_the_hole_points_at_the_marked_vertices_alone():
         assert np.array_equal(at, at_before)
         assert np.array_equal(free, _release_whole(T, at, corners))
         assert np.array_equal(S.joined, T.joined) and np.array_equal(S.locked, T.locked)
+
+
+def test_unforced_among_is_the_whole_answer_filtered():
+    """On a real remesh with faces below the minimum, and its vertices moved at random: the
+    faces among random subsets (and among those near a point, as :meth:`raise_near` takes
+    them) are the whole remesh's answer with the others left out, same order, same angles."""
+    S, _ = coarse_state(*disk_map(0.2), 5)
+    rng = np.random.default_rng(7)
+    inner = np.flatnonzero(~S.is_rim)
+    for trial in range(20):
+        S.X[inner] += rng.normal(0, 0.02, (len(inner), 3)) * (trial > 0)
+        bad, worst = unforced_below(S, 30.0)
+        assert len(bad) > 0
+        for among in (rng.random(len(S.F)) < 0.5,
+                      (norms(S.X - S.X[rng.integers(S.n)]) < 0.4)[S.F].any(axis=1)):
+            got, got_worst = unforced_among(S, 30.0, np.flatnonzero(among))
+            assert np.array_equal(got, bad[among[bad]])
+            assert np.array_equal(got_worst, worst[among[bad]])
+        full, full_worst = unforced_among(S, 30.0)
+        assert np.array_equal(full, bad) and np.array_equal(full_worst, worst)

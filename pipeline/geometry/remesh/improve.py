@@ -222,7 +222,7 @@ from .angles import (SAG_TS, corner_angles_deg, forced_corners, input_vertex_und
                      raise_min_angles, sharp_vertices, split_for_count)
 from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
                             restore_state, saved_state, shortfall_of, shortfall_order,
-                            unforced_below, unforced_shortfall)
+                            unforced_among, unforced_below, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -1435,10 +1435,9 @@ class _Operations:
         (3,), then the vertices their collapses took below ``count`` given back
         (:func:`.angles.split_for_count`)."""
         S = self.S
-        low, _ = unforced_below(S, min_angle_deg)
         near = norms(S.X - point) < FORCED_REACH * self.L
-        raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
-                         self.judged)
+        low, _ = unforced_among(S, min_angle_deg, np.flatnonzero(near[S.F].any(axis=1)))
+        raise_min_angles(S, min_angle_deg, self.tol, low, self.judged)
         if S.n < count:
             split_for_count(S, count - S.n, min_angle_deg)
 
