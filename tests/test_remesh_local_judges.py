@@ -62,27 +62,11 @@ def test_restore_puts_back_the_twins_of_the_saved_faces():
     assert S.cached_twins() is None
 
 
-def _release_whole(S, at, corners):
-    """:func:`release_features` with the hole loops' points tested over all vertices."""
-    at = at & ~at_points(S.X, S.fixed)
-    on = np.zeros(S.n, bool)
-    on[S.joined.ravel()] = True
-    if not (at & on).any():
-        return np.zeros(0, np.int64)
-    S.joined = S.joined[~(at & on)[S.joined].any(axis=1)]
-    still = np.zeros(S.n, bool)
-    still[S.joined.ravel()] = True
-    free = np.flatnonzero(on & ~still)
-    if corners is not None:
-        free = free[~at_points(S.X[free], corners)]
-    S.locked[free] = False
-    return free
-
-
 def test_release_features_reads_the_hole_points_at_the_marked_vertices_alone():
     """Kept edges along a real remesh's edges, some of their vertices at ``fixed``: random
-    marks free the same vertices, leave the same kept edges and locks as the test over all
-    vertices, and leave the marks as they were."""
+    marks free the same vertices, leave the same kept edges and locks as with the marks at
+    the hole points dropped over all vertices first (and no hole points), and leave the
+    marks as they were."""
     rng = np.random.default_rng(5)
     for trial in range(30):
         S, _ = coarse_state(*disk_map(0.2), 4)
@@ -93,11 +77,12 @@ def test_release_features_reads_the_hole_points_at_the_marked_vertices_alone():
         at = rng.random(S.n) < 0.2
         at_before = at.copy()
         corners = S.X[rng.choice(S.n, 2)] if trial % 2 else None
-        T = coarse_state(*disk_map(0.2), 4)[0]
-        T.joined, T.locked, T.fixed = S.joined.copy(), S.locked.copy(), S.fixed.copy()
+        T = coarse_state(*disk_map(0.2), 4)[0]          # the marks at the hole points
+        T.joined, T.locked = S.joined.copy(), S.locked.copy()   # dropped over all vertices
+        whole = release_features(T, at & ~at_points(S.X, S.fixed), corners)
         free = release_features(S, at, corners)
         assert np.array_equal(at, at_before)
-        assert np.array_equal(free, _release_whole(T, at, corners))
+        assert np.array_equal(free, whole) and len(whole) > 0
         assert np.array_equal(S.joined, T.joined) and np.array_equal(S.locked, T.locked)
 
 
