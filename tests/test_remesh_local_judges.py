@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.geometry import topology as topo
+from pipeline.geometry.remesh.angles import forcing_corners, sharp_among, sharp_vertices
 from pipeline.geometry.remesh.circumcentres import (restore_state, saved_state, unforced_among,
                                                     unforced_below)
 from pipeline.geometry.remesh.features import release_features
@@ -104,3 +105,28 @@ def test_unforced_among_is_the_whole_answer_filtered():
             assert np.array_equal(got_worst, worst[among[bad]])
         full, full_worst = unforced_among(S, 30.0)
         assert np.array_equal(full, bad) and np.array_equal(full_worst, worst)
+
+
+def test_sharp_vertices_at_some_vertices_are_the_whole_answer_read_there():
+    """A real remesh with random vertices locked, rim vertices put on input corners
+    (barycentric 1) and hole points at some of them: the sharp vertices read at random
+    vertices, at every vertex and at the corners of random faces are those of the whole
+    remesh there, for minimum angles that make some of them sharp and some not."""
+    rng = np.random.default_rng(11)
+    S, _ = coarse_state(*disk_map(0.2), 5)
+    S.locked[rng.choice(S.n, 8, replace=False)] = True
+    rim = np.flatnonzero(S.is_rim)
+    on = rng.choice(rim, len(rim) // 2, replace=False)
+    S.bary[on] = np.eye(3)[rng.integers(3, size=len(on))]
+    S.fixed = S.X[rng.choice(S.n, 6, replace=False)]
+    found = set()
+    for angle in (10.0, 40.0, 70.0, 130.0):
+        whole = sharp_vertices(S, angle)
+        found.update(whole.tolist())
+        v = rng.integers(S.n, size=40)
+        assert np.array_equal(sharp_vertices(S, angle, v), whole[v])
+        assert np.array_equal(sharp_vertices(S, angle, np.arange(S.n)), whole)
+        faces = rng.choice(len(S.F), 25)
+        assert np.array_equal(sharp_among(S, angle, S.F[faces]), whole[S.F[faces]])
+        assert np.array_equal(forcing_corners(S, angle, faces), whole[S.F[faces]])
+    assert found == {False, True}

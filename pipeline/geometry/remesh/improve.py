@@ -219,7 +219,7 @@ from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import (SAG_TS, corner_angles_deg, forced_corners, input_vertex_under,
-                     raise_min_angles, sharp_vertices, split_for_count)
+                     raise_min_angles, sharp_among, sharp_vertices, split_for_count)
 from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
                             restore_state, saved_state, shortfall_of, shortfall_order,
                             unforced_among, unforced_below, unforced_shortfall)
@@ -2075,7 +2075,7 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
         return None
     where, n_turned, angles = found
     now = np.degrees(min_corner_angles(S.X, star))
-    at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
+    at_sharp = sharp_among(S, min_angle_deg, star).any(axis=1)
     ok = (n_turned == 0) & \
         (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
     return star, where, angles, ok, now
