@@ -197,24 +197,35 @@ def forcing_corners(S: RemeshState, min_angle_deg: float, faces: np.ndarray | No
                     ) -> np.ndarray:
     """Which corners of the faces (k×3 bool; ``faces``: k indices, default all) are at a
     vertex on an input vertex (:func:`on_input_corners`) too sharp for any fan to give its
-    faces ``min_angle_deg`` (:func:`forced_by_corners`)."""
-    return sharp_vertices(S, min_angle_deg)[S.F if faces is None else S.F[faces]]
+    faces ``min_angle_deg`` (:func:`forced_by_corners`); read at those faces' corners alone."""
+    if faces is None:
+        return sharp_vertices(S, min_angle_deg)[S.F]
+    return sharp_among(S, min_angle_deg, S.F[faces])
 
 
-def sharp_vertices(S: RemeshState, min_angle_deg: float) -> np.ndarray:
-    """The vertices (n bool) on an input vertex (:func:`on_input_corners`) whose angle sum on
-    the input is below ``min_angle_deg`` × the fewest faces a vertex there can have (3 inside,
-    2 on the rim or a hole's loop, :meth:`.state.RemeshState.on_boundary`): the corners of
-    :func:`forcing_corners`."""
-    on = np.flatnonzero(on_input_corners(S))
-    sharp = np.zeros(S.n, bool)
+def sharp_among(S: RemeshState, min_angle_deg: float, T: np.ndarray) -> np.ndarray:
+    """``sharp_vertices(S, min_angle_deg)[T]`` (the shape of ``T``, bool; ``T``: vertex
+    indices of any shape), read at the vertices of ``T`` alone."""
+    return sharp_vertices(S, min_angle_deg, T.ravel()).reshape(T.shape)
+
+
+def sharp_vertices(S: RemeshState, min_angle_deg: float, v: np.ndarray | None = None
+                   ) -> np.ndarray:
+    """The vertices (n bool; given ``v``, k indices: of those, k bool) on an input vertex
+    (:func:`on_input_corners`) whose angle sum on the input is below ``min_angle_deg`` × the
+    fewest faces a vertex there can have (3 inside, 2 on the rim or a hole's loop,
+    :meth:`.state.RemeshState.on_boundary`): the corners of :func:`forcing_corners`. Each
+    vertex's answer depends on that vertex alone."""
+    v = np.arange(S.n) if v is None else v
+    on = np.flatnonzero(on_input_corners(S, v))
+    sharp = np.zeros(len(v), bool)
     if len(on):
-        sums = S.angle_sums_in()[input_vertex_under(S, on)]
-        sharp[on] = sums < min_angle_deg * np.where(S.on_boundary(on), 2, 3)
+        sums = S.angle_sums_in()[input_vertex_under(S, v[on])]
+        sharp[on] = sums < min_angle_deg * np.where(S.on_boundary(v[on]), 2, 3)
     return sharp
 
 
-def on_input_corners(S: RemeshState) -> np.ndarray:
+def on_input_corners(S: RemeshState, v: np.ndarray | None = None) -> np.ndarray:
     """The remesh vertices (n bool) that stand on an input vertex for good: the locked ones
     (:mod:`.corners` puts each exactly on its input vertex, and no operation moves or removes
     it) and the rim vertices on a corner of the image polygon (barycentric coordinate 1 at an
@@ -225,10 +236,11 @@ def on_input_corners(S: RemeshState) -> np.ndarray:
     boundary (:meth:`_Patch.rim_chord_ok`). An interior vertex that is not locked is not among
     them: the operations can move it off its input vertex. (The barycentrics are read at
     the rim vertices alone, their largest by :func:`..rows.row_max`: a row reduction over
-    every vertex costs more than the rest of the minimum-angle bookkeeping.)"""
-    out = S.locked.copy()
-    rim = np.flatnonzero(S.is_rim)
-    out[rim] |= row_max(S.bary[rim]) >= 1.0
+    every vertex costs more than the rest of the minimum-angle bookkeeping.) Given ``v``
+    (k indices), of those vertices alone (k bool)."""
+    out = S.locked.copy() if v is None else S.locked[v]
+    rim = np.flatnonzero(S.is_rim if v is None else S.is_rim[v])
+    out[rim] |= row_max(S.bary[rim if v is None else v[rim]]) >= 1.0
     return out
 
 

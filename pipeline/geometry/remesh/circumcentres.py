@@ -216,10 +216,25 @@ def unforced_below(S: RemeshState, min_angle_deg: float, only: np.ndarray | None
     (:func:`.angles.forced_by_corners`) and their smallest angles (k, degrees), worst
     first; given ``only`` (j×3 points), those of them whose corners are all at these points
     (:func:`.state.at_points`)."""
-    if only is None:
+    among = None if only is None else np.flatnonzero(at_points(S.X, only)[S.F].all(axis=1))
+    return unforced_among(S, min_angle_deg, among)
+
+
+def unforced_among(S: RemeshState, min_angle_deg: float, among: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`unforced_below` of the faces ``among`` (j increasing indices; all by default):
+    the angles of those faces alone, row by row, so the answer is the whole remesh's with
+    the other faces left out, in the same order.
+
+    Returns
+    -------
+    faces : (k,) int
+    worst : (k,) float
+        Degrees, increasing.
+    """
+    if among is None:
         bad, smallest = min_corner_angles_below(S.X, S.F, np.radians(min_angle_deg))
-    else:                                # the angles of those faces alone (row by row)
-        among = np.flatnonzero(at_points(S.X, only)[S.F].all(axis=1))
+    else:
         bad, smallest = min_corner_angles_below(S.X, S.F[among], np.radians(min_angle_deg))
         bad = among[bad]
     smallest = np.degrees(smallest)
@@ -342,15 +357,22 @@ def shortfall_order(shortfall: tuple[int, float]) -> tuple[int, float]:
 
 
 def saved_state(S: RemeshState) -> dict:
-    """Copies of the arrays of ``S`` the operations change (:func:`restore_state`)."""
-    return {k: getattr(S, k).copy() for k in _STATE}
+    """Copies of the arrays of ``S`` the operations change (:func:`restore_state`), with the
+    half-edge twins of ``F`` under ``"twins"`` where they are known
+    (:meth:`.state.RemeshState.cached_twins`: no operation changes them in place, and
+    computing them again costs a sort of every half-edge)."""
+    saved = {k: getattr(S, k).copy() for k in _STATE}
+    twins = S.cached_twins()
+    if twins is not None:
+        saved["twins"] = twins
+    return saved
 
 
 def restore_state(S: RemeshState, saved: dict) -> None:
-    """Put ``S`` back as :func:`saved_state` saved it."""
-    for key, value in saved.items():
-        setattr(S, key, value)
-    S.set_faces(saved["F"])
+    """Put ``S`` back as :func:`saved_state` saved it (its twins with it, where saved)."""
+    for key in _STATE:
+        setattr(S, key, saved[key])
+    S.set_faces(saved["F"], saved.get("twins"))
 
 
 def insert_round(S: RemeshState, min_angle_deg: float, caps: bool = False,

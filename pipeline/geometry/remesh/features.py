@@ -879,7 +879,9 @@ def release_features(S: RemeshState, at: np.ndarray, corners: np.ndarray | None 
     locked) and those at ``S.fixed`` (a hole loop's, whose kept edges stay too). Returns the
     unlocked vertices (indices)."""
     if len(S.fixed):
-        at = at & ~at_points(S.X, S.fixed)
+        marked = np.flatnonzero(at)
+        at = at.copy()
+        at[marked[at_points(S.X[marked], S.fixed)]] = False
     on = np.zeros(S.n, bool)
     on[S.joined.ravel()] = True
     if not (at & on).any():

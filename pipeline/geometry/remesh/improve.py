@@ -219,10 +219,10 @@ from ..remesh_quality import closest_points_on_triangles
 from ..rows import dots, norms, row_min
 from ..topology import connected_components
 from .angles import (SAG_TS, corner_angles_deg, forced_corners, input_vertex_under,
-                     raise_min_angles, sharp_vertices, split_for_count)
+                     raise_min_angles, sharp_among, sharp_vertices, split_for_count)
 from .circumcentres import (cap_split, corner_split_round, refine_at_circumcentres,
                             restore_state, saved_state, shortfall_of, shortfall_order,
-                            unforced_below, unforced_shortfall)
+                            unforced_among, unforced_below, unforced_shortfall)
 from .collapse import collapse_short_edges
 from .corners import insert_vertices, snap_vertices
 from .domain import on_sphere
@@ -1435,10 +1435,9 @@ class _Operations:
         (3,), then the vertices their collapses took below ``count`` given back
         (:func:`.angles.split_for_count`)."""
         S = self.S
-        low, _ = unforced_below(S, min_angle_deg)
         near = norms(S.X - point) < FORCED_REACH * self.L
-        raise_min_angles(S, min_angle_deg, self.tol, low[near[S.F[low]].any(axis=1)],
-                         self.judged)
+        low, _ = unforced_among(S, min_angle_deg, np.flatnonzero(near[S.F].any(axis=1)))
+        raise_min_angles(S, min_angle_deg, self.tol, low, self.judged)
         if S.n < count:
             split_for_count(S, count - S.n, min_angle_deg)
 
@@ -2076,7 +2075,7 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
         return None
     where, n_turned, angles = found
     now = np.degrees(min_corner_angles(S.X, star))
-    at_sharp = sharp_vertices(S, min_angle_deg)[star].any(axis=1)
+    at_sharp = sharp_among(S, min_angle_deg, star).any(axis=1)
     ok = (n_turned == 0) & \
         (angles[:, at_sharp] >= np.minimum(now[at_sharp], min_angle_deg)).all(axis=1)
     return star, where, angles, ok, now
@@ -2122,8 +2121,7 @@ def link_flip(S: RemeshState, h: int) -> bool:
     f, c, d = h // 3, h % 3, g % 3
     a, b, p = int(F[f, c]), int(F[f, (c + 1) % 3]), int(F[f, (c + 2) % 3])
     q = int(F[g // 3, (d + 2) % 3])
-    if S.is_joined(np.array([a]), np.array([b]))[0] or \
-            ((F == p) & ((np.roll(F, 1, axis=1) == q) | (np.roll(F, -1, axis=1) == q))).any():
+    if S.is_joined(np.array([a]), np.array([b]))[0] or sharing_edge(F, p, q):
         return False
     new = np.array([[p, a, q], [q, b, p]])
     if (S.is_rim[new].all(axis=1)).any() or (disk_shape(S.uv, new) < DISK_SHAPE_MIN).any():
@@ -2132,6 +2130,13 @@ def link_flip(S: RemeshState, h: int) -> bool:
     flip_in_place(F, twin, np.array([h]), tuple(np.array([x]) for x in (a, b, p, q)))
     S.set_faces(F, twin)
     return True
+
+
+def sharing_edge(F: np.ndarray, p: int, q: int) -> bool:
+    """Whether a face of ``F`` (m×3) has ``q`` next to ``p`` (either way round): whether
+    ``p`` and ``q`` are joined by an edge. Only the faces at ``p`` are read."""
+    T = F[np.flatnonzero(F.ravel() == p) // 3]
+    return bool(((T == p) & ((np.roll(T, 1, axis=1) == q) | (np.roll(T, -1, axis=1) == q))).any())
 
 
 def vertex_star(F: np.ndarray, v: int) -> np.ndarray:
