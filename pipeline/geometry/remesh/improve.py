@@ -2082,13 +2082,19 @@ def star_candidates(S: RemeshState, v: int, min_angle_deg: float):
 
 
 def free_corners(S: RemeshState, f: int) -> np.ndarray:
-    """The corners of face ``f`` that the operations may move (neither on the rim nor
-    locked), in its order; (j,) int."""
-    return S.F[f][~S.is_rim[S.F[f]] & ~S.locked[S.F[f]]]
+    """The corners of face ``f`` that the operations may move (:func:`free_of`), in its
+    order; (j,) int."""
+    return free_of(S, S.F[f])
+
+
+def free_of(S: RemeshState, v: np.ndarray) -> np.ndarray:
+    """The vertices ``v`` (k int) that the operations may move: neither on the rim nor
+    locked, in their order; (j,) int."""
+    return v[~S.is_rim[v] & ~S.locked[v]]
 
 
 def across_unjoined(S: RemeshState, f: int) -> np.ndarray:
-    """The free corners (:func:`free_corners`) across the edges of face ``f`` that are not
+    """The free vertices (:func:`free_of`) across the edges of face ``f`` that are not
     kept (``S.joined``) and have a face on the other side, in the order of ``f``'s edges;
     (j,) int. A face with three locked corners (a tooth of a ragged hole loop, its chord the
     one edge not kept) changes only by a flip of that edge, which gives the vertex across it
@@ -2097,8 +2103,7 @@ def across_unjoined(S: RemeshState, f: int) -> np.ndarray:
     h = 3 * f + np.arange(3)
     kept = S.is_joined(F[f], F[f, [1, 2, 0]])
     g = twin[h][~kept & (twin[h] >= 0)]
-    q = F[g // 3, (g % 3 + 2) % 3]
-    return q[~S.is_rim[q] & ~S.locked[q]]
+    return free_of(S, F[g // 3, (g % 3 + 2) % 3])
 
 
 def link_edges(S: RemeshState, v: int) -> np.ndarray:

@@ -165,10 +165,7 @@ class _Polygon:
     def at_rim_length(self, s: np.ndarray) -> np.ndarray:
         """Points (k, 2) at rim lengths ``s`` (k,) (mod the rim's) from the first vertex:
         exactly on edges, each edge's rim length spread evenly along it."""
-        c = self.rim_cum
-        s = np.mod(s, self.rim_length)
-        i = np.clip(np.searchsorted(c, s, side="right") - 1, 0, len(self.P) - 1)
-        t = (s - c[i]) / np.maximum(c[i + 1] - c[i], 1e-300)
+        i, t = _edge_fractions(self.rim_cum, np.mod(s, self.rim_length))
         return self.A[i] + t[:, None] * (self.B[i] - self.A[i])
 
     def rim(self, n: int) -> np.ndarray:
@@ -399,8 +396,7 @@ def rim_lengths_on_surface(P: np.ndarray, X: np.ndarray, h: float) -> np.ndarray
     cum = np.r_[0.0, np.cumsum(seg)]
     m = max(MIN_RIM, int(round(cum[-1] / h)))
     s = cum[-1] * np.arange(m + 1) / m
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(P) - 1)
-    t = (s - cum[i]) / np.maximum(cum[i + 1] - cum[i], 1e-300)
+    i, t = _edge_fractions(cum, s)
     Xc = np.vstack([X, X[:1]])
     Y = Xc[i] + t[:, None] * (Xc[i + 1] - Xc[i])
     chord = np.linalg.norm(np.diff(Y, axis=0), axis=1)
@@ -408,6 +404,14 @@ def rim_lengths_on_surface(P: np.ndarray, X: np.ndarray, h: float) -> np.ndarray
     if counted.sum() < RIM_STRETCH_MIN * cum[-1] or _folds_back(np.diff(Y, axis=0)):
         return None
     return np.diff(np.interp(cum, s, np.r_[0.0, np.cumsum(counted)]))
+
+
+def _edge_fractions(cum: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where the lengths ``s`` (k,) fall on a closed polygon whose edges end at the
+    cumulative lengths ``cum`` (p + 1, from 0): each one's edge (k int, below p) and the
+    fraction of that edge before it (k float)."""
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(cum) - 2)
+    return i, (s - cum[i]) / np.maximum(cum[i + 1] - cum[i], 1e-300)
 
 
 def _folds_back(D: np.ndarray) -> bool:
