@@ -57,6 +57,19 @@ def on_surface(X, mesh):
     return d.max() / bounding_box_diagonal(mesh.V)
 
 
+def off_surface_limit(r, mesh) -> float:
+    """The farthest the vertices of the remesh ``r`` may lie from ``mesh``, over its bounding
+    box diagonal (:func:`on_surface`): rounding where it was not fitted to the surface (every
+    vertex lifted by eq. 1), else the fit's cap, ``OFFSET_CAP`` × the target edge length
+    (:mod:`pipeline.geometry.remesh.fit`)."""
+    from pipeline.geometry.remesh.fit import OFFSET_CAP
+
+    improve = r.info.get("improve", {})
+    if "fit" not in improve:
+        return 1e-9
+    return OFFSET_CAP * improve["target_edge_length"] / bounding_box_diagonal(mesh.V) + 1e-9
+
+
 def disk_map(tent: float = 0.0):
     """A unit disk mesh parameterized by its xy coordinates, with a tent of height ``tent``
     (radius 0.25) at its centre: ``(uv_in, F_in, V_in, loop, locator)``."""

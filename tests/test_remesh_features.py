@@ -65,14 +65,15 @@ def test_remesh_puts_vertices_on_the_crease_and_keeps_the_edges_between_them():
     """The folded disk (slope 2) remeshed at 1000 vertices, ``follow_input`` off: without
     feature lines two remesh vertices lie on the crease and an input vertex of it is 0.35 L
     from the remesh; with them (30°) 22 do, every two consecutive ones are joined by an edge,
-    and every input vertex of the crease lies on the remesh (to rounding), with the count, one
-    disk and the smallest angle still at least 20°."""
+    and every input vertex of the crease lies on the remesh (to rounding; not fitted to the
+    surface, every vertex on it), with the count, one disk and the smallest angle still at
+    least 20°."""
     uv, F, V, loop, _ = creased_disk(2.0)
     crease = on_crease(uv)
     facts = {}
     for angle in (0.0, 30.0):
         r = uniform_remesh(V, F, uv, loop, vertices=1000, follow_input=0.0,
-                           feature_angle_deg=angle)
+                           feature_angle_deg=angle, fit_surface=False)
         L = r.info["spacing_mesh_units"]
         on = on_crease(r.uv)
         joined = [tuple(sorted(p)) for p in zip(on[:-1].tolist(), on[1:].tolist())]

@@ -11,13 +11,14 @@ import pytest
 
 from conftest import require_data, run_cli
 from pipeline.geometry import topology as topo
-from pipeline.geometry.remesh_quality import (is_disk, is_disk_with_holes, mesh_facts,
+from pipeline.geometry.remesh_quality import (bounding_box_diagonal, is_disk,
+                                              is_disk_with_holes, mesh_facts,
                                               point_mesh_distance, remesh_quality)
 from pipeline.geometry.remesh.uniform import uniform_remesh
 from pipeline.geometry.repair import RepairOptions, open_mesh, repair_mesh
 from pipeline.geometry.rows import norms
 from pipeline.stages.remesh import RemeshConfig, remesh_stage
-from remesh_helpers import remesh_map
+from remesh_helpers import off_surface_limit, remesh_map
 
 SQUARE = (-0.55, -0.2, -0.2, 0.2)        # x0, x1, y0, y1
 ROUND = (0.4, 0.1, 0.22)                 # cx, cy, r
@@ -135,10 +136,12 @@ def test_the_plain_lift_leaves_the_kept_holes_out(holed):
 
 
 def test_the_remesh_stays_on_the_open_input(holed):
+    """Every vertex within the fit's cap of the input with its holes open (the fit samples
+    the open input: none is pulled towards the fans' surface)."""
     _, mesh, _, r = holed
     V, F = open_mesh(mesh)
     d, _ = point_mesh_distance(r.V, V, F)
-    assert d.max() <= 1e-9
+    assert d.max() / bounding_box_diagonal(V) <= off_surface_limit(r, mesh)
 
 
 def test_cover_holes_is_the_remesh_of_the_filled_disk(holed):

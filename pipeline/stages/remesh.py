@@ -69,6 +69,9 @@ class ImproveConfig(Section):
     feature_angle_deg: float = Field(FOLD_BACK_DEG, ge=0.0, le=180.0)   # vertices and edges
                                                 # kept along input edges folded more than this
                                                 # (0: none; disk maps only)
+    fit_surface: bool = True                    # vertices offset along their normals to
+                                                # the least-squares fit of the input (at most
+                                                # 0.1 × spacing); false: every vertex on it
 
 
 MIN_VERTICES = 100          # fewer cannot cover a disk with a lattice and its rim

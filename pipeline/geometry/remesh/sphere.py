@@ -21,7 +21,9 @@ sphere): sample → triangulate → locate → lift → improve.
 5. **Improve** the triangles' shape on the surface with the disk remesher's pass
    (:func:`.improve.improve_remesh`, split / collapse / flip / relaxation judged by 3D lengths
    and angles), every vertex a sphere position lifted by eq. (1) and every face positively
-   oriented on the sphere (:mod:`.domain`), so the result is a closed genus-0 manifold.
+   oriented on the sphere (:mod:`.domain`), so the result is a closed genus-0 manifold; then,
+   as on the disk, the vertices offset along their normals to the least-squares fit of the
+   input (``fit_surface``, :mod:`.fit`).
 
 Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks`` the
 improvement first puts a locked vertex on each one's input vertex

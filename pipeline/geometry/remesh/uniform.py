@@ -9,7 +9,9 @@ lift → improve.
 4. **Lift** it by eq. (1): a sample ``z`` in image face ``[f_i, f_j, f_k]`` goes to
    ``(|[z, f_j, f_k]| v_i + |[f_i, z, f_k]| v_j + |[f_i, f_j, z]| v_k) / |[f_i, f_j, f_k]|``.
 5. **Improve** (optional, :mod:`.improve`) the triangles' shape on the surface, every vertex
-   staying on it and every face counter-clockwise on the disk.
+   staying on it and every face counter-clockwise on the disk; then (``fit_surface``) offset
+   the vertices along their normals to the least-squares fit of the input (:mod:`.fit`): the
+   remesh approximates the surface instead of interpolating it.
 
 Landmarks go to the nearest new vertex (:mod:`.landmarks`); with ``exact_landmarks`` and the
 improvement pass, the interior ones have a locked vertex put on their input vertex first (a
@@ -22,6 +24,7 @@ end (:mod:`.holes`): the remesh is a disk with those holes, as the input was bef
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +37,7 @@ from .angles import corner_angles_deg, forced_corners, input_vertex_under
 from .corners import boundary_corners, interior_corners, ragged_boundary, vertex_turning
 from .domain import on_sphere
 from .fidelity import input_distance
+from .fit import fit_to_input
 from .holes import cut_holes, lift_with_holes_cut, loop_of_fans
 from .halfedge import double_areas
 from .improve import Stopwatch, improve_remesh, skinny_faces
@@ -49,7 +53,8 @@ class RemeshResult:
     Attributes
     ----------
     V : (n, 3) float
-        Vertices, on the input surface (after improvement if on).
+        Vertices: on the input surface, or with ``fit_surface`` within ``OFFSET_CAP × L`` of
+        it along their normals (:mod:`.fit`).
     F : (m, 3) int
         Faces, counter-clockwise on the disk.
     uv : (n, 2) float
@@ -104,7 +109,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
                    min_angle_deg: float = 20.0, follow_input: float = 0.25,
                    feature_angle_deg: float = 0.0, landmarks: dict | None = None,
                    exact_landmarks: bool = False, hole_loops: list | None = None,
-                   fans: np.ndarray | None = None) -> RemeshResult:
+                   fans: np.ndarray | None = None, fit_surface: bool = True) -> RemeshResult:
     """Remesh a disk uniformly through its bijective equiareal disk map (module docstring).
 
     The values are taken as given (the caller validates them).
@@ -142,6 +147,9 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
         ``vertices`` once the faces in the holes are cut away (:func:`with_holes_filled`).
     fans : (M,) bool, optional
         The input faces that fill the holes (with ``hole_loops``).
+    fit_surface : bool
+        With ``improve``, offset the vertices along their normals to the least-squares fit
+        of the input (:mod:`.fit`); else every vertex stays on the input surface.
 
     Returns
     -------
@@ -192,6 +200,7 @@ def uniform_remesh(V: np.ndarray, F: np.ndarray, uv: np.ndarray, boundary: np.nd
             follow_input=follow_input, feature_angle_deg=feature_angle_deg,
             landmarks_uv=uv[interior_landmarks(landmarks if exact_landmarks else None,
                                                boundary)],
+            fit_surface=fit_surface,
             **({"hole_loops": hole_loops, "fans": fans} if holes else {})))
         X, F_out, uv_out, face, bary = S.X, S.F, S.uv, S.face, S.bary
         input_tree = built_input_distance(S)
@@ -263,12 +272,15 @@ def built_input_distance(S: RemeshState) -> MeshDistance | None:
 
 
 def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndarray, *,
-                  min_angle_deg: float, fans: np.ndarray | None = None, **params) -> dict:
+                  min_angle_deg: float, fans: np.ndarray | None = None,
+                  fit_surface: bool = True, **params) -> dict:
     """Run :func:`.improve.improve_remesh` on ``S`` (either domain), with ``fans`` (M bool,
     the input faces that fill the holes of ``params["hole_loops"]``) cut the holes out
-    (:func:`.holes.cut_holes`), and return what the remesh's ``info["improve"]`` says of it:
-    the operation counts and seconds per step, the target length and the faces left below
-    ``min_angle_deg`` (:func:`below_min_angle`).
+    (:func:`.holes.cut_holes`), with ``fit_surface`` offset the vertices to the
+    least-squares fit of the input (:func:`.fit.fit_to_input`), and return what the remesh's
+    ``info["improve"]`` says of it: the operation counts and seconds per step, the target
+    length, the fit's offsets and the faces left below ``min_angle_deg``
+    (:func:`below_min_angle`).
 
     Parameters
     ----------
@@ -281,6 +293,7 @@ def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndar
     corners : (k, 2) or (k, 3) float
         Domain positions of the sharp interior input vertices, sharpest first.
     min_angle_deg : float
+    fit_surface : bool
     **params
         The other keywords of :func:`.improve.improve_remesh`.
 
@@ -293,6 +306,15 @@ def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndar
     if fans is not None:
         cut_holes(S, loop_of_fans(S.F_in, fans, params["hole_loops"]))
     imp = {"enabled": True, "target_edge_length": float(L), **S.log}
+    if fit_surface:
+        t = time.perf_counter()
+        if fans is None:
+            imp["fit"] = fit_to_input(S, L, min_angle_deg, S.F_in, S.of_input(input_distance))
+        else:
+            open_faces = S.F_in[~fans]
+            imp["fit"] = fit_to_input(S, L, min_angle_deg, open_faces,
+                                      MeshDistance(S.V_in, open_faces))
+        imp.setdefault("seconds", {})["fit"] = time.perf_counter() - t
     imp["below_min_angle"] = below_min_angle(S, S.V_in, min_angle_deg)
     imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     return imp
