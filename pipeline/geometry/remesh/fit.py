@@ -43,6 +43,7 @@ from ..remesh_quality import (MeshDistance, _random_samples, closest_points_on_t
 from ..rows import cross, dots, norms
 from ..solvers import pcg
 from .angles import face_min_angles
+from .halfedge import CSR, vertex_faces
 from .state import RemeshState, face_normals
 
 __all__ = ["FIT_SAMPLES", "OFFSET_CAP", "vertex_normals", "offset_equations",
@@ -119,26 +120,29 @@ class Equations:
     to the remesh; the others are points of the remesh, measured to the input."""
 
     def __init__(self, F: np.ndarray, face: np.ndarray, bary: np.ndarray, vals: np.ndarray,
-                 r: np.ndarray, t: np.ndarray, w: np.ndarray, P_in: np.ndarray):
+                 r: np.ndarray, t: np.ndarray, w: np.ndarray, P_in: np.ndarray,
+                 corners: np.ndarray | None = None):
         self.F, self.face, self.bary, self.vals = F, face, bary, vals
         self.r, self.t, self.w, self.P_in = r, t, w, P_in
-        self.corners = F.take(face, axis=0)
+        self.corners = F.take(face, axis=0) if corners is None else corners    # (k, 3)
         self.before = np.sqrt(t ** 2 + r ** 2)
 
-    def exact_distances(self, rows: np.ndarray, Y: np.ndarray, to_input: MeshDistance
-                        ) -> tuple[np.ndarray, np.ndarray]:
+    def exact_distances(self, rows: np.ndarray, Y: np.ndarray, around: CSR,
+                        to_input: MeshDistance) -> tuple[np.ndarray, np.ndarray]:
         """The exact distances (k,) of the samples ``rows`` (k int) when the remesh's vertices
-        are at ``Y`` (n×3), and the remesh face each is then measured at (an input point's
-        closest one)."""
+        are at ``Y`` (n×3), and the remesh face each is then measured at: an input point's
+        distance to the nearest of the faces ``around`` (the faces at each vertex) the corners
+        of its face before (at most its distance to the whole remesh: the guards err towards
+        undoing), a remesh point's to the input (``to_input``)."""
         k_in = len(self.P_in)
-        mine, theirs = rows[rows < k_in], rows[rows >= k_in]
+        mine, theirs = rows < k_in, rows >= k_in
         d, face = np.empty(len(rows)), self.face[rows].copy()
-        if len(mine):
-            d[rows < k_in], face[rows < k_in] = MeshDistance(Y, self.F)(self.P_in[mine])
-        if len(theirs):
-            R = np.einsum("kj,kjd->kd", self.bary[theirs],
-                          Y.take(self.corners[theirs], axis=0))
-            d[rows >= k_in] = to_input(R)[0]
+        if mine.any():
+            d[mine], face[mine] = _nearest_among(self.P_in[rows[mine]],
+                                                 self.corners[rows[mine]], around, Y, self.F)
+        if theirs.any():
+            R = _points_in(Y, self.corners[rows[theirs]], self.bary[rows[theirs]])
+            d[theirs] = to_input(R)[0]
         return d, face
 
     def normal_equations(self, n: int) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -158,6 +162,27 @@ class Equations:
         corner_r = np.column_stack([np.bincount(self.face, wv[:, j] * self.r, minlength=m)
                                     for j in range(3)])
         return A, np.bincount(self.F.ravel(), corner_r.ravel(), minlength=n)
+
+
+def _points_in(Y: np.ndarray, corners: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """The points (k×3) at barycentric coordinates ``bary`` (k×3) of the triangles of ``Y``
+    with the ``corners`` (k×3 vertex indices)."""
+    return sum(bary[:, j:j + 1] * Y.take(corners[:, j], axis=0) for j in range(3))
+
+
+def _nearest_among(P: np.ndarray, corners: np.ndarray, around: CSR, Y: np.ndarray,
+                   F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distance (k,) of each point ``P`` (k×3) to the nearest of the faces ``F`` of ``Y``
+    that hold one of its ``corners`` (k×3 vertices; ``around``: each vertex's faces), and
+    that face (k,)."""
+    rid, faces = topo.csr_rows(around.indptr, around.indices, corners.ravel())
+    rid //= 3
+    T = Y.take(F.take(faces, axis=0), axis=0)
+    Q = P.take(rid, axis=0)
+    dist = norms(Q - closest_points_on_triangles(Q, T[:, 0], T[:, 1], T[:, 2]))
+    order = np.lexsort((dist, rid))
+    first = order[np.r_[True, rid[order][1:] != rid[order][:-1]]]
+    return dist[first], faces[first]
 
 
 def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarray,
@@ -192,8 +217,7 @@ def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarr
     corner[F.ravel()] = np.arange(F.size)
     f_out = np.concatenate([f_q, corner // 3])
     b_out = np.vstack([b_q, np.eye(3)[corner % 3]])
-    T = tri.take(f_out, axis=0)
-    R = b_out[:, :1] * T[:, 0] + b_out[:, 1:2] * T[:, 1] + b_out[:, 2:] * T[:, 2]
+    R = _points_in(X, F.take(f_out, axis=0), b_out)
     _, g = to_input(R)
     G = to_input.V.take(to_input.F.take(g, axis=0), axis=0)
     e_out = R - closest_points_on_triangles(R, G[:, 0], G[:, 1], G[:, 2])
@@ -203,11 +227,13 @@ def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarr
     faces = np.concatenate([f_in, f_out])
     normal = np.vstack([nf, ng])
     bary = np.vstack([b_in, b_out])
-    vals = bary * np.einsum("kd,kjd->kj", normal, N.take(F.take(faces, axis=0), axis=0))
+    corners = F.take(faces, axis=0)
+    vals = np.column_stack([bary[:, j] * dots(normal, N.take(corners[:, j], axis=0))
+                            for j in range(3)])
     r = np.concatenate([r_in, -r_out])
     t2 = np.concatenate([dots(e, e) - r_in ** 2, dots(e_out, e_out) - r_out ** 2])
     w = np.concatenate([w_in / max(2.0 * w_in.sum(), 1e-300), w_out, np.zeros(n)])
-    return Equations(F, faces, bary, vals, r, np.sqrt(np.maximum(t2, 0.0)), w, P_in)
+    return Equations(F, faces, bary, vals, r, np.sqrt(np.maximum(t2, 0.0)), w, P_in, corners)
 
 
 def least_squares_offsets(eq: Equations, free: np.ndarray) -> np.ndarray:
@@ -234,8 +260,12 @@ class Guards:
     """What the offsets of :func:`guarded_offsets` are checked against, for the remesh
     ``(X, F)`` with vertex normals ``N``: the linearised distances ``eq``, the input's distance
     tree ``to_input`` and its unit face normals ``normals_in``, the smallest angle each face
-    may keep (``floor``, m degrees: ``min_angle_deg`` or its own, whichever is less) and the
-    farthest any sample of ``eq`` was (``reach``)."""
+    may keep (``floor``, m degrees: ``min_angle_deg`` or its own, whichever is less), the
+    farthest any sample of ``eq`` was (``reach``) and the faces the measure's fold test finds
+    before any offset (``folded_before``).
+
+    :meth:`failed` measures again only what the offsets changed since its last call (the
+    vertices whose offset changed, the faces at them); :meth:`start` forgets that."""
 
     def __init__(self, X: np.ndarray, F: np.ndarray, N: np.ndarray, eq: Equations,
                  to_input: MeshDistance, normals_in: np.ndarray, min_angle_deg: float):
@@ -245,35 +275,68 @@ class Guards:
         self.reach = float(eq.before.max(initial=0.0))
         self.normals = face_normals(X, F)
         self.under = normals_in.take(to_input(X)[1], axis=0)
+        self.around = vertex_faces(F, len(X))
+        self.folded_before = self._folded(X, np.arange(len(F)), self.under)
+        self.start()
+
+    def start(self) -> None:
+        """Measure everything again at the next call of :meth:`failed`."""
+        self.last = np.zeros(len(self.X))
+        self.under_now = self.under.copy()
+        self.folded_now = self.folded_before.copy()
+        self.distance_now = np.full(len(self.eq.before), np.nan)
+        self.face_now = self.eq.face.copy()
+
+    def _folded(self, Y: np.ndarray, faces: np.ndarray, under: np.ndarray) -> np.ndarray:
+        """The measure's fold test (:func:`..remesh_quality.turned_over_faces`) of the
+        ``faces`` (k,) of ``(Y, F)``: the face's normal against the normals of the input faces
+        nearest its centroid and each of its corners (``under``, n×3)."""
+        T = Y.take(self.F.take(faces, axis=0), axis=0)
+        normal = cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+        centroid = self.normals_in.take(self.to_input(T.mean(axis=1))[1], axis=0)
+        against = dots(normal, centroid) < 0
+        for j in range(3):
+            against &= dots(normal, under.take(self.F[faces, j], axis=0)) < 0
+        return against
 
     def failed(self, offsets: np.ndarray) -> dict[str, np.ndarray]:
         """The faces (m bool each) that the ``offsets`` turn by more than ``TURN_DEG``
-        (``turned``); turn against the input normal under one of their corners that they did
-        not face away from before (``folded``: the measure's fold test changes only so); whose
-        corner they take nearer an input face turned against the one it was nearest (``sheet``:
-        across a lip's fold to the other lip); leave with a smallest angle below ``floor``
-        (``angles``); or that hold a sample of ``eq`` they take farther than ``reach``."""
+        (``turned``); that the measure's fold test finds and did not before (``folded``);
+        whose corner they take nearer an input face turned against the one it was nearest
+        (``sheet``: across a lip's fold to the other lip); that they leave with a smallest
+        angle below ``floor`` (``angles``); or that hold a sample farther than ``FAR_SHARE``
+        × ``reach`` that they take farther still (``reach``)."""
         F = self.F
-        moved = offsets != 0.0
         Y = self.X + offsets[:, None] * self.N
+        changed = np.flatnonzero(offsets != self.last)
+        at = np.zeros(len(F), bool)
+        at[topo.csr_rows(self.around.indptr, self.around.indices, changed)[1]] = True
+        at = np.flatnonzero(at)
+        if len(changed):
+            self.under_now[changed] = self.normals_in.take(self.to_input(Y[changed])[1],
+                                                           axis=0)
+            self.folded_now[at] = self._folded(Y, at, self.under_now)
+        self.last = offsets.copy()
+        crossed = dots(self.under_now, self.under) < 0
         after = face_normals(Y, F)
-        corners = self.under.take(F, axis=0)
-        folded = np.any((np.einsum("ij,ikj->ik", after, corners) < 0)
-                        & (np.einsum("ij,ikj->ik", self.normals, corners) >= 0), axis=1)
-        crossed = np.zeros(len(Y), bool)
-        crossed[moved] = dots(self.normals_in.take(self.to_input(Y[moved])[1], axis=0),
-                              self.under[moved]) < 0
-        farther = np.zeros(len(F), bool)
         # an offset of at most |δ| moves a sample's distance by at most |δ|: only those that
-        # were within it of the bound can pass it; measured exactly
+        # were within it of the bound can pass it; measured exactly, again where a vertex of
+        # the faces around their corners moved
         bound = FAR_SHARE * self.reach
         near = np.flatnonzero(self.eq.before > bound - np.abs(offsets).max(initial=0.0))
-        d, face = self.eq.exact_distances(near, Y, self.to_input)
-        out = d > np.maximum(self.eq.before[near], bound) * (1 + FAR_RTOL)
-        farther[self.eq.face[near[out]]] = True
-        farther[face[out]] = True
+        ring = np.zeros(len(Y), bool)
+        ring[F[at]] = True
+        again = near[np.isnan(self.distance_now[near])
+                     | ring.take(self.eq.corners[near]).any(axis=1)]
+        self.distance_now[again], self.face_now[again] = self.eq.exact_distances(
+            again, Y, self.around, self.to_input)
+        out = near[self.distance_now[near]
+                   > np.maximum(self.eq.before[near], bound) * (1 + FAR_RTOL)]
+        farther = np.zeros(len(F), bool)
+        farther[self.eq.face[out]] = True
+        farther[self.face_now[out]] = True
         return {"turned": dots(after, self.normals) < np.cos(np.radians(TURN_DEG)),
-                "folded": folded,
+                "folded": self.folded_now & ~self.folded_before,
                 "sheet": crossed.take(F, axis=0).any(axis=1),
                 "angles": face_min_angles(Y, F) < self.floor,
                 "reach": farther}
@@ -286,6 +349,7 @@ def guarded_offsets(offsets: np.ndarray, guards: Guards) -> tuple[np.ndarray, di
     offsets and how many vertices each guard stopped."""
     offsets = offsets.copy()
     F = guards.F
+    guards.start()
     stopped: dict[str, int] = {}
     for _ in range(GUARD_ROUNDS):
         failed = guards.failed(offsets)
@@ -307,7 +371,9 @@ def input_guard_points(V_in: np.ndarray, F_in: np.ndarray, samples: int) -> np.n
     the faces ``F_in``, and where those faces are no more than the ``samples`` their edges'
     middles and their centroids — where the measure's largest distance from an input coarser
     than the remesh lies (a crease's corner or middle, a face's centre between creases)."""
-    P = V_in[np.unique(F_in)]
+    used = np.zeros(len(V_in), bool)
+    used[F_in.ravel()] = True
+    P = V_in[used]
     if len(F_in) > samples:
         return P
     E, _ = topo.edges_with_faces(F_in)
