@@ -100,7 +100,7 @@ def hexagon_fan(z: float = 0.0):
 
 def no_samples(F):
     return Equations(F, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
-                     np.zeros(0), np.zeros(0), np.zeros((0, 3)))
+                     np.zeros(0), np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
 
 
 def guards(X, F, eq, V_in=None, F_in=None, min_angle_deg=20.0):
@@ -127,8 +127,9 @@ def test_an_offset_that_takes_a_sample_beyond_the_farthest_is_undone():
     X, F = hexagon_fan()
     V_in, F_in = hexagon_fan(0.01)
     third = np.full((1, 3), 1 / 3)
+    above = X[F[0]].mean(axis=0) + [0.0, 0.0, 0.01]        # the input's point nearest it
     eq = Equations(F, np.array([0]), third, third, np.array([0.01]), np.zeros(1), np.ones(1),
-                   np.zeros((0, 3)))
+                   np.zeros((0, 3)), above[None])
     g = guards(X, F, eq, V_in, F_in)
     kept = np.r_[0.045, np.zeros(6)]
     assert np.array_equal(guarded_offsets(kept, g)[0], kept)

@@ -117,15 +117,22 @@ class Equations:
     distance along the normal it is measured along, ``t``: the part of its distance no normal
     offset changes); ``w``: its weight in the mean squared distance (0 for a sample that only
     the guards read). The first ``len(P_in)`` samples are the input points ``P_in``, measured
-    to the remesh; the others are points of the remesh, measured to the input."""
+    to the remesh; the others are points of the remesh, measured to the input. ``anchor``
+    (k×3): the point on the input each sample's remesh point was nearest or nearest to (an
+    input point itself, or the input's closest point to a remesh point)."""
 
     def __init__(self, F: np.ndarray, face: np.ndarray, bary: np.ndarray, vals: np.ndarray,
                  r: np.ndarray, t: np.ndarray, w: np.ndarray, P_in: np.ndarray,
-                 corners: np.ndarray | None = None):
+                 anchor: np.ndarray, corners: np.ndarray | None = None):
         self.F, self.face, self.bary, self.vals = F, face, bary, vals
-        self.r, self.t, self.w, self.P_in = r, t, w, P_in
+        self.r, self.t, self.w, self.P_in, self.anchor = r, t, w, P_in, anchor
         self.corners = F.take(face, axis=0) if corners is None else corners    # (k, 3)
         self.before = np.sqrt(t ** 2 + r ** 2)
+
+    def bounds(self, rows: np.ndarray, Y: np.ndarray) -> np.ndarray:
+        """Upper bounds (k,) of the distances of the samples ``rows`` when the remesh's
+        vertices are at ``Y``: from each one's ``anchor`` to its remesh point moved along."""
+        return norms(self.anchor[rows] - _points_in(Y, self.corners[rows], self.bary[rows]))
 
     def exact_distances(self, rows: np.ndarray, Y: np.ndarray, around: CSR,
                         to_input: MeshDistance) -> tuple[np.ndarray, np.ndarray]:
@@ -176,13 +183,15 @@ def _nearest_among(P: np.ndarray, corners: np.ndarray, around: CSR, Y: np.ndarra
     that hold one of its ``corners`` (k×3 vertices; ``around``: each vertex's faces), and
     that face (k,)."""
     rid, faces = topo.csr_rows(around.indptr, around.indices, corners.ravel())
-    rid //= 3
+    rid //= 3                                  # grouped by point, in order
     T = Y.take(F.take(faces, axis=0), axis=0)
     Q = P.take(rid, axis=0)
     dist = norms(Q - closest_points_on_triangles(Q, T[:, 0], T[:, 1], T[:, 2]))
-    order = np.lexsort((dist, rid))
-    first = order[np.r_[True, rid[order][1:] != rid[order][:-1]]]
-    return dist[first], faces[first]
+    starts = np.flatnonzero(np.r_[True, rid[1:] != rid[:-1]])
+    least = np.minimum.reduceat(dist, starts)
+    at = np.flatnonzero(dist == np.repeat(least, np.diff(np.r_[starts, len(dist)])))
+    first = at[np.r_[True, rid[at][1:] != rid[at][:-1]]]
+    return least, faces[first]
 
 
 def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarray,
@@ -233,7 +242,8 @@ def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarr
     r = np.concatenate([r_in, -r_out])
     t2 = np.concatenate([dots(e, e) - r_in ** 2, dots(e_out, e_out) - r_out ** 2])
     w = np.concatenate([w_in / max(2.0 * w_in.sum(), 1e-300), w_out, np.zeros(n)])
-    return Equations(F, faces, bary, vals, r, np.sqrt(np.maximum(t2, 0.0)), w, P_in, corners)
+    return Equations(F, faces, bary, vals, r, np.sqrt(np.maximum(t2, 0.0)), w, P_in,
+                     np.vstack([P_in, R - e_out]), corners)
 
 
 def least_squares_offsets(eq: Equations, free: np.ndarray) -> np.ndarray:
@@ -290,13 +300,18 @@ class Guards:
     def _folded(self, Y: np.ndarray, faces: np.ndarray, under: np.ndarray) -> np.ndarray:
         """The measure's fold test (:func:`..remesh_quality.turned_over_faces`) of the
         ``faces`` (k,) of ``(Y, F)``: the face's normal against the normals of the input faces
-        nearest its centroid and each of its corners (``under``, n×3)."""
-        T = Y.take(self.F.take(faces, axis=0), axis=0)
+        nearest each of its corners (``under``, n×3) and its centroid (looked up only for the
+        faces against all three corners)."""
+        corners = self.F.take(faces, axis=0)
+        T = Y.take(corners, axis=0)
         normal = cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
-        centroid = self.normals_in.take(self.to_input(T.mean(axis=1))[1], axis=0)
-        against = dots(normal, centroid) < 0
+        against = np.ones(len(faces), bool)
         for j in range(3):
-            against &= dots(normal, under.take(self.F[faces, j], axis=0)) < 0
+            against &= dots(normal, under.take(corners[:, j], axis=0)) < 0
+        k = np.flatnonzero(against)
+        if len(k):
+            centroid = self.normals_in.take(self.to_input(T[k].mean(axis=1))[1], axis=0)
+            against[k] = dots(normal[k], centroid) < 0
         return against
 
     def failed(self, offsets: np.ndarray) -> dict[str, np.ndarray]:
@@ -319,15 +334,20 @@ class Guards:
         self.last = offsets.copy()
         crossed = dots(self.under_now, self.under) < 0
         after = face_normals(Y, F)
-        # an offset of at most |δ| moves a sample's distance by at most |δ|: only those that
-        # were within it of the bound can pass it; measured exactly, again where a vertex of
-        # the faces around their corners moved
+        # the offsets of a sample's face's corners move its point (or its closest point) by
+        # at most their largest size: only the samples within that of the bound can pass it;
+        # measured exactly, again where a vertex of the faces around their corners moved
         bound = FAR_SHARE * self.reach
-        near = np.flatnonzero(self.eq.before > bound - np.abs(offsets).max(initial=0.0))
+        reach = np.abs(offsets).take(self.eq.corners).max(axis=1, initial=0.0)
+        near = np.flatnonzero(self.eq.before + reach > bound)
         ring = np.zeros(len(Y), bool)
         ring[F[at]] = True
         again = near[np.isnan(self.distance_now[near])
                      | ring.take(self.eq.corners[near]).any(axis=1)]
+        self.distance_now[again] = self.eq.bounds(again, Y)      # enough where within
+        self.face_now[again] = self.eq.face[again]
+        again = again[self.distance_now[again]
+                      > np.maximum(self.eq.before[again], bound) * (1 + FAR_RTOL)]
         self.distance_now[again], self.face_now[again] = self.eq.exact_distances(
             again, Y, self.around, self.to_input)
         out = near[self.distance_now[near]
