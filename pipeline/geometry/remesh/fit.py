@@ -118,8 +118,8 @@ class Equations:
     offset changes); ``w``: its weight in the mean squared distance (0 for a sample that only
     the guards read). The first ``len(P_in)`` samples are the input points ``P_in``, measured
     to the remesh; the others are points of the remesh, measured to the input. ``anchor``
-    (k×3): the point on the input each sample's remesh point was nearest or nearest to (an
-    input point itself, or the input's closest point to a remesh point)."""
+    (k×3): each sample's point on the input (the input point itself, or the input's point
+    nearest the remesh point)."""
 
     def __init__(self, F: np.ndarray, face: np.ndarray, bary: np.ndarray, vals: np.ndarray,
                  r: np.ndarray, t: np.ndarray, w: np.ndarray, P_in: np.ndarray,
