@@ -41,6 +41,7 @@ from .. import topology as topo
 from ..remesh_quality import (MeshDistance, _random_samples, closest_points_on_triangles,
                               face_centroids)
 from ..rows import cross, dots, norms
+from ..locate import lift
 from ..solvers import pcg
 from .angles import face_min_angles
 from .halfedge import CSR, vertex_faces
@@ -119,20 +120,23 @@ class Equations:
     the guards read). The first ``len(P_in)`` samples are the input points ``P_in``, measured
     to the remesh; the others are points of the remesh, measured to the input. ``anchor``
     (k×3): each sample's point on the input (the input point itself, or the input's point
-    nearest the remesh point)."""
+    nearest the remesh point); ``vertex_input_face`` (n): the input face nearest each remesh
+    vertex (the last n samples are the vertices)."""
 
     def __init__(self, F: np.ndarray, face: np.ndarray, bary: np.ndarray, vals: np.ndarray,
                  r: np.ndarray, t: np.ndarray, w: np.ndarray, P_in: np.ndarray,
-                 anchor: np.ndarray, corners: np.ndarray | None = None):
+                 anchor: np.ndarray, vertex_input_face: np.ndarray | None = None,
+                 corners: np.ndarray | None = None):
         self.F, self.face, self.bary, self.vals = F, face, bary, vals
         self.r, self.t, self.w, self.P_in, self.anchor = r, t, w, P_in, anchor
+        self.vertex_input_face = vertex_input_face
         self.corners = F.take(face, axis=0) if corners is None else corners    # (k, 3)
         self.before = np.sqrt(t ** 2 + r ** 2)
 
     def bounds(self, rows: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """Upper bounds (k,) of the distances of the samples ``rows`` when the remesh's
         vertices are at ``Y``: from each one's ``anchor`` to its remesh point moved along."""
-        return norms(self.anchor[rows] - _points_in(Y, self.corners[rows], self.bary[rows]))
+        return norms(self.anchor[rows] - lift(Y, self.F, self.face[rows], self.bary[rows]))
 
     def exact_distances(self, rows: np.ndarray, Y: np.ndarray, around: CSR,
                         to_input: MeshDistance) -> tuple[np.ndarray, np.ndarray]:
@@ -148,7 +152,7 @@ class Equations:
             d[mine], face[mine] = _nearest_among(self.P_in[rows[mine]],
                                                  self.corners[rows[mine]], around, Y, self.F)
         if theirs.any():
-            R = _points_in(Y, self.corners[rows[theirs]], self.bary[rows[theirs]])
+            R = lift(Y, self.F, self.face[rows[theirs]], self.bary[rows[theirs]])
             d[theirs] = to_input(R)[0]
         return d, face
 
@@ -169,12 +173,6 @@ class Equations:
         corner_r = np.column_stack([np.bincount(self.face, wv[:, j] * self.r, minlength=m)
                                     for j in range(3)])
         return A, np.bincount(self.F.ravel(), corner_r.ravel(), minlength=n)
-
-
-def _points_in(Y: np.ndarray, corners: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """The points (k×3) at barycentric coordinates ``bary`` (k×3) of the triangles of ``Y``
-    with the ``corners`` (k×3 vertex indices)."""
-    return sum(bary[:, j:j + 1] * Y.take(corners[:, j], axis=0) for j in range(3))
 
 
 def _nearest_among(P: np.ndarray, corners: np.ndarray, around: CSR, Y: np.ndarray,
@@ -226,7 +224,7 @@ def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarr
     corner[F.ravel()] = np.arange(F.size)
     f_out = np.concatenate([f_q, corner // 3])
     b_out = np.vstack([b_q, np.eye(3)[corner % 3]])
-    R = _points_in(X, F.take(f_out, axis=0), b_out)
+    R = lift(X, F, f_out, b_out)
     _, g = to_input(R)
     G = to_input.V.take(to_input.F.take(g, axis=0), axis=0)
     e_out = R - closest_points_on_triangles(R, G[:, 0], G[:, 1], G[:, 2])
@@ -243,7 +241,7 @@ def offset_equations(X: np.ndarray, F: np.ndarray, N: np.ndarray, P_in: np.ndarr
     t2 = np.concatenate([dots(e, e) - r_in ** 2, dots(e_out, e_out) - r_out ** 2])
     w = np.concatenate([w_in / max(2.0 * w_in.sum(), 1e-300), w_out, np.zeros(n)])
     return Equations(F, faces, bary, vals, r, np.sqrt(np.maximum(t2, 0.0)), w, P_in,
-                     np.vstack([P_in, R - e_out]), corners)
+                     np.vstack([P_in, R - e_out]), g[len(f_q):], corners)
 
 
 def least_squares_offsets(eq: Equations, free: np.ndarray) -> np.ndarray:
@@ -284,7 +282,9 @@ class Guards:
         self.floor = np.minimum(face_min_angles(X, F), min_angle_deg)
         self.reach = float(eq.before.max(initial=0.0))
         self.normals = face_normals(X, F)
-        self.under = normals_in.take(to_input(X)[1], axis=0)
+        nearest = (eq.vertex_input_face if eq.vertex_input_face is not None
+                   else to_input(X)[1])
+        self.under = normals_in.take(nearest, axis=0)
         self.around = vertex_faces(F, len(X))
         self.folded_before = self._folded(X, np.arange(len(F)), self.under)
         self.start()

@@ -24,7 +24,6 @@ end (:mod:`.holes`): the remesh is a disk with those holes, as the input was bef
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -307,14 +306,14 @@ def improve_state(S: RemeshState, L: float, target: int | None, corners: np.ndar
         cut_holes(S, loop_of_fans(S.F_in, fans, params["hole_loops"]))
     imp = {"enabled": True, "target_edge_length": float(L), **S.log}
     if fit_surface:
-        t = time.perf_counter()
+        lap = Stopwatch(imp, within="seconds")
         if fans is None:
             imp["fit"] = fit_to_input(S, L, min_angle_deg, S.F_in, S.of_input(input_distance))
         else:
             open_faces = S.F_in[~fans]
             imp["fit"] = fit_to_input(S, L, min_angle_deg, open_faces,
                                       MeshDistance(S.V_in, open_faces))
-        imp.setdefault("seconds", {})["fit"] = time.perf_counter() - t
+        lap("fit")
     imp["below_min_angle"] = below_min_angle(S, S.V_in, min_angle_deg)
     imp["seconds"] = {k: float(v) for k, v in imp.get("seconds", {}).items()}
     return imp
